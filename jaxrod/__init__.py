@@ -1,0 +1,66 @@
+"""jaxrod: equilibria and buckling of elastic rods under imposed twist.
+
+Importing jaxrod switches JAX to float64 (``jax_enable_x64``): buckling thresholds are
+located from eigenvalues that cross zero, which float32 cannot resolve.
+
+It also defaults the BLAS thread count to 1 (``OPENBLAS_NUM_THREADS`` etc., only if unset and
+only effective when jaxrod is imported before numpy/scipy): JAX's eigensolvers call LAPACK, and
+on small matrices a multi-threaded OpenBLAS was measured ~100x slower on a 2-core machine.
+"""
+import os as _os
+
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    _os.environ.setdefault(_var, "1")
+
+import jax  # noqa: E402
+
+jax.config.update("jax_enable_x64", True)
+
+from .material import Material  # noqa: E402
+from .scenes import (  # noqa: E402
+    ClampedRod,
+    ClosedRod,
+    FreeRod,
+    clamped_critical_twist,
+    clamped_rod,
+    closed_curve,
+    free_rod,
+    michell_critical_twist,
+    michell_ring,
+    ring,
+)
+from .solvers import LBFGS, ConvergenceError, Newton, Solution, minimise  # noqa: E402
+from .stability import Stability, stability, eigenvalue_phi_derivative  # noqa: E402
+from .equilibrium import Equilibrium, solve_equilibrium  # noqa: E402
+from .continuation import CriticalPoint, NoCrossingError, critical_twist  # noqa: E402
+from . import topology  # noqa: E402
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Material",
+    "ClosedRod",
+    "ClampedRod",
+    "FreeRod",
+    "ring",
+    "michell_ring",
+    "closed_curve",
+    "clamped_rod",
+    "free_rod",
+    "michell_critical_twist",
+    "clamped_critical_twist",
+    "LBFGS",
+    "Newton",
+    "Solution",
+    "ConvergenceError",
+    "minimise",
+    "Stability",
+    "stability",
+    "eigenvalue_phi_derivative",
+    "Equilibrium",
+    "solve_equilibrium",
+    "CriticalPoint",
+    "NoCrossingError",
+    "critical_twist",
+    "topology",
+]

@@ -1,0 +1,201 @@
+"""Geometry of discrete curves: edges, tangents, curvature binormals, parallel transport, frames.
+
+Conventions
+-----------
+* ``x`` has shape (N, 3): node positions. A closed curve has N edges, edge i joins node i to
+  node i+1 (mod N); an open curve has N-1 edges.
+* Frames are right-handed: for an edge with unit tangent t and reference director u, the second
+  director is v = t x u, and the material director at twist angle theta is
+  d1 = cos(theta) u + sin(theta) v. A twist angle that increases along the rod is a right-handed
+  (positive) twist.
+* Reference frames are *space-parallel*: u on edge i is u on edge i-1 parallel-transported to
+  edge i. Interior reference twist is then zero and all twist lives in the angles theta plus the
+  holonomy of the transport, which the boundary conditions handle (see ``jaxrod.boundary``).
+"""
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+__all__ = [
+    "edges",
+    "safe_norm",
+    "unit",
+    "curvature_binormals",
+    "parallel_transport",
+    "transport_along",
+    "signed_angle",
+    "tantrix_holonomy",
+    "perpendicular_unit",
+    "material_directors",
+    "node_directors",
+    "voronoi_lengths",
+    "resample_closed",
+]
+
+
+def safe_norm(v, axis=-1, keepdims=False, eps=1e-300):
+    """Euclidean norm whose gradient is finite at v = 0 (returns 0 there)."""
+    sq = jnp.sum(v * v, axis=axis, keepdims=keepdims)
+    positive = sq > eps
+    return jnp.where(positive, jnp.sqrt(jnp.where(positive, sq, 1.0)), 0.0)
+
+
+def unit(v, axis=-1):
+    """v / |v| along ``axis``."""
+    return v / jnp.linalg.norm(v, axis=axis, keepdims=True)
+
+
+def edges(x, closed):
+    """Edge vectors. x (N,3) -> (N,3) if closed else (N-1,3)."""
+    if closed:
+        return jnp.roll(x, -1, axis=0) - x
+    return x[1:] - x[:-1]
+
+
+def curvature_binormals(e_prev, e_next):
+    """Discrete curvature binormal kb = 2 e_prev x e_next / (|e_prev||e_next| + e_prev.e_next).
+
+    Shapes (M,3), (M,3) -> (M,3). |kb| = 2 tan(turning angle / 2); kb / (Voronoi length) is the
+    curvature vector kappa * binormal at the vertex shared by the two edges.
+    """
+    cross = jnp.cross(e_prev, e_next)
+    denom = jnp.linalg.norm(e_prev, axis=-1) * jnp.linalg.norm(e_next, axis=-1) + jnp.sum(
+        e_prev * e_next, axis=-1
+    )
+    return 2.0 * cross / denom[..., None]
+
+
+def parallel_transport(v, t_from, t_to):
+    """Transport vector(s) v from unit tangent t_from to unit tangent t_to.
+
+    The rotation about t_from x t_to that takes t_from to t_to, written without trigonometry so
+    that it is smooth everywhere except for antiparallel tangents (a hairpin, which a rod with
+    bending stiffness never reaches). Shapes broadcast over the leading axes, last axis 3.
+    """
+    c = jnp.cross(t_from, t_to)
+    d = jnp.sum(t_from * t_to, axis=-1, keepdims=True)
+    return v * d + jnp.cross(c, v) + c * jnp.sum(c * v, axis=-1, keepdims=True) / (1.0 + d)
+
+
+def transport_along(u0, tangents):
+    """Space-parallel reference directors: u0 transported edge by edge along ``tangents``.
+
+    u0 (3,) unit and perpendicular to tangents[0]; tangents (M,3) unit -> (M,3).
+    """
+
+    def step(u, pair):
+        t_from, t_to = pair
+        u_next = parallel_transport(u, t_from, t_to)
+        return u_next, u_next
+
+    _, rest = jax.lax.scan(step, u0, (tangents[:-1], tangents[1:]))
+    return jnp.concatenate([u0[None], rest], axis=0)
+
+
+def signed_angle(a, b, axis):
+    """Signed angle from a to b about ``axis`` (right-hand rule), in (-pi, pi]."""
+    return jnp.arctan2(jnp.sum(jnp.cross(a, b) * axis, axis=-1), jnp.sum(a * b, axis=-1))
+
+
+# Candidate poles for the tantrix area: 32 well-spread unit vectors (Fibonacci sphere).
+_K = 32
+_z = 1.0 - (2.0 * np.arange(_K) + 1.0) / _K
+_a = np.pi * (3.0 - 5.0**0.5) * np.arange(_K)
+_POLES = np.stack(
+    [(1 - _z**2) ** 0.5 * np.cos(_a), (1 - _z**2) ** 0.5 * np.sin(_a), _z], axis=1
+)
+
+
+def tantrix_holonomy(t):
+    """Rotation angle of parallel transport once round the closed tantrix t_0 -> ... -> t_{M-1}
+    -> t_0, modulo 2 pi (the value is not reduced: add any multiple of 2 pi).
+
+    t (M,3) unit tangents. By Gauss-Bonnet on the sphere, transport round a closed chain of
+    great-circle arcs rotates the frame by minus the enclosed area; the area is a sum of local
+    signed spherical triangles (pole, t_i, t_i+1) (Van Oosterom-Strackee). The sum changes by
+    multiples of 4 pi with the pole, so its value mod 2 pi and all its derivatives do not depend
+    on the pole; the pole is only chosen (piecewise constant, no gradient) as far as possible from
+    every -t_i, where single triangles are ill-conditioned. No sequential transport: O(M), vectorised.
+    """
+    poles = jnp.asarray(_POLES, dtype=t.dtype)
+    clearance = jnp.min(1.0 + t @ poles.T, axis=0)  # (K,): how close some t_i gets to -pole
+    p = poles[jnp.argmax(clearance)]
+    a, b = t, jnp.roll(t, -1, axis=0)
+    num = jnp.cross(a, b) @ p
+    den = 1.0 + a @ p + b @ p + jnp.sum(a * b, axis=-1)
+    return -jnp.sum(2.0 * jnp.arctan2(num, den))
+
+
+def perpendicular_unit(t):
+    """A unit vector perpendicular to the unit vector t (3,).
+
+    Built from the coordinate axis least aligned with t. The choice jumps between axes, but
+    nothing physical depends on it: energies use only twist *differences* and the holonomy,
+    both independent of the starting director.
+    """
+    axes = jnp.eye(3, dtype=t.dtype)
+    k = jnp.argmin(jnp.abs(t))
+    e = axes[k]
+    w = e - jnp.dot(e, t) * t
+    return w / jnp.linalg.norm(w)
+
+
+def material_directors(tangents, u_ref, theta):
+    """Material frame per edge from reference directors and twist angles.
+
+    tangents (M,3), u_ref (M,3), theta (M,) -> (d1, d2, d3) each (M,3), d3 = tangent.
+    """
+    v_ref = jnp.cross(tangents, u_ref)
+    c, s = jnp.cos(theta)[:, None], jnp.sin(theta)[:, None]
+    d1 = c * u_ref + s * v_ref
+    d2 = -s * u_ref + c * v_ref
+    return d1, d2, tangents
+
+
+def node_directors(x, d1_edges, closed):
+    """Director d1 at the nodes: the edge directors transported to the vertex tangent and averaged,
+    then projected on the plane normal to the vertex tangent and normalised.
+
+    x (N,3), d1_edges (M,3) -> (N,3). End nodes of an open rod take their single edge's director.
+    Used to draw the eccentric line (a stripe on the rod surface).
+    """
+    e = edges(x, closed)
+    t = unit(e)
+    if closed:
+        t_prev, d_prev = jnp.roll(t, 1, axis=0), jnp.roll(d1_edges, 1, axis=0)
+        t_next, d_next = t, d1_edges
+    else:
+        t_prev = jnp.concatenate([t[:1], t], axis=0)
+        d_prev = jnp.concatenate([d1_edges[:1], d1_edges], axis=0)
+        t_next = jnp.concatenate([t, t[-1:]], axis=0)
+        d_next = jnp.concatenate([d1_edges, d1_edges[-1:]], axis=0)
+    t_node = unit(t_prev + t_next)
+    d = parallel_transport(d_prev, t_prev, t_node) + parallel_transport(d_next, t_next, t_node)
+    d = d - jnp.sum(d * t_node, axis=-1, keepdims=True) * t_node
+    return unit(d)
+
+
+def voronoi_lengths(rest_lengths, closed):
+    """Length attached to each vertex that carries bending/twist: mean of its two edges.
+
+    rest_lengths (M,) -> (N,) for a closed rod (vertex i between edges i-1 and i),
+    (M-1,) for an open rod (interior vertices 1..M-1).
+    """
+    if closed:
+        return 0.5 * (jnp.roll(rest_lengths, 1) + rest_lengths)
+    return 0.5 * (rest_lengths[:-1] + rest_lengths[1:])
+
+
+def resample_closed(points, n):
+    """Resample a closed polyline (given as (M,3) points, last not repeating the first) to n
+    points equally spaced in arc length along the polyline. Returns a numpy array (n,3)."""
+    import numpy as np
+
+    p = np.asarray(points, dtype=float)
+    loop = np.vstack([p, p[:1]])
+    seg = np.linalg.norm(np.diff(loop, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    targets = np.linspace(0.0, s[-1], n, endpoint=False)
+    return np.stack([np.interp(targets, s, loop[:, k]) for k in range(3)], axis=1)

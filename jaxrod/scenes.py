@@ -1,0 +1,492 @@
+"""Boundary conditions and scenes: which degrees of freedom are free, how imposed twist enters,
+which energy terms are summed.
+
+A scene maps a flat vector of free degrees of freedom ``q`` and the imposed twist ``phi`` to the
+full rod state (nodes ``x`` (N,3), edge twist angles ``theta`` (M,)) and to its energy. All its
+methods are pure JAX functions of ``(q, phi)``; the scene object itself only holds constants, so
+``scene.energy`` can be passed to ``jax.jit``/``jax.grad``/``jax.hessian`` directly.
+
+Imposed twist without hidden state
+----------------------------------
+Reference frames are space-parallel (``jaxrod.geometry``), so the only geometric twist is the
+holonomy of parallel transport, which is known from atan2 only modulo 2 pi. Its branch is fixed
+by the Calugareanu-White relation Lk = Wr + Tw: for a closed rod the joint's reference twist
+must equal 2 pi (Lk0 - Wr(x)) up to rounding, with Wr the exact polygon writhe. The code takes the
+atan2 value plus 2 pi times the integer nearest to the difference (with the gradient stopped;
+an integer has none). The result is single-valued and smooth in (x, theta, phi) for any phi,
+as long as the rod does not pass through itself, and its derivatives stay local and cheap
+(the writhe itself is never differentiated). A clamped rod uses the writhe of the rod extended
+by two long rays along the clamp axis (the standard closure for a rod held at both ends).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from . import energy as E
+from .geometry import (
+    edges,
+    material_directors,
+    parallel_transport,
+    perpendicular_unit,
+    resample_closed,
+    signed_angle,
+    tantrix_holonomy,
+    transport_along,
+    unit,
+    voronoi_lengths,
+)
+from .material import Material, check_finite, check_int_at_least, check_positive
+from .topology import writhe
+
+__all__ = [
+    "Scene",
+    "ClosedRod",
+    "ClampedRod",
+    "FreeRod",
+    "ring",
+    "michell_ring",
+    "closed_curve",
+    "clamped_rod",
+    "free_rod",
+    "michell_critical_twist",
+    "clamped_critical_twist",
+]
+
+TWO_PI = 2.0 * math.pi
+
+
+def michell_critical_twist(nu):
+    """Michell's critical total twist of a ring: 2 pi sqrt(3) B/C = 2 pi sqrt(3) (1 + nu)."""
+    return TWO_PI * math.sqrt(3.0) * (1.0 + nu)
+
+
+def clamped_critical_twist(B, C):
+    """Critical twist of a straight rod clamped at both ends at fixed distance (no tension):
+    the end moment M = C phi / L reaches M L / B = 8.9868 (twice the first positive root of
+    tan x = x), so phi* = 8.9868 B / C."""
+    x = 4.493409457909064  # first positive root of tan x = x
+    return 2.0 * x * B / C
+
+
+def _lift(raw, target):
+    """raw + 2 pi k with k the integer nearest (target - raw)/(2 pi); k carries no gradient."""
+    k = jnp.round(jax.lax.stop_gradient((target - raw) / TWO_PI))
+    return raw + TWO_PI * k
+
+
+def _pytree(data_fields, meta_fields=()):
+    """Register a frozen dataclass as a JAX pytree: array fields are leaves (so scenes of equal
+    shapes share compiled code, and material parameters can be differentiated), the rest is
+    static. Unflattening bypasses __init__ so validation never sees tracers."""
+
+    def wrap(cls):
+        def flatten(obj):
+            return [getattr(obj, f) for f in data_fields], tuple(getattr(obj, f) for f in meta_fields)
+
+        def unflatten(aux, children):
+            obj = object.__new__(cls)
+            for f, v in zip(data_fields, children):
+                object.__setattr__(obj, f, v)
+            for f, v in zip(meta_fields, aux):
+                object.__setattr__(obj, f, v)
+            return obj
+
+        jax.tree_util.register_pytree_node(cls, flatten, unflatten)
+        return cls
+
+    return wrap
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    """Base class. Subclasses define the DOF layout and the vertex twists.
+
+    Attributes
+    ----------
+    material: Material (a pytree: B, C, EA, D are leaves)
+    rest_lengths: (M,) rest length of each edge.
+    q_init: (n,) an initial state of the free DOFs.
+    terms: names of the energy terms this scene sums.
+    """
+
+    material: Material
+    rest_lengths: np.ndarray
+    q_init: np.ndarray
+    terms: tuple = ("stretch", "bend", "twist")
+    name: str = "rod"
+
+    closed = False  # class constants, not fields
+    n_zero_modes = 0
+
+    # ------------------------------------------------------------------ layout
+    @property
+    def n_nodes(self):
+        m = self.rest_lengths.shape[0]
+        return m if self.closed else m + 1
+
+    @property
+    def length(self):
+        """Rest length of the rod."""
+        return jnp.sum(self.rest_lengths)
+
+    @property
+    def voronoi(self):
+        """(K,) rest length attached to each bending/twist vertex."""
+        return voronoi_lengths(self.rest_lengths, self.closed)
+
+    @property
+    def n_dof(self):
+        return int(self.q_init.shape[0])
+
+    @property
+    def length_scale(self):
+        """Mean edge length: unit of node displacements in the scaled variables."""
+        return jnp.mean(self.rest_lengths)
+
+    @property
+    def energy_scale(self):
+        """B / (edge length): unit of energy in the scaled variables."""
+        return self.material.B / self.length_scale
+
+    def unpack(self, q, phi):
+        """Full state: x (N,3), theta (M,)."""
+        raise NotImplementedError
+
+    def vertex_twists(self, q, phi):
+        """Twist angle m (K,) across each vertex (radians), the imposed twist included."""
+        raise NotImplementedError
+
+    @property
+    def n_free_nodes(self):
+        return self.n_nodes
+
+    @property
+    def dof_scale(self):
+        """Per-DOF scale (n,): free node coordinates in units of edge length, angles in radians."""
+        n_x = 3 * self.n_free_nodes
+        return jnp.concatenate(
+            [jnp.full(n_x, 1.0) * self.length_scale, jnp.ones(self.n_dof - n_x)]
+        )
+
+    # ------------------------------------------------------------------ energy
+    def energy_terms(self, q, phi):
+        """Dict of the scene's energy terms at (q, phi)."""
+        x, _ = self.unpack(q, phi)
+        m = self.material
+        vor = self.voronoi
+        out = {}
+        if "stretch" in self.terms:
+            out["stretch"] = E.stretch_energy(x, self.rest_lengths, m.EA, self.closed)
+        if "bend" in self.terms:
+            out["bend"] = E.bend_energy(x, vor, m.B, self.closed)
+        if "twist" in self.terms:
+            out["twist"] = E.twist_energy(self.vertex_twists(q, phi), vor, m.C)
+        return out
+
+    def energy(self, q, phi):
+        """Total energy (scalar) at free DOFs q (n,) and imposed twist phi."""
+        return sum(self.energy_terms(q, phi).values())
+
+    def scaled_energy(self, u, phi):
+        """Energy in units of ``energy_scale`` of scaled DOFs u = q / dof_scale.
+
+        Solvers and the stability analysis work on this function, so that their tolerances
+        and eigenvalues are dimensionless and comparable across materials and resolutions.
+        """
+        return self.energy(u * self.dof_scale, phi) / self.energy_scale
+
+    def to_scaled(self, q):
+        return q / self.dof_scale
+
+    def from_scaled(self, u):
+        return u * self.dof_scale
+
+    # ------------------------------------------------------------------ frames, topology
+    def reference_directors(self, x):
+        """Space-parallel reference directors u (M,3) of the edges."""
+        raise NotImplementedError
+
+    def material_frames(self, q, phi):
+        """Material frames (d1, d2, d3), each (M,3), of the edges."""
+        x, theta = self.unpack(q, phi)
+        t = unit(edges(x, self.closed))
+        return material_directors(t, self.reference_directors(x), theta)
+
+    def writhe(self, q, phi=0.0):
+        """Writhe of the centreline (closed rods) or of the centreline extended along the clamps."""
+        x, _ = self.unpack(q, phi)
+        return writhe(x, closed=self.closed)
+
+    def twist(self, q, phi):
+        """Total twist Tw = sum of vertex twists / 2 pi."""
+        return jnp.sum(self.vertex_twists(q, phi)) / TWO_PI
+
+    def linking_number(self, q, phi):
+        """Lk = Wr + Tw: Lk0 + phi/(2 pi) while the rod does not pass through itself."""
+        return self.writhe(q, phi) + self.twist(q, phi)
+
+    # ------------------------------------------------------------------ zero modes
+    def zero_modes(self, q, phi):
+        """Generators (n, k) of exact symmetries (rigid motions, uniform twist shift) in the
+        physical DOFs; k = 0 for clamped rods."""
+        return jnp.zeros((self.n_dof, 0))
+
+    def scaled_zero_modes(self, u, phi):
+        """Zero-mode generators in the scaled DOFs (a change of variables divides by the scale)."""
+        z = self.zero_modes(self.from_scaled(u), phi)
+        return z / self.dof_scale[:, None]
+
+
+def _rigid_and_twist_modes(x, n_theta):
+    """3 translations, 3 rotations about the centroid, and the uniform shift of all twist angles,
+    for a rod whose nodes x (N,3) are all free. Returns (3N + n_theta, 7)."""
+    n = x.shape[0]
+    cols = []
+    eye = jnp.eye(3, dtype=x.dtype)
+    r = x - jnp.mean(x, axis=0)
+    for k in range(3):
+        cols.append(jnp.concatenate([jnp.tile(eye[k], n), jnp.zeros(n_theta)]))
+    for k in range(3):
+        cols.append(jnp.concatenate([jnp.cross(eye[k], r).ravel(), jnp.zeros(n_theta)]))
+    cols.append(jnp.concatenate([jnp.zeros(3 * n), jnp.ones(n_theta)]))
+    return jnp.stack(cols, axis=1)
+
+
+@_pytree(["material", "rest_lengths", "q_init", "Lk0"], ["terms", "name"])
+@dataclass(frozen=True, eq=False)
+class ClosedRod(Scene):
+    """Closed rod (ring, knot). DOFs: q = [x.ravel() (3N), theta (N)].
+
+    Lk0 is the linking number of the ribbon at phi = 0; the rod is cut at the joint (vertex 0,
+    between edge N-1 and edge 0), twisted by phi and glued, so Lk = Lk0 + phi / (2 pi).
+    """
+
+    Lk0: float = 0.0
+
+    closed = True
+    n_zero_modes = 7
+
+    def unpack(self, q, phi):
+        n = self.n_nodes
+        return q[: 3 * n].reshape(n, 3), q[3 * n:]
+
+    def reference_directors(self, x):
+        t = unit(edges(x, True))
+        return transport_along(perpendicular_unit(t[0]), t)
+
+    def raw_holonomy(self, x):
+        """Reference twist at the joint modulo 2 pi: the angle, about t[0], from the reference
+        director carried once round the rod by parallel transport to the one it started from."""
+        return tantrix_holonomy(unit(edges(x, True)))
+
+    def joint_reference_twist(self, x):
+        """The holonomy lifted to the branch 2 pi (Lk0 - Wr(x)) (see module docstring)."""
+        return _lift(self.raw_holonomy(x), TWO_PI * (self.Lk0 - writhe(x, closed=True)))
+
+    def vertex_twists(self, q, phi):
+        x, theta = self.unpack(q, phi)
+        m = theta - jnp.roll(theta, 1)
+        return m.at[0].add(self.joint_reference_twist(x) + phi)
+
+    def zero_modes(self, q, phi):
+        x, theta = self.unpack(q, phi)
+        return _rigid_and_twist_modes(x, theta.shape[0])
+
+
+@_pytree(["material", "rest_lengths", "q_init", "x_clamped", "director_start", "Lk0"], ["terms", "name"])
+@dataclass(frozen=True, eq=False)
+class ClampedRod(Scene):
+    """Open rod clamped at both ends: nodes 0, 1 and N-2, N-1 fixed (so the first and last edges,
+    and their tangents, are fixed), the first material director fixed, the last one rotated by
+    phi about the clamp axis. DOFs: q = [x[2:N-2].ravel(), theta[1:M-1]].
+
+    The clamps are coaxial (both edges along the same axis); the end twist's 2 pi branch is fixed
+    by the writhe of the centreline extended by rays along the axis (see module docstring).
+    """
+
+    x_clamped: np.ndarray = None  # (4,3): x[0], x[1], x[N-2], x[N-1]
+    director_start: np.ndarray = None  # (3,) material director of edge 0
+    Lk0: float = 0.0
+
+    @property
+    def n_free_nodes(self):
+        return self.n_nodes - 4
+
+    @property
+    def axis(self):
+        return unit(self.x_clamped[1] - self.x_clamped[0])
+
+    def interior(self, q):
+        n_free = self.n_nodes - 4
+        return q[: 3 * n_free].reshape(n_free, 3), q[3 * n_free:]
+
+    def nodes(self, q):
+        xi, _ = self.interior(q)
+        c = self.x_clamped
+        return jnp.concatenate([c[:2], xi, c[2:]], axis=0)
+
+    def reference_directors(self, x):
+        return transport_along(self.director_start, unit(edges(x, False)))
+
+    def extended_writhe(self, x):
+        """Writhe of the centreline extended at both ends by rays along the clamp axis (length
+        100 L, enough to fix the 2 pi branch: the neglected far part is O(1e-2) at most)."""
+        a = self.axis
+        far = 100.0 * self.length
+        ext = jnp.concatenate([(x[0] - far * a)[None], x, (x[-1] + far * a)[None]], axis=0)
+        return writhe(ext, closed=False)
+
+    def end_angle(self, x):
+        """Angle of the last edge's space-parallel reference director relative to the untwisted
+        end clamp director (the tantrix starts and ends on the clamp axis, so it is closed),
+        lifted to the branch 2 pi (Lk0 - Wr_ext(x))."""
+        raw = -tantrix_holonomy(unit(edges(x, False)))
+        return _lift(raw, TWO_PI * (self.Lk0 - self.extended_writhe(x)))
+
+    def unpack(self, q, phi):
+        x = self.nodes(q)
+        _, theta_free = self.interior(q)
+        theta_end = phi + self.end_angle(x)
+        theta = jnp.concatenate([jnp.zeros(1, dtype=q.dtype), theta_free, jnp.reshape(theta_end, (1,))])
+        return x, theta
+
+    def vertex_twists(self, q, phi):
+        _, theta = self.unpack(q, phi)
+        return theta[1:] - theta[:-1]
+
+    def writhe(self, q, phi=0.0):
+        return self.extended_writhe(self.nodes(q))
+
+
+@_pytree(["material", "rest_lengths", "q_init"], ["terms", "name"])
+@dataclass(frozen=True, eq=False)
+class FreeRod(Scene):
+    """Open rod with free ends. DOFs: q = [x.ravel() (3N), theta (N-1)]. phi plays no role."""
+
+    n_zero_modes = 7
+
+    def unpack(self, q, phi):
+        n = self.n_nodes
+        return q[: 3 * n].reshape(n, 3), q[3 * n:]
+
+    def reference_directors(self, x):
+        t = unit(edges(x, False))
+        return transport_along(perpendicular_unit(t[0]), t)
+
+    def vertex_twists(self, q, phi):
+        _, theta = self.unpack(q, phi)
+        return theta[1:] - theta[:-1]
+
+    def zero_modes(self, q, phi):
+        x, theta = self.unpack(q, phi)
+        return _rigid_and_twist_modes(x, theta.shape[0])
+
+
+# ---------------------------------------------------------------------- factories
+def _check_material(material):
+    if not isinstance(material, Material):
+        raise TypeError(f"material must be a jaxrod.Material, got {type(material).__name__}")
+    return material
+
+
+def closed_curve(points, material, N=None, length=None, Lk0=None, name="closed curve"):
+    """A closed rod along the closed polyline ``points`` (M,3) (last point not repeating the first).
+
+    The curve is resampled to N nodes equally spaced in arc length (default N = M) and scaled to
+    total length ``length`` (default: its own). Every edge gets rest length L/N, so the curve
+    starts (almost) unstretched. Lk0 defaults to the integer nearest the writhe (the least-twisted
+    closed ribbon). The twist angles start uniform, so the initial twist is spread evenly.
+    """
+    _check_material(material)
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise ValueError(f"points must have shape (M, 3), got {pts.shape}")
+    if not np.all(np.isfinite(pts)):
+        raise ValueError("points must be finite")
+    N = check_int_at_least("N", pts.shape[0] if N is None else N, 4)
+    x = resample_closed(pts, N)
+    perimeter = float(np.sum(np.linalg.norm(np.roll(x, -1, axis=0) - x, axis=1)))
+    if length is not None:
+        length = check_positive("length", length)
+        x = (x - x.mean(axis=0)) * (length / perimeter)
+    else:
+        length = perimeter
+    rest = np.full(N, length / N)
+    wr = float(writhe(jnp.asarray(x), closed=True))
+    Lk0 = int(round(wr)) if Lk0 is None else int(Lk0)
+    probe = ClosedRod(material=material, rest_lengths=jnp.asarray(rest), q_init=jnp.zeros(4 * N), Lk0=float(Lk0), name=name)
+    rho = float(probe.joint_reference_twist(jnp.asarray(x)))
+    theta = -rho * np.arange(N) / N  # spreads the joint's twist evenly over the vertices
+    q0 = np.concatenate([x.ravel(), theta])
+    return ClosedRod(material=material, rest_lengths=jnp.asarray(rest), q_init=jnp.asarray(q0), Lk0=float(Lk0), name=name)
+
+
+def ring(N, material, radius=1.0, Lk0=0):
+    """A planar circular ring of N nodes, rest length 2 pi radius; the initial polygon is the
+    regular N-gon whose edges have the rest length."""
+    _check_material(material)
+    N = check_int_at_least("N", N, 4)
+    radius = check_positive("radius", radius)
+    edge = TWO_PI * radius / N
+    r_poly = edge / (2.0 * math.sin(math.pi / N))
+    s = TWO_PI * np.arange(N) / N
+    x = np.stack([r_poly * np.cos(s), r_poly * np.sin(s), np.zeros(N)], axis=1)
+    q0 = np.concatenate([x.ravel(), np.zeros(N)])
+    return ClosedRod(material=material, rest_lengths=jnp.full(N, edge), q_init=jnp.asarray(q0), Lk0=float(Lk0), name="ring")
+
+
+def michell_ring(N, nu=0.5, slenderness=0.01, radius=1.0):
+    """Michell's ring: B = 1, C = B/(1+nu), diameter D = slenderness * radius (EA = 16 B/D^2).
+
+    Thin enough (D/R = 0.01) that extensibility shifts the threshold by ~1e-5 relative or less.
+    """
+    nu = check_finite("nu", nu)
+    slenderness = check_positive("slenderness", slenderness)
+    radius = check_positive("radius", radius)
+    mat = Material.from_ratio(B=1.0, nu=nu, D=slenderness * radius)
+    return ring(N, mat, radius=radius)
+
+
+def clamped_rod(N, length, material, axis=(0.0, 0.0, 1.0)):
+    """Straight rod of N nodes along ``axis``, clamped at both ends.
+
+    The clamped first and last edges are rigid; the material frame of an edge lives at its
+    midpoint, so the clamps act at the midpoints of the end edges, and those are ``length`` apart
+    (edge length = length/(N-2)). The twisted straight rod then stores exactly C phi^2/(2 length).
+    """
+    _check_material(material)
+    N = check_int_at_least("N", N, 5)
+    length = check_positive("length", length)
+    a = np.asarray(axis, dtype=float)
+    if a.shape != (3,) or not np.all(np.isfinite(a)) or np.linalg.norm(a) == 0:
+        raise ValueError(f"axis must be a finite non-zero 3-vector, got {axis!r}")
+    a = a / np.linalg.norm(a)
+    edge = length / (N - 2)
+    x = (np.arange(N) - 0.5)[:, None] * edge * a[None, :]
+    d0 = np.asarray(perpendicular_unit(jnp.asarray(a)))
+    q0 = np.concatenate([x[2:-2].ravel(), np.zeros(N - 3)])
+    return ClampedRod(
+        material=material,
+        rest_lengths=jnp.full(N - 1, edge),
+        q_init=jnp.asarray(q0),
+        x_clamped=jnp.asarray(x[[0, 1, -2, -1]]),
+        director_start=jnp.asarray(d0),
+        name="clamped rod",
+    )
+
+
+def free_rod(N, length, material):
+    """Straight free rod of N nodes along z."""
+    _check_material(material)
+    N = check_int_at_least("N", N, 4)
+    length = check_positive("length", length)
+    edge = length / (N - 1)
+    x = np.zeros((N, 3))
+    x[:, 2] = np.arange(N) * edge
+    q0 = np.concatenate([x.ravel(), np.zeros(N - 1)])
+    return FreeRod(material=material, rest_lengths=jnp.full(N - 1, edge), q_init=jnp.asarray(q0), name="free rod")

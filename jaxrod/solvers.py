@@ -1,0 +1,224 @@
+"""Minimisers that take a function and return a result object (generic: no rod physics here).
+
+``minimise(fun, y0, args, solver=...)`` minimises ``fun(y, args)`` (scalar) over y (n,):
+
+* ``LBFGS``: optax's L-BFGS with a zoom line search, the whole loop inside one jitted
+  ``lax.while_loop``. Robust far from equilibrium; slows down near a bifurcation, where the softest
+  eigenvalue goes to zero (critical slowing down).
+* ``Newton``: Newton's method on grad f = 0 with the exact autodiff Hessian, inside one jitted
+  ``lax.while_loop``. Symmetry (zero) modes are handled by adding a positive multiple of the
+  projector on them, so the Newton system stays regular; a backtracking line search on |grad f|
+  makes it converge to the nearest stationary point, stable or not (what a continuation
+  corrector needs). Quadratic convergence, also next to a bifurcation.
+
+Every run returns a ``Solution`` saying whether it converged, after how many iterations, with what
+gradient norm (max-abs), and why it stopped. With ``throw=True`` (default) an unconverged run
+raises ``ConvergenceError`` instead of returning something that looks like an answer.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+import optax.tree_utils as otu
+
+__all__ = ["LBFGS", "Newton", "Solution", "ConvergenceError", "minimise", "orthonormal_columns"]
+
+# Stop reasons (codes inside the jitted loop, names outside).
+_REASONS = {0: "converged", 1: "max_steps", 2: "nonfinite", 3: "stalled"}
+
+
+class ConvergenceError(RuntimeError):
+    """A solver stopped without meeting its tolerance."""
+
+
+@dataclass(frozen=True)
+class LBFGS:
+    """optax L-BFGS. ``memory``: number of stored updates; ``max_linesearch_steps``: zoom steps."""
+
+    memory: int = 20
+    max_linesearch_steps: int = 40
+
+
+@dataclass(frozen=True)
+class Newton:
+    """Exact-Hessian Newton. ``zero_modes(y, args) -> (n, k)`` spans symmetry directions that the
+    Hessian leaves singular (None if there are none); ``max_backtracks`` halvings per step."""
+
+    zero_modes: object = None
+    max_backtracks: int = 40
+
+
+@dataclass(frozen=True)
+class Solution:
+    """Outcome of a minimisation.
+
+    y: (n,) final point; value: f(y); grad_norm: max |grad f(y)|; iterations; converged;
+    reason: 'converged' | 'max_steps' | 'nonfinite' | 'stalled'; solver: its name; gtol used.
+    """
+
+    y: np.ndarray
+    value: float
+    grad_norm: float
+    iterations: int
+    converged: bool
+    reason: str
+    solver: str
+    gtol: float
+
+    def __repr__(self):
+        return (
+            f"Solution(solver={self.solver}, converged={self.converged}, reason={self.reason!r}, "
+            f"iterations={self.iterations}, grad_norm={self.grad_norm:.3e}, value={self.value:.12g})"
+        )
+
+
+def orthonormal_columns(z, rtol=1e-10):
+    """Orthonormal basis of the column space of z (n, k), as (n, k) with columns that carry no
+    rank zeroed out (rank found from the singular values, so it may vary under jit)."""
+    if z.shape[1] == 0:
+        return z
+    u, s, _ = jnp.linalg.svd(z, full_matrices=False)
+    keep = s > rtol * jnp.max(s)
+    return u * keep[None, :]
+
+
+@partial(jax.jit, static_argnames=("fun", "memory", "max_ls", "max_steps"))
+def _lbfgs_loop(fun, y0, args, gtol, memory, max_ls, max_steps):
+    f = lambda y: fun(y, args)
+    opt = optax.lbfgs(
+        memory_size=memory,
+        linesearch=optax.scale_by_zoom_linesearch(max_linesearch_steps=max_ls),
+    )
+    value_and_grad = optax.value_and_grad_from_state(f)
+
+    def state_grad_norm(state):
+        return jnp.max(jnp.abs(otu.tree_get(state, "grad")))
+
+    def cond(carry):
+        y, state, it, moved = carry
+        g = state_grad_norm(state)
+        value = otu.tree_get(state, "value")
+        first = it == 0
+        ok = jnp.isfinite(value) & jnp.all(jnp.isfinite(y))
+        return first | ((it < max_steps) & (g > gtol) & ok & moved)
+
+    def body(carry):
+        y, state, it, _ = carry
+        value, grad = value_and_grad(y, state=state)
+        updates, state = opt.update(grad, state, y, value=value, grad=grad, value_fn=f)
+        y_new = optax.apply_updates(y, updates)
+        moved = jnp.any(y_new != y)
+        return y_new, state, it + 1, moved
+
+    state = opt.init(y0)
+    y, state, it, moved = jax.lax.while_loop(cond, body, (y0, state, 0, True))
+    value, grad = jax.value_and_grad(f)(y)
+    gnorm = jnp.max(jnp.abs(grad))
+    finite = jnp.isfinite(value) & jnp.isfinite(gnorm)
+    code = jnp.where(
+        ~finite, 2, jnp.where(gnorm <= gtol, 0, jnp.where(moved, 1, 3))
+    )
+    return y, value, gnorm, it, code
+
+
+@partial(jax.jit, static_argnames=("fun", "zero_modes", "max_steps", "max_backtracks"))
+def _newton_loop(fun, zero_modes, y0, args, gtol, max_steps, max_backtracks):
+    f = lambda y: fun(y, args)
+    grad = jax.grad(f)
+    hess = jax.hessian(f)
+
+    def newton_step(y):
+        g = grad(y)
+        h = hess(y)
+        if zero_modes is not None:
+            z = orthonormal_columns(zero_modes(y, args))
+            # A positive multiple of the projector on the symmetry directions: the system becomes
+            # regular and the step has no component along them (g is orthogonal to them).
+            shift = jnp.max(jnp.abs(jnp.diag(h))) + 1.0
+            h = h + shift * (z @ z.T)
+        return -jnp.linalg.solve(h, g), g
+
+    def cond(carry):
+        y, it, gnorm, code = carry
+        return (it < max_steps) & (gnorm > gtol) & (code == 0)
+
+    def body(carry):
+        y, it, gnorm, _ = carry
+        dy, g = newton_step(y)
+        g2 = jnp.sum(g * g)
+
+        # Backtrack on the merit |grad f|^2: accept the first alpha that decreases it.
+        def ls_cond(c):
+            alpha, k, g2_new = c
+            return (k < max_backtracks) & ~(g2_new < (1.0 - 1e-4 * alpha) * g2)
+
+        def ls_body(c):
+            alpha, k, _ = c
+            alpha = 0.5 * alpha
+            gn = grad(y + alpha * dy)
+            return alpha, k + 1, jnp.where(jnp.all(jnp.isfinite(gn)), jnp.sum(gn * gn), jnp.inf)
+
+        g_full = grad(y + dy)
+        g2_full = jnp.where(jnp.all(jnp.isfinite(g_full)), jnp.sum(g_full * g_full), jnp.inf)
+        alpha, k, g2_new = jax.lax.while_loop(ls_cond, ls_body, (1.0, 0, g2_full))
+        accepted = g2_new < (1.0 - 1e-4 * alpha) * g2
+        y_new = jnp.where(accepted, y + alpha * dy, y)
+        gnorm_new = jnp.max(jnp.abs(grad(y_new)))
+        code = jnp.where(~jnp.all(jnp.isfinite(dy)), 2, jnp.where(accepted, 0, 3))
+        return y_new, it + 1, gnorm_new, code
+
+    gnorm0 = jnp.max(jnp.abs(grad(y0)))
+    code0 = jnp.where(jnp.isfinite(gnorm0), 0, 2)
+    y, it, gnorm, code = jax.lax.while_loop(cond, body, (y0, 0, gnorm0, code0))
+    value = f(y)
+    code = jnp.where(
+        ~(jnp.isfinite(value) & jnp.isfinite(gnorm)),
+        2,
+        jnp.where(gnorm <= gtol, 0, jnp.where(code == 0, 1, code)),
+    )
+    return y, value, gnorm, it, code
+
+
+def minimise(fun, y0, args=None, solver=LBFGS(), gtol=1e-9, max_steps=None, throw=True):
+    """Minimise (or, for Newton, find the stationary point nearest to y0 of) ``fun(y, args)``.
+
+    fun must be a stable callable (a module-level function or a bound method of a long-lived
+    object): it is a static argument of the jitted loop, so a fresh lambda per call recompiles.
+    gtol bounds max |grad f| at the returned point. Returns a ``Solution``; raises
+    ``ConvergenceError`` if it did not converge and ``throw`` is True.
+    """
+    y0 = jnp.asarray(y0, dtype=jnp.float64)
+    if not bool(jnp.all(jnp.isfinite(y0))):
+        raise ValueError("y0 must be finite")
+    if isinstance(solver, LBFGS):
+        steps = 20000 if max_steps is None else int(max_steps)
+        y, value, gnorm, it, code = _lbfgs_loop(
+            fun, y0, args, gtol, solver.memory, solver.max_linesearch_steps, steps
+        )
+        name = "lbfgs"
+    elif isinstance(solver, Newton):
+        steps = 50 if max_steps is None else int(max_steps)
+        y, value, gnorm, it, code = _newton_loop(
+            fun, solver.zero_modes, y0, args, gtol, steps, solver.max_backtracks
+        )
+        name = "newton"
+    else:
+        raise TypeError(f"solver must be LBFGS or Newton, got {type(solver).__name__}")
+    sol = Solution(
+        y=np.asarray(y),
+        value=float(value),
+        grad_norm=float(gnorm),
+        iterations=int(it),
+        converged=int(code) == 0,
+        reason=_REASONS[int(code)],
+        solver=name,
+        gtol=float(gtol),
+    )
+    if throw and not sol.converged:
+        raise ConvergenceError(f"{name} did not converge: {sol!r}")
+    return sol
