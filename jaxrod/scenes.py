@@ -31,6 +31,7 @@ from . import energy as E
 from .geometry import (
     edges,
     material_directors,
+    node_directors,
     parallel_transport,
     perpendicular_unit,
     resample_closed,
@@ -216,6 +217,16 @@ class Scene:
         x, theta = self.unpack(q, phi)
         t = unit(edges(x, self.closed))
         return material_directors(t, self.reference_directors(x), theta)
+
+    def eccentric_line(self, q, phi, offset=None):
+        """A line drawn on the rod surface: nodes displaced by ``offset`` (default D/2, or a
+        tenth of the mean edge if D is unknown) along the material director d1 carried to the
+        nodes. (N,3). With the centreline it forms the ribbon whose Gauss linking number is Lk."""
+        x, _ = self.unpack(q, phi)
+        d1, _, _ = self.material_frames(q, phi)
+        if offset is None:
+            offset = 0.1 * self.length_scale if self.material.D is None else 0.5 * self.material.D
+        return x + offset * node_directors(x, d1, self.closed)
 
     def writhe(self, q, phi=0.0):
         """Writhe of the centreline (closed rods) or of the centreline extended along the clamps."""
@@ -421,7 +432,7 @@ def closed_curve(points, material, N=None, length=None, Lk0=None, name="closed c
     Lk0 = int(round(wr)) if Lk0 is None else int(Lk0)
     probe = ClosedRod(material=material, rest_lengths=jnp.asarray(rest), q_init=jnp.zeros(4 * N), Lk0=float(Lk0), name=name)
     rho = float(probe.joint_reference_twist(jnp.asarray(x)))
-    theta = -rho * np.arange(N) / N  # spreads the joint's twist evenly over the vertices
+    theta = rho * np.arange(N) / N  # every vertex, the joint included, then carries rho / N
     q0 = np.concatenate([x.ravel(), theta])
     return ClosedRod(material=material, rest_lengths=jnp.asarray(rest), q_init=jnp.asarray(q0), Lk0=float(Lk0), name=name)
 
