@@ -30,10 +30,10 @@ from .scenes import (  # noqa: E402
     ring,
 )
 from .solvers import LBFGS, ConvergenceError, Newton, Solution, minimise  # noqa: E402
-from .stability import Stability, stability, eigenvalue_phi_derivative  # noqa: E402
+from .stability import Stability, critical_twist_derivative, eigenvalue_phi_derivative, stability  # noqa: E402
 from .equilibrium import Equilibrium, solve_equilibrium  # noqa: E402
 from .continuation import CriticalPoint, NoCrossingError, critical_twist  # noqa: E402
-from . import topology  # noqa: E402
+from . import plotting, topology  # noqa: E402
 
 __version__ = "0.1.0"
 
@@ -57,6 +57,7 @@ __all__ = [
     "Stability",
     "stability",
     "eigenvalue_phi_derivative",
+    "critical_twist_derivative",
     "Equilibrium",
     "solve_equilibrium",
     "CriticalPoint",

@@ -49,6 +49,9 @@ def _build_parser():
 
 
 def _michell(args):
+    import matplotlib
+
+    matplotlib.use("Agg")  # files only, no display needed
     from . import plotting
     from .continuation import critical_twist
     from .material import check_finite, check_int_at_least, check_positive

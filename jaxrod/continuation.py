@@ -12,14 +12,14 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from .equilibrium import Equilibrium, solve_equilibrium
 from .material import check_finite, check_positive
 from .solvers import ConvergenceError
-from .stability import DEFAULT_NEGATIVE_TOL, eigenvalue_phi_derivative
+from .stability import DEFAULT_NEGATIVE_TOL, branch_analysis, stability
 
 __all__ = ["CriticalPoint", "critical_twist", "NoCrossingError"]
 
@@ -34,10 +34,11 @@ class CriticalPoint:
 
     phi: critical twist (rad); eigenvalue: crossing eigenvalue there (~0, dimensionless);
     dlambda_dphi: its derivative along the branch; mode: (n,) critical eigenvector (scaled DOFs);
-    equilibrium: the branch state at phi; multiplicity: change of the negative count (2 for a
+    equilibrium: the branch state at the last evaluated twist (within phi_error of phi); multiplicity: change of the negative count (2 for a
     degenerate pair, as in the ring); bracket: (phi_a, phi_b) where the count changed;
     phi_error: size of the last Newton correction (an upper bound on the error once converged);
-    hessian_evaluations: in the refinement; scan: list of (phi, n_negative, lowest eigenvalues).
+    hessian_evaluations: spectra computed in the refinement (bracket ends included);
+    scan: list of (phi, n_negative, lowest eigenvalues), one entry per scan step.
     """
 
     phi: float
@@ -53,8 +54,17 @@ class CriticalPoint:
     seconds: float = 0.0
 
 
-def _corrector(scene, phi, q_pred, k, negative_tol):
-    return solve_equilibrium(scene, phi, q_pred, method="newton", k=k, negative_tol=negative_tol)
+def _step(scene, phi, q_pred, index, k, negative_tol, fallback_q=None):
+    """Newton corrector from the predictor, then one spectrum: (equilibrium with its stability,
+    tracked eigenvalue, its phi-derivative, its eigenvector, branch tangent dq/dphi)."""
+    try:
+        e = solve_equilibrium(scene, phi, q_pred, method="newton", with_stability=False)
+    except ConvergenceError:
+        if fallback_q is None:
+            raise
+        e = solve_equilibrium(scene, phi, fallback_q, method="newton", with_stability=False)
+    stab, lam, dlam, v, dq = branch_analysis(scene, e.q, phi, index, k=k, tol=negative_tol)
+    return replace(e, stability=stab), lam, dlam, v, dq
 
 
 def critical_twist(
@@ -73,7 +83,9 @@ def critical_twist(
     of the equilibrium branch changes.
 
     scene: a scene; q0: initial guess at phi_start (default scene.q_init, relaxed first);
-    step: scan step (default (phi_stop - phi_start)/40); tol: requested accuracy in phi.
+    step: largest scan step (default |phi_stop - phi_start|/40); the scan shortens it when the
+    tracked eigenvalue, extrapolated with its derivative, is about to cross (never lengthens it:
+    a mode from higher up is still caught by the count). tol: requested accuracy in phi.
     progress: optional callable(str) for progress lines. Returns a ``CriticalPoint``; raises
     ``NoCrossingError`` if the count never changes before phi_stop.
     """
@@ -84,24 +96,28 @@ def critical_twist(
         raise ValueError("phi_stop must differ from phi_start")
     tol = check_positive("tol", tol)
     direction = 1.0 if phi_stop > phi_start else -1.0
-    step = abs(phi_stop - phi_start) / 40.0 if step is None else check_positive("step", abs(step))
+    max_step = abs(phi_stop - phi_start) / 40.0 if step is None else check_positive("step", abs(step))
+    min_step = max_step / 16.0
     say = progress or (lambda s: None)
 
-    eq = solve_equilibrium(scene, phi_start, q0, method="auto", k=k, negative_tol=negative_tol)
-    count0 = eq.stability.n_negative
-    scan = [(eq.phi, count0, eq.stability.eigenvalues.copy())]
-    say(f"phi = {eq.phi / math.pi:+.4f} pi: {count0} negative, lowest {eq.stability.eigenvalues[0]:.3e}")
+    relaxed = solve_equilibrium(scene, phi_start, q0, method="auto", with_stability=False)
+    count0 = int(stability(scene, relaxed.q, phi_start, k=k, tol=negative_tol).n_negative)
+    index = count0  # the eigenvalue that crosses next sits just above the negative ones
+    prev, lam, dlam, _, dq = _step(scene, phi_start, relaxed.q, index, k, negative_tol)
+    scan = [(prev.phi, count0, prev.stability.eigenvalues.copy())]
+    say(f"phi = {prev.phi / math.pi:+.4f} pi: {count0} negative, lowest {prev.stability.eigenvalues[0]:.3e}")
 
     # Scan with a tangent predictor until the count changes.
-    prev = eq
+    h = max_step
     while True:
-        phi_next = prev.phi + direction * step
+        phi_next = prev.phi + direction * h
         if direction * (phi_next - phi_stop) > 1e-12:
             raise NoCrossingError(
                 f"negative count stayed {count0} from phi = {phi_start:.6g} to {phi_stop:.6g}"
             )
-        _, _, _, dq = eigenvalue_phi_derivative(scene, prev.q, prev.phi, 0)
-        cur = _corrector(scene, phi_next, prev.q + dq * (phi_next - prev.phi), k, negative_tol)
+        cur, lam_c, dlam_c, _, dq_c = _step(
+            scene, phi_next, prev.q + dq * (phi_next - prev.phi), index, k, negative_tol, prev.q
+        )
         scan.append((cur.phi, cur.stability.n_negative, cur.stability.eigenvalues.copy()))
         say(
             f"phi = {cur.phi / math.pi:+.4f} pi: {cur.stability.n_negative} negative, "
@@ -109,33 +125,34 @@ def critical_twist(
         )
         if cur.stability.n_negative != count0:
             break
-        prev = cur
+        # Newton-extrapolated crossing of the tracked eigenvalue: aim 10% past it.
+        h = max_step
+        if dlam_c != 0.0:
+            ahead = -lam_c / dlam_c * direction
+            if ahead > 0.0:
+                h = min(max_step, max(min_step, 1.1 * ahead))
+        prev, lam, dlam, dq = cur, lam_c, dlam_c, dq_c
 
     # Refine: the eigenvalue with ascending index `count0` changes sign inside [prev, cur].
     index = min(count0, cur.stability.n_negative)
     multiplicity = abs(cur.stability.n_negative - count0)
-    evals = 0
-
-    def evaluate(e):
-        nonlocal evals
-        evals += 1
-        lam, dlam, v, dq = eigenvalue_phi_derivative(scene, e.q, e.phi, index)
-        return lam, dlam, v, dq
-
     lo, hi = prev, cur
-    f_lo, d_lo, _, dq_lo = evaluate(lo)
-    f_hi, d_hi, _, _ = evaluate(hi)
+    _, f_lo, d_lo, _, dq_lo = branch_analysis(scene, lo.q, lo.phi, index, k=k, tol=negative_tol)
+    _, f_hi, _, _, _ = branch_analysis(scene, hi.q, hi.phi, index, k=k, tol=negative_tol)
+    evals = 2
     bracket = (lo.phi, hi.phi)
-    # First guess: secant through the bracket ends.
-    phi_c = lo.phi - f_lo * (hi.phi - lo.phi) / (f_hi - f_lo)
+    # First guess: Newton from the end nearer to the crossing if it stays inside, else secant.
+    a, b = sorted(bracket)
+    phi_c = lo.phi - f_lo / d_lo if d_lo != 0.0 else math.nan
+    if not (math.isfinite(phi_c) and a < phi_c < b):
+        phi_c = lo.phi - f_lo * (hi.phi - lo.phi) / (f_hi - f_lo)
     base, base_dq = lo, dq_lo
     phi_error = abs(hi.phi - lo.phi)
     for _ in range(max_refine):
-        try:
-            e = _corrector(scene, phi_c, base.q + base_dq * (phi_c - base.phi), k, negative_tol)
-        except ConvergenceError:
-            e = _corrector(scene, phi_c, base.q, k, negative_tol)
-        f_c, d_c, v_c, dq_c = evaluate(e)
+        e, f_c, d_c, v_c, dq_c = _step(
+            scene, phi_c, base.q + base_dq * (phi_c - base.phi), index, k, negative_tol, base.q
+        )
+        evals += 1
         if np.sign(f_c) == np.sign(f_lo):
             lo, f_lo = e, f_c
         else:
@@ -155,8 +172,10 @@ def critical_twist(
     else:
         raise ConvergenceError(f"critical twist refinement did not reach tol = {tol:.3g} in {max_refine} steps")
 
+    # Report the last Newton update: its error is quadratically smaller than phi_error, which
+    # stays as a conservative bound.
     return CriticalPoint(
-        phi=float(phi_c),
+        phi=float(newton),
         eigenvalue=float(f_c),
         dlambda_dphi=float(d_c),
         mode=v_c,

@@ -1,13 +1,11 @@
-"""Figures (matplotlib, Agg backend: works without a display)."""
+"""Figures (matplotlib). Each function returns its figure, or saves and closes it when given a path.
+The backend is left to the caller (inline in notebooks; the CLI selects Agg)."""
 from __future__ import annotations
 
 import math
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
 __all__ = ["plot_eigenvalue_scan", "plot_mode", "plot_convergence"]
 

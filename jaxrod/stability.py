@@ -25,6 +25,8 @@ __all__ = [
     "spectrum",
     "stability",
     "eigenvalue_phi_derivative",
+    "branch_analysis",
+    "critical_twist_derivative",
     "DEFAULT_NEGATIVE_TOL",
 ]
 
@@ -89,60 +91,117 @@ def stability(scene, q, phi, k=8, tol=DEFAULT_NEGATIVE_TOL):
     phi = check_finite("phi", phi)
     u = scene.to_scaled(jnp.asarray(q))
     lam, vec, n_zero = spectrum(scene, u, phi)
-    lam, vec = np.asarray(lam), np.asarray(vec)
-    n_zero = int(n_zero)
+    return _stability_from_spectrum(np.asarray(lam), np.asarray(vec), int(n_zero), k, tol)
+
+
+@jax.jit
+def _branch_sensitivities(scene, u, phi, v, lam, vec, skip, dscene, dphi):
+    """Derivative of the eigenvalue v^T H v along the equilibrium branch u*(scene, phi), in the
+    direction (dscene, dphi) of the scene's parameters (a pytree tangent: material, rest lengths)
+    and of phi.
+
+    d lambda = v^T (dH) v with the branch's own motion du* = -H^+ d(grad), the pseudo-inverse
+    taken over the eigenvectors not flagged in ``skip`` (zero modes and the critical mode itself,
+    which the perturbation does not excite at a symmetry-breaking bifurcation). Third derivatives
+    come from nested forward-mode jvps: no third-order tensor is formed.
+    Returns (d lambda, du*).
+    """
+    f = lambda uu, sc, pp: sc.scaled_energy(uu, pp)  # noqa: E731
+    dg = jax.jvp(lambda sc, pp: jax.grad(f)(u, sc, pp), (scene, phi), (dscene, dphi))[1]
+    coef = vec.T @ dg
+    safe = jnp.where(skip, 1.0, lam)
+    du = -vec @ jnp.where(skip, 0.0, coef / safe)
+
+    def vhv(uu, sc, pp):
+        first = lambda w: jax.jvp(lambda y: f(y, sc, pp), (w,), (v,))[1]  # noqa: E731
+        return jax.jvp(first, (uu,), (v,))[1]
+
+    dlam = jax.jvp(vhv, (u, scene, phi), (du, dscene, dphi))[1]
+    return dlam, du
+
+
+def _zero_tangent(scene):
+    return jax.tree_util.tree_map(jnp.zeros_like, scene)
+
+
+def _skip_mask(lam, n_zero, index, cluster_rtol):
+    """Eigen-directions left out of the branch pseudo-inverse: the cluster of the tracked
+    eigenvalue (degenerate partners included) and the lifted zero modes at the top."""
+    n = lam.shape[0]
+    lam_i = lam[index]
+    scale = jnp.maximum(jnp.abs(lam_i), 1e-12)
+    return (jnp.abs(lam - lam_i) <= cluster_rtol * scale + 1e-14) | (jnp.arange(n) >= n - n_zero)
+
+
+@jax.jit
+def _branch_analysis(scene, u, phi, index, cluster_rtol):
+    lam, vec, n_zero = spectrum(scene, u, phi)
+    skip = _skip_mask(lam, n_zero, index, cluster_rtol)
+    dlam, du = _branch_sensitivities(
+        scene, u, phi, vec[:, index], lam, vec, skip, _zero_tangent(scene), jnp.asarray(1.0)
+    )
+    return lam, vec, n_zero, dlam, du
+
+
+def _stability_from_spectrum(lam, vec, n_zero, k, tol):
     physical = lam[: lam.shape[0] - n_zero]
     k = min(k, physical.shape[0])
     n_neg = int(np.sum(physical < -tol))
     return Stability(
-        eigenvalues=physical[:k],
-        eigenvectors=vec[:, :k],
-        n_negative=n_neg,
-        n_zero_modes=n_zero,
-        stable=n_neg == 0,
-        tol=tol,
+        eigenvalues=physical[:k], eigenvectors=vec[:, :k], n_negative=n_neg,
+        n_zero_modes=n_zero, stable=n_neg == 0, tol=tol,
     )
 
 
-@jax.jit
-def _phi_sensitivities(scene, u, phi, v, lam, vec, skip):
-    """Pieces of d(lambda)/d(phi) along the equilibrium branch u*(phi).
+def branch_analysis(scene, q, phi, index, k=8, tol=DEFAULT_NEGATIVE_TOL, cluster_rtol=1e-4):
+    """One Hessian and one eigen-decomposition at an equilibrium q, giving everything a
+    continuation step needs: its ``Stability``; eigenvalue number ``index`` (ascending, zero modes
+    removed), its derivative along the branch with respect to phi, its eigenvector (scaled DOFs);
+    and the branch tangent dq/dphi (physical DOFs).
 
-    d lambda/d phi = v^T (d/dphi) H(u*(phi), phi) v with du*/dphi = -H^+ d(grad)/dphi, the
-    pseudo-inverse taken over the eigenvectors not flagged in ``skip`` (zero modes and the
-    critical mode itself, which d(grad)/dphi does not excite at a symmetry-breaking bifurcation).
-    Returns (dlambda/dphi, du*/dphi).
+    Returns (stability, lam, dlam_dphi, v, dq_dphi).
     """
-    f = scene.scaled_energy
-    dg_dphi = jax.jvp(lambda p: jax.grad(f)(u, p), (phi,), (1.0,))[1]
-    coef = vec.T @ dg_dphi
-    safe = jnp.where(skip, 1.0, lam)
-    du = -vec @ jnp.where(skip, 0.0, coef / safe)
-
-    def vhv(uu, pp):
-        first = lambda w: jax.jvp(lambda y: f(y, pp), (w,), (v,))[1]
-        return jax.jvp(first, (uu,), (v,))[1]
-
-    dlam = jax.jvp(vhv, (u, phi), (du, 1.0))[1]
-    return dlam, du
+    u = scene.to_scaled(jnp.asarray(q))
+    lam, vec, n_zero, dlam, du = _branch_analysis(scene, u, phi, index, cluster_rtol)
+    lam, vec, n_zero = np.asarray(lam), np.asarray(vec), int(n_zero)
+    stab = _stability_from_spectrum(lam, vec, n_zero, k, tol)
+    return stab, float(lam[index]), float(dlam), vec[:, index], np.asarray(scene.from_scaled(du))
 
 
 def eigenvalue_phi_derivative(scene, q, phi, index, cluster_rtol=1e-4):
     """Eigenvalue number ``index`` (ascending, zero modes removed) of the Hessian at an equilibrium
     q, its derivative along the equilibrium branch with respect to phi (Hellmann-Feynman plus the
-    branch's own motion, by forward-mode autodiff through the Hessian), its eigenvector (scaled DOFs),
-    and the branch tangent dq/dphi (physical DOFs).
+    branch's own motion, by forward-mode autodiff through the Hessian), its eigenvector (scaled
+    DOFs), and the branch tangent dq/dphi (physical DOFs).
 
     Returns (lam, dlam_dphi, v, dq_dphi).
     """
-    u = scene.to_scaled(jnp.asarray(q))
-    lam, vec, n_zero = spectrum(scene, u, phi)
-    n = lam.shape[0]
-    n_zero = int(n_zero)
-    lam_i = lam[index]
+    _, lam, dlam, v, dq = branch_analysis(scene, q, phi, index, cluster_rtol=cluster_rtol)
+    return lam, dlam, v, dq
+
+
+def critical_twist_derivative(scene, critical, parameter, cluster_rtol=1e-4):
+    """d phi* / d(parameter) at a critical point, by the implicit function theorem on
+    lambda(q*(phi, p), phi, p) = 0:  d phi*/dp = -(d lambda/dp) / (d lambda/d phi).
+
+    critical: a ``CriticalPoint`` of ``scene``; parameter: a material field name ('B', 'C', 'EA')
+    or a callable ``scene -> tangent scene`` giving any direction in the scene's parameters.
+    """
+    if isinstance(parameter, str):
+        if parameter not in ("B", "C", "EA", "D"):
+            raise ValueError(f"parameter must be one of 'B', 'C', 'EA', 'D' or a callable, got {parameter!r}")
+        zero = _zero_tangent(scene)
+        material = zero.material
+        object.__setattr__(material, parameter, jnp.ones_like(getattr(scene.material, parameter)))
+        dscene = zero
+    else:
+        dscene = parameter(scene)
+    eq = critical.equilibrium
+    u = scene.to_scaled(jnp.asarray(eq.q))
+    lam, vec, n_zero = spectrum(scene, u, eq.phi)
+    index = int(np.argmin(np.abs(np.asarray(lam))))
+    skip = _skip_mask(lam, n_zero, index, cluster_rtol)
     v = vec[:, index]
-    # Skip the critical mode's cluster (degenerate partners included) and the zero modes.
-    scale = jnp.maximum(jnp.abs(lam_i), 1e-12)
-    skip = (jnp.abs(lam - lam_i) <= cluster_rtol * scale + 1e-14) | (jnp.arange(n) >= n - n_zero)
-    dlam, du = _phi_sensitivities(scene, u, phi, v, lam, vec, skip)
-    return float(lam_i), float(dlam), np.asarray(v), np.asarray(scene.from_scaled(du))
+    dlam_dp, _ = _branch_sensitivities(scene, u, eq.phi, v, lam, vec, skip, dscene, jnp.asarray(0.0))
+    dlam_dphi, _ = _branch_sensitivities(scene, u, eq.phi, v, lam, vec, skip, _zero_tangent(scene), jnp.asarray(1.0))
+    return -float(dlam_dp) / float(dlam_dphi)
