@@ -28,12 +28,14 @@ from .scenes import (  # noqa: E402
     michell_critical_twist,
     michell_ring,
     ring,
+    torus_knot,
+    trefoil,
 )
 from .solvers import LBFGS, ConvergenceError, Newton, Solution, minimise  # noqa: E402
 from .stability import Stability, critical_twist_derivative, eigenvalue_phi_derivative, stability  # noqa: E402
 from .equilibrium import Equilibrium, solve_equilibrium  # noqa: E402
 from .continuation import CriticalPoint, NoCrossingError, critical_twist  # noqa: E402
-from . import plotting, topology  # noqa: E402
+from . import analysis, contact, plotting, topology  # noqa: E402
 
 __version__ = "0.1.0"
 
@@ -64,4 +66,9 @@ __all__ = [
     "NoCrossingError",
     "critical_twist",
     "topology",
+    "analysis",
+    "contact",
+    "plotting",
+    "trefoil",
+    "torus_knot",
 ]

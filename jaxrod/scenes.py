@@ -21,7 +21,7 @@ by two long rays along the clamp axis (the standard closure for a rod held at bo
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import jax
 import jax.numpy as jnp
@@ -42,6 +42,7 @@ from .geometry import (
     voronoi_lengths,
 )
 from .material import Material, check_finite, check_int_at_least, check_positive
+from .contact import contact_energy
 from .topology import writhe
 
 __all__ = [
@@ -56,6 +57,10 @@ __all__ = [
     "free_rod",
     "michell_critical_twist",
     "clamped_critical_twist",
+    "trefoil",
+    "trefoil_points",
+    "torus_knot",
+    "IDEAL_TREFOIL_ROPELENGTH",
 ]
 
 TWO_PI = 2.0 * math.pi
@@ -187,6 +192,10 @@ class Scene:
             out["bend"] = E.bend_energy(x, vor, m.B, self.closed)
         if "twist" in self.terms:
             out["twist"] = E.twist_energy(self.vertex_twists(q, phi), vor, m.C)
+        if "contact" in self.terms:
+            out["contact"] = contact_energy(
+                x, self.contact_pairs, self.contact_mask, self.closed, m.D, m.B, self.contact_stiffness
+            )
         return out
 
     def energy(self, q, phi):
@@ -268,7 +277,10 @@ def _rigid_and_twist_modes(x, n_theta):
     return jnp.stack(cols, axis=1)
 
 
-@_pytree(["material", "rest_lengths", "q_init", "Lk0"], ["terms", "name"])
+@_pytree(
+    ["material", "rest_lengths", "q_init", "Lk0", "contact_pairs", "contact_mask", "contact_stiffness"],
+    ["terms", "name"],
+)
 @dataclass(frozen=True, eq=False)
 class ClosedRod(Scene):
     """Closed rod (ring, knot). DOFs: q = [x.ravel() (3N), theta (N)].
@@ -278,9 +290,26 @@ class ClosedRod(Scene):
     """
 
     Lk0: float = 0.0
+    contact_pairs: np.ndarray = None  # (P, 2) candidate segment pairs (see jaxrod.contact)
+    contact_mask: np.ndarray = None  # (P,) real pairs (the rest is padding)
+    contact_stiffness: float = 0.0  # kappa_c, relative to B/D^2
 
     closed = True
     n_zero_modes = 7
+
+    def with_contacts(self, q, skin=None, capacity=None):
+        """This scene with its contact candidate list rebuilt around state q (same capacity as
+        before when it suffices, so compiled code is reused)."""
+        from .contact import candidate_pairs
+
+        if "contact" not in self.terms:
+            return self
+        x = np.asarray(self.unpack(jnp.asarray(q), 0.0)[0])
+        if capacity is None and self.contact_pairs is not None:
+            capacity = int(np.shape(self.contact_pairs)[0])
+        cl = candidate_pairs(x, True, float(np.mean(np.asarray(self.rest_lengths))), float(self.material.D),
+                             skin=skin, capacity=capacity)
+        return replace(self, contact_pairs=jnp.asarray(cl.pairs), contact_mask=jnp.asarray(cl.mask))
 
     def unpack(self, q, phi):
         n = self.n_nodes
@@ -405,13 +434,15 @@ def _check_material(material):
     return material
 
 
-def closed_curve(points, material, N=None, length=None, Lk0=None, name="closed curve"):
+def closed_curve(points, material, N=None, length=None, Lk0=None, name="closed curve", contact_stiffness=None):
     """A closed rod along the closed polyline ``points`` (M,3) (last point not repeating the first).
 
     The curve is resampled to N nodes equally spaced in arc length (default N = M) and scaled to
     total length ``length`` (default: its own). Every edge gets rest length L/N, so the curve
     starts (almost) unstretched. Lk0 defaults to the integer nearest the writhe (the least-twisted
     closed ribbon). The twist angles start uniform, so the initial twist is spread evenly.
+    contact_stiffness: kappa_c (relative to B/D^2) of soft self-contact, which needs the material's
+    diameter D; None (default) models no contact (for curves whose strands stay far apart).
     """
     _check_material(material)
     pts = np.asarray(points, dtype=float)
@@ -434,7 +465,63 @@ def closed_curve(points, material, N=None, length=None, Lk0=None, name="closed c
     rho = float(probe.joint_reference_twist(jnp.asarray(x)))
     theta = rho * np.arange(N) / N  # every vertex, the joint included, then carries rho / N
     q0 = np.concatenate([x.ravel(), theta])
-    return ClosedRod(material=material, rest_lengths=jnp.asarray(rest), q_init=jnp.asarray(q0), Lk0=float(Lk0), name=name)
+    scene = ClosedRod(material=material, rest_lengths=jnp.asarray(rest), q_init=jnp.asarray(q0), Lk0=float(Lk0), name=name)
+    if contact_stiffness is None:
+        return scene
+    if material.D is None:
+        raise ValueError("contact needs the rod diameter: give the material a D")
+    stiffness = check_positive("contact_stiffness", contact_stiffness)
+    scene = replace(scene, terms=scene.terms + ("contact",), contact_stiffness=stiffness)
+    return scene.with_contacts(q0)
+
+
+# Ropelength L/D of the ideal (tightest) trefoil (Baranska, Przybyl, Pieranski 2008: 16.372).
+IDEAL_TREFOIL_ROPELENGTH = 16.372
+
+DEFAULT_CONTACT_STIFFNESS = 100.0
+
+
+def trefoil_points(n, chirality="right"):
+    """(n,3) points of the trefoil (sin t + 2 sin 2t, cos t - 2 cos 2t, -+sin 3t).
+
+    With -sin 3t this parametrisation is left-handed (writhe ~ -3.35); 'right' flips z."""
+    if chirality not in ("right", "left"):
+        raise ValueError(f"chirality must be 'right' or 'left', got {chirality!r}")
+    t = TWO_PI * np.arange(n) / n
+    z = -np.sin(3 * t) if chirality == "left" else np.sin(3 * t)
+    return np.stack([np.sin(t) + 2 * np.sin(2 * t), np.cos(t) - 2 * np.cos(2 * t), z], axis=1)
+
+
+def trefoil(D, L, N, E=1.0, nu=0.5, chirality="right", contact_stiffness=DEFAULT_CONTACT_STIFFNESS):
+    """A closed trefoil knot of rod diameter D and length L, N nodes, material (E, nu, D).
+
+    Refuses a knot shorter than the ideal trefoil (L/D < 16.372), which cannot exist.
+    The initial curve is the standard parametrisation scaled to length L (not yet relaxed).
+    """
+    D = check_positive("D", D)
+    L = check_positive("L", L)
+    if L / D < IDEAL_TREFOIL_ROPELENGTH:
+        raise ValueError(
+            f"L/D = {L / D:.3f} is below the ideal trefoil's ropelength {IDEAL_TREFOIL_ROPELENGTH}: "
+            "no trefoil of this rod can exist (increase L or decrease D)"
+        )
+    mat = Material.from_engineering(E, nu, D)
+    return closed_curve(trefoil_points(max(4 * N, 400), chirality), mat, N=N, length=L,
+                        name=f"{chirality}-handed trefoil", contact_stiffness=contact_stiffness)
+
+
+def torus_knot(p, q, D, L, N, E=1.0, nu=0.5, radii=(2.0, 1.0), contact_stiffness=DEFAULT_CONTACT_STIFFNESS):
+    """The (p, q) torus knot ((R + r cos qt) cos pt, (R + r cos qt) sin pt, r sin qt), scaled to
+    length L, as a closed rod of diameter D with N nodes. p and q must be coprime integers."""
+    p = check_int_at_least("p", p, 1)
+    q = check_int_at_least("q", q, 1)
+    if math.gcd(p, q) != 1:
+        raise ValueError(f"p and q must be coprime for a knot, got p={p}, q={q}")
+    R, r = radii
+    t = TWO_PI * np.arange(max(4 * N, 400)) / max(4 * N, 400)
+    pts = np.stack([(R + r * np.cos(q * t)) * np.cos(p * t), (R + r * np.cos(q * t)) * np.sin(p * t), r * np.sin(q * t)], axis=1)
+    mat = Material.from_engineering(E, nu, D)
+    return closed_curve(pts, mat, N=N, length=L, name=f"T({p},{q}) torus knot", contact_stiffness=contact_stiffness)
 
 
 def ring(N, material, radius=1.0, Lk0=0):

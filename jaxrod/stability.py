@@ -121,7 +121,16 @@ def _branch_sensitivities(scene, u, phi, v, lam, vec, skip, dscene, dphi):
 
 
 def _zero_tangent(scene):
-    return jax.tree_util.tree_map(jnp.zeros_like, scene)
+    """A zero tangent for every leaf of the scene (integer leaves, e.g. contact pair indices,
+    take JAX's float0 zeros, as jvp requires)."""
+
+    def zero(a):
+        a = jnp.asarray(a)
+        if jnp.issubdtype(a.dtype, jnp.integer) or a.dtype == jnp.bool_:
+            return np.zeros(a.shape, dtype=jax.dtypes.float0)
+        return jnp.zeros_like(a)
+
+    return jax.tree_util.tree_map(zero, scene)
 
 
 def _skip_mask(lam, n_zero, index, cluster_rtol):

@@ -1,0 +1,631 @@
+"""Analysis of measured (or simulated) rod shapes: frames, curvature and twist profiles, Wr, Tw, Lk.
+
+This is the analysis of the seed paper (Goto, Nomura, Sano, "Twist deformation of physical trefoil
+knots") applied to two polylines: the rod's centreline and an *eccentric line*, a line drawn on the
+rod surface (e.g. both extracted as skeletons from X-ray tomography).
+
+Frames and profiles (paper's definitions)
+-----------------------------------------
+* d3 = unit tangent of the centreline;
+* d1 = unit vector from the centreline towards the eccentric line, projected on the plane normal to
+  d3; d2 = d3 x d1 (right-handed);
+* kappa1 = d2'.d3, kappa2 = d3'.d1, tau = d1'.d2, kappa = sqrt(kappa1^2 + kappa2^2), ' = d/ds.
+
+With the Darboux vector Omega (d_i' = Omega x d_i) these say Omega = kappa1 d1 + kappa2 d2 + tau d3:
+(kappa1, kappa2) are the components of the curvature binormal kappa*b = d3 x d3' on (d1, d2), and
+tau is the rate at which d1 turns about d3 (right-handed positive), the same sign convention as
+``jaxrod.topology`` and the rod scenes.
+
+Pipeline of :func:`analyze`
+---------------------------
+1. Both polylines are interpolated by cubic splines in their cumulative chord length (periodic for
+   closed curves, not-a-knot for open ones), so that resampling keeps second-order (in fact
+   fourth-order in position) accuracy: a *linear* resampling would put kinks of size h^2 kappa into
+   the curve, which second differences turn into O(1) curvature errors.
+2. Optional smoothing (``smoothing_modes=K``, off by default; both curves get the same K), a
+   least-squares fit: closed curves by a Fourier series with the modes |k| <= K (a periodic
+   low-pass: a mode k has wavelength L/k); open curves by a cubic spline with K equal knot
+   intervals (a regression spline: local, so the ends are not plagued by the Runge/Gibbs noise
+   amplification of a high-degree polynomial or of a truncated Fourier series of a non-periodic
+   signal; the ends remain the noisiest part, as with any estimate of derivatives there).
+   Parameters: first the chord length of the noisy points, then corrected three times by
+   projecting each point on the previous fit (arc length of its nearest point, searched locally).
+   Without the correction the random chord lengths of noisy points act as a tangential jitter that
+   the truncation turns into shape noise (it doubled the curvature error in the tests). Choose K
+   from the physics: large enough to resolve the features (for a trefoil with a few turns of twist,
+   K ~ 12-16), small enough to reject the noise; the curvature noise grows like K^2.5, the twist
+   noise like K^1.5 (white noise: amplitude x sqrt((2K+1)/n) x (2 pi K/L)^p / sqrt(2p+1) for the
+   p-th derivative).
+3. The centreline is resampled to ``n_samples`` nodes equally spaced in arc length (the arc length
+   of the interpolant, by Simpson quadrature of its speed and Newton refinement, to ~1e-12).
+4. Pairing: for each node x_i the eccentric point is where the eccentric curve (its spline, or its
+   smoothed version) crosses the normal plane {p : (p - x_i).d3_i = 0}; if it crosses it several times
+   (the plane also cuts other strands of a knot) the crossing *nearest to x_i* is taken. It is found
+   on a dense polyline sampled from the interpolant and refined by Newton's method on the
+   interpolant itself. Where the plane is not crossed at all (near the ends of open data) the
+   nearest point of the eccentric curve is used (flagged in ``RodAnalysis.paired``). In both
+   cases d1 is the projection of (point - x_i) on the normal plane, normalised. The rule assumes
+   that the line is nearer to its own strand than to any other, which holds for a line on the
+   surface of a rod that does not interpenetrate itself (own surface at D/2, any other strand's
+   surface at >= D/2).
+5. Derivatives on the equal-arc-length grid, second order: the tangent by central differences
+   (x_{i+1} - x_{i-1})/2h, the curvature vector d3' = x'' by the compact second difference
+   (x_{i+1} - 2x_i + x_{i-1})/h^2, so kappa1 = d2'.d3 = -d2.x'' and kappa2 = x''.d1; tau = d1'.d2 with
+   d1' by central differences. Closed curves are periodic; open curves use second-order one-sided
+   stencils at the ends.
+6. Wr: exact polygon writhe (:func:`jaxrod.topology.writhe`) of the resampled centreline.
+   Tw: (1/2pi) x the sum of the signed angles (right-hand rule about the tangent) between d1 and its
+   parallel transport from the previous frame. For a closed curve the frames used are the node d1
+   carried to the *edges* of the resampled polygon (averaged, projected normal to each edge); the
+   holonomy of transport round a polygon equals -2pi Wr(polygon) modulo 2pi exactly, so Wr + Tw is
+   then an integer to rounding (provided each step turns by less than pi). For an open curve the
+   sequence is node 0, edges 0..N-2, node N-1. Tw_integral = (1/2pi) int tau ds (periodic
+   trapezoid / trapezoid rule), which agrees with Tw to the order of the discretisation.
+7. Lk (closed curves only; NaN for open ones): the Gauss linking number of the resampled
+   centreline with the eccentric polyline (as given, or the smoothed one sampled at as many points
+   as given), exactly (:func:`jaxrod.topology.linking_number`, an integer) and by the paper's
+   midpoint-rule quadrature (:func:`jaxrod.topology.gauss_linking_quadrature`); the eccentric line
+   is oriented along the centreline first (its orientation flips the sign of Lk). Lk_frames = Wr + Tw.
+   Note the paper writes its Gauss integrals with the opposite orientation; the values here follow
+   jaxrod's standard convention (a right-handed ribbon has positive Lk).
+
+Cost: the writhe and linking number are O(N^2) in time and memory (all segment pairs); for
+skeletons of many thousand points pass a smaller ``n_samples`` (a few hundred resolve a knot).
+
+Input files: :func:`load_polyline` (CSV with an x,y,z header or three bare columns; .npy (N,3)).
+Output: :func:`write_profiles_csv`.
+"""
+from __future__ import annotations
+
+import csv
+import math
+import os
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.interpolate import CubicSpline, make_lsq_spline  # scipy is a dependency of jax itself
+
+from .geometry import parallel_transport, signed_angle
+from .topology import gauss_linking_quadrature, linking_number, writhe
+
+__all__ = ["RodAnalysis", "analyze", "load_polyline", "write_profiles_csv"]
+
+TWO_PI = 2.0 * math.pi
+_MIN_POINTS = 4
+
+
+# ---------------------------------------------------------------------------- result
+@dataclass(frozen=True, eq=False)
+class RodAnalysis:
+    """Result of :func:`analyze`. N = number of (resampled) centreline nodes.
+
+    Attributes
+    ----------
+    s: (N,) arc length of the nodes (closed: 0, h, ..., L - h; open: 0 ... L).
+    kappa1, kappa2: (N,) curvature components d2'.d3 and d3'.d1 (1/length).
+    tau: (N,) twist density d1'.d2 (radians/length, right-handed positive).
+    kappa: (N,) curvature sqrt(kappa1^2 + kappa2^2).
+    d1, d2, d3: (N,3) the frame at the nodes (d3 tangent, d1 towards the eccentric line).
+    x: (N,3) the resampled (and smoothed, if asked) centreline nodes.
+    eccentric: (N,3) the eccentric-line point paired with each node.
+    paired: (N,) bool, True where that point is a crossing of the node's normal plane; False where
+      the plane misses the eccentric line (e.g. beyond its ends in open data) and the nearest point
+      was used instead: d1, tau, kappa1, kappa2 are unreliable there.
+    length: total arc length L of the centreline.
+    closed: whether the curves were treated as closed.
+    Wr: writhe of the resampled centreline (exact polygon writhe; open writhe if not closed).
+    Tw: total twist of the frame (turns), from transported frames; Wr + Tw is an integer for a
+      closed ribbon.
+    Tw_integral: (1/2pi) * integral of tau ds.
+    Lk_exact: exact Gauss linking number of the centreline and the eccentric line (NaN if open).
+    Lk_quadrature: midpoint-rule Gauss linking integral, the paper's estimate (NaN if open).
+    Lk_frames: Wr + Tw.
+    """
+
+    s: np.ndarray
+    kappa1: np.ndarray
+    kappa2: np.ndarray
+    tau: np.ndarray
+    kappa: np.ndarray
+    d1: np.ndarray
+    d2: np.ndarray
+    d3: np.ndarray
+    x: np.ndarray
+    eccentric: np.ndarray
+    paired: np.ndarray
+    length: float
+    closed: bool
+    Wr: float
+    Tw: float
+    Tw_integral: float
+    Lk_exact: float
+    Lk_quadrature: float
+    Lk_frames: float
+
+
+# ---------------------------------------------------------------------------- validation
+def _check_points(name, points, source=None):
+    """(N,3) finite float array with N >= 4, else ValueError naming ``name`` (and the file)."""
+    where = f"{name}" if source is None else f"{source}"
+    try:
+        p = np.asarray(points, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{where}: could not be read as an array of numbers") from None
+    if p.ndim != 2 or p.shape[1] != 3:
+        raise ValueError(f"{where}: points must have shape (N, 3), got shape {p.shape}")
+    if p.shape[0] < _MIN_POINTS:
+        raise ValueError(f"{where}: at least {_MIN_POINTS} points are needed, got {p.shape[0]}")
+    bad = ~np.all(np.isfinite(p), axis=1)
+    if np.any(bad):
+        rows = np.flatnonzero(bad)
+        shown = ", ".join(str(r) for r in rows[:5]) + (", ..." if rows.size > 5 else "")
+        raise ValueError(
+            f"{where}: non-finite values (nan or inf) in {rows.size} point(s), rows {shown}"
+        )
+    return p
+
+
+def _clean(name, p, closed):
+    """Drop exact consecutive duplicates and, for a closed curve, a last point repeating the first
+    (common in data files); check that enough points remain."""
+    keep = np.ones(p.shape[0], dtype=bool)
+    keep[1:] = np.any(p[1:] != p[:-1], axis=1)
+    p = p[keep]
+    if closed and p.shape[0] > 1:
+        scale = np.max(np.ptp(p, axis=0))
+        if np.linalg.norm(p[-1] - p[0]) <= 1e-12 * scale:
+            p = p[:-1]
+    if p.shape[0] < _MIN_POINTS:
+        raise ValueError(f"{name}: at least {_MIN_POINTS} distinct points are needed, got {p.shape[0]}")
+    if np.max(np.ptp(p, axis=0)) == 0.0:
+        raise ValueError(f"{name}: all points coincide")
+    return p
+
+
+# ---------------------------------------------------------------------------- curves
+class _FourierCurve:
+    """Closed curve r(t) = a_0 + sum_{k=1..K} a_k cos(2 pi k t/T) + b_k sin(2 pi k t/T), fitted by
+    least squares to points at given parameters. ``__call__(t, nu)`` evaluates the nu-th
+    derivative (like scipy's CubicSpline)."""
+
+    def __init__(self, t, points, modes, period):
+        self.T = float(period)
+        self.w = 2.0 * math.pi * np.arange(modes + 1) / self.T
+        design = self._basis(np.asarray(t, dtype=float), 0)
+        self.coef = np.linalg.lstsq(design, points, rcond=None)[0]  # (2K+1, 3)
+
+    def _basis(self, t, nu):
+        ph = np.outer(t, self.w[1:])
+        w = self.w[1:] ** nu
+        # d^nu/dt^nu of cos(w t) = w^nu cos(w t + nu pi/2), likewise for sin.
+        shift = nu * math.pi / 2.0
+        const = np.ones((t.size, 1)) if nu == 0 else np.zeros((t.size, 1))
+        return np.hstack([const, w * np.cos(ph + shift), w * np.sin(ph + shift)])
+
+    def __call__(self, t, nu=0):
+        t = np.asarray(t, dtype=float)
+        return (self._basis(t.ravel(), nu) @ self.coef).reshape(t.shape + (3,))
+
+
+class _SplineFitCurve:
+    """Open curve r(t), t in [0, T]: least-squares cubic spline with ``intervals`` equal knot
+    intervals, fitted to points at given parameters (regression spline: local, so, unlike a
+    high-degree polynomial fit, it does not amplify noise at the ends)."""
+
+    def __init__(self, t, points, intervals, period):
+        self.T = float(period)
+        knots = np.concatenate([[0.0] * 3, np.linspace(0.0, self.T, intervals + 1), [self.T] * 3])
+        order = np.argsort(t, kind="stable")
+        try:
+            self.spline = make_lsq_spline(np.clip(t[order], 0.0, self.T), points[order], knots, k=3)
+        except (np.linalg.LinAlgError, ValueError) as err:
+            raise ValueError(
+                f"smoothing_modes={intervals}: the least-squares spline is undetermined for these "
+                f"points ({err}); use fewer modes"
+            ) from None
+
+    def __call__(self, t, nu=0):
+        return self.spline(np.asarray(t, dtype=float), nu)
+
+
+def _chord_parameters(points, closed):
+    """Cumulative chord length at each point (and, closed, at the repeated first point)."""
+    loop = np.vstack([points, points[:1]]) if closed else points
+    chord = np.linalg.norm(np.diff(loop, axis=0), axis=1)
+    return loop, np.concatenate([[0.0], np.cumsum(chord)])
+
+
+def _arclength_table(curve, T, n):
+    """Arc length of ``curve`` on a fine grid of [0, T] (Simpson on each cell).
+    Returns (tf, sf, speed at tf, speed function)."""
+    F = max(8 * n, 2048)
+    tf = np.linspace(0.0, T, F + 1)
+    speed = lambda u: np.linalg.norm(curve(u, 1), axis=-1)  # noqa: E731
+    sp = speed(tf)
+    sm = speed(0.5 * (tf[1:] + tf[:-1]))
+    sf = np.concatenate([[0.0], np.cumsum((tf[1] - tf[0]) / 6.0 * (sp[:-1] + 4.0 * sm + sp[1:]))])
+    return tf, sf, sp, speed
+
+
+def _project(points, curve, t, window, closed, T):
+    """Parameters of the points of ``curve`` nearest to ``points`` (n,3), searched within
+    +-window of the current parameters t (n,) (local: never jumps to another strand), then refined
+    by Newton's method on the squared distance."""
+    offsets = np.linspace(-window, window, 17)
+    cand = t[:, None] + offsets[None, :]
+    if not closed:
+        cand = np.clip(cand, 0.0, T)
+    d = np.linalg.norm(curve(cand) - points[:, None, :], axis=-1)
+    t = cand[np.arange(t.size), np.argmin(d, axis=1)]
+    lo, hi = t - window / 8.0, t + window / 8.0
+    for _ in range(3):
+        r, r1, r2 = curve(t) - points, curve(t, 1), curve(t, 2)
+        g = np.sum(r * r1, axis=-1)
+        dg = np.sum(r1 * r1, axis=-1) + np.sum(r * r2, axis=-1)
+        ok = dg > 0.0
+        t = np.clip(np.where(ok, t - g / np.where(ok, dg, 1.0), t), lo, hi)
+    return np.clip(t, 0.0, T) if not closed else t
+
+
+def _smooth_fit(points, closed, modes, iterations=3):
+    """Least-squares low-pass fit of noisy points: Fourier modes |k| <= ``modes`` (closed) or a
+    cubic spline with ``modes`` equal knot intervals (open), with iterative parameter correction.
+
+    A fit in the chord-length parameter of noisy points inherits the noise of the chord lengths (a
+    random tangential jitter that the truncation turns into shape errors, roughly doubling the noise
+    of the curvature). So the parameters are corrected: each point gets the arc length, along the
+    previous fit, of its nearest point on it (a local search), and the fit is redone. Tangential
+    noise is thereby absorbed into the parameters; only normal noise is left to the low-pass.
+    Returns (curve, T)."""
+    n = points.shape[0]
+    _, t = _chord_parameters(points, closed)
+    T = float(t[-1])
+    t = t[:n]
+    make = _FourierCurve if closed else _SplineFitCurve
+    curve = make(t, points, modes, T)
+    for _ in range(iterations):
+        t = _project(points, curve, t, 4.0 * T / n, closed, T)
+        tf, sf, _, _ = _arclength_table(curve, T, n)
+        if closed:
+            wraps = np.floor(t / T)
+            s = np.interp(t - wraps * T, tf, sf) + wraps * sf[-1]
+        else:
+            s = np.interp(t, tf, sf)
+        T = float(sf[-1])
+        t = s
+        curve = make(t, points, modes, T)
+    return curve, T
+
+
+def _interpolant(points, closed, modes):
+    """Curve through (or, if smoothing, near) ``points``.
+
+    Without smoothing: a cubic spline (periodic / not-a-knot) in the cumulative chord length.
+    With smoothing: :func:`_smooth_fit`. Returns (curve, T): curve(t, nu) evaluates the nu-th
+    derivative, t in [0, T] (closed: periodic with period T)."""
+    if modes is not None:
+        return _smooth_fit(points, closed, modes)
+    loop, t = _chord_parameters(points, closed)
+    return CubicSpline(t, loop, bc_type="periodic" if closed else "not-a-knot"), float(t[-1])
+
+
+def _arclength_parameters(curve, T, n, closed):
+    """Parameters t_i at which ``curve`` has arc length s_i, equally spaced (closed: s_i = i L/n,
+    i < n; open: s_i = i L/(n-1)). Simpson quadrature of the speed on a fine grid, then two Newton
+    steps on the exact arc-length function. Returns (t (n,), L)."""
+    tf, sf, sp, speed = _arclength_table(curve, T, n)
+    F = tf.size - 1
+    L = float(sf[-1])
+    target = L * np.arange(n) / n if closed else np.linspace(0.0, L, n)
+    t = np.interp(target, sf, tf)
+    for _ in range(2):
+        k = np.clip(np.searchsorted(tf, t, side="right") - 1, 0, F - 1)
+        a = tf[k]
+        s_t = sf[k] + (t - a) / 6.0 * (sp[k] + 4.0 * speed(0.5 * (a + t)) + speed(t))
+        t = np.clip(t - (s_t - target) / speed(t), 0.0, T)
+    return t, L
+
+
+# ---------------------------------------------------------------------------- pairing
+def _pair(x, d3, curve, T, closed, n_dense):
+    """Point of the eccentric ``curve`` paired with each node x (N,3) of unit tangent d3 (N,3):
+    the crossing of the normal plane nearest to the node (Newton-refined on the curve), or the
+    nearest point of the curve if the plane is not crossed. Returns (points (N,3), params (N,),
+    crossed (N,) bool)."""
+    tf = np.linspace(0.0, T, n_dense + 1)
+    pf = curve(tf)
+    out_t = np.empty(x.shape[0])
+    crossed = np.empty(x.shape[0], dtype=bool)
+    chunk = max(1, 500_000 // (3 * n_dense))  # bounds the (chunk, n_dense, 3) temporaries
+    for lo in range(0, x.shape[0], chunk):
+        xs, ts = x[lo: lo + chunk], d3[lo: lo + chunk]
+        f = np.einsum("cfk,ck->cf", pf[None, :, :] - xs[:, None, :], ts)  # signed height above plane
+        f0, f1 = f[:, :-1], f[:, 1:]
+        crosses = (f0 * f1 <= 0.0) & (f0 != f1)
+        alpha = np.where(crosses, f0 / np.where(crosses, f0 - f1, 1.0), 0.0)
+        q = pf[None, :-1, :] + alpha[:, :, None] * (pf[None, 1:, :] - pf[None, :-1, :])
+        dist = np.where(crosses, np.linalg.norm(q - xs[:, None, :], axis=-1), np.inf)
+        j = np.argmin(dist, axis=1)
+        rows = np.arange(xs.shape[0])
+        found = np.isfinite(dist[rows, j])
+        t = tf[j] + alpha[rows, j] * (tf[j + 1] - tf[j])
+        a, b = tf[j], tf[j + 1]
+        # Newton on g(t) = (r(t) - x).d3, kept inside the bracketing segment.
+        for _ in range(4):
+            g = np.sum((curve(t) - xs) * ts, axis=-1)
+            dg = np.sum(curve(t, 1) * ts, axis=-1)
+            ok = np.abs(dg) > 1e-300
+            t = np.clip(np.where(ok, t - g / np.where(ok, dg, 1.0), t), a, b)
+        if not np.all(found):
+            nearest = np.argmin(np.linalg.norm(pf[None, :, :] - xs[:, None, :], axis=-1), axis=1)
+            t = np.where(found, t, tf[nearest])
+        out_t[lo: lo + chunk] = t
+        crossed[lo: lo + chunk] = found
+    return curve(out_t), out_t, crossed
+
+
+# ---------------------------------------------------------------------------- helpers
+def _unit(v):
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def _transport(v, t_from, t_to):
+    return np.asarray(parallel_transport(v, t_from, t_to))
+
+
+def _angles(d_from, t_from, d_to, t_to):
+    """Signed angles (about t_to) from transported d_from to d_to. All (M,3) -> (M,)."""
+    return np.asarray(signed_angle(_transport(d_from, t_from, t_to), d_to, t_to))
+
+
+def _check_modes(smoothing_modes, n_points, closed):
+    if smoothing_modes is None:
+        return None
+    try:
+        integral = not isinstance(smoothing_modes, bool) and int(smoothing_modes) == smoothing_modes
+    except (TypeError, ValueError):
+        integral = False
+    if not integral:
+        raise ValueError(f"smoothing_modes must be an integer or None, got {smoothing_modes!r}")
+    k = int(smoothing_modes)
+    top = (n_points - 1) // 2 if closed else n_points - 3
+    if not 1 <= k <= top:
+        raise ValueError(
+            f"smoothing_modes must lie in [1, {top}] for {n_points} points "
+            f"({'closed' if closed else 'open'} curve), got {smoothing_modes!r}"
+        )
+    return k
+
+
+# ---------------------------------------------------------------------------- analysis
+def analyze(centreline, eccentric, closed=True, n_samples=None, smoothing_modes=None):
+    """Frames, curvature/twist profiles and Wr, Tw, Lk of a rod from two polylines.
+
+    Args:
+      centreline: (N0, 3) points along the rod's centreline, in order. For a closed rod the last
+        point need not repeat the first (a repeated one is dropped; so are exact duplicates).
+      eccentric: (M0, 3) points along a line drawn on the rod surface, in order (either direction;
+        not necessarily matching the centreline points in number or position).
+      closed: treat both curves as closed loops (a knot, a ring) or as open arcs.
+      n_samples: number N of output nodes, equally spaced in arc length (default: N0).
+      smoothing_modes: None (default, no smoothing) or K: least-squares fit of each closed curve by
+        Fourier modes |k| <= K, of each open curve by a cubic spline with K knot intervals. For
+        noisy data; 1 <= K <= (M - 1)//2 (closed) or M - 3 (open), M the fewer of the two point
+        counts.
+
+    Returns:
+      :class:`RodAnalysis` (per-node arrays of length N, see there). The method (interpolation,
+      pairing, stencils) is described in the module docstring; profiles are second-order accurate
+      in the node spacing for smooth data.
+
+    Raises:
+      ValueError: input not of shape (N, 3), non-finite, fewer than 4 points, bad ``n_samples`` or
+        ``smoothing_modes``, or an eccentric line that lies on the centreline.
+    """
+    if not isinstance(closed, (bool, np.bool_)):
+        raise ValueError(f"closed must be True or False, got {closed!r}")
+    closed = bool(closed)
+    c_pts = _clean("centreline", _check_points("centreline", centreline), closed)
+    e_pts = _clean("eccentric", _check_points("eccentric", eccentric), closed)
+    if n_samples is None:
+        n = c_pts.shape[0]
+    else:
+        try:
+            integral = not isinstance(n_samples, bool) and int(n_samples) == n_samples
+        except (TypeError, ValueError):
+            integral = False
+        if not integral:
+            raise ValueError(f"n_samples must be an integer or None, got {n_samples!r}")
+        n = int(n_samples)
+        if n < _MIN_POINTS:
+            raise ValueError(f"n_samples must be at least {_MIN_POINTS}, got {n_samples!r}")
+    modes = _check_modes(smoothing_modes, min(c_pts.shape[0], e_pts.shape[0]), closed)
+
+    # 1-3: interpolate (and smooth), resample the centreline to equal arc length.
+    c_curve, c_T = _interpolant(c_pts, closed, modes)
+    e_curve, e_T = _interpolant(e_pts, closed, modes)
+    t_nodes, L = _arclength_parameters(c_curve, c_T, n, closed)
+    x = c_curve(t_nodes)
+    h = L / n if closed else L / (n - 1)
+
+    # 5a: tangent and curvature vector.
+    if closed:
+        xp, xm = np.roll(x, -1, axis=0), np.roll(x, 1, axis=0)
+        d3 = _unit(xp - xm)
+        xss = (xp - 2.0 * x + xm) / h**2
+    else:
+        d3 = _unit(np.gradient(x, h, axis=0, edge_order=2))
+        xss = np.empty_like(x)
+        xss[1:-1] = (x[2:] - 2.0 * x[1:-1] + x[:-2]) / h**2
+        xss[0] = (2.0 * x[0] - 5.0 * x[1] + 4.0 * x[2] - x[3]) / h**2
+        xss[-1] = (2.0 * x[-1] - 5.0 * x[-2] + 4.0 * x[-3] - x[-4]) / h**2
+
+    # 4: pairing and the frame.
+    n_dense = max(8 * e_pts.shape[0], 4 * n)
+    ecc, e_t, crossed = _pair(x, d3, e_curve, e_T, closed, n_dense)
+    w = ecc - x
+    w = w - np.sum(w * d3, axis=-1, keepdims=True) * d3
+    r = np.linalg.norm(w, axis=-1)
+    if np.min(r) <= 1e-9 * L:
+        i = int(np.argmin(r))
+        raise ValueError(
+            f"eccentric: the eccentric line lies on the centreline (offset {r[i]:.3g} at node {i}, "
+            f"length {L:.6g}); it must be a line drawn at a distance from the centreline"
+        )
+    d1 = w / r[:, None]
+    d2 = np.cross(d3, d1)
+
+    # 5b: profiles.
+    kappa1 = -np.sum(xss * d2, axis=-1)
+    kappa2 = np.sum(xss * d1, axis=-1)
+    if closed:
+        d1s = (np.roll(d1, -1, axis=0) - np.roll(d1, 1, axis=0)) / (2.0 * h)
+    else:
+        d1s = np.gradient(d1, h, axis=0, edge_order=2)
+    tau = np.sum(d1s * d2, axis=-1)
+    kappa = np.hypot(kappa1, kappa2)
+    s = h * np.arange(n)
+
+    # 6: writhe and twist.
+    Wr = float(writhe(x, closed=closed))
+    if closed:
+        te = _unit(np.roll(x, -1, axis=0) - x)  # edge i: x_i -> x_{i+1}
+        d3n, d1n = np.roll(d3, -1, axis=0), np.roll(d1, -1, axis=0)
+    else:
+        te = _unit(x[1:] - x[:-1])
+        d3n, d1n = d3[1:], d1[1:]
+    de = _transport(d1[: te.shape[0]], d3[: te.shape[0]], te) + _transport(d1n, d3n, te)
+    de = _unit(de - np.sum(de * te, axis=-1, keepdims=True) * te)
+    if closed:
+        angles = _angles(np.roll(de, 1, axis=0), np.roll(te, 1, axis=0), de, te)
+        Tw_integral = float(np.sum(tau) * h / TWO_PI)
+    else:
+        t_seq = np.concatenate([d3[:1], te, d3[-1:]], axis=0)
+        d_seq = np.concatenate([d1[:1], de, d1[-1:]], axis=0)
+        angles = _angles(d_seq[:-1], t_seq[:-1], d_seq[1:], t_seq[1:])
+        Tw_integral = float(np.sum(0.5 * (tau[1:] + tau[:-1])) * h / TWO_PI)
+    Tw = float(np.sum(angles) / TWO_PI)
+
+    # 7: linking number of the centreline with the eccentric line.
+    if closed:
+        e_poly = e_pts if modes is None else e_curve(e_T * np.arange(e_pts.shape[0]) / e_pts.shape[0])
+        if np.mean(np.sum(e_curve(e_t, 1) * d3, axis=-1)) < 0.0:
+            e_poly = e_poly[::-1]  # orient the eccentric line along the centreline
+        Lk_exact = float(linking_number(x, e_poly))
+        Lk_quad = float(gauss_linking_quadrature(x, e_poly))
+    else:
+        Lk_exact = Lk_quad = float("nan")
+
+    arrays = dict(
+        s=s, kappa1=kappa1, kappa2=kappa2, tau=tau, kappa=kappa, d1=d1, d2=d2, d3=d3, x=x, eccentric=ecc,
+        paired=crossed,
+    )
+    for a in arrays.values():
+        a.setflags(write=False)
+    return RodAnalysis(
+        **arrays,
+        length=L,
+        closed=closed,
+        Wr=Wr,
+        Tw=Tw,
+        Tw_integral=Tw_integral,
+        Lk_exact=Lk_exact,
+        Lk_quadrature=Lk_quad,
+        Lk_frames=Wr + Tw,
+    )
+
+
+# ---------------------------------------------------------------------------- I/O
+def _parse_float(text):
+    try:
+        return float(text)
+    except ValueError:
+        return None
+
+
+def _read_csv(path):
+    with open(path, newline="") as fh:
+        rows = [
+            (lineno, [cell.strip() for cell in row])
+            for lineno, row in enumerate(csv.reader(fh), start=1)
+            if row and any(cell.strip() for cell in row) and not row[0].lstrip().startswith("#")
+        ]
+    if not rows:
+        raise ValueError(f"{path}: empty file, no points")
+    first_line, first = rows[0]
+    has_header = any(_parse_float(cell) is None for cell in first)
+    if has_header:
+        names = [cell.lower() for cell in first]
+        missing = [c for c in ("x", "y", "z") if c not in names]
+        if missing:
+            raise ValueError(
+                f"{path}: missing column(s) {', '.join(missing)} in the header {first!r} "
+                "(need columns named x, y, z)"
+            )
+        dup = [c for c in ("x", "y", "z") if names.count(c) > 1]
+        if dup:
+            raise ValueError(f"{path}: duplicate column(s) {', '.join(dup)} in the header {first!r}")
+        cols = [names.index(c) for c in ("x", "y", "z")]
+        body = rows[1:]
+        width = len(names)
+    else:
+        cols = [0, 1, 2]
+        body = rows
+        width = 3
+        if len(first) != 3:
+            raise ValueError(
+                f"{path}: a file without header must have exactly 3 numeric columns (x, y, z), "
+                f"line {first_line} has {len(first)}"
+            )
+    pts = np.empty((len(body), 3))
+    for i, (lineno, row) in enumerate(body):
+        if len(row) != width:
+            raise ValueError(f"{path}: line {lineno} has {len(row)} columns, expected {width}")
+        for k, c in enumerate(cols):
+            v = _parse_float(row[c])
+            if v is None:
+                raise ValueError(f"{path}: line {lineno}: value {row[c]!r} is not a number")
+            pts[i, k] = v
+    return pts
+
+
+def load_polyline(path):
+    """Read a polyline (N, 3) from a file.
+
+    * ``.csv``: comma-separated. Either a header row naming columns ``x``, ``y``, ``z`` (any order,
+      case-insensitive; other columns are ignored) followed by numeric rows, or exactly three
+      numeric columns without header. Blank lines and lines starting with ``#`` are skipped.
+    * ``.npy``: a numeric array of shape (N, 3) (no pickles).
+
+    Returns a float array (N, 3). Raises ValueError naming the file and the problem: unknown
+    extension, missing x/y/z columns, a non-numeric value, wrong shape, fewer than 4 points,
+    non-finite values.
+    """
+    path = os.fspath(path)
+    ext = os.path.splitext(path)[1].lower()
+    if ext == ".csv":
+        pts = _read_csv(path)
+    elif ext == ".npy":
+        try:
+            pts = np.load(path, allow_pickle=False)
+        except ValueError as err:
+            raise ValueError(f"{path}: not a numeric .npy array ({err})") from None
+        if pts.dtype.kind not in "biuf":
+            raise ValueError(f"{path}: array of dtype {pts.dtype} is not numeric")
+    else:
+        raise ValueError(f"{path}: unknown file extension {ext!r} (expected .csv or .npy)")
+    return _check_points("polyline", pts, source=path)
+
+
+def write_profiles_csv(result, path):
+    """Write the profiles of a :class:`RodAnalysis` as plain CSV: a header ``s,kappa1,kappa2,tau,kappa``
+    and one row per node (17 significant digits, so the numbers round-trip exactly)."""
+    if not isinstance(result, RodAnalysis):
+        raise TypeError(f"result must be a RodAnalysis, got {type(result).__name__}")
+    cols = ("s", "kappa1", "kappa2", "tau", "kappa")
+    data = np.stack([np.asarray(getattr(result, c), dtype=float) for c in cols], axis=1)
+    with open(os.fspath(path), "w", newline="") as fh:
+        writer = csv.writer(fh)
+        writer.writerow(cols)
+        for row in data:
+            writer.writerow([repr(float(v)) for v in row])
