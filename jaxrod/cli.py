@@ -45,7 +45,25 @@ def _build_parser():
     m.add_argument("--json", action="store_true", help="print one JSON object")
     m.add_argument("--out", default=None, help="folder for figures and data")
     m.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    m.add_argument("--no-cache", action="store_true",
+                   help="do not keep compiled code in ~/.cache/jaxrod (later runs then compile again)")
     return p
+
+
+def _enable_compilation_cache(args):
+    """Keep XLA's compiled code between runs (first run ~30 s, later runs a few s), unless the
+    user chose a cache already (JAX_COMPILATION_CACHE_DIR) or passed --no-cache."""
+    if getattr(args, "no_cache", False) or os.environ.get("JAX_COMPILATION_CACHE_DIR"):
+        return
+    import jax
+
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    path = os.path.join(base, "jaxrod", "xla")
+    try:
+        os.makedirs(path, exist_ok=True)
+    except OSError:
+        return  # read-only home: run without a cache
+    jax.config.update("jax_compilation_cache_dir", path)
 
 
 def _michell(args):
@@ -119,6 +137,8 @@ def main(argv=None):
     args = _build_parser().parse_args(argv)
     try:
         import jaxrod  # noqa: F401  (float64, BLAS threads)
+
+        _enable_compilation_cache(args)
 
         if args.command == "michell":
             return _michell(args)
