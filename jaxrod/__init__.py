@@ -31,9 +31,9 @@ from .scenes import (  # noqa: E402
     torus_knot,
     trefoil,
 )
-from .solvers import LBFGS, ConvergenceError, Newton, Solution, minimise  # noqa: E402
+from .solvers import LBFGS, ConvergenceError, DampedNewton, Newton, Solution, minimise  # noqa: E402
 from .stability import Stability, critical_twist_derivative, eigenvalue_phi_derivative, stability  # noqa: E402
-from .equilibrium import Equilibrium, solve_equilibrium  # noqa: E402
+from .equilibrium import Equilibrium, TopologyChangeError, relax, solve_equilibrium  # noqa: E402
 from .continuation import CriticalPoint, NoCrossingError, critical_twist  # noqa: E402
 from . import analysis, contact, plotting, topology  # noqa: E402
 
@@ -62,6 +62,9 @@ __all__ = [
     "critical_twist_derivative",
     "Equilibrium",
     "solve_equilibrium",
+    "relax",
+    "TopologyChangeError",
+    "DampedNewton",
     "CriticalPoint",
     "NoCrossingError",
     "critical_twist",

@@ -1,6 +1,7 @@
 """Equilibria of a scene at a given imposed twist, each reported with its stability."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import jax
@@ -8,10 +9,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from .material import check_finite
-from .solvers import LBFGS, Newton, Solution, minimise
+from .solvers import LBFGS, ConvergenceError, DampedNewton, Newton, Solution, minimise
 from .stability import DEFAULT_NEGATIVE_TOL, Stability, stability
 
-__all__ = ["Equilibrium", "solve_equilibrium", "scaled_energy", "scaled_zero_modes"]
+__all__ = ["Equilibrium", "solve_equilibrium", "relax", "TopologyChangeError", "scaled_energy", "scaled_zero_modes"]
 
 
 # Module-level functions of (u, (scene, phi)): the solvers' jitted loops take the function as a
@@ -25,6 +26,78 @@ def scaled_energy(u, args):
 def scaled_zero_modes(u, args):
     scene, phi = args
     return scene.scaled_zero_modes(u, phi)
+
+
+def contact_list_stale(u, args):
+    scene, phi = args
+    return scene.contact_list_stale(scene.from_scaled(u), phi)
+
+
+class TopologyChangeError(RuntimeError):
+    """The rod passed through itself (its writhe jumped by ~2): the knot type changed."""
+
+
+def relax(scene, phi=0.0, q0=None, gtol=1e-9, max_rounds=200, max_displacement=None, k=8,
+          negative_tol=DEFAULT_NEGATIVE_TOL, previous=None, progress=None):
+    """Minimise the energy of a scene with self-contact from q0 (default scene.q_init) without
+    letting the rod pass through itself.
+
+    Damped Newton (exact Hessian, shifted positive definite) with every node's step capped at
+    ``max_displacement`` (default D/4, so no strand can jump across another between two energy
+    evaluations); the run pauses whenever a node has moved more than skin/2 since the contact
+    candidate list was built, the list is rebuilt, and the run resumes. After every pause the
+    writhe is compared with the last one: a jump of 1 or more (strand passage changes it by ~2)
+    raises ``TopologyChangeError``. ``previous`` (an Equilibrium, e.g. the last continuation step)
+    makes the first comparison against its writhe, so a step that jumped a strand across another
+    before the solve even started is refused too.
+
+    Returns (equilibrium, scene): the scene carries the contact list valid at the equilibrium.
+    """
+    phi = check_finite("phi", phi)
+    q = np.asarray(scene.q_init if q0 is None else q0, dtype=float)
+    has_contact = "contact" in scene.terms
+    if has_contact:
+        scene = scene.with_contacts(q)
+        cap = 0.25 * float(scene.material.D) if max_displacement is None else float(max_displacement)
+    else:
+        cap = math.inf if max_displacement is None else float(max_displacement)
+    say = progress or (lambda s: None)
+    solver = DampedNewton(
+        zero_modes=scaled_zero_modes if scene.n_zero_modes else None,
+        max_step=cap / float(scene.length_scale),
+        leave=contact_list_stale if has_contact else None,
+    )
+    wr_last = float(scene.writhe(jnp.asarray(q), phi)) if previous is None else float(previous.Wr)
+    if abs(float(scene.writhe(jnp.asarray(q), phi)) - wr_last) >= 1.0:
+        raise TopologyChangeError(
+            f"the starting state's writhe differs from the previous equilibrium's ({wr_last:.4f}) by 1 or more: "
+            "the step passed the rod through itself"
+        )
+    total = 0
+    for round_ in range(max_rounds):
+        u0 = scene.to_scaled(jnp.asarray(q))
+        sol = minimise(scaled_energy, u0, (scene, jnp.asarray(phi)), solver, gtol, None, throw=False)
+        total += sol.iterations
+        q = np.asarray(scene.from_scaled(jnp.asarray(sol.y)))
+        wr = float(scene.writhe(jnp.asarray(q), phi))
+        say(f"relax round {round_}: {sol.reason}, {sol.iterations} steps, |g| = {sol.grad_norm:.2e}, Wr = {wr:.4f}")
+        if abs(wr - wr_last) >= 1.0:
+            raise TopologyChangeError(
+                f"writhe jumped from {wr_last:.4f} to {wr:.4f}: the rod passed through itself"
+            )
+        wr_last = wr
+        if sol.reason == "left_region":
+            scene = scene.with_contacts(q)
+            continue
+        if not sol.converged:
+            raise ConvergenceError(f"relaxation did not converge: {sol!r}")
+        if has_contact:
+            scene = scene.with_contacts(q)
+        sol = Solution(y=sol.y, value=sol.value, grad_norm=sol.grad_norm, iterations=total,
+                       converged=True, reason="converged", solver=f"damped_newton({round_ + 1} rounds)",
+                       gtol=sol.gtol)
+        return equilibrium_from_solution(scene, phi, sol, k=k, negative_tol=negative_tol), scene
+    raise ConvergenceError(f"relaxation needed more than {max_rounds} contact-list rebuilds")
 
 
 @dataclass(frozen=True)

@@ -278,7 +278,8 @@ def _rigid_and_twist_modes(x, n_theta):
 
 
 @_pytree(
-    ["material", "rest_lengths", "q_init", "Lk0", "contact_pairs", "contact_mask", "contact_stiffness"],
+    ["material", "rest_lengths", "q_init", "Lk0", "contact_pairs", "contact_mask", "contact_stiffness",
+     "contact_x_built", "contact_skin"],
     ["terms", "name"],
 )
 @dataclass(frozen=True, eq=False)
@@ -293,6 +294,8 @@ class ClosedRod(Scene):
     contact_pairs: np.ndarray = None  # (P, 2) candidate segment pairs (see jaxrod.contact)
     contact_mask: np.ndarray = None  # (P,) real pairs (the rest is padding)
     contact_stiffness: float = 0.0  # kappa_c, relative to B/D^2
+    contact_x_built: np.ndarray = None  # (N, 3) nodes where the candidate list was built
+    contact_skin: float = 0.0  # the list is valid while no node moves more than skin/2
 
     closed = True
     n_zero_modes = 7
@@ -309,7 +312,17 @@ class ClosedRod(Scene):
             capacity = int(np.shape(self.contact_pairs)[0])
         cl = candidate_pairs(x, True, float(np.mean(np.asarray(self.rest_lengths))), float(self.material.D),
                              skin=skin, capacity=capacity)
-        return replace(self, contact_pairs=jnp.asarray(cl.pairs), contact_mask=jnp.asarray(cl.mask))
+        return replace(self, contact_pairs=jnp.asarray(cl.pairs), contact_mask=jnp.asarray(cl.mask),
+                       contact_x_built=jnp.asarray(x), contact_skin=float(cl.skin))
+
+    def contact_list_stale(self, q, phi):
+        """True when some node has moved more than skin/2 from where the contact list was built
+        (always False without contact)."""
+        if "contact" not in self.terms:
+            return jnp.asarray(False)
+        x, _ = self.unpack(q, phi)
+        moved = jnp.max(jnp.linalg.norm(x - self.contact_x_built, axis=1))
+        return moved > 0.5 * self.contact_skin
 
     def unpack(self, q, phi):
         n = self.n_nodes

@@ -26,10 +26,10 @@ import numpy as np
 import optax
 import optax.tree_utils as otu
 
-__all__ = ["LBFGS", "Newton", "Solution", "ConvergenceError", "minimise", "orthonormal_columns"]
+__all__ = ["LBFGS", "Newton", "DampedNewton", "Solution", "ConvergenceError", "minimise", "orthonormal_columns"]
 
 # Stop reasons (codes inside the jitted loop, names outside).
-_REASONS = {0: "converged", 1: "max_steps", 2: "nonfinite", 3: "stalled"}
+_REASONS = {0: "converged", 1: "max_steps", 2: "nonfinite", 3: "stalled", 4: "left_region"}
 
 
 class ConvergenceError(RuntimeError):
@@ -54,11 +54,27 @@ class Newton:
 
 
 @dataclass(frozen=True)
+class DampedNewton:
+    """A minimiser with the exact Hessian: each step solves (H + mu I) dy = -g with mu just large
+    enough to make H + mu I positive definite (so every step descends, also across saddles and
+    near bifurcations), caps max |dy| at ``max_step``, and backtracks until the energy decreases
+    (Armijo). ``zero_modes`` as in ``Newton``. ``leave(y, args) -> bool`` (optional) stops the run
+    with reason 'left_region' (e.g. when a contact candidate list must be rebuilt); the caller
+    then refreshes whatever depended on the region and calls again."""
+
+    zero_modes: object = None
+    max_step: float = float("inf")
+    leave: object = None
+    max_backtracks: int = 40
+
+
+@dataclass(frozen=True)
 class Solution:
     """Outcome of a minimisation.
 
     y: (n,) final point; value: f(y); grad_norm: max |grad f(y)|; iterations; converged;
-    reason: 'converged' | 'max_steps' | 'nonfinite' | 'stalled'; solver: its name; gtol used.
+    reason: 'converged' | 'max_steps' | 'nonfinite' | 'stalled' | 'left_region'; solver: its name;
+    gtol used.
     """
 
     y: np.ndarray
@@ -184,6 +200,66 @@ def _newton_loop(fun, zero_modes, y0, args, gtol, max_steps, max_backtracks):
     return y, value, gnorm, it, code
 
 
+@partial(jax.jit, static_argnames=("fun", "zero_modes", "leave", "max_steps", "max_backtracks"))
+def _damped_newton_loop(fun, zero_modes, leave, y0, args, gtol, max_step, max_steps, max_backtracks):
+    f = lambda y: fun(y, args)  # noqa: E731
+    grad = jax.grad(f)
+    hess = jax.hessian(f)
+
+    def direction(y):
+        g = grad(y)
+        h = hess(y)
+        h = 0.5 * (h + h.T)
+        if zero_modes is not None:
+            z = orthonormal_columns(zero_modes(y, args))
+            h = h + (jnp.max(jnp.abs(jnp.diag(h))) + 1.0) * (z @ z.T)
+        lam_min = jnp.linalg.eigvalsh(h)[0]
+        scale = jnp.max(jnp.abs(jnp.diag(h))) + 1.0
+        mu = jnp.maximum(0.0, -1.1 * lam_min) + 1e-10 * scale
+        dy = -jnp.linalg.solve(h + mu * jnp.eye(h.shape[0]), g)
+        big = jnp.max(jnp.abs(dy))
+        return jnp.where(big > max_step, dy * (max_step / big), dy), g
+
+    def cond(carry):
+        y, it, gnorm, code, _ = carry
+        return (it < max_steps) & (gnorm > gtol) & (code == 0)
+
+    def body(carry):
+        y, it, _, _, fy = carry
+        dy, g = direction(y)
+        slope = jnp.dot(g, dy)
+
+        def ls_cond(c):
+            alpha, k, f_new = c
+            return (k < max_backtracks) & ~(f_new <= fy + 1e-4 * alpha * slope)
+
+        def ls_body(c):
+            alpha, k, _ = c
+            alpha = 0.5 * alpha
+            fn = f(y + alpha * dy)
+            return alpha, k + 1, jnp.where(jnp.isfinite(fn), fn, jnp.inf)
+
+        f1 = f(y + dy)
+        alpha, _, f_new = jax.lax.while_loop(ls_cond, ls_body, (1.0, 0, jnp.where(jnp.isfinite(f1), f1, jnp.inf)))
+        accepted = f_new <= fy + 1e-4 * alpha * slope
+        y_new = jnp.where(accepted, y + alpha * dy, y)
+        f_y = jnp.where(accepted, f_new, fy)
+        gnorm = jnp.max(jnp.abs(grad(y_new)))
+        left = leave(y_new, args) if leave is not None else False
+        code = jnp.where(accepted, jnp.where(left & (gnorm > gtol), 4, 0), 3)
+        return y_new, it + 1, gnorm, code, f_y
+
+    f0 = f(y0)
+    gnorm0 = jnp.max(jnp.abs(grad(y0)))
+    code0 = jnp.where(jnp.isfinite(gnorm0) & jnp.isfinite(f0), 0, 2)
+    y, it, gnorm, code, value = jax.lax.while_loop(cond, body, (y0, 0, gnorm0, code0, f0))
+    code = jnp.where(
+        ~(jnp.isfinite(value) & jnp.isfinite(gnorm)), 2,
+        jnp.where(gnorm <= gtol, 0, jnp.where(code == 0, 1, code)),
+    )
+    return y, value, gnorm, it, code
+
+
 def minimise(fun, y0, args=None, solver=LBFGS(), gtol=1e-9, max_steps=None, throw=True):
     """Minimise (or, for Newton, find the stationary point nearest to y0 of) ``fun(y, args)``.
 
@@ -207,8 +283,14 @@ def minimise(fun, y0, args=None, solver=LBFGS(), gtol=1e-9, max_steps=None, thro
             fun, solver.zero_modes, y0, args, gtol, steps, solver.max_backtracks
         )
         name = "newton"
+    elif isinstance(solver, DampedNewton):
+        steps = 500 if max_steps is None else int(max_steps)
+        y, value, gnorm, it, code = _damped_newton_loop(
+            fun, solver.zero_modes, solver.leave, y0, args, gtol, solver.max_step, steps, solver.max_backtracks
+        )
+        name = "damped_newton"
     else:
-        raise TypeError(f"solver must be LBFGS or Newton, got {type(solver).__name__}")
+        raise TypeError(f"solver must be LBFGS, Newton or DampedNewton, got {type(solver).__name__}")
     sol = Solution(
         y=np.asarray(y),
         value=float(value),

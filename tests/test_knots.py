@@ -1,0 +1,80 @@
+"""Knots with self-contact: relaxation without strand passage (issue 3 groundwork)."""
+import math
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxrod as jr
+from jaxrod import DampedNewton, minimise
+
+
+@pytest.fixture(scope="module")
+def relaxed():
+    scene = jr.trefoil(D=8.0, L=292.0, N=61)
+    eq, scene = jr.relax(scene, 0.0)
+    return eq, scene
+
+
+def _min_nonlocal_distance(x, gap):
+    n = len(x)
+    d = np.linalg.norm(x[:, None] - x[None], axis=-1)
+    i = np.arange(n)
+    sep = np.minimum(np.abs(i[:, None] - i[None]), n - np.abs(i[:, None] - i[None]))
+    return d[sep > gap].min()
+
+
+def test_too_tight_trefoil_is_refused():
+    with pytest.raises(ValueError, match="ropelength"):
+        jr.trefoil(D=8.0, L=120.0, N=61)
+    with pytest.raises(ValueError, match="coprime"):
+        jr.torus_knot(2, 4, D=1.0, L=100.0, N=60)
+
+
+def test_relaxed_trefoil_is_a_stable_knot_in_contact(relaxed):
+    eq, scene = relaxed
+    assert eq.solution.converged and eq.solution.grad_norm <= 1e-9
+    assert eq.stable
+    assert scene.Lk0 == 3  # right-handed
+    assert eq.Lk == pytest.approx(3.0, abs=1e-8)
+    assert 2.9 < eq.Wr < 3.3  # a loose right-handed trefoil: writhe close to 3
+    assert eq.energy_terms["contact"] > 0.0  # strands touch
+    # Penetration stays small at the default stiffness (kappa_c = 100 B/D^2): > 0.95 D apart.
+    assert _min_nonlocal_distance(eq.x, gap=6) > 0.95 * 8.0
+
+
+def test_forced_strand_passage_is_refused(relaxed):
+    eq, scene = relaxed
+    x = eq.x.copy()
+    n = len(x)
+    # The closest non-local pair of nodes (a crossing): push a window of strand i through strand j.
+    d = np.linalg.norm(x[:, None] - x[None], axis=-1)
+    i_idx = np.arange(n)
+    sep = np.minimum(np.abs(i_idx[:, None] - i_idx[None]), n - np.abs(i_idx[:, None] - i_idx[None]))
+    d[sep <= 6] = np.inf
+    i, j = np.unravel_index(np.argmin(d), d.shape)
+    push = 2.0 * (x[j] - x[i])
+    window = [(i + k) % n for k in range(-3, 4)]
+    weights = np.array([0.25, 0.6, 0.9, 1.0, 0.9, 0.6, 0.25])
+    x_forced = x.copy()
+    x_forced[window] += weights[:, None] * push
+    q_forced = eq.q.copy()
+    q_forced[: 3 * n] = x_forced.ravel()
+    with pytest.raises(jr.TopologyChangeError):
+        jr.relax(scene, 0.0, q_forced, previous=eq)
+    # Control: a small step of the same shape is accepted and relaxes back to the same knot.
+    q_small = eq.q.copy()
+    x_small = x.copy()
+    x_small[window] += weights[:, None] * 0.05 * push
+    q_small[: 3 * n] = x_small.ravel()
+    eq2, _ = jr.relax(scene, 0.0, q_small, previous=eq)
+    assert eq2.Wr == pytest.approx(eq.Wr, abs=1e-3)
+
+
+def test_damped_newton_minimises_from_far_where_newton_stalls():
+    def rosenbrock(y, a):
+        return jnp.sum(a * (y[1:] - y[:-1] ** 2) ** 2 + (1 - y[:-1]) ** 2)
+
+    sol = minimise(rosenbrock, jnp.zeros(6), 100.0, DampedNewton(max_step=0.5), gtol=1e-10)
+    assert sol.converged
+    np.testing.assert_allclose(sol.y, np.ones(6), atol=1e-8)
