@@ -16,7 +16,9 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .equilibrium import Equilibrium, solve_equilibrium
+import jax.numpy as jnp
+
+from .equilibrium import Equilibrium, relax, solve_equilibrium
 from .material import check_finite, check_positive
 from .solvers import ConvergenceError
 from .stability import DEFAULT_NEGATIVE_TOL, branch_analysis, stability
@@ -52,19 +54,41 @@ class CriticalPoint:
     hessian_evaluations: int
     scan: list = field(repr=False)
     seconds: float = 0.0
+    scene: object = field(default=None, repr=False)  # the scene as used last (fresh contact list)
 
 
-def _step(scene, phi, q_pred, index, k, negative_tol, fallback_q=None):
-    """Newton corrector from the predictor, then one spectrum: (equilibrium with its stability,
-    tracked eigenvalue, its phi-derivative, its eigenvector, branch tangent dq/dphi)."""
-    try:
-        e = solve_equilibrium(scene, phi, q_pred, method="newton", with_stability=False)
-    except ConvergenceError:
-        if fallback_q is None:
-            raise
-        e = solve_equilibrium(scene, phi, fallback_q, method="newton", with_stability=False)
-    stab, lam, dlam, v, dq = branch_analysis(scene, e.q, phi, index, k=k, tol=negative_tol)
-    return replace(e, stability=stab), lam, dlam, v, dq
+# Near-zero modes of a loose knot (strands sliding along each other) sit at |lambda| ~ 1e-7 in the
+# scaled units and change sign from step to step: with self-contact an eigenvalue counts as
+# negative, and enters the branch tangent, only beyond this.
+CONTACT_NEGATIVE_TOL = 1e-6
+
+
+def _step(scene, phi, q_pred, index, k, negative_tol, fallback_q=None, ref=None):
+    """Newton corrector from the predictor (contact list refreshed around the result, and the
+    solve repeated if nodes moved beyond the list's skin), then one spectrum. Returns (scene,
+    equilibrium with its stability, tracked eigenvalue, its phi-derivative, its eigenvector,
+    branch tangent dq/dphi)."""
+    contact = "contact" in scene.terms
+    q = q_pred
+    for _ in range(20):
+        try:
+            e = solve_equilibrium(scene, phi, q, method="newton", with_stability=False)
+        except ConvergenceError:
+            if fallback_q is None:
+                raise
+            e = solve_equilibrium(scene, phi, fallback_q, method="newton", with_stability=False)
+        if not contact:
+            break
+        stale = bool(scene.contact_list_stale(jnp.asarray(e.q), phi))
+        scene = scene.with_contacts(e.q)
+        if not stale:
+            break
+        q = e.q
+    pinv_tol = negative_tol if contact else 0.0
+    stab, lam, dlam, v, dq = branch_analysis(
+        scene, e.q, phi, index, k=k, tol=negative_tol, ref=ref, pinv_tol=pinv_tol
+    )
+    return scene, replace(e, stability=stab), lam, dlam, v, dq
 
 
 def critical_twist(
@@ -75,7 +99,7 @@ def critical_twist(
     q0=None,
     tol=1e-6 * math.pi,
     k=8,
-    negative_tol=DEFAULT_NEGATIVE_TOL,
+    negative_tol=None,
     max_refine=30,
     progress=None,
 ):
@@ -86,6 +110,9 @@ def critical_twist(
     step: largest scan step (default |phi_stop - phi_start|/40); the scan shortens it when the
     tracked eigenvalue, extrapolated with its derivative, is about to cross (never lengthens it:
     a mode from higher up is still caught by the count). tol: requested accuracy in phi.
+    negative_tol: an eigenvalue counts as negative below -negative_tol (default 1e-10, or
+    CONTACT_NEGATIVE_TOL = 1e-6 for scenes with self-contact, whose sliding modes sit at ~1e-7).
+    Scenes with contact get their candidate list rebuilt along the way.
     progress: optional callable(str) for progress lines. Returns a ``CriticalPoint``; raises
     ``NoCrossingError`` if the count never changes before phi_stop.
     """
@@ -95,15 +122,23 @@ def critical_twist(
     if phi_stop == phi_start:
         raise ValueError("phi_stop must differ from phi_start")
     tol = check_positive("tol", tol)
+    contact = "contact" in scene.terms
+    if negative_tol is None:
+        negative_tol = CONTACT_NEGATIVE_TOL if contact else DEFAULT_NEGATIVE_TOL
     direction = 1.0 if phi_stop > phi_start else -1.0
     max_step = abs(phi_stop - phi_start) / 40.0 if step is None else check_positive("step", abs(step))
     min_step = max_step / 16.0
     say = progress or (lambda s: None)
 
-    relaxed = solve_equilibrium(scene, phi_start, q0, method="auto", with_stability=False)
-    count0 = int(stability(scene, relaxed.q, phi_start, k=k, tol=negative_tol).n_negative)
-    index = count0  # the eigenvalue that crosses next sits just above the negative ones
-    prev, lam, dlam, _, dq = _step(scene, phi_start, relaxed.q, index, k, negative_tol)
+    if contact:
+        relaxed, scene = relax(scene, phi_start, q0, with_stability=False)
+    else:
+        relaxed = solve_equilibrium(scene, phi_start, q0, method="auto", with_stability=False)
+    st0 = stability(scene, relaxed.q, phi_start, k=k, tol=negative_tol)
+    count0 = int(st0.n_negative)
+    # The eigenvalue that crosses next: the lowest one clearly above zero (near-zero modes skipped).
+    index = int(np.sum(st0.eigenvalues < negative_tol)) if st0.eigenvalues.size else 0
+    scene, prev, lam, dlam, _, dq = _step(scene, phi_start, relaxed.q, index, k, negative_tol)
     scan = [(prev.phi, count0, prev.stability.eigenvalues.copy())]
     say(f"phi = {prev.phi / math.pi:+.4f} pi: {count0} negative, lowest {prev.stability.eigenvalues[0]:.3e}")
 
@@ -115,13 +150,13 @@ def critical_twist(
             raise NoCrossingError(
                 f"negative count stayed {count0} from phi = {phi_start:.6g} to {phi_stop:.6g}"
             )
-        cur, lam_c, dlam_c, _, dq_c = _step(
+        scene, cur, lam_c, dlam_c, _, dq_c = _step(
             scene, phi_next, prev.q + dq * (phi_next - prev.phi), index, k, negative_tol, prev.q
         )
         scan.append((cur.phi, cur.stability.n_negative, cur.stability.eigenvalues.copy()))
         say(
             f"phi = {cur.phi / math.pi:+.4f} pi: {cur.stability.n_negative} negative, "
-            f"lowest {cur.stability.eigenvalues[0]:.3e}"
+            f"lowest {cur.stability.eigenvalues[:3]}"
         )
         if cur.stability.n_negative != count0:
             break
@@ -133,24 +168,33 @@ def critical_twist(
                 h = min(max_step, max(min_step, 1.1 * ahead))
         prev, lam, dlam, dq = cur, lam_c, dlam_c, dq_c
 
-    # Refine: the eigenvalue with ascending index `count0` changes sign inside [prev, cur].
-    index = min(count0, cur.stability.n_negative)
+    # Refine. The crossing mode: at the far end, the negative eigenvalue nearest zero; followed
+    # by eigenvector overlap from there on (robust to reordering and to near-zero modes).
     multiplicity = abs(cur.stability.n_negative - count0)
     lo, hi = prev, cur
-    _, f_lo, d_lo, _, dq_lo = branch_analysis(scene, lo.q, lo.phi, index, k=k, tol=negative_tol)
-    _, f_hi, _, _, _ = branch_analysis(scene, hi.q, hi.phi, index, k=k, tol=negative_tol)
+    ev_hi = cur.stability.eigenvalues
+    neg = np.nonzero(ev_hi < -negative_tol)[0]
+    if cur.stability.n_negative > count0 and neg.size:
+        idx_hi = int(neg[-1])
+    else:  # the count went down: a negative eigenvalue became positive
+        idx_hi = int(np.sum(ev_hi < negative_tol))
+    ref = cur.stability.eigenvectors[:, idx_hi]
+    _, f_hi, _, v_hi, _ = branch_analysis(scene, hi.q, hi.phi, idx_hi, k=k, tol=negative_tol, ref=ref,
+                                          pinv_tol=negative_tol if contact else 0.0)
+    _, f_lo, d_lo, v_lo, dq_lo = branch_analysis(scene, lo.q, lo.phi, 0, k=k, tol=negative_tol, ref=v_hi,
+                                                 pinv_tol=negative_tol if contact else 0.0)
     evals = 2
     bracket = (lo.phi, hi.phi)
-    # First guess: Newton from the end nearer to the crossing if it stays inside, else secant.
+    # First guess: Newton from the stable end if it stays inside the bracket, else secant.
     a, b = sorted(bracket)
     phi_c = lo.phi - f_lo / d_lo if d_lo != 0.0 else math.nan
     if not (math.isfinite(phi_c) and a < phi_c < b):
         phi_c = lo.phi - f_lo * (hi.phi - lo.phi) / (f_hi - f_lo)
-    base, base_dq = lo, dq_lo
+    base, base_dq, v_ref = lo, dq_lo, v_lo
     phi_error = abs(hi.phi - lo.phi)
     for _ in range(max_refine):
-        e, f_c, d_c, v_c, dq_c = _step(
-            scene, phi_c, base.q + base_dq * (phi_c - base.phi), index, k, negative_tol, base.q
+        scene, e, f_c, d_c, v_c, dq_c = _step(
+            scene, phi_c, base.q + base_dq * (phi_c - base.phi), 0, k, negative_tol, base.q, ref=v_ref
         )
         evals += 1
         if np.sign(f_c) == np.sign(f_lo):
@@ -164,7 +208,7 @@ def critical_twist(
             if not (a < newton < b):
                 newton = 0.5 * (a + b)
         phi_error = abs(newton - phi_c)
-        base, base_dq = e, dq_c
+        base, base_dq, v_ref = e, dq_c, v_c
         say(f"refine: phi = {phi_c / math.pi:.12f} pi, eigenvalue {f_c:+.3e}, next step {phi_error:.2e}")
         if phi_error < tol or f_c == 0.0:
             break
@@ -186,4 +230,5 @@ def critical_twist(
         hessian_evaluations=evals,
         scan=scan,
         seconds=time.perf_counter() - t0,
+        scene=scene,
     )

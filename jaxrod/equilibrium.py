@@ -38,7 +38,7 @@ class TopologyChangeError(RuntimeError):
 
 
 def relax(scene, phi=0.0, q0=None, gtol=1e-9, max_rounds=200, max_displacement=None, k=8,
-          negative_tol=DEFAULT_NEGATIVE_TOL, previous=None, progress=None):
+          negative_tol=DEFAULT_NEGATIVE_TOL, previous=None, progress=None, with_stability=True):
     """Minimise the energy of a scene with self-contact from q0 (default scene.q_init) without
     letting the rod pass through itself.
 
@@ -96,7 +96,8 @@ def relax(scene, phi=0.0, q0=None, gtol=1e-9, max_rounds=200, max_displacement=N
         sol = Solution(y=sol.y, value=sol.value, grad_norm=sol.grad_norm, iterations=total,
                        converged=True, reason="converged", solver=f"damped_newton({round_ + 1} rounds)",
                        gtol=sol.gtol)
-        return equilibrium_from_solution(scene, phi, sol, k=k, negative_tol=negative_tol), scene
+        return equilibrium_from_solution(scene, phi, sol, k=k, with_stability=with_stability,
+                                         negative_tol=negative_tol), scene
     raise ConvergenceError(f"relaxation needed more than {max_rounds} contact-list rebuilds")
 
 

@@ -133,23 +133,32 @@ def _zero_tangent(scene):
     return jax.tree_util.tree_map(zero, scene)
 
 
-def _skip_mask(lam, n_zero, index, cluster_rtol):
+def _skip_mask(lam, n_zero, index, cluster_rtol, pinv_tol=0.0):
     """Eigen-directions left out of the branch pseudo-inverse: the cluster of the tracked
-    eigenvalue (degenerate partners included) and the lifted zero modes at the top."""
+    eigenvalue (degenerate partners included), the lifted zero modes at the top, and near-zero
+    modes |lambda| <= pinv_tol (e.g. strands sliding along each other in a loose knot)."""
     n = lam.shape[0]
     lam_i = lam[index]
     scale = jnp.maximum(jnp.abs(lam_i), 1e-12)
-    return (jnp.abs(lam - lam_i) <= cluster_rtol * scale + 1e-14) | (jnp.arange(n) >= n - n_zero)
+    return (
+        (jnp.abs(lam - lam_i) <= cluster_rtol * scale + 1e-14)
+        | (jnp.arange(n) >= n - n_zero)
+        | (jnp.abs(lam) <= pinv_tol)
+    )
 
 
 @jax.jit
-def _branch_analysis(scene, u, phi, index, cluster_rtol):
+def _branch_analysis(scene, u, phi, index, ref, cluster_rtol, pinv_tol):
     lam, vec, n_zero = spectrum(scene, u, phi)
-    skip = _skip_mask(lam, n_zero, index, cluster_rtol)
+    n = lam.shape[0]
+    # With a reference vector, follow the mode by eigenvector overlap (robust to reordering).
+    overlap = jnp.where(jnp.arange(n) < n - n_zero, jnp.abs(vec.T @ ref), -1.0)
+    index = jnp.where(jnp.any(ref != 0.0), jnp.argmax(overlap), index)
+    skip = _skip_mask(lam, n_zero, index, cluster_rtol, pinv_tol)
     dlam, du = _branch_sensitivities(
         scene, u, phi, vec[:, index], lam, vec, skip, _zero_tangent(scene), jnp.asarray(1.0)
     )
-    return lam, vec, n_zero, dlam, du
+    return lam, vec, n_zero, dlam, du, index
 
 
 def _stability_from_spectrum(lam, vec, n_zero, k, tol):
@@ -162,17 +171,20 @@ def _stability_from_spectrum(lam, vec, n_zero, k, tol):
     )
 
 
-def branch_analysis(scene, q, phi, index, k=8, tol=DEFAULT_NEGATIVE_TOL, cluster_rtol=1e-4):
+def branch_analysis(scene, q, phi, index, k=8, tol=DEFAULT_NEGATIVE_TOL, cluster_rtol=1e-4, ref=None, pinv_tol=0.0):
     """One Hessian and one eigen-decomposition at an equilibrium q, giving everything a
     continuation step needs: its ``Stability``; eigenvalue number ``index`` (ascending, zero modes
-    removed), its derivative along the branch with respect to phi, its eigenvector (scaled DOFs);
-    and the branch tangent dq/dphi (physical DOFs).
+    removed) -- or, if ``ref`` (a unit vector in the scaled DOFs) is given, the mode that overlaps
+    it most --, that eigenvalue's derivative along the branch with respect to phi, its eigenvector
+    (scaled DOFs); and the branch tangent dq/dphi (physical DOFs), with modes |lambda| <= pinv_tol
+    left out of it.
 
     Returns (stability, lam, dlam_dphi, v, dq_dphi).
     """
     u = scene.to_scaled(jnp.asarray(q))
-    lam, vec, n_zero, dlam, du = _branch_analysis(scene, u, phi, index, cluster_rtol)
-    lam, vec, n_zero = np.asarray(lam), np.asarray(vec), int(n_zero)
+    ref = jnp.zeros_like(u) if ref is None else jnp.asarray(ref)
+    lam, vec, n_zero, dlam, du, index = _branch_analysis(scene, u, phi, index, ref, cluster_rtol, pinv_tol)
+    lam, vec, n_zero, index = np.asarray(lam), np.asarray(vec), int(n_zero), int(index)
     stab = _stability_from_spectrum(lam, vec, n_zero, k, tol)
     return stab, float(lam[index]), float(dlam), vec[:, index], np.asarray(scene.from_scaled(du))
 
@@ -189,7 +201,7 @@ def eigenvalue_phi_derivative(scene, q, phi, index, cluster_rtol=1e-4):
     return lam, dlam, v, dq
 
 
-def critical_twist_derivative(scene, critical, parameter, cluster_rtol=1e-4):
+def critical_twist_derivative(scene, critical, parameter, cluster_rtol=1e-4, pinv_tol=0.0):
     """d phi* / d(parameter) at a critical point, by the implicit function theorem on
     lambda(q*(phi, p), phi, p) = 0:  d phi*/dp = -(d lambda/dp) / (d lambda/d phi).
 
@@ -208,8 +220,11 @@ def critical_twist_derivative(scene, critical, parameter, cluster_rtol=1e-4):
     eq = critical.equilibrium
     u = scene.to_scaled(jnp.asarray(eq.q))
     lam, vec, n_zero = spectrum(scene, u, eq.phi)
-    index = int(np.argmin(np.abs(np.asarray(lam))))
-    skip = _skip_mask(lam, n_zero, index, cluster_rtol)
+    n = lam.shape[0]
+    overlap = np.abs(np.asarray(vec).T @ np.asarray(critical.mode))
+    overlap[n - int(n_zero):] = -1.0
+    index = int(np.argmax(overlap))  # the critical mode itself (not a near-zero sliding mode)
+    skip = _skip_mask(lam, n_zero, index, cluster_rtol, pinv_tol)
     v = vec[:, index]
     dlam_dp, _ = _branch_sensitivities(scene, u, eq.phi, v, lam, vec, skip, dscene, jnp.asarray(0.0))
     dlam_dphi, _ = _branch_sensitivities(scene, u, eq.phi, v, lam, vec, skip, _zero_tangent(scene), jnp.asarray(1.0))
