@@ -61,22 +61,29 @@ class CriticalPoint:
 # scaled units and change sign from step to step: with self-contact an eigenvalue counts as
 # negative, and enters the branch tangent, only beyond this.
 CONTACT_NEGATIVE_TOL = 1e-6
+# The corrector's gradient tolerance with contact: the residual along the sliding modes relaxes
+# only as fast as their ~1e-8 stiffness allows, and barely couples to the crossing eigenvalue.
+# 1e-7 (forces in units of B/l^2) is ~1e-7 of the twist moments in a twisted knot.
+CONTACT_GTOL = 1e-7
 
 
-def _step(scene, phi, q_pred, index, k, negative_tol, fallback_q=None, ref=None):
+def _step(scene, phi, q_pred, index, k, negative_tol, fallback_q=None, ref=None, gtol=1e-9):
     """Newton corrector from the predictor (contact list refreshed around the result, and the
     solve repeated if nodes moved beyond the list's skin), then one spectrum. Returns (scene,
     equilibrium with its stability, tracked eigenvalue, its phi-derivative, its eigenvector,
     branch tangent dq/dphi)."""
     contact = "contact" in scene.terms
+    near_null = negative_tol if contact else 0.0
     q = q_pred
     for _ in range(20):
         try:
-            e = solve_equilibrium(scene, phi, q, method="newton", with_stability=False)
+            e = solve_equilibrium(scene, phi, q, method="newton", with_stability=False, near_null_tol=near_null,
+                                  gtol=gtol)
         except ConvergenceError:
             if fallback_q is None:
                 raise
-            e = solve_equilibrium(scene, phi, fallback_q, method="newton", with_stability=False)
+            e = solve_equilibrium(scene, phi, fallback_q, method="newton", with_stability=False,
+                                  near_null_tol=near_null, gtol=gtol)
         if not contact:
             break
         stale = bool(scene.contact_list_stale(jnp.asarray(e.q), phi))
@@ -102,6 +109,7 @@ def critical_twist(
     negative_tol=None,
     max_refine=30,
     progress=None,
+    gtol=None,
 ):
     """First phi beyond ``phi_start`` (in the direction of ``phi_stop``) where the negative count
     of the equilibrium branch changes.
@@ -112,7 +120,8 @@ def critical_twist(
     a mode from higher up is still caught by the count). tol: requested accuracy in phi.
     negative_tol: an eigenvalue counts as negative below -negative_tol (default 1e-10, or
     CONTACT_NEGATIVE_TOL = 1e-6 for scenes with self-contact, whose sliding modes sit at ~1e-7).
-    Scenes with contact get their candidate list rebuilt along the way.
+    Scenes with contact get their candidate list rebuilt along the way. gtol: the equilibria's
+    gradient tolerance (default 1e-9, or CONTACT_GTOL = 1e-7 with contact).
     progress: optional callable(str) for progress lines. Returns a ``CriticalPoint``; raises
     ``NoCrossingError`` if the count never changes before phi_stop.
     """
@@ -125,20 +134,22 @@ def critical_twist(
     contact = "contact" in scene.terms
     if negative_tol is None:
         negative_tol = CONTACT_NEGATIVE_TOL if contact else DEFAULT_NEGATIVE_TOL
+    if gtol is None:
+        gtol = CONTACT_GTOL if contact else 1e-9
     direction = 1.0 if phi_stop > phi_start else -1.0
     max_step = abs(phi_stop - phi_start) / 40.0 if step is None else check_positive("step", abs(step))
     min_step = max_step / 16.0
     say = progress or (lambda s: None)
 
     if contact:
-        relaxed, scene = relax(scene, phi_start, q0, with_stability=False)
+        relaxed, scene = relax(scene, phi_start, q0, with_stability=False, gtol=gtol)
     else:
-        relaxed = solve_equilibrium(scene, phi_start, q0, method="auto", with_stability=False)
+        relaxed = solve_equilibrium(scene, phi_start, q0, method="auto", with_stability=False, gtol=gtol)
     st0 = stability(scene, relaxed.q, phi_start, k=k, tol=negative_tol)
     count0 = int(st0.n_negative)
     # The eigenvalue that crosses next: the lowest one clearly above zero (near-zero modes skipped).
     index = int(np.sum(st0.eigenvalues < negative_tol)) if st0.eigenvalues.size else 0
-    scene, prev, lam, dlam, _, dq = _step(scene, phi_start, relaxed.q, index, k, negative_tol)
+    scene, prev, lam, dlam, _, dq = _step(scene, phi_start, relaxed.q, index, k, negative_tol, gtol=gtol)
     scan = [(prev.phi, count0, prev.stability.eigenvalues.copy())]
     say(f"phi = {prev.phi / math.pi:+.4f} pi: {count0} negative, lowest {prev.stability.eigenvalues[0]:.3e}")
 
@@ -150,9 +161,21 @@ def critical_twist(
             raise NoCrossingError(
                 f"negative count stayed {count0} from phi = {phi_start:.6g} to {phi_stop:.6g}"
             )
-        scene, cur, lam_c, dlam_c, _, dq_c = _step(
-            scene, phi_next, prev.q + dq * (phi_next - prev.phi), index, k, negative_tol, prev.q
-        )
+        try:
+            scene, cur, lam_c, dlam_c, _, dq_c = _step(
+                scene, phi_next, prev.q + dq * (phi_next - prev.phi), index, k, negative_tol, prev.q, gtol=gtol
+            )
+        except ConvergenceError:
+            # Step-size control: no equilibrium found near the predictor; halve the step. If even
+            # tiny steps fail, the branch ends here (a fold: the state must jump elsewhere).
+            h *= 0.5
+            if h < max_step / 1024.0:
+                raise ConvergenceError(
+                    f"the equilibrium branch could not be followed beyond phi = {prev.phi:.8g} "
+                    f"({prev.phi / math.pi:.6f} pi): steps down to {2 * h:.2e} failed (a fold or a jump?)"
+                ) from None
+            say(f"corrector failed at phi = {phi_next / math.pi:+.4f} pi: step halved to {h:.3e}")
+            continue
         scan.append((cur.phi, cur.stability.n_negative, cur.stability.eigenvalues.copy()))
         say(
             f"phi = {cur.phi / math.pi:+.4f} pi: {cur.stability.n_negative} negative, "
@@ -194,7 +217,7 @@ def critical_twist(
     phi_error = abs(hi.phi - lo.phi)
     for _ in range(max_refine):
         scene, e, f_c, d_c, v_c, dq_c = _step(
-            scene, phi_c, base.q + base_dq * (phi_c - base.phi), 0, k, negative_tol, base.q, ref=v_ref
+            scene, phi_c, base.q + base_dq * (phi_c - base.phi), 0, k, negative_tol, base.q, ref=v_ref, gtol=gtol
         )
         evals += 1
         if np.sign(f_c) == np.sign(f_lo):

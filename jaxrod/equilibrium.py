@@ -146,12 +146,14 @@ def solve_equilibrium(
     with_stability=True,
     negative_tol=DEFAULT_NEGATIVE_TOL,
     throw=True,
+    near_null_tol=0.0,
 ):
     """Equilibrium of ``scene`` at imposed twist ``phi`` starting from ``q0`` (default scene.q_init).
 
     method: 'newton' (exact Hessian; converges to the nearest stationary point, stable or not:
     use it as a continuation corrector), 'lbfgs' (minimiser), or 'auto' (L-BFGS to 1e-5, then
     Newton to ``gtol``: global and fast). gtol bounds the max-abs gradient of the scaled energy.
+    near_null_tol: Newton leaves eigen-directions with |lambda| below it alone (see ``Newton``).
     The result carries its stability (k lowest eigenvalues, negative count) unless
     ``with_stability`` is False. Raises ``ConvergenceError`` if the solver fails and ``throw``.
     """
@@ -162,7 +164,7 @@ def solve_equilibrium(
     if not np.all(np.isfinite(q0)):
         raise ValueError("q0 must be finite")
     u0 = scene.to_scaled(jnp.asarray(q0))
-    newton = Newton(zero_modes=scaled_zero_modes if scene.n_zero_modes else None)
+    newton = Newton(zero_modes=scaled_zero_modes if scene.n_zero_modes else None, near_null_tol=float(near_null_tol))
     args = (scene, jnp.asarray(phi))
     if method == "newton":
         sol = minimise(scaled_energy, u0, args, newton, gtol, max_steps, throw)

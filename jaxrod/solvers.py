@@ -47,10 +47,15 @@ class LBFGS:
 @dataclass(frozen=True)
 class Newton:
     """Exact-Hessian Newton. ``zero_modes(y, args) -> (n, k)`` spans symmetry directions that the
-    Hessian leaves singular (None if there are none); ``max_backtracks`` halvings per step."""
+    Hessian leaves singular (None if there are none); ``max_backtracks`` halvings per step.
+    ``near_null_tol`` > 0 treats eigen-directions with |lambda| below it like the symmetry modes
+    (e.g. strands of a loose knot sliding along each other, lambda ~ 1e-7): Newton would divide
+    by them and throw the state far away; the gradient along them is left as it is (and still
+    counts in the convergence test)."""
 
     zero_modes: object = None
     max_backtracks: int = 40
+    near_null_tol: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -142,8 +147,8 @@ def _lbfgs_loop(fun, y0, args, gtol, memory, max_ls, max_steps):
     return y, value, gnorm, it, code
 
 
-@partial(jax.jit, static_argnames=("fun", "zero_modes", "max_steps", "max_backtracks"))
-def _newton_loop(fun, zero_modes, y0, args, gtol, max_steps, max_backtracks):
+@partial(jax.jit, static_argnames=("fun", "zero_modes", "max_steps", "max_backtracks", "near_null"))
+def _newton_loop(fun, zero_modes, y0, args, gtol, max_steps, max_backtracks, near_null=False, near_null_tol=0.0):
     f = lambda y: fun(y, args)
     grad = jax.grad(f)
     hess = jax.hessian(f)
@@ -157,6 +162,12 @@ def _newton_loop(fun, zero_modes, y0, args, gtol, max_steps, max_backtracks):
             # regular and the step has no component along them (g is orthogonal to them).
             shift = jnp.max(jnp.abs(jnp.diag(h))) + 1.0
             h = h + shift * (z @ z.T)
+        if near_null:
+            lam, vec = jnp.linalg.eigh(0.5 * (h + h.T))
+            weak = jnp.abs(lam) < near_null_tol
+            shift = jnp.max(jnp.abs(lam)) + 1.0
+            lam = jnp.where(weak, shift, lam)
+            return -vec @ ((vec.T @ g) / lam), g
         return -jnp.linalg.solve(h, g), g
 
     def cond(carry):
@@ -280,7 +291,8 @@ def minimise(fun, y0, args=None, solver=LBFGS(), gtol=1e-9, max_steps=None, thro
     elif isinstance(solver, Newton):
         steps = 50 if max_steps is None else int(max_steps)
         y, value, gnorm, it, code = _newton_loop(
-            fun, solver.zero_modes, y0, args, gtol, steps, solver.max_backtracks
+            fun, solver.zero_modes, y0, args, gtol, steps, solver.max_backtracks,
+            solver.near_null_tol > 0.0, solver.near_null_tol,
         )
         name = "newton"
     elif isinstance(solver, DampedNewton):
