@@ -5,7 +5,7 @@ watches the count of negative Hessian eigenvalues over the *whole* spectrum (zer
 so an unstable mode that comes down from high in the spectrum is caught. When the count changes
 between two steps, the crossing eigenvalue (the one with ascending index = the count before) is
 driven to zero by Newton's method in phi, using its derivative along the branch from forward-mode
-autodiff (``stability.eigenvalue_phi_derivative``), safeguarded by the bracket. A handful of
+autodiff (``stability.branch_analysis``), safeguarded by the bracket. A handful of
 Hessian evaluations reach 1e-10 rad, where bisection would need ~30.
 """
 from __future__ import annotations
@@ -21,7 +21,7 @@ import jax.numpy as jnp
 from .equilibrium import Equilibrium, relax, solve_equilibrium
 from .material import check_finite, check_positive
 from .solvers import ConvergenceError
-from .stability import DEFAULT_NEGATIVE_TOL, branch_analysis, stability
+from .stability import DEFAULT_NEGATIVE_TOL, branch_analysis
 
 __all__ = ["CriticalPoint", "critical_twist", "NoCrossingError"]
 
@@ -145,11 +145,16 @@ def critical_twist(
         relaxed, scene = relax(scene, phi_start, q0, with_stability=False, gtol=gtol)
     else:
         relaxed = solve_equilibrium(scene, phi_start, q0, method="auto", with_stability=False, gtol=gtol)
-    st0 = stability(scene, relaxed.q, phi_start, k=k, tol=negative_tol)
+    pinv_tol = negative_tol if contact else 0.0
+    st0, _, _, _, dq = branch_analysis(scene, relaxed.q, phi_start, 0, k=k, tol=negative_tol, pinv_tol=pinv_tol)
     count0 = int(st0.n_negative)
     # The eigenvalue that crosses next: the lowest one clearly above zero (near-zero modes skipped).
     index = int(np.sum(st0.eigenvalues < negative_tol)) if st0.eigenvalues.size else 0
-    scene, prev, lam, dlam, _, dq = _step(scene, phi_start, relaxed.q, index, k, negative_tol, gtol=gtol)
+    if index != 0:
+        st0, _, _, _, dq = branch_analysis(
+            scene, relaxed.q, phi_start, index, k=k, tol=negative_tol, pinv_tol=pinv_tol
+        )
+    prev = replace(relaxed, stability=st0)
     scan = [(prev.phi, count0, prev.stability.eigenvalues.copy())]
     say(f"phi = {prev.phi / math.pi:+.4f} pi: {count0} negative, lowest {prev.stability.eigenvalues[0]:.3e}")
 
@@ -189,7 +194,7 @@ def critical_twist(
             ahead = -lam_c / dlam_c * direction
             if ahead > 0.0:
                 h = min(max_step, max(min_step, 1.1 * ahead))
-        prev, lam, dlam, dq = cur, lam_c, dlam_c, dq_c
+        prev, dq = cur, dq_c
 
     # Refine. The crossing mode: at the far end, the negative eigenvalue nearest zero; followed
     # by eigenvector overlap from there on (robust to reordering and to near-zero modes).

@@ -1,5 +1,4 @@
 """Knots with self-contact: relaxation without strand passage (issue 3 groundwork)."""
-import math
 
 import jax.numpy as jnp
 import numpy as np
