@@ -1,4 +1,4 @@
-"""Command line: ``jaxrod michell ...``.
+"""Command line: ``jaxrod michell ...``, ``jaxrod analyze CENTRELINE ECCENTRIC ...``.
 
 Progress goes to stderr; results to stdout (``--json``: one JSON object); figures and data
 (PNG, CSV, JSON) into ``--out DIR``. Bad input exits with status 2 and a one-line message.
@@ -47,6 +47,22 @@ def _build_parser():
     m.add_argument("--quiet", action="store_true", help="no progress on stderr")
     m.add_argument("--no-cache", action="store_true",
                    help="do not keep compiled code in ~/.cache/jaxrod (later runs then compile again)")
+    a = sub.add_parser(
+        "analyze",
+        help="frames, curvature/twist profiles and Wr, Tw, Lk of a rod from two polylines (CSV or NPY)",
+        description="Analyse a rod from its centreline and an eccentric line drawn on its surface "
+        "(files: CSV with an x,y,z header or three bare columns, or .npy arrays of shape (N, 3)).",
+    )
+    a.add_argument("centreline", help="centreline points (.csv or .npy)")
+    a.add_argument("eccentric", help="eccentric-line points (.csv or .npy)")
+    a.add_argument("--open", action="store_true", help="open curves (default: closed loops)")
+    a.add_argument("--n-samples", type=int, default=None,
+                   help="number of nodes, equally spaced in arc length (default: as many as centreline points)")
+    a.add_argument("--smoothing-modes", type=int, default=None,
+                   help="least-squares smoothing with K modes (Fourier, closed) or K spline intervals (open)")
+    a.add_argument("--out", default=None, help="folder for profiles.csv, summary.json, profiles.png")
+    a.add_argument("--json", action="store_true", help="print one JSON object")
+    a.add_argument("--quiet", action="store_true", help="no progress on stderr")
     return p
 
 
@@ -133,6 +149,74 @@ def _michell(args):
     return 0
 
 
+def _json_number(v):
+    """float for JSON, None for NaN (strict JSON has no NaN)."""
+    v = float(v)
+    return v if math.isfinite(v) else None
+
+
+def _analyze(args):
+    import matplotlib
+
+    matplotlib.use("Agg")  # files only, no display needed
+    from . import plotting
+    from .analysis import analyze, count_peaks, load_polyline, symmetry_order, write_profiles_csv
+
+    say = (lambda s: None) if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
+    centre = load_polyline(args.centreline)
+    ecc = load_polyline(args.eccentric)
+    closed = not args.open
+    res = analyze(centre, ecc, closed=closed, n_samples=args.n_samples, smoothing_modes=args.smoothing_modes)
+    L = res.length
+    n = int(res.s.shape[0])
+    order = symmetry_order(res.kappa) if closed and n >= 8 else None
+    peaks = count_peaks(res.kappa) if closed and n >= 8 else None
+    result = {
+        "Wr": res.Wr,
+        "Tw": res.Tw,
+        "Lk_frames": res.Lk_frames,
+        "Lk_gauss": _json_number(res.Lk_exact),
+        "Lk_quadrature": _json_number(res.Lk_quadrature),
+        "Tw_integral": res.Tw_integral,
+        "length": L,
+        "symmetry_order": order,
+        "n_peaks": peaks,
+        "n_samples": n,
+        "closed": closed,
+        "smoothing_modes": args.smoothing_modes,
+        "n_unpaired": int(n - int(res.paired.sum())),
+        "centreline": os.path.abspath(args.centreline),
+        "eccentric": os.path.abspath(args.eccentric),
+    }
+    if args.out:
+        os.makedirs(args.out, exist_ok=True)
+        write_profiles_csv(res, os.path.join(args.out, "profiles.csv"))
+        with open(os.path.join(args.out, "summary.json"), "w") as f:
+            json.dump(result, f, indent=2)
+        lk = "" if not closed else f", Lk = {res.Lk_exact:.0f}"
+        plotting.plot_profiles(
+            res.s / L, [(res.kappa * L, res.tau * L)], [os.path.basename(args.centreline)],
+            path=os.path.join(args.out, "profiles.png"),
+            title=f"Wr = {res.Wr:.4f}, Tw = {res.Tw:.4f}{lk}",
+        )
+        say(f"wrote {args.out}/profiles.csv, summary.json, profiles.png")
+    if args.json:
+        print(json.dumps(result))
+    else:
+        fmt = lambda v: "n/a (open curve)" if v is None or not math.isfinite(v) else f"{v:.10f}"  # noqa: E731
+        print(f"Wr            = {res.Wr:.10f}")
+        print(f"Tw            = {res.Tw:.10f}   (integral of tau: {res.Tw_integral:.10f})")
+        print(f"Lk (frames)   = {res.Lk_frames:.10f}   (Wr + Tw)")
+        print(f"Lk (Gauss)    = {fmt(res.Lk_exact)}   (exact polygon linking number)")
+        print(f"Lk (quadr.)   = {fmt(res.Lk_quadrature)}   (midpoint Gauss quadrature)")
+        print(f"length        = {L:.10g}   ({n} nodes)")
+        if closed:
+            print(f"kappa profile : symmetry order {order}, {peaks} peak(s)")
+        if result["n_unpaired"]:
+            print(f"warning       : {result['n_unpaired']} node(s) whose normal plane misses the eccentric line")
+    return 0
+
+
 def main(argv=None):
     args = _build_parser().parse_args(argv)
     try:
@@ -142,8 +226,14 @@ def main(argv=None):
 
         if args.command == "michell":
             return _michell(args)
+        if args.command == "analyze":
+            return _analyze(args)
     except ValueError as exc:
         print(f"jaxrod: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # missing or unreadable file, unwritable --out
+        where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
+        print(f"jaxrod: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return 2
     return 1
 

@@ -7,7 +7,17 @@ import math
 import matplotlib.pyplot as plt
 import numpy as np
 
-__all__ = ["plot_eigenvalue_scan", "plot_mode", "plot_convergence"]
+__all__ = [
+    "plot_eigenvalue_scan",
+    "plot_mode",
+    "plot_convergence",
+    "plot_bifurcation",
+    "plot_linking",
+    "plot_profiles",
+    "plot_snapshot",
+    "plot_snapshots",
+    "plot_critical_vs_ratio",
+]
 
 
 def plot_eigenvalue_scan(scan, critical=None, path=None, n_show=6, title=None):
@@ -84,3 +94,303 @@ def plot_convergence(rows, path=None, title="Accuracy against time"):
         fig.savefig(path, dpi=120)
         plt.close(fig)
     return fig
+
+
+# ---------------------------------------------------------------------------- continuation tables
+def _finish(fig, path):
+    fig.tight_layout()
+    if path is not None:
+        fig.savefig(path, dpi=120)
+        plt.close(fig)
+    return fig
+
+
+def _column(table, name, n=None):
+    """1-D column ``name`` of ``table`` (ValueError if missing or of another length than n)."""
+    if name not in table:
+        raise ValueError(f"table: missing column {name!r} (columns: {', '.join(map(str, table))})")
+    a = np.asarray(table[name])
+    if a.ndim != 1:
+        raise ValueError(f"table: column {name!r} must be 1-D, got shape {a.shape}")
+    if n is not None and a.shape[0] != n:
+        raise ValueError(f"table: column {name!r} has {a.shape[0]} entries, column 'phi' has {n}")
+    return a
+
+
+def _table_basics(table):
+    """(phi/pi, branch labels as str, ordered unique labels, n)."""
+    if not hasattr(table, "keys"):
+        raise ValueError(f"table must be a dict of columns, got {type(table).__name__}")
+    phi = _column(table, "phi").astype(float)
+    n = phi.shape[0]
+    if n == 0:
+        raise ValueError("table: no rows")
+    branch = _column(table, "branch", n).astype(str) if "branch" in table else np.full(n, "")
+    labels = list(dict.fromkeys(branch.tolist()))  # order of first appearance
+    return phi / math.pi, branch, labels, n
+
+
+def _as_bool(a):
+    a = np.asarray(a)
+    if a.dtype.kind in "US":
+        return np.isin(np.char.lower(np.char.strip(a.astype(str))), ("true", "1", "yes", "1.0"))
+    return a.astype(float) != 0.0
+
+
+def _lambda_columns(table):
+    """Names of the columns lambda_0, lambda_1, ... present, in numeric order."""
+    cols = []
+    for name in table:
+        name = str(name)
+        if name.startswith("lambda_") and name[7:].isdigit():
+            cols.append((int(name[7:]), name))
+    return [name for _, name in sorted(cols)]
+
+
+def _draw_critical(axes, critical, colour_start):
+    """Vertical dashed lines at critical['phi']/pi on every axis, labelled on the first."""
+    if not critical:
+        return
+    for i, c in enumerate(critical):
+        try:
+            phi, label = float(c["phi"]), str(c["label"])
+        except (KeyError, TypeError, ValueError):
+            raise ValueError(f"critical[{i}] must be a dict with a numeric 'phi' and a 'label', got {c!r}") from None
+        colour = f"C{(colour_start + i) % 10}"
+        for j, ax in enumerate(axes):
+            ax.axvline(phi / math.pi, color=colour, ls="--", lw=1,
+                       label=f"{label} ({phi / math.pi:.4f} pi)" if j == 0 else None)
+
+
+def plot_bifurcation(table, critical=None, path=None, title=None):
+    """Bifurcation diagram of a continuation: Wr against phi/pi (top) and the lowest eigenvalues
+    (bottom, symlog scale, linthresh 1e-7) sharing the x axis.
+
+    table: dict column -> 1-D array, one entry per continuation step, with at least 'phi' (rad),
+      'Wr', 'stable' (bool or 0/1), the eigenvalue columns 'lambda_0', 'lambda_1', ..., and
+      'branch' (str labels; without it all rows are one branch). One series per branch label:
+      filled markers where stable, open where unstable.
+    critical: optional list of dicts {'phi': rad, 'label': str}: vertical dashed lines, in the legend.
+    """
+    x, branch, labels, n = _table_basics(table)
+    wr = _column(table, "Wr", n).astype(float)
+    stable = _as_bool(_column(table, "stable", n))
+    lam_cols = _lambda_columns(table)
+    if not lam_cols:
+        raise ValueError("table: no eigenvalue columns 'lambda_0', 'lambda_1', ...")
+    lam = np.stack([_column(table, c, n).astype(float) for c in lam_cols], axis=1)
+    fig, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(7, 6.5),
+                                      gridspec_kw={"height_ratios": [1, 1]})
+    for b, lab in enumerate(labels):
+        sel = branch == lab
+        colour = f"C{b % 10}"
+        name = lab or "equilibria"
+        top.plot(x[sel], wr[sel], "-", color=colour, lw=1, label=name)
+        st, un = sel & stable, sel & ~stable
+        top.plot(x[st], wr[st], "o", color=colour, ms=4, ls="none")
+        top.plot(x[un], wr[un], "o", color=colour, ms=4, ls="none", mfc="none")
+        for j in range(lam.shape[1]):
+            bottom.plot(x[sel], lam[sel, j], ".-", color=colour, ms=3, lw=0.8,
+                        alpha=1.0 if j == 0 else 0.6, label=name if j == 0 else None)
+    # Legend proxies for the marker convention.
+    top.plot([], [], "o", color="0.3", ms=4, label="stable")
+    top.plot([], [], "o", color="0.3", ms=4, mfc="none", label="unstable")
+    bottom.axhline(0.0, color="k", lw=0.8)
+    bottom.set_yscale("symlog", linthresh=1e-7)
+    _draw_critical((top, bottom), critical, len(labels))
+    top.set_ylabel("writhe Wr")
+    bottom.set_ylabel("lowest Hessian eigenvalues")
+    bottom.set_xlabel("imposed twist phi / pi")
+    top.legend(fontsize=8, loc="best")
+    if len(labels) > 1:
+        bottom.legend(fontsize=8, loc="best")
+    top.grid(True, alpha=0.3)
+    bottom.grid(True, alpha=0.3)
+    top.set_title(title or "Bifurcation diagram")
+    return _finish(fig, path)
+
+
+_LINESTYLES = ("-", "--", ":", "-.")
+_MARKERS = ("o", "s", "^", "D", "v", "P", "X")
+
+
+def plot_linking(table, critical=None, path=None, title=None):
+    """Lk from the frames (Wr + Tw, lines), Lk from the Gauss integral (markers), Wr and Tw
+    against phi/pi. One colour per quantity; branches differ by line style and marker.
+
+    table: dict of 1-D columns with at least 'phi' (rad), 'Lk_frames', 'Lk_gauss', 'Wr', 'Tw'
+    (and 'branch'); critical: optional list of {'phi', 'label'} as in :func:`plot_bifurcation`.
+    """
+    x, branch, labels, n = _table_basics(table)
+    cols = {c: _column(table, c, n).astype(float) for c in ("Lk_frames", "Lk_gauss", "Wr", "Tw")}
+    colours = {"Lk_frames": "C0", "Lk_gauss": "C0", "Wr": "C1", "Tw": "C2"}
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for b, lab in enumerate(labels):
+        sel = branch == lab
+        ls, mk = _LINESTYLES[b % len(_LINESTYLES)], _MARKERS[b % len(_MARKERS)]
+        ax.plot(x[sel], cols["Lk_frames"][sel], ls, color=colours["Lk_frames"], lw=1.5)
+        ax.plot(x[sel], cols["Lk_gauss"][sel], mk, color=colours["Lk_gauss"], ms=5, mfc="none", ls="none")
+        ax.plot(x[sel], cols["Wr"][sel], ls, color=colours["Wr"], lw=1.2)
+        ax.plot(x[sel], cols["Tw"][sel], ls, color=colours["Tw"], lw=1.2)
+    # Legend: quantities by colour, branches by style.
+    ax.plot([], [], "-", color="C0", label="Lk (frames, Wr + Tw)")
+    ax.plot([], [], "o", color="C0", mfc="none", label="Lk (Gauss integral)")
+    ax.plot([], [], "-", color="C1", label="Wr")
+    ax.plot([], [], "-", color="C2", label="Tw")
+    if len(labels) > 1 or labels[0]:
+        for b, lab in enumerate(labels):
+            ax.plot([], [], _LINESTYLES[b % len(_LINESTYLES)] + _MARKERS[b % len(_MARKERS)],
+                    color="0.4", mfc="none", label=f"branch {lab}")
+    _draw_critical((ax,), critical, 3)
+    ax.axhline(0.0, color="k", lw=0.5)
+    ax.set_xlabel("imposed twist phi / pi")
+    ax.set_ylabel("turns")
+    ax.legend(fontsize=8, loc="best")
+    ax.grid(True, alpha=0.3)
+    ax.set_title(title or "Linking number, writhe and twist")
+    return _finish(fig, path)
+
+
+# ---------------------------------------------------------------------------- profiles
+def plot_profiles(s_over_L, profiles, labels, path=None, title=None, ylabel_kappa="kappa L",
+                  ylabel_tau="tau L"):
+    """Curvature (top) and twist (bottom) profiles against s/L, one curve per label.
+
+    s_over_L: (n,) common grid; profiles: list of (kappa_L, tau_L) pairs of (n,) arrays (already
+    made dimensionless by the caller, e.g. kappa * L); labels: one str per pair.
+    """
+    s = np.asarray(s_over_L, dtype=float)
+    if s.ndim != 1:
+        raise ValueError(f"s_over_L must be 1-D, got shape {s.shape}")
+    profiles, labels = list(profiles), list(labels)
+    if len(profiles) != len(labels):
+        raise ValueError(f"{len(profiles)} profiles but {len(labels)} labels")
+    if not profiles:
+        raise ValueError("profiles: nothing to plot")
+    fig, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(7, 5.5))
+    for i, (pair, lab) in enumerate(zip(profiles, labels)):
+        try:
+            kappa, tau = (np.asarray(a, dtype=float) for a in pair)
+        except (TypeError, ValueError):
+            raise ValueError(f"profiles[{i}] must be a pair (kappa_L, tau_L) of arrays") from None
+        if kappa.shape != s.shape or tau.shape != s.shape:
+            raise ValueError(
+                f"profiles[{i}]: arrays of shapes {kappa.shape}, {tau.shape} do not match s_over_L {s.shape}"
+            )
+        top.plot(s, kappa, lw=1.2, label=str(lab))
+        bottom.plot(s, tau, lw=1.2, label=str(lab))
+    bottom.axhline(0.0, color="k", lw=0.5)
+    top.set_ylabel(ylabel_kappa)
+    bottom.set_ylabel(ylabel_tau)
+    bottom.set_xlabel("s / L")
+    top.legend(fontsize=8, loc="best")
+    top.grid(True, alpha=0.3)
+    bottom.grid(True, alpha=0.3)
+    top.set_title(title or "Curvature and twist profiles")
+    return _finish(fig, path)
+
+
+# ---------------------------------------------------------------------------- 3D snapshots
+def _points(name, a):
+    a = np.asarray(a, dtype=float)
+    if a.ndim != 2 or a.shape[1] != 3 or a.shape[0] < 2:
+        raise ValueError(f"{name} must have shape (N, 3) with N >= 2, got {a.shape}")
+    return a
+
+
+def plot_snapshot(x, eccentric, path=None, title=None, ax=None):
+    """3D view of a closed rod: the centreline x (N,3) as a thick closed line and the eccentric line
+    (M,3) as a thin contrasting closed line (the stripe). Equal aspect ratio (box aspect from the data
+    ranges, each at least 5% of the largest so that planar shapes stay visible).
+
+    ax: a 3D axis to draw into (e.g. from :func:`plot_snapshots`); default a new figure. Returns the
+    figure; with ``path`` the figure is saved and closed (the whole figure, if ``ax`` was given).
+    """
+    x = _points("x", x)
+    e = _points("eccentric", eccentric)
+    if ax is None:
+        fig = plt.figure(figsize=(5, 5))
+        ax = fig.add_subplot(projection="3d")
+    else:
+        if not hasattr(ax, "set_zlim"):
+            raise ValueError("ax must be a 3D axis (projection='3d')")
+        fig = ax.figure
+    loop = lambda a: np.vstack([a, a[:1]])  # noqa: E731
+    ax.plot(*loop(x).T, "-", color="#1f3b73", lw=4, solid_capstyle="round", label="centreline")
+    ax.plot(*loop(e).T, "-", color="#ff9f1c", lw=1.2, label="stripe")
+    both = np.vstack([x, e])
+    lo, hi = both.min(axis=0), both.max(axis=0)
+    span = np.maximum(hi - lo, 0.05 * max(float(np.max(hi - lo)), 1e-300))
+    centre = 0.5 * (lo + hi)
+    pad = 0.05 * span.max()
+    for set_lim, k in ((ax.set_xlim, 0), (ax.set_ylim, 1), (ax.set_zlim, 2)):
+        set_lim(centre[k] - 0.5 * span[k] - pad, centre[k] + 0.5 * span[k] + pad)
+    ax.set_box_aspect(tuple(span + 2 * pad))
+    ax.set_xlabel("x")
+    ax.set_ylabel("y")
+    ax.set_zlabel("z")
+    if title:
+        ax.set_title(title)
+    if path is not None:
+        fig.tight_layout()
+        fig.savefig(path, dpi=120)
+        plt.close(fig)
+    return fig
+
+
+def plot_snapshots(snapshots, path=None, ncols=3):
+    """Grid of 3D views: snapshots is a list of (x, eccentric, title), each drawn by
+    :func:`plot_snapshot`; ``ncols`` columns."""
+    snapshots = list(snapshots)
+    if not snapshots:
+        raise ValueError("snapshots: nothing to plot")
+    try:
+        integral = not isinstance(ncols, bool) and int(ncols) == ncols
+    except (TypeError, ValueError):
+        integral = False
+    if not integral or int(ncols) < 1:
+        raise ValueError(f"ncols must be an integer >= 1, got {ncols!r}")
+    ncols = min(int(ncols), len(snapshots))
+    nrows = math.ceil(len(snapshots) / ncols)
+    fig = plt.figure(figsize=(4 * ncols, 4 * nrows))
+    for i, snap in enumerate(snapshots):
+        try:
+            x, e, t = snap
+        except (TypeError, ValueError):
+            plt.close(fig)
+            raise ValueError(f"snapshots[{i}] must be (x, eccentric, title)") from None
+        ax = fig.add_subplot(nrows, ncols, i + 1, projection="3d")
+        plot_snapshot(x, e, title=t, ax=ax)
+    return _finish(fig, path)
+
+
+# ---------------------------------------------------------------------------- critical angles
+def plot_critical_vs_ratio(ratios, phi_plus, phi_minus, michell_plus=None, michell_minus=None,
+                           path=None, title=None):
+    """Critical twist angles / pi against the slenderness D/L: phi_plus (> 0 side) and phi_minus
+    (< 0 side) in radians, one per ratio (NaN where none was found); optional Michell estimates
+    (radians) as horizontal dashed lines of the same colours."""
+    r = np.asarray(ratios, dtype=float)
+    pp = np.asarray(phi_plus, dtype=float)
+    pm = np.asarray(phi_minus, dtype=float)
+    if r.ndim != 1 or pp.shape != r.shape or pm.shape != r.shape:
+        raise ValueError(
+            f"ratios, phi_plus, phi_minus must be 1-D of equal length, got {r.shape}, {pp.shape}, {pm.shape}"
+        )
+    order = np.argsort(r)
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    ax.plot(r[order], pp[order] / math.pi, "o-", color="C0", ms=5, lw=1, label="phi+ (critical, > 0)")
+    ax.plot(r[order], pm[order] / math.pi, "s-", color="C3", ms=5, lw=1, label="phi- (critical, < 0)")
+    if michell_plus is not None:
+        ax.axhline(float(michell_plus) / math.pi, color="C0", ls="--", lw=1,
+                   label=f"Michell estimate + ({float(michell_plus) / math.pi:.3f} pi)")
+    if michell_minus is not None:
+        ax.axhline(float(michell_minus) / math.pi, color="C3", ls="--", lw=1,
+                   label=f"Michell estimate - ({float(michell_minus) / math.pi:.3f} pi)")
+    ax.axhline(0.0, color="k", lw=0.5)
+    ax.set_xlabel("D / L")
+    ax.set_ylabel("critical twist phi* / pi")
+    ax.legend(fontsize=8, loc="best")
+    ax.grid(True, alpha=0.3)
+    ax.set_title(title or "Critical twist against slenderness")
+    return _finish(fig, path)

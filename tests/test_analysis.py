@@ -406,3 +406,112 @@ def test_files_to_profiles_csv(tmp_path):
     with pytest.raises(TypeError):
         write_profiles_csv({"s": 1}, out)
     assert not res.tau.flags.writeable  # the result is frozen, arrays included
+
+
+# ---------------------------------------------------------------------------- 6. profile descriptors
+def _profile(n=240, L=2.0, phase=0.4):
+    s = L * np.arange(n) / n
+    return s, L, phase
+
+
+def test_symmetry_order_and_peaks_of_a_threefold_profile():
+    from jaxrod.analysis import count_peaks, symmetry_order
+
+    s, L, ph = _profile()
+    k = 1 + 0.5 * np.cos(3 * TWO_PI * s / L + ph)
+    assert symmetry_order(k) == 3 and count_peaks(k) == 3
+    # A weaker 1st and 5th harmonic and noise do not change the dominant order or the count.
+    rng = np.random.default_rng(7)
+    noisy = (k + 0.15 * np.cos(TWO_PI * s / L) + 0.1 * np.sin(5 * TWO_PI * s / L + 1.0)
+             + 0.01 * rng.normal(size=s.size))
+    assert symmetry_order(noisy) == 3
+    assert count_peaks(noisy) == 3
+    # Rotating the sampling (a peak across the wrap) counts each peak once.
+    for shift in (0, 1, 17, 40, 80):
+        assert count_peaks(np.roll(k, shift)) == 3
+    # Lists are accepted; max_order below the true order picks the largest allowed harmonic.
+    assert symmetry_order(list(k)) == 3
+    assert symmetry_order(k + 0.05 * np.cos(TWO_PI * s / L), max_order=2) == 1
+
+
+def test_symmetry_order_and_peaks_of_bumps():
+    from jaxrod.analysis import count_peaks, symmetry_order
+
+    s, L, _ = _profile(n=400)
+
+    def bumps(m, width=0.05, heights=None):
+        centres = (np.arange(m) + 0.3) / m
+        heights = np.ones(m) if heights is None else np.asarray(heights)
+        d = (s[:, None] / L - centres[None, :] + 0.5) % 1.0 - 0.5  # periodic distance
+        return 0.2 + np.sum(heights * np.exp(-0.5 * (d / width) ** 2), axis=1)
+
+    k4 = bumps(4)
+    assert symmetry_order(k4) == 4 and count_peaks(k4) == 4
+    k2 = bumps(2, width=0.08, heights=[1.0, 0.8])  # unequal bumps: still 2-fold dominant
+    assert symmetry_order(k2) == 2 and count_peaks(k2) == 2
+    # A small side bump is not counted at the default prominence, but is at a lower one.
+    side = bumps(4) + 0.05 * np.exp(-0.5 * (((s / L - 0.2 + 0.5) % 1 - 0.5) / 0.01) ** 2)
+    assert count_peaks(side) == 4
+    assert count_peaks(side, prominence=0.01) == 5
+    # A constant profile has no dominant harmonic and no peak.
+    assert symmetry_order(np.full(16, 0.3)) == 0 and count_peaks(np.full(16, 0.3)) == 0
+
+
+@pytest.mark.parametrize(
+    "bad, problem",
+    [
+        (np.ones((8, 2)), r"^kappa: must be a 1-D array"),
+        (np.ones(7), r"^kappa: at least 8 samples"),
+        (np.r_[np.ones(9), np.nan], r"^kappa: non-finite .* 9"),
+        (np.r_[np.ones(9), np.inf], r"^kappa: non-finite"),
+        (["a"] * 10, r"^kappa: could not be read"),
+    ],
+)
+def test_profile_descriptors_reject_bad_input(bad, problem):
+    from jaxrod.analysis import count_peaks, symmetry_order
+
+    with pytest.raises(ValueError, match=problem):
+        symmetry_order(bad)
+    with pytest.raises(ValueError, match=problem):
+        count_peaks(bad)
+
+
+def test_profile_descriptors_reject_bad_parameters():
+    from jaxrod.analysis import count_peaks, symmetry_order
+
+    k = 1 + np.cos(3 * TWO_PI * np.arange(32) / 32)
+    for bad in (0, -1, 2.5, "3", True, None):
+        with pytest.raises(ValueError, match=r"^max_order"):
+            symmetry_order(k, max_order=bad)
+    for bad in (-0.1, float("nan"), "x", None):
+        with pytest.raises(ValueError, match=r"^prominence"):
+            count_peaks(k, prominence=bad)
+
+
+def _frenet_offset(x, offset):
+    """Eccentric line of a closed polyline: x + offset * the unit Frenet normal (from periodic central
+    differences; the curve must have no inflection)."""
+    t = np.roll(x, -1, axis=0) - np.roll(x, 1, axis=0)
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    a = np.roll(x, -1, axis=0) - 2 * x + np.roll(x, 1, axis=0)
+    nrm = a - np.sum(a * t, axis=1, keepdims=True) * t
+    return x + offset * nrm / np.linalg.norm(nrm, axis=1, keepdims=True)
+
+
+def test_trefoil_curvature_is_threefold():
+    from jaxrod.analysis import count_peaks, symmetry_order
+    from jaxrod.scenes import trefoil_points
+
+    x = trefoil_points(240)
+    res = analyze(x, _frenet_offset(x, 0.1))
+    assert res.Lk_frames == pytest.approx(res.Lk_exact, abs=1e-8)
+    assert symmetry_order(res.kappa) == 3
+    # This parametrisation's curvature has two equal maxima per lobe (kappa = 0.776 at each, a dip
+    # of 0.506 between them, minimum 0.206 between lobes): six maxima, three of prominence
+    # 0.57 = max - min and three of prominence 0.27 (48% of the range). The default threshold
+    # (10% of the range) counts all six, a threshold above 48% the three lobes.
+    assert count_peaks(res.kappa) == 6
+    assert count_peaks(res.kappa, prominence=0.6) == 3
+    # The same holds on the other chirality and at another sampling.
+    other = analyze(trefoil_points(150, "left"), _frenet_offset(trefoil_points(150, "left"), 0.1))
+    assert symmetry_order(other.kappa) == 3 and count_peaks(other.kappa, prominence=0.6) == 3

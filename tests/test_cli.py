@@ -47,3 +47,113 @@ def test_bad_input_exits_nonzero_with_one_line(args, name):
     lines = [l for l in r.stderr.strip().splitlines() if l]
     assert len(lines) == 1, r.stderr
     assert name in lines[0] and lines[0].startswith("jaxrod: error:")
+
+
+# ---------------------------------------------------------------------------- jaxrod analyze
+def _trefoil_files(tmp_path, n=160, offset=0.1):
+    """A trefoil centreline (CSV with header) and an eccentric line (NPY) offset along the Frenet
+    normal, at other points than the centreline (a shifted parameter, another count)."""
+    import numpy as np
+
+    from jaxrod.scenes import trefoil_points
+
+    def curve(t):
+        return np.stack([np.sin(t) + 2 * np.sin(2 * t), np.cos(t) - 2 * np.cos(2 * t), np.sin(3 * t)], axis=1)
+
+    def d1(t):
+        return np.stack([np.cos(t) + 4 * np.cos(2 * t), -np.sin(t) + 4 * np.sin(2 * t), 3 * np.cos(3 * t)], axis=1)
+
+    def d2(t):
+        return np.stack([-np.sin(t) - 8 * np.sin(2 * t), -np.cos(t) + 8 * np.cos(2 * t), -9 * np.sin(3 * t)], axis=1)
+
+    x = trefoil_points(n)
+    assert np.allclose(x, curve(2 * np.pi * np.arange(n) / n))  # the same (right-handed) trefoil
+    m = 131
+    t = 2 * np.pi * (np.arange(m) + 0.3) / m
+    tan = d1(t) / np.linalg.norm(d1(t), axis=1, keepdims=True)
+    nrm = d2(t) - np.sum(d2(t) * tan, axis=1, keepdims=True) * tan
+    ecc = curve(t) + offset * nrm / np.linalg.norm(nrm, axis=1, keepdims=True)
+    centre_path = tmp_path / "centreline.csv"
+    with open(centre_path, "w") as fh:
+        fh.write("x,y,z\n" + "".join(f"{a:.17g},{b:.17g},{c:.17g}\n" for a, b, c in x))
+    ecc_path = tmp_path / "stripe.npy"
+    np.save(ecc_path, ecc)
+    return centre_path, ecc_path
+
+
+ANALYZE_KEYS = ("Wr", "Tw", "Lk_frames", "Lk_gauss", "Lk_quadrature", "length", "symmetry_order", "n_peaks",
+                "n_samples")
+
+
+def test_analyze_json_and_files(tmp_path, capsys):
+    from jaxrod.cli import main
+
+    centre, ecc = _trefoil_files(tmp_path)
+    out = tmp_path / "out"
+    code = main(["analyze", str(centre), str(ecc), "--n-samples", "200", "--out", str(out), "--json"])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    res = json.loads(captured.out)
+    for key in ANALYZE_KEYS:
+        assert key in res, key
+    assert res["n_samples"] == 200
+    assert res["Lk_gauss"] == round(res["Lk_gauss"])  # exact linking number: an integer
+    assert abs(res["Lk_gauss"]) >= 1
+    assert res["Lk_frames"] == pytest.approx(res["Lk_gauss"], abs=1e-6)
+    assert res["Lk_quadrature"] == pytest.approx(res["Lk_gauss"], abs=0.05)
+    assert res["Wr"] == pytest.approx(3.35, abs=0.02)  # right-handed trefoil
+    assert res["symmetry_order"] == 3
+    assert res["n_peaks"] == 6  # two curvature maxima per lobe in this parametrisation
+    assert res["length"] > 0
+    for name in ("profiles.csv", "summary.json", "profiles.png"):
+        assert (out / name).stat().st_size > 0
+    assert json.loads((out / "summary.json").read_text())["Lk_gauss"] == res["Lk_gauss"]
+    lines = (out / "profiles.csv").read_text().splitlines()
+    assert lines[0] == "s,kappa1,kappa2,tau,kappa" and len(lines) == 201
+    assert "wrote" in captured.err
+
+
+def test_analyze_text_summary_and_open_curves(tmp_path, capsys):
+    from jaxrod.cli import main
+
+    centre, ecc = _trefoil_files(tmp_path, n=120)
+    assert main(["analyze", str(centre), str(ecc), "--smoothing-modes", "12"]) == 0
+    text = capsys.readouterr().out
+    for word in ("Wr", "Tw", "Lk (frames)", "Lk (Gauss)", "length", "symmetry order 3"):
+        assert word in text, text
+    # Open curves: no linking number (null in JSON), no symmetry order.
+    assert main(["analyze", str(centre), str(ecc), "--open", "--json", "--quiet"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["Lk_gauss"] is None and res["symmetry_order"] is None and res["closed"] is False
+
+
+def _one_line_error(capsys):
+    err = capsys.readouterr().err
+    lines = [line for line in err.strip().splitlines() if line]
+    assert len(lines) == 1, err
+    assert lines[0].startswith("jaxrod: error:")
+    return lines[0]
+
+
+def test_analyze_bad_input_exits_2_with_one_line(tmp_path, capsys):
+    from jaxrod.cli import main
+
+    centre, ecc = _trefoil_files(tmp_path, n=40)
+    missing = tmp_path / "nowhere.csv"
+    assert main(["analyze", str(missing), str(ecc)]) == 2
+    line = _one_line_error(capsys)
+    assert "nowhere.csv" in line and "No such file" in line
+    bad = tmp_path / "bad.csv"
+    bad.write_text("x,y,w\n" + "1,2,3\n" * 5)
+    assert main(["analyze", str(centre), str(bad)]) == 2
+    assert "missing column(s) z" in _one_line_error(capsys)
+    text = tmp_path / "text.csv"
+    text.write_text("x,y,z\n0,0,0\n1,0,0\n1,one,0\n0,1,0\n")
+    assert main(["analyze", str(text), str(ecc)]) == 2
+    assert "'one' is not a number" in _one_line_error(capsys)
+    assert main(["analyze", str(centre), str(ecc), "--smoothing-modes", "500"]) == 2
+    assert "smoothing_modes" in _one_line_error(capsys)
+    with pytest.raises(SystemExit) as info:  # argparse: not an integer
+        main(["analyze", str(centre), str(ecc), "--n-samples", "many"])
+    assert info.value.code == 2
+    assert "--n-samples" in _one_line_error(capsys)
