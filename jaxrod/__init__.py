@@ -34,7 +34,9 @@ from .scenes import (  # noqa: E402
 from .solvers import LBFGS, ConvergenceError, DampedNewton, Newton, Solution, minimise  # noqa: E402
 from .stability import Stability, critical_twist_derivative, eigenvalue_phi_derivative, stability  # noqa: E402
 from .equilibrium import Equilibrium, TopologyChangeError, relax, solve_equilibrium  # noqa: E402
-from .continuation import CriticalPoint, NoCrossingError, critical_twist  # noqa: E402
+from .continuation import (  # noqa: E402
+    BranchPoint, CriticalPoint, Instability, NoCrossingError, TwistPath, critical_twist, follow_twist,
+)
 from . import analysis, contact, plotting, topology  # noqa: E402
 
 __version__ = "0.1.0"
@@ -68,6 +70,10 @@ __all__ = [
     "CriticalPoint",
     "NoCrossingError",
     "critical_twist",
+    "follow_twist",
+    "TwistPath",
+    "BranchPoint",
+    "Instability",
     "topology",
     "analysis",
     "contact",

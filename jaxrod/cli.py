@@ -63,6 +63,25 @@ def _build_parser():
     a.add_argument("--out", default=None, help="folder for profiles.csv, summary.json, profiles.png")
     a.add_argument("--json", action="store_true", help="print one JSON object")
     a.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    t = sub.add_parser("trefoil", help="twisted trefoil knot: both critical twists, branches beyond, figures")
+    t.add_argument("--D", type=float, default=8.0, help="rod diameter (default 8, mm)")
+    t.add_argument("--L", type=float, default=292.0, help="rod length (default 292, mm)")
+    t.add_argument("--N", type=int, default=121, help="number of nodes (default 121)")
+    t.add_argument("--E", type=float, default=0.474, help="Young's modulus (default 0.474, MPa = N/mm^2)")
+    t.add_argument("--nu", type=float, default=0.5, help="Poisson ratio, B/C = 1 + nu (default 0.5)")
+    t.add_argument("--chirality", choices=("right", "left"), default="right", help="knot handedness (default right)")
+    t.add_argument("--contact-stiffness", type=float, default=None,
+                   help="contact penalty kappa_c in units of B/D^3 (default: the scene's, 100)")
+    t.add_argument("--phi-min", type=_angle, default=-12.0 * math.pi, help="lowest twist (default -12pi)")
+    t.add_argument("--phi-max", type=_angle, default=14.0 * math.pi, help="highest twist (default 14pi)")
+    t.add_argument("--step", type=_angle, default=0.5 * math.pi, help="largest continuation step (default 0.5pi)")
+    t.add_argument("--tol", type=_angle, default=2e-4 * math.pi, help="accuracy of the critical twists (default 2e-4pi)")
+    t.add_argument("--out", default="results/trefoil", help="output folder (default results/trefoil)")
+    t.add_argument("--fresh", action="store_true", help="start over even if --out holds an interrupted run")
+    t.add_argument("--no-figures", action="store_true", help="data only")
+    t.add_argument("--json", action="store_true", help="print one JSON summary object")
+    t.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    t.add_argument("--no-cache", action="store_true", help="do not keep compiled code in ~/.cache/jaxrod")
     return p
 
 
@@ -217,6 +236,41 @@ def _analyze(args):
     return 0
 
 
+def _trefoil(args):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from .material import check_int_at_least
+    from .scenes import DEFAULT_CONTACT_STIFFNESS, trefoil
+    from .study import figures, study_summary, twist_study
+
+    check_int_at_least("N", args.N, 24)
+    say = (lambda s: None) if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
+    stiffness = DEFAULT_CONTACT_STIFFNESS if args.contact_stiffness is None else args.contact_stiffness
+    scene = trefoil(args.D, args.L, args.N, E=args.E, nu=args.nu, chirality=args.chirality,
+                    contact_stiffness=stiffness)
+    say(f"{scene.name}: D = {args.D}, L = {args.L}, N = {args.N}, nu = {args.nu}, kappa_c = {stiffness}; "
+        f"phi from {args.phi_min / math.pi:+.3f} pi to {args.phi_max / math.pi:+.3f} pi; writing {args.out}/")
+    result = twist_study(scene, args.phi_min, args.phi_max, step=args.step, out=args.out, tol=args.tol,
+                         progress=say, resume=not args.fresh)
+    summary = study_summary(result)
+    summary.update({"D": args.D, "L": args.L, "N": args.N, "nu": args.nu, "chirality": args.chirality,
+                    "contact_stiffness": stiffness, "out": args.out})
+    with open(os.path.join(args.out, "summary.json"), "w") as f:
+        json.dump(summary, f, indent=2)
+    if not args.no_figures:
+        for path in figures(args.out, title=f"{scene.name}, D/L = {args.D / args.L:.4f}, N = {args.N}"):
+            say(f"wrote {path}")
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        for key in ("phi_plus", "phi_minus"):
+            v = summary[key]
+            print(f"{key:10s} = " + ("none in range" if v is None else f"{v:+.6f} rad = {v / math.pi:+.5f} pi"))
+        print(f"tightening side: {summary.get('tightening_side')}; time {summary['seconds']:.1f} s; data in {args.out}/")
+    return 0
+
+
 def main(argv=None):
     args = _build_parser().parse_args(argv)
     try:
@@ -228,6 +282,8 @@ def main(argv=None):
             return _michell(args)
         if args.command == "analyze":
             return _analyze(args)
+        if args.command == "trefoil":
+            return _trefoil(args)
     except ValueError as exc:
         print(f"jaxrod: error: {exc}", file=sys.stderr)
         return 2

@@ -18,12 +18,13 @@ import numpy as np
 
 import jax.numpy as jnp
 
-from .equilibrium import Equilibrium, relax, solve_equilibrium
+from .equilibrium import Equilibrium, TopologyChangeError, relax, solve_equilibrium
+from .geometry import polyline_distance
 from .material import check_finite, check_positive
 from .solvers import ConvergenceError
 from .stability import DEFAULT_NEGATIVE_TOL, branch_analysis
 
-__all__ = ["CriticalPoint", "critical_twist", "NoCrossingError"]
+__all__ = ["CriticalPoint", "critical_twist", "NoCrossingError", "BranchPoint", "Instability", "TwistPath", "follow_twist"]
 
 
 class NoCrossingError(RuntimeError):
@@ -260,3 +261,349 @@ def critical_twist(
         seconds=time.perf_counter() - t0,
         scene=scene,
     )
+
+
+# ---------------------------------------------------------------------------------------------
+# Following a stable branch through its instabilities, with branch switching (knots).
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class BranchPoint:
+    """One accepted continuation step: ``equilibrium`` (with its stability) on the branch named
+    ``branch``; ``tangent``: dq/dphi there (physical DOFs, near-zero modes left out);
+    ``scene``: the scene with its contact list valid at this state."""
+
+    branch: str
+    equilibrium: Equilibrium
+    tangent: np.ndarray = field(repr=False)
+    scene: object = field(repr=False)
+
+
+@dataclass(frozen=True)
+class Instability:
+    """Where a followed stable branch stops being one.
+
+    phi: estimate (the bracket's midpoint); phi_error: half the bracket; bracket: (last stable
+    twist reached, nearest twist where the branch was lost); kind: 'unstable' (the corrector
+    still converged on the branch, which had acquired negative eigenvalues) or 'jump' (the
+    minimiser left the branch: a fold, or a subcritical bifurcation whose unstable branch it
+    cannot stay on); multiplicity: how many eigenvalues go soft together (2 for a symmetric
+    pair); eigenvalue,
+    dlambda_dphi, mode: the critical eigenvalue at the last stable state, its derivative along
+    the branch and its eigenvector (scaled DOFs); equilibrium: that last stable state;
+    from_branch / to_branch: branch names (to_branch None if no switch was made); jumped_to:
+    the first state of the new branch (or None).
+    """
+
+    phi: float
+    phi_error: float
+    bracket: tuple
+    kind: str
+    multiplicity: int
+    eigenvalue: float
+    dlambda_dphi: float
+    mode: np.ndarray = field(repr=False)
+    equilibrium: Equilibrium = field(repr=False)
+    from_branch: str = ""
+    to_branch: str | None = None
+    negative_tol: float = 0.0
+    dlambda_dphi_secant: float = math.nan
+    jumped_to: Equilibrium | None = field(default=None, repr=False)
+
+
+@dataclass(frozen=True)
+class TwistPath:
+    """Result of ``follow_twist``: ``points`` (BranchPoint per accepted step, in order),
+    ``instabilities`` (Instability per branch end met), ``reason`` ('phi_stop' when the range was
+    covered; otherwise why the continuation stopped), ``seconds``."""
+
+    points: list
+    instabilities: list
+    reason: str
+    seconds: float
+
+    @property
+    def completed(self):
+        return self.reason == "phi_stop"
+
+
+def _jump_tolerance(scene):
+    D = scene.material.D
+    return 0.5 * float(D) if D is not None else 0.05 * float(scene.length)
+
+
+def follow_twist(
+    scene,
+    phi_start=0.0,
+    phi_stop=None,
+    step=0.25 * math.pi,
+    q0=None,
+    start=None,
+    tol=2e-4 * math.pi,
+    branch="symmetric",
+    k=8,
+    negative_tol=None,
+    gtol=None,
+    jump_tol=None,
+    switch=True,
+    max_switches=3,
+    perturbation=None,
+    on_point=None,
+    progress=None,
+):
+    """Follow the stable equilibrium branch from phi_start towards phi_stop; where it ends
+    (an eigenvalue crosses zero or the branch folds), locate the end to ``tol`` and switch to the
+    stable buckled branch along the critical eigenvector, then go on.
+
+    Predictor: the branch tangent dq/dphi (implicit function theorem, near-zero sliding modes
+    left out). Corrector: the damped-Newton minimiser of ``relax`` (exact Hessian, capped steps,
+    contact lists rebuilt, strand passage refused), which cannot wander onto an unstable branch.
+    A step is accepted when the corrector converges, the state stays within ``jump_tol``
+    (default D/2) of the predicted shape (a distance blind to material sliding along the
+    centreline), the linking number is Lk0 + phi/2 pi (closed rods) and no eigenvalue is below
+    -negative_tol. Otherwise the step is halved; once the failing twist is within ``tol`` of the
+    last accepted one, the branch has ended there (a failure that persists as the step goes to
+    zero is not a step-size artefact). Near-zero modes (|lambda| < negative_tol: strands sliding
+    in a loose knot, ~1e-7) never count.
+
+    Branch switching: at the nearest twist where the branch was lost, the predicted state is
+    pushed by +-``perturbation`` (default D/2 at the node that moves most) along the critical
+    eigenvector and relaxed; the lower-energy stable state away from the old branch is the new
+    branch ("buckled", then "buckled2", ...; the sign of the direction is appended).
+
+    scene: closed or clamped rod scene; q0 or start (an Equilibrium to begin from, used as is);
+    step: largest step in phi; on_point(BranchPoint) and progress(str): callbacks (e.g. to write
+    rows as they come). Returns a ``TwistPath``.
+    """
+    t0 = time.perf_counter()
+    phi_start = check_finite("phi_start", phi_start if start is None else start.phi)
+    phi_stop = check_finite("phi_stop", 8.0 * math.pi if phi_stop is None else phi_stop)
+    if phi_stop == phi_start:
+        raise ValueError("phi_stop must differ from phi_start")
+    step = check_positive("step", abs(step))
+    tol = check_positive("tol", tol)
+    contact = "contact" in scene.terms
+    gtol = 1e-9 if gtol is None else check_positive("gtol", gtol)
+    jump_tol = _jump_tolerance(scene) if jump_tol is None else check_positive("jump_tol", jump_tol)
+    direction = 1.0 if phi_stop > phi_start else -1.0
+    sign = "+" if direction > 0 else "-"
+    say = progress or (lambda s: None)
+    closed = bool(scene.closed)
+    lk0 = float(getattr(scene, "Lk0", 0.0))
+
+    def analyse(sc, e):
+        st, _, _, _, dq = branch_analysis(sc, e.q, e.phi, 0, k=k, tol=negative_tol, pinv_tol=pinv_tol)
+        return replace(e, stability=st), dq
+
+    def attempt(sc, prev, dq, phi):
+        """Corrector from the tangent predictor. Returns (ok, why, scene, equilibrium, tangent)."""
+        q_pred = prev.q + dq * (phi - prev.phi)
+        try:
+            e, sc2 = relax(sc, phi, q_pred, gtol=gtol, previous=prev, with_stability=False)
+        except (ConvergenceError, TopologyChangeError) as exc:
+            return False, f"{type(exc).__name__}: {exc}", sc, None, None
+        x_pred = np.asarray(sc.unpack(jnp.asarray(q_pred), phi)[0])
+        moved = polyline_distance(e.x, x_pred, closed)
+        if moved > jump_tol:
+            return False, f"jump: the state moved {moved:.3g} from the predicted shape", sc2, e, None
+        e, dq2 = analyse(sc2, e)
+        if closed and abs(e.Lk - (lk0 + phi / (2.0 * math.pi))) > 1e-6:
+            return False, f"Lk = {e.Lk:.8f} is not Lk0 + phi/2pi", sc2, e, None
+        if e.stability.n_negative > 0 and contact:
+            # A soft, sliding-type mode of a loose knot may turn slightly negative: the minimiser
+            # then stalls on a saddle that differs from a stable state only by a slide of the
+            # material along the same shape. Push along the negative mode and relax: if a stable
+            # state of the *same shape* appears, the branch goes on (no false detection).
+            escaped = _escape_soft_saddle(sc2, e, prev, x_pred, jump_tol, gtol, closed, analyse)
+            if escaped is not None:
+                sc2, e, dq2 = escaped
+        if e.stability.n_negative > 0:
+            return False, f"unstable: {e.stability.n_negative} negative eigenvalue(s)", sc2, e, dq2
+        return True, "", sc2, e, dq2
+
+    def emit(name, sc, e, dq):
+        point = BranchPoint(branch=name, equilibrium=e, tangent=dq, scene=sc)
+        points.append(point)
+        if on_point is not None:
+            on_point(point)
+        lam = e.stability.eigenvalues
+        say(f"[{name}] phi = {e.phi / math.pi:+.5f} pi: E = {e.energy:.6g}, Wr = {e.Wr:.4f}, "
+            f"Tw = {e.Tw:.4f}, {e.stability.n_negative} negative, lowest " + " ".join(f"{v:.2e}" for v in lam[:3]))
+        return point
+
+    points, instabilities = [], []
+    if start is None:
+        e0, scene = relax(scene, phi_start, q0, gtol=gtol, with_stability=False)
+    else:
+        e0 = start
+        if contact:
+            scene = scene.with_contacts(e0.q)
+    if negative_tol is None:
+        negative_tol = CONTACT_NEGATIVE_TOL if contact else DEFAULT_NEGATIVE_TOL
+    pinv_tol = negative_tol if contact else 0.0
+    e0, dq = analyse(scene, e0)
+    name = f"{branch}{sign}"
+    emit(name, scene, e0, dq)
+    prev, older = e0, None
+    h = step
+    switches = 0
+    reason = "phi_stop"
+    while direction * (phi_stop - prev.phi) > 1e-12:
+        # Steps land on the grid of multiples of ``step`` (so whole turns are visited, where the
+        # ribbon closes and the Gauss linking number can be compared) unless shortened.
+        grid = step * (math.floor(prev.phi / step + 1e-9) + 1 if direction > 0 else math.ceil(prev.phi / step - 1e-9) - 1)
+        phi_next = prev.phi + direction * min(h, abs(phi_stop - prev.phi), abs(grid - prev.phi))
+        ok, why, sc, e, dq_new = attempt(scene, prev, dq, phi_next)
+        if ok:
+            older, (scene, prev, dq) = prev, (sc, e, dq_new)
+            emit(name, scene, e, dq)
+            h = min(step, 2.0 * h)
+            continue
+        # The branch was lost at phi_next: bisect between the last stable state and there.
+        lost_phi, lost_why, lost_eq = phi_next, why, e
+        say(f"[{name}] lost at phi = {phi_next / math.pi:+.5f} pi ({why}); bisecting")
+        while abs(lost_phi - prev.phi) > tol:
+            mid = 0.5 * (prev.phi + lost_phi)
+            ok, why, sc, e, dq_new = attempt(scene, prev, dq, mid)
+            if ok:
+                older, (scene, prev, dq) = prev, (sc, e, dq_new)
+                emit(name, scene, e, dq)
+            else:
+                lost_phi, lost_why, lost_eq = mid, why, e
+        kind = "unstable" if lost_why.startswith("unstable") else "jump"
+        inst = _critical_mode(scene, prev, older, lost_eq, kind, direction, k, negative_tol, pinv_tol)
+        rate = inst.dlambda_dphi if kind == "unstable" or not math.isfinite(inst.dlambda_dphi_secant) \
+            else inst.dlambda_dphi_secant
+        phi_c, phi_err = _locate(prev.phi, lost_phi, inst.eigenvalue, rate, direction)
+        inst = replace(inst, phi=phi_c, phi_error=phi_err, bracket=(prev.phi, lost_phi), from_branch=name,
+                       negative_tol=negative_tol)
+        say(f"[{name}] branch ends at phi* = {inst.phi / math.pi:+.6f} pi +- {inst.phi_error:.1e} rad "
+            f"({kind}; last: {lost_why}); critical eigenvalue {inst.eigenvalue:.3e}, "
+            f"d/dphi {inst.dlambda_dphi:.3e}")
+        if not switch or switches >= max_switches:
+            instabilities.append(inst)
+            reason = f"branch ended at phi = {inst.phi:.8g} ({kind})"
+            break
+        switches += 1
+        new_name = _next_branch_name(name[:-1]) + sign
+        found = _switch_branch(scene, prev, dq, lost_phi, inst.mode, lost_eq, perturbation, jump_tol,
+                               gtol, analyse, closed, lk0, say)
+        if found is None:
+            instabilities.append(inst)
+            reason = f"no stable branch found beyond phi = {lost_phi:.8g}"
+            break
+        sc, e, dq_new = found
+        instabilities.append(replace(inst, to_branch=new_name, jumped_to=e))
+        scene, prev, dq, name, older = sc, e, dq_new, new_name, None
+        emit(name, scene, e, dq)
+        h = step
+    return TwistPath(points=points, instabilities=instabilities, reason=reason, seconds=time.perf_counter() - t0)
+
+
+def _locate(phi_stable, phi_lost, lam, dlam, direction):
+    """phi* from the last stable state: the eigenvalue's Newton extrapolation phi - lam/dlam when
+    it is close (it is exact to second order for a crossing, also when a slightly negative
+    eigenvalue hid in the near-zero band; for a fold it lands within the bracket), otherwise the
+    bracket midpoint. The error bound is half the bracket, or 10% of the extrapolation distance
+    when that is larger."""
+    mid, half = 0.5 * (phi_stable + phi_lost), 0.5 * abs(phi_lost - phi_stable)
+    if dlam == 0.0 or not math.isfinite(dlam):
+        return mid, half
+    newton = phi_stable - lam / dlam
+    reach = abs(newton - phi_stable)
+    ahead = direction * (newton - phi_stable)
+    if ahead <= 2.0 * half and reach <= max(40.0 * half, 0.02 * math.pi):
+        return newton, max(half, 0.1 * reach)
+    return mid, half
+
+
+def _escape_soft_saddle(scene, e, prev, x_pred, jump_tol, gtol, closed, analyse):
+    """From a saddle e, relax after pushes of +-jump_tol/4 along its most negative mode; return
+    (scene, equilibrium, tangent) of a stable state within jump_tol of the predicted shape x_pred,
+    or None."""
+    v = np.asarray(e.stability.eigenvectors[:, 0])
+    mode_q = np.asarray(scene.from_scaled(jnp.asarray(v)))
+    x_mode = np.asarray(scene.unpack(jnp.asarray(mode_q), 0.0)[0])
+    amp = 0.25 * jump_tol / max(float(np.max(np.linalg.norm(x_mode, axis=1))), 1e-300)
+    for sgn in (1.0, -1.0):
+        try:
+            e2, sc2 = relax(scene, e.phi, e.q + sgn * amp * mode_q, gtol=gtol, previous=prev, with_stability=False)
+        except (ConvergenceError, TopologyChangeError):
+            continue
+        if polyline_distance(e2.x, x_pred, closed) > jump_tol:
+            continue
+        e2, dq2 = analyse(sc2, e2)
+        if e2.stability.n_negative == 0:
+            return sc2, e2, dq2
+    return None
+
+
+def _next_branch_name(name):
+    """symmetric -> buckled -> buckled2 -> buckled3 ..."""
+    if not name.startswith("buckled"):
+        return "buckled"
+    tail = name[len("buckled"):]
+    return f"buckled{int(tail) + 1 if tail.isdigit() else 2}"
+
+
+def _critical_mode(scene, prev, older, lost_eq, kind, direction, k, negative_tol, pinv_tol, candidates=5):
+    """The critical eigenpair at the last stable state ``prev``: of its lowest ``candidates``
+    eigenvalues, the one that reaches zero first when extrapolated with its secant rate from the
+    state before (``older``, matched by eigenvector overlap); without ``older``, with the
+    autodiff derivative along the branch. The secant also holds at a fold, where the autodiff
+    derivative of the fixed-branch linearisation does not (dlambda/dphi diverges there).
+    Near-zero sliding modes hardly move with phi, so they lose to the mode really going soft.
+    multiplicity: how many approach zero together (within a factor 3 in reach).
+    Returns an Instability with dlambda_dphi (autodiff) and dlambda_dphi_secant."""
+    st = prev.stability
+    ev = st.eigenvalues
+    found = []
+    for j in range(min(candidates, len(ev))):
+        _, lam_j, dlam_j, v_j, _ = branch_analysis(scene, prev.q, prev.phi, j, k=k, tol=negative_tol,
+                                                   pinv_tol=pinv_tol)
+        secant = math.nan
+        if older is not None and older.stability is not None and older.phi != prev.phi:
+            ov = np.abs(np.asarray(older.stability.eigenvectors).T @ np.asarray(v_j))
+            secant = (lam_j - float(older.stability.eigenvalues[int(np.argmax(ov))])) / (prev.phi - older.phi)
+        rate = -direction * (secant if math.isfinite(secant) else dlam_j)
+        reach = (abs(lam_j) + 1e-12) / rate if rate > 0 else math.inf
+        found.append((reach, lam_j, dlam_j, secant, v_j))
+    found.sort(key=lambda f: f[0])
+    reach, lam, dlam, secant, v = found[0]
+    multiplicity = sum(1 for f in found if f[0] <= 3.0 * reach) if math.isfinite(reach) else 1
+    return Instability(phi=prev.phi, phi_error=0.0, bracket=(prev.phi, prev.phi), kind=kind,
+                       multiplicity=multiplicity, eigenvalue=float(lam), dlambda_dphi=float(dlam),
+                       dlambda_dphi_secant=float(secant), mode=np.asarray(v), equilibrium=prev)
+
+
+def _switch_branch(scene, prev, dq, phi, mode, lost_eq, perturbation, jump_tol, gtol, analyse, closed, lk0, say):
+    """Relax from the predicted state pushed both ways along the critical mode (and from the
+    state the corrector itself jumped to, if any); keep stable states away from the old branch
+    with the right Lk; return the lowest in energy as (scene, equilibrium, tangent) or None."""
+    q_pred = prev.q + dq * (phi - prev.phi)
+    x_pred = np.asarray(scene.unpack(jnp.asarray(q_pred), phi)[0])
+    mode_q = np.asarray(scene.from_scaled(jnp.asarray(mode)))
+    x_mode = np.asarray(scene.unpack(jnp.asarray(mode_q), 0.0)[0])
+    biggest = float(np.max(np.linalg.norm(x_mode, axis=1)))
+    amp = (jump_tol if perturbation is None else float(perturbation)) / max(biggest, 1e-300)
+    starts = [("+mode", q_pred + amp * mode_q), ("-mode", q_pred - amp * mode_q)]
+    if lost_eq is not None:
+        starts.append(("jumped", np.asarray(lost_eq.q)))
+    best = None
+    for label, q_start in starts:
+        try:
+            e, sc = relax(scene, phi, q_start, gtol=gtol, previous=prev, with_stability=False)
+        except (ConvergenceError, TopologyChangeError) as exc:
+            say(f"  switch from {label}: {type(exc).__name__}: {exc}")
+            continue
+        moved = polyline_distance(e.x, x_pred, closed)
+        e, dq_e = analyse(sc, e)
+        lk_ok = (not closed) or abs(e.Lk - (lk0 + phi / (2.0 * math.pi))) <= 1e-6
+        say(f"  switch from {label}: E = {e.energy:.8g}, Wr = {e.Wr:.4f}, moved {moved:.3g}, "
+            f"{e.stability.n_negative} negative, Lk ok: {lk_ok}")
+        if moved <= jump_tol or not e.stability.stable or not lk_ok:
+            continue
+        if best is None or e.energy < best[1].energy:
+            best = (sc, e, dq_e)
+    return best

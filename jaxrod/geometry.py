@@ -199,3 +199,21 @@ def resample_closed(points, n):
     s = np.concatenate([[0.0], np.cumsum(seg)])
     targets = np.linspace(0.0, s[-1], n, endpoint=False)
     return np.stack([np.interp(targets, s, loop[:, k]) for k in range(3)], axis=1)
+
+
+def polyline_distance(a, b, closed=True):
+    """Largest distance from a node of polyline ``a`` (N,3) to polyline ``b`` (M,3) (numpy).
+
+    A shape distance that ignores how the nodes are spaced along the curve: a rod whose material
+    slid along its own centreline (a near-zero mode of loose knots) is at distance ~0 from
+    where it started, a rod that jumped to another shape is not.
+    """
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    b1 = np.roll(b, -1, axis=0) if closed else b[1:]
+    b0 = b if closed else b[:-1]
+    seg = b1 - b0  # (M,3)
+    rel = a[:, None, :] - b0[None, :, :]  # (N,M,3)
+    t = np.clip(np.sum(rel * seg, axis=-1) / np.maximum(np.sum(seg * seg, axis=-1), 1e-300), 0.0, 1.0)
+    d = np.linalg.norm(rel - t[..., None] * seg, axis=-1)
+    return float(np.max(np.min(d, axis=1)))

@@ -1,0 +1,132 @@
+"""What is recorded of each equilibrium along a twist continuation: the seed paper's observables.
+
+``step_record(scene, eq)`` returns a flat row (a dict of numbers, one CSV row) and the profiles
+(curvature kappa(s) and twist density tau(s), as the paper's simulation computes them from
+neighbouring frames, see ``vertex_profiles``; measured shapes go through ``jaxrod.analysis``
+instead), plus the centreline and eccentric line for 3D snapshots.
+
+Lk is reported twice, independently: from the frames (Wr + Tw of the discrete rod, exact polygon
+writhe) and from the Gauss linking integral of the centreline with the eccentric line (exact
+polygon linking number), the paper's estimate, which does not use the frame twist at all.
+"""
+from __future__ import annotations
+
+import math
+
+import jax.numpy as jnp
+import numpy as np
+
+from .topology import linking_number
+
+__all__ = ["step_record", "vertex_profiles", "ROW_KEYS"]
+
+# Columns of a continuation table (branch.csv) before the eigenvalue columns lambda_0 ...
+ROW_KEYS = (
+    "branch", "phi", "phi_over_pi", "energy", "E_stretch", "E_bend", "E_twist", "E_contact",
+    "Wr", "Tw", "Lk_frames", "Lk_gauss", "Lk_expected", "n_negative", "stable", "contact_count",
+    "symmetry_order", "n_peaks", "kappa_max_L", "tau_mean_L", "tau_spread_L", "radius_of_gyration",
+    "min_distance_over_D", "grad_norm", "iterations",
+)
+
+
+def _min_nonlocal_distance(x, D):
+    """Smallest distance between nodes more than pi D / 2 apart along a closed rod (a cheap
+    closest-approach indicator; the contact energy itself uses segment quadrature)."""
+    n = x.shape[0]
+    seg = np.linalg.norm(np.roll(x, -1, axis=0) - x, axis=1)
+    s = np.concatenate([[0.0], np.cumsum(seg)[:-1]])
+    total = float(np.sum(seg))
+    ds = np.abs(s[:, None] - s[None, :])
+    ds = np.minimum(ds, total - ds)
+    d = np.linalg.norm(x[:, None, :] - x[None, :, :], axis=-1)
+    d[ds <= 0.5 * math.pi * D] = np.inf
+    return float(np.min(d)) if n > 1 else math.inf
+
+
+def vertex_profiles(scene, eq):
+    """Curvature and twist density at the vertices of a closed rod, as the paper's simulation
+    gets them from neighbouring bead frames: kappa_i = |kappa b_i| / l_i (|kappa b| = 2 tan(a/2),
+    a the turning angle) and tau_i = m_i / l_i (m_i the twist across vertex i, the imposed twist
+    included; l_i the Voronoi length). Returns (s/L (N,), kappa L (N,), tau L (N,)).
+
+    The frames themselves are not used: the imposed twist enters at the joint, so unless phi is
+    a whole number of turns a line drawn on the rod does not close there (the rod's ends were
+    rotated by phi before gluing), and a profile read from the eccentric line would show the
+    mismatch as a spike at the joint.
+    """
+    from .geometry import curvature_binormals, edges
+
+    x = jnp.asarray(eq.x)
+    e = edges(x, True)
+    kb = curvature_binormals(jnp.roll(e, 1, axis=0), e)
+    lengths = jnp.linalg.norm(e, axis=1)
+    vor = 0.5 * (lengths + jnp.roll(lengths, 1))
+    m = scene.vertex_twists(jnp.asarray(eq.q), eq.phi)
+    L = float(jnp.sum(lengths))
+    s = np.concatenate([[0.0], np.cumsum(np.asarray(lengths))[:-1]])
+    kappa = np.asarray(jnp.linalg.norm(kb, axis=1) / vor)
+    tau = np.asarray(m / vor)
+    return s / L, kappa * L, tau * L
+
+
+def step_record(scene, eq, branch="", n_samples=None):
+    """Row and profiles of an equilibrium ``eq`` (with its stability) of a closed ``scene``.
+
+    Returns (row, extra): row is a dict with the keys ``ROW_KEYS`` plus ``lambda_j`` for the
+    lowest eigenvalues (zero modes removed); extra holds arrays: ``s_over_L`` (n,),
+    ``kappa_L`` (n,), ``tau_L`` (n,) (curvature and twist density times L, the paper's frames),
+    ``x`` (N,3) centreline, ``eccentric`` (N,3) the line at D/2 along d1.
+    """
+    from .analysis import count_peaks, symmetry_order
+    from .contact import contact_count
+
+    q = jnp.asarray(eq.q)
+    x = np.asarray(eq.x)
+    ecc = np.asarray(scene.eccentric_line(q, eq.phi))
+    D = None if scene.material.D is None else float(scene.material.D)
+    s_over_L, kappa_L, tau_L = vertex_profiles(scene, eq)
+    kappa_nodes = kappa_L / float(scene.length)
+    terms = eq.energy_terms
+    stab = eq.stability
+    n_contact = 0
+    if "contact" in scene.terms:
+        n_contact = int(contact_count(jnp.asarray(x), scene.contact_pairs, scene.contact_mask, True, D))
+    r = x - x.mean(axis=0)
+    row = {
+        "branch": branch,
+        "phi": float(eq.phi),
+        "phi_over_pi": float(eq.phi) / math.pi,
+        "energy": float(eq.energy),
+        "E_stretch": float(terms.get("stretch", 0.0)),
+        "E_bend": float(terms.get("bend", 0.0)),
+        "E_twist": float(terms.get("twist", 0.0)),
+        "E_contact": float(terms.get("contact", 0.0)),
+        "Wr": float(eq.Wr),
+        "Tw": float(eq.Tw),
+        "Lk_frames": float(eq.Lk),
+        "Lk_gauss": float(linking_number(jnp.asarray(x), jnp.asarray(ecc))),
+        "Lk_expected": float(scene.Lk0) + float(eq.phi) / (2.0 * math.pi),
+        "n_negative": int(stab.n_negative) if stab is not None else -1,
+        "stable": int(bool(stab.stable)) if stab is not None else -1,
+        "contact_count": n_contact,
+        "symmetry_order": int(symmetry_order(kappa_nodes)),
+        "n_peaks": int(count_peaks(kappa_nodes)),
+        "kappa_max_L": float(np.max(kappa_L)),
+        "tau_mean_L": float(np.mean(tau_L)),
+        "tau_spread_L": float(np.max(tau_L) - np.min(tau_L)),
+        "radius_of_gyration": float(np.sqrt(np.mean(np.sum(r * r, axis=1)))),
+        "min_distance_over_D": _min_nonlocal_distance(x, D) / D if D else math.nan,
+        "grad_norm": float(eq.solution.grad_norm),
+        "iterations": int(eq.solution.iterations),
+    }
+    if stab is not None:
+        for j, lam in enumerate(np.asarray(stab.eigenvalues)):
+            row[f"lambda_{j}"] = float(lam)
+    extra = {
+        "s_over_L": s_over_L,
+        "kappa_L": kappa_L,
+        "tau_L": tau_L,
+        "x": x,
+        "eccentric": ecc,
+    }
+    return row, extra

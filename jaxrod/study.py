@@ -1,0 +1,306 @@
+"""Twist study of a closed rod (a knot): continuation in both directions from phi = 0, every step
+recorded as it is made, resumable, with the figures of the seed paper.
+
+``twist_study(scene, phi_min, phi_max, out=DIR)`` writes into DIR, while it runs:
+
+* ``run.json``       the scene and continuation parameters (a resumed run must match them);
+* ``branch.csv``     one row per accepted step (``jaxrod.records.ROW_KEYS``, ``direction``,
+  ``lambda_0``...), appended and flushed at every step;
+* ``steps/<direction>_<NNNN>.npz`` the state (q, phi, branch) and its profiles
+  (s/L, kappa L, tau L, centreline, eccentric line) at every step;
+* ``critical.json``  the instabilities met so far (rewritten whenever one is found) and which
+  directions are finished.
+
+Interrupted, it is called again with the same arguments: finished directions are skipped, an
+unfinished one restarts from its last saved state (nothing computed is lost). ``figures(DIR)``
+draws bifurcation diagram, Lk/Tw/Wr, kappa(s)/tau(s) profiles and 3D snapshots from the files.
+"""
+from __future__ import annotations
+
+import csv
+import glob
+import json
+import math
+import os
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .continuation import CONTACT_NEGATIVE_TOL, follow_twist
+from .stability import DEFAULT_NEGATIVE_TOL
+from .equilibrium import relax
+from .material import check_finite, check_positive
+from .records import ROW_KEYS, step_record
+
+__all__ = ["twist_study", "StudyResult", "read_table", "figures", "study_summary"]
+
+
+@dataclass(frozen=True)
+class StudyResult:
+    """table: dict column -> array (all rows, both directions); critical: the critical.json dict;
+    out: the folder (or None); seconds: time of this call."""
+
+    table: dict
+    critical: dict
+    out: str | None
+    seconds: float
+
+
+def _scene_parameters(scene):
+    m = scene.material
+    return {
+        "name": scene.name,
+        "N": int(scene.n_nodes),
+        "L": float(scene.length),
+        "D": None if m.D is None else float(m.D),
+        "B": float(m.B),
+        "C": float(m.C),
+        "EA": float(m.EA),
+        "Lk0": float(getattr(scene, "Lk0", 0.0)),
+        "contact_stiffness": float(getattr(scene, "contact_stiffness", 0.0) or 0.0),
+        "terms": list(scene.terms),
+    }
+
+
+def read_table(path):
+    """branch.csv -> dict column -> numpy array (numbers as float, 'branch'/'direction' as str)."""
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    if not rows:
+        return {}
+    table = {}
+    for key in rows[0]:
+        vals = [r[key] for r in rows]
+        if key in ("branch", "direction"):
+            table[key] = np.array(vals, dtype=str)
+        else:
+            table[key] = np.array([float(v) if v not in ("", None) else math.nan for v in vals])
+    return table
+
+
+def _instability_dict(inst, scene, out, direction, index):
+    before, after = inst.equilibrium, inst.jumped_to
+    d = {
+        "direction": direction,
+        "phi": inst.phi,
+        "phi_over_pi": inst.phi / math.pi,
+        "negative_tol": inst.negative_tol,
+        "phi_error": inst.phi_error,
+        "bracket": list(inst.bracket),
+        "kind": inst.kind,
+        "multiplicity": inst.multiplicity,
+        "eigenvalue": inst.eigenvalue,
+        "dlambda_dphi": inst.dlambda_dphi,
+        "dlambda_dphi_secant": None if not math.isfinite(inst.dlambda_dphi_secant) else inst.dlambda_dphi_secant,
+        "from_branch": inst.from_branch,
+        "to_branch": inst.to_branch,
+        "Wr_before": before.Wr, "Tw_before": before.Tw, "energy_before": before.energy,
+        "Wr_after": None if after is None else after.Wr,
+        "Tw_after": None if after is None else after.Tw,
+        "energy_after": None if after is None else after.energy,
+    }
+    if out:
+        name = f"critical_mode_{direction}_{index}.npz"
+        mode_q = np.asarray(scene.from_scaled(inst.mode))
+        np.savez(os.path.join(out, name), mode_scaled=inst.mode, mode_q=mode_q, q=before.q, phi=before.phi)
+        d["mode_file"] = name
+    return d
+
+
+def _write_json(path, obj):
+    tmp = path + ".tmp"
+    with open(tmp, "w") as f:
+        json.dump(obj, f, indent=2)
+    os.replace(tmp, path)  # never a half-written file
+
+
+def twist_study(scene, phi_min, phi_max, step=0.5 * math.pi, out=None, tol=2e-4 * math.pi, k=8,
+                progress=None, resume=True, max_switches=3):
+    """Follow the knot's stable states from phi = 0 up to phi_max and down to phi_min (relaxed at
+    phi = 0 first), switching branches at each instability (see ``follow_twist``). Records every
+    step (``step_record``); with ``out`` writes the files described in the module docstring as it
+    goes and resumes an interrupted run. Returns a ``StudyResult``."""
+    t0 = time.perf_counter()
+    phi_min = check_finite("phi_min", phi_min)
+    phi_max = check_finite("phi_max", phi_max)
+    if not phi_min < 0.0 < phi_max:
+        raise ValueError(f"phi_min must be < 0 < phi_max, got phi_min = {phi_min!r}, phi_max = {phi_max!r}")
+    step = check_positive("step", step)
+    tol = check_positive("tol", tol)
+    say = progress or (lambda s: None)
+    params = {"scene": _scene_parameters(scene), "phi_min": phi_min, "phi_max": phi_max, "step": step,
+              "tol": tol, "k": k, "max_switches": max_switches}
+    csv_path = crit_path = None
+    critical = {"instabilities": [], "finished": []}
+    if out:
+        os.makedirs(os.path.join(out, "steps"), exist_ok=True)
+        run_path, csv_path, crit_path = (os.path.join(out, n) for n in ("run.json", "branch.csv", "critical.json"))
+        if os.path.exists(run_path) and resume:
+            with open(run_path) as f:
+                old = json.load(f)
+            if old != json.loads(json.dumps(params)):
+                raise ValueError(f"{out} holds a run with other parameters (see run.json): use another --out folder")
+            if os.path.exists(crit_path):
+                with open(crit_path) as f:
+                    critical = json.load(f)
+        else:
+            for stale in [csv_path, crit_path] + glob.glob(os.path.join(out, "steps", "*.npz")):
+                if os.path.exists(stale):
+                    os.remove(stale)
+            _write_json(run_path, params)
+    header = list(ROW_KEYS) + ["direction"] + [f"lambda_{j}" for j in range(k)]
+
+    def save_point(direction, counter, point):
+        e = point.equilibrium
+        row, extra = step_record(point.scene, e, branch=point.branch)
+        row["direction"] = direction
+        if not out:
+            rows.append(row)
+            return
+        new = not os.path.exists(csv_path) or os.path.getsize(csv_path) == 0
+        with open(csv_path, "a", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=header, extrasaction="ignore")
+            if new:
+                w.writeheader()
+            w.writerow(row)
+        np.savez(os.path.join(out, "steps", f"{direction}_{counter:04d}.npz"), q=e.q, phi=e.phi,
+                 branch=point.branch, **extra)
+
+    rows = []
+    start = None
+    for direction, target in (("plus", phi_max), ("minus", phi_min)):
+        if direction in critical["finished"]:
+            say(f"{direction}: already finished (resumed run)")
+            continue
+        files = sorted(glob.glob(os.path.join(out, "steps", f"{direction}_*.npz"))) if out else []
+        counter = len(files)
+        if files:  # resume from the last saved state of this direction
+            last = np.load(files[-1])
+            branch = str(last["branch"])[:-1]
+            say(f"{direction}: resuming from phi = {float(last['phi']) / math.pi:+.5f} pi on {branch}")
+            e, sc = relax(scene, float(last["phi"]), last["q"], gtol=1e-9, with_stability=False)
+            begin, skip_first = e, True
+        else:
+            if start is None:
+                say("relaxing the knot at phi = 0")
+                start, scene = relax(scene, 0.0, None, gtol=1e-9, with_stability=False)
+            sc, begin, branch, skip_first = scene, start, "symmetric", False
+        if critical.get("negative_tol") is None:
+            critical["negative_tol"] = CONTACT_NEGATIVE_TOL if "contact" in scene.terms else DEFAULT_NEGATIVE_TOL
+
+        def on_point(point, direction=direction):
+            nonlocal counter, skip_first
+            if skip_first:  # the resumed state itself is already on file
+                skip_first = False
+                return
+            save_point(direction, counter, point)
+            counter += 1
+
+        path = follow_twist(sc, begin.phi, target, step=step, start=begin, tol=tol, branch=branch, k=k,
+                            negative_tol=critical["negative_tol"], max_switches=max_switches,
+                            on_point=on_point, progress=say)
+        for inst in path.instabilities:
+            index = sum(1 for c in critical["instabilities"] if c["direction"] == direction)
+            critical["instabilities"].append(_instability_dict(inst, sc, out, direction, index))
+        critical["finished"].append(direction)
+        critical["stopped_" + direction] = path.reason
+        _summarise(critical)
+        if out:
+            _write_json(crit_path, critical)
+    table = read_table(csv_path) if out else {key: np.array([r.get(key, math.nan) for r in rows]) for key in header}
+    _summarise(critical, table)
+    if out:
+        _write_json(crit_path, critical)
+    return StudyResult(table=table, critical=critical, out=out, seconds=time.perf_counter() - t0)
+
+
+def _summarise(critical, table=None):
+    """phi_plus / phi_minus: first instability met at phi > 0 / phi < 0 (jaxrod's sign of phi,
+    radians). The tightening side is told by behaviour: the radius of gyration of the symmetric
+    branch shrinks on the tightening side and grows on the opening side."""
+    for direction, key in (("plus", "phi_plus"), ("minus", "phi_minus")):
+        first = [c for c in critical["instabilities"] if c["direction"] == direction]
+        critical[key] = first[0]["phi"] if first else None
+        critical[key + "_error"] = first[0]["phi_error"] if first else None
+        critical[key + "_dlambda_dphi"] = first[0]["dlambda_dphi"] if first else None
+        critical[key + "_mode_file"] = first[0].get("mode_file") if first else None
+    if table is None or "radius_of_gyration" not in table:
+        return
+    rg, phi, br = table["radius_of_gyration"], table["phi"], table["branch"]
+    sym = np.char.startswith(br.astype(str), "symmetric")
+    trend = {}
+    for direction, sgn in (("plus", 1.0), ("minus", -1.0)):
+        sel = sym & (np.sign(phi) == sgn)
+        at0 = sym & (phi == 0.0)
+        if np.any(sel) and np.any(at0):
+            i = np.argmax(np.abs(phi) * sel)
+            trend[direction] = float(rg[i] - rg[np.argmax(at0)])
+    if len(trend) == 2:
+        tight = min(trend, key=trend.get)
+        critical["tightening_side"] = "phi>0" if tight == "plus" else "phi<0"
+        critical["radius_of_gyration_change"] = trend
+        critical["phi_tightening"] = critical["phi_plus" if tight == "plus" else "phi_minus"]
+        critical["phi_opening"] = critical["phi_minus" if tight == "plus" else "phi_plus"]
+
+
+def study_summary(result):
+    """A small JSON-able summary of a study: critical twists (rad and /pi), sides, time."""
+    c = result.critical
+    s = {key: c.get(key) for key in ("phi_plus", "phi_minus", "phi_plus_error", "phi_minus_error",
+                                       "tightening_side", "phi_tightening", "phi_opening")}
+    for key in ("phi_plus", "phi_minus", "phi_tightening", "phi_opening"):
+        s[key + "_over_pi"] = None if c.get(key) is None else c[key] / math.pi
+    s["seconds"] = result.seconds
+    s["steps"] = int(len(result.table.get("phi", [])))
+    return s
+
+
+def figures(out, title=""):
+    """Draw the study's figures from the files in ``out``: bifurcation.png, linking.png,
+    profiles.png, snapshots.png. Returns the list of files written."""
+    from . import plotting
+
+    table = read_table(os.path.join(out, "branch.csv"))
+    with open(os.path.join(out, "critical.json")) as f:
+        critical = json.load(f)
+    marks = [{"phi": c["phi"], "label": f"phi* = {c['phi'] / math.pi:+.3f} pi ({c['from_branch']})"}
+             for c in critical["instabilities"]]
+    written = []
+    p = os.path.join(out, "bifurcation.png")
+    plotting.plot_bifurcation(table, marks, p, title=title or None)
+    written.append(p)
+    p = os.path.join(out, "linking.png")
+    plotting.plot_linking(table, marks, p, title=title or None)
+    written.append(p)
+    # States shown: phi = 0, the last state before each instability and the first one after it.
+    steps = {}
+    for direction in ("plus", "minus"):
+        steps[direction] = sorted(glob.glob(os.path.join(out, "steps", f"{direction}_*.npz")))
+    chosen = []
+    if steps["plus"]:
+        chosen.append(steps["plus"][0])
+    for direction in ("plus", "minus"):
+        files = steps[direction]
+        branches = [str(np.load(fn)["branch"]) for fn in files]
+        for i in range(1, len(files)):
+            if branches[i] != branches[i - 1]:
+                chosen += [files[i - 1], files[i]]
+        if files and files[-1] not in chosen:
+            chosen.append(files[-1])
+    profiles, labels, snaps = [], [], []
+    for fn in chosen:
+        d = np.load(fn)
+        label = f"{str(d['branch'])}, phi = {float(d['phi']) / math.pi:+.2f} pi"
+        profiles.append((d["kappa_L"], d["tau_L"]))
+        labels.append(label)
+        snaps.append((d["x"], d["eccentric"], label))
+    if profiles:
+        s_over_L = np.load(chosen[0])["s_over_L"]
+        p = os.path.join(out, "profiles.png")
+        plotting.plot_profiles(s_over_L, profiles, labels, p, title=title or None)
+        written.append(p)
+        p = os.path.join(out, "snapshots.png")
+        plotting.plot_snapshots(snaps, p, ncols=3)
+        written.append(p)
+    return written
