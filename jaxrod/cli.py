@@ -271,7 +271,24 @@ def _trefoil(args):
     return 0
 
 
+# Options whose value is an angle such as -12pi: argparse would read a leading '-' as an option.
+_ANGLE_OPTIONS = ("--phi-min", "--phi-max", "--step", "--tol")
+
+
+def _join_angle_values(argv):
+    out, i = [], 0
+    while i < len(argv):
+        if argv[i] in _ANGLE_OPTIONS and i + 1 < len(argv):
+            out.append(f"{argv[i]}={argv[i + 1]}")
+            i += 2
+        else:
+            out.append(argv[i])
+            i += 1
+    return out
+
+
 def main(argv=None):
+    argv = _join_angle_values(list(sys.argv[1:] if argv is None else argv))
     args = _build_parser().parse_args(argv)
     try:
         import jaxrod  # noqa: F401  (float64, BLAS threads)

@@ -463,6 +463,7 @@ def follow_twist(
         # The branch was lost at phi_next: bisect between the last stable state and there.
         lost_phi, lost_why, lost_eq = phi_next, why, e
         say(f"[{name}] lost at phi = {phi_next / math.pi:+.5f} pi ({why}); bisecting")
+        lost_from = prev.phi
         while abs(lost_phi - prev.phi) > tol:
             mid = 0.5 * (prev.phi + lost_phi)
             ok, why, sc, e, dq_new = attempt(scene, prev, dq, mid)
@@ -470,7 +471,18 @@ def follow_twist(
                 older, (scene, prev, dq) = prev, (sc, e, dq_new)
                 emit(name, scene, e, dq)
             else:
-                lost_phi, lost_why, lost_eq = mid, why, e
+                lost_phi, lost_why, lost_eq, lost_from = mid, why, e, prev.phi
+        if abs(lost_phi - lost_from) > tol:
+            # The nearest failure was met from a state further back: confirm it from the last
+            # stable state, so that a predictor too far off is not taken for the branch's end.
+            ok, why, sc, e, dq_new = attempt(scene, prev, dq, lost_phi)
+            if ok:
+                say(f"[{name}] phi = {lost_phi / math.pi:+.5f} pi reached from closer by: going on")
+                older, (scene, prev, dq) = prev, (sc, e, dq_new)
+                emit(name, scene, e, dq)
+                h = 2.0 * tol
+                continue
+            lost_why, lost_eq = why, e
         kind = "unstable" if lost_why.startswith("unstable") else "jump"
         inst = _critical_mode(scene, prev, older, lost_eq, kind, direction, k, negative_tol, pinv_tol)
         rate = inst.dlambda_dphi if kind == "unstable" or not math.isfinite(inst.dlambda_dphi_secant) \
@@ -513,7 +525,7 @@ def _locate(phi_stable, phi_lost, lam, dlam, direction):
     newton = phi_stable - lam / dlam
     reach = abs(newton - phi_stable)
     ahead = direction * (newton - phi_stable)
-    if ahead <= 2.0 * half and reach <= max(40.0 * half, 0.02 * math.pi):
+    if ahead <= 2.0 * half and reach <= max(40.0 * half, 0.1 * math.pi):
         return newton, max(half, 0.1 * reach)
     return mid, half
 

@@ -157,3 +157,47 @@ def test_analyze_bad_input_exits_2_with_one_line(tmp_path, capsys):
         main(["analyze", str(centre), str(ecc), "--n-samples", "many"])
     assert info.value.code == 2
     assert "--n-samples" in _one_line_error(capsys)
+
+
+# ------------------------------------------------------------------ jaxrod trefoil
+from jaxrod.cli import main  # noqa: E402
+def test_trefoil_study_json_files_and_resume(tmp_path, capsys):
+    out = tmp_path / "tref"
+    args = ["trefoil", "--N", "61", "--phi-min", "-1pi", "--phi-max", "1pi", "--step", "0.5pi",
+            "--out", str(out), "--json", "--quiet"]
+    assert main(args) == 0
+    summary = json.loads(capsys.readouterr().out)
+    for key in ("phi_plus", "phi_minus", "seconds", "tightening_side", "steps", "N", "D", "L"):
+        assert key in summary
+    # Nothing buckles within one half-turn either way; both sides were covered.
+    assert summary["phi_plus"] is None and summary["phi_minus"] is None
+    assert summary["steps"] == 6
+    for name in ("branch.csv", "critical.json", "run.json", "summary.json", "bifurcation.png",
+                 "linking.png", "profiles.png", "snapshots.png"):
+        assert (out / name).stat().st_size > 0, name
+    header = (out / "branch.csv").read_text().splitlines()[0].split(",")
+    for column in ("phi", "E_bend", "E_twist", "E_contact", "Wr", "Tw", "Lk_frames", "Lk_gauss", "n_negative",
+                   "stable", "contact_count", "symmetry_order", "lambda_0"):
+        assert column in header
+    crit = json.loads((out / "critical.json").read_text())
+    assert crit["phi_plus"] is None and sorted(crit["finished"]) == ["minus", "plus"]
+    # Run again: everything is on file, nothing is recomputed, same answer.
+    assert main(args[:-1]) == 0
+    text = capsys.readouterr()
+    assert "phi_plus" in text.out and "already finished" in text.err
+
+
+@pytest.mark.parametrize(
+    "args, name",
+    [
+        (["--D", "-1"], "D"),
+        (["--L", "100"], "ropelength"),
+        (["--N", "3"], "N"),
+        (["--phi-min", "1pi"], "phi_min"),
+        (["--nu", "nan"], "nu"),
+    ],
+)
+def test_trefoil_bad_input_exits_2_with_one_line(tmp_path, capsys, args, name):
+    assert main(["trefoil", "--out", str(tmp_path / "x"), "--quiet"] + args) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("jaxrod: error:") and name in err[0]

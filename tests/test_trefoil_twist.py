@@ -147,3 +147,19 @@ def test_bad_study_input():
         twist_study(scene, -1.0, 2.0, step=0.0)
     with pytest.raises(ValueError, match="phi_max"):
         twist_study(scene, -1.0, float("nan"))
+
+
+def test_follow_twist_locates_michell_like_critical_twist():
+    # Without contact the planar ring stays on its (symmetric) saddle past phi*: the branch ends
+    # by an eigenvalue crossing ('unstable'), located by bisection and the eigenvalue's Newton
+    # extrapolation; it must agree with critical_twist (Newton on the eigenvalue) at the same N.
+    ring = jr.michell_ring(24, nu=0.5)
+    analytic = jr.michell_critical_twist(0.5)
+    path = jr.follow_twist(ring, 0.0, 1.5 * analytic, step=analytic / 4, tol=1e-4 * PI, switch=False)
+    assert not path.completed and len(path.instabilities) == 1
+    inst = path.instabilities[0]
+    assert inst.kind == "unstable" and inst.multiplicity == 2
+    cp = jr.critical_twist(ring, 0.0, 1.5 * analytic, step=analytic / 4)
+    assert abs(inst.phi - cp.phi) <= inst.phi_error
+    assert abs(inst.phi - cp.phi) < 1e-6 * PI  # the extrapolation is far better than the bracket
+    assert all(p.equilibrium.stable for p in path.points)
