@@ -217,8 +217,8 @@ def twist_study(scene, phi_min, phi_max, step=0.5 * math.pi, out=None, tol=2e-4 
 
 def _summarise(critical, table=None):
     """phi_plus / phi_minus: first instability met at phi > 0 / phi < 0 (jaxrod's sign of phi,
-    radians). The tightening side is told by behaviour: the radius of gyration of the symmetric
-    branch shrinks on the tightening side and grows on the opening side."""
+    radians). The tightening side is told by behaviour along the symmetric branch: the number of
+    segment pairs in contact grows on the tightening side and falls on the opening side."""
     for direction, key in (("plus", "phi_plus"), ("minus", "phi_minus")):
         first = [c for c in critical["instabilities"] if c["direction"] == direction]
         critical[key] = first[0]["phi"] if first else None
@@ -227,19 +227,23 @@ def _summarise(critical, table=None):
         critical[key + "_mode_file"] = first[0].get("mode_file") if first else None
     if table is None or "radius_of_gyration" not in table:
         return
-    rg, phi, br = table["radius_of_gyration"], table["phi"], table["branch"]
+    rg, phi, br, cc = table["radius_of_gyration"], table["phi"], table["branch"], table["contact_count"]
     sym = np.char.startswith(br.astype(str), "symmetric")
+    at0 = sym & (phi == 0.0)
     trend = {}
     for direction, sgn in (("plus", 1.0), ("minus", -1.0)):
         sel = sym & (np.sign(phi) == sgn)
-        at0 = sym & (phi == 0.0)
         if np.any(sel) and np.any(at0):
-            i = np.argmax(np.abs(phi) * sel)
-            trend[direction] = float(rg[i] - rg[np.argmax(at0)])
+            i, i0 = np.argmax(np.abs(phi) * sel), np.argmax(at0)
+            trend[direction] = {"contact_count": float(cc[i] - cc[i0]), "radius_of_gyration": float(rg[i] - rg[i0]),
+                                "phi_last_symmetric": float(phi[i])}
     if len(trend) == 2:
-        tight = min(trend, key=trend.get)
+        # Tightening packs the strands together: more segment pairs in contact (and a radius of
+        # gyration that shrinks, or grows less); opening pulls them apart.
+        key = lambda d: (trend[d]["contact_count"], trend[d]["radius_of_gyration"])  # noqa: E731
+        tight = max(trend, key=key)
         critical["tightening_side"] = "phi>0" if tight == "plus" else "phi<0"
-        critical["radius_of_gyration_change"] = trend
+        critical["symmetric_branch_change"] = trend
         critical["phi_tightening"] = critical["phi_plus" if tight == "plus" else "phi_minus"]
         critical["phi_opening"] = critical["phi_minus" if tight == "plus" else "phi_plus"]
 
