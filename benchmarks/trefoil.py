@@ -180,7 +180,7 @@ if __name__ == "__main__":
         for n in [int(a) for a in sys.argv[2:]] or [61, 121, 241]:
             case("convergence", n, 8.0)
     elif what == "ratio":
-        for ratio in [float(a) for a in sys.argv[2:]] or [0.01, 0.015, 0.02, 0.035, 0.05]:
+        for ratio in [float(a) for a in sys.argv[2:]] or [0.01, 0.015, 0.02, 0.025, 0.035, 0.0425, 0.05]:
             D = round(ratio * L, 6)
             # Contact needs edges no longer than the diameter (l <= D): a coarser rod has a bumpy
             # contact landscape along which a loose knot snaps in small spurious jumps (seen at
