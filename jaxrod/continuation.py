@@ -68,33 +68,23 @@ CONTACT_NEGATIVE_TOL = 1e-6
 CONTACT_GTOL = 1e-7
 
 
-def _step(scene, phi, q_pred, index, k, negative_tol, fallback_q=None, ref=None, gtol=1e-9):
-    """Newton corrector from the predictor (contact list refreshed around the result, and the
-    solve repeated if nodes moved beyond the list's skin), then one spectrum. Returns (scene,
-    equilibrium with its stability, tracked eigenvalue, its phi-derivative, its eigenvector,
-    branch tangent dq/dphi)."""
+def _step(scene, phi, q_pred, index, k, negative_tol, fallback_q=None, ref=None, gtol=1e-9, nbr=None):
+    """Newton corrector from the predictor (the neighbourhood is rebuilt, and the solve
+    repeated, if nodes moved out of it), then one spectrum. Returns (scene, equilibrium with its
+    stability, tracked eigenvalue, its phi-derivative, its eigenvector, branch tangent dq/dphi)."""
     contact = "contact" in scene.terms
     near_null = negative_tol if contact else 0.0
-    q = q_pred
-    for _ in range(20):
-        try:
-            e = solve_equilibrium(scene, phi, q, method="newton", with_stability=False, near_null_tol=near_null,
-                                  gtol=gtol)
-        except ConvergenceError:
-            if fallback_q is None:
-                raise
-            e = solve_equilibrium(scene, phi, fallback_q, method="newton", with_stability=False,
-                                  near_null_tol=near_null, gtol=gtol)
-        if not contact:
-            break
-        stale = bool(scene.contact_list_stale(jnp.asarray(e.q), phi))
-        scene = scene.with_contacts(e.q)
-        if not stale:
-            break
-        q = e.q
+    try:
+        e = solve_equilibrium(scene, phi, q_pred, method="newton", with_stability=False, near_null_tol=near_null,
+                              gtol=gtol, nbr=nbr)
+    except ConvergenceError:
+        if fallback_q is None:
+            raise
+        e = solve_equilibrium(scene, phi, fallback_q, method="newton", with_stability=False,
+                              near_null_tol=near_null, gtol=gtol, nbr=nbr)
     pinv_tol = negative_tol if contact else 0.0
     stab, lam, dlam, v, dq = branch_analysis(
-        scene, e.q, phi, index, k=k, tol=negative_tol, ref=ref, pinv_tol=pinv_tol
+        scene, e.q, phi, index, k=k, tol=negative_tol, ref=ref, pinv_tol=pinv_tol, nbr=e.neighbourhood
     )
     return scene, replace(e, stability=stab), lam, dlam, v, dq
 
@@ -143,17 +133,18 @@ def critical_twist(
     say = progress or (lambda s: None)
 
     if contact:
-        relaxed, scene = relax(scene, phi_start, q0, with_stability=False, gtol=gtol)
+        relaxed = relax(scene, phi_start, q0, with_stability=False, gtol=gtol)
     else:
         relaxed = solve_equilibrium(scene, phi_start, q0, method="auto", with_stability=False, gtol=gtol)
     pinv_tol = negative_tol if contact else 0.0
-    st0, _, _, _, dq = branch_analysis(scene, relaxed.q, phi_start, 0, k=k, tol=negative_tol, pinv_tol=pinv_tol)
+    st0, _, _, _, dq = branch_analysis(scene, relaxed.q, phi_start, 0, k=k, tol=negative_tol, pinv_tol=pinv_tol,
+                                       nbr=relaxed.neighbourhood)
     count0 = int(st0.n_negative)
     # The eigenvalue that crosses next: the lowest one clearly above zero (near-zero modes skipped).
     index = int(np.sum(st0.eigenvalues < negative_tol)) if st0.eigenvalues.size else 0
     if index != 0:
         st0, _, _, _, dq = branch_analysis(
-            scene, relaxed.q, phi_start, index, k=k, tol=negative_tol, pinv_tol=pinv_tol
+            scene, relaxed.q, phi_start, index, k=k, tol=negative_tol, pinv_tol=pinv_tol, nbr=relaxed.neighbourhood
         )
     prev = replace(relaxed, stability=st0)
     scan = [(prev.phi, count0, prev.stability.eigenvalues.copy())]
@@ -169,7 +160,8 @@ def critical_twist(
             )
         try:
             scene, cur, lam_c, dlam_c, _, dq_c = _step(
-                scene, phi_next, prev.q + dq * (phi_next - prev.phi), index, k, negative_tol, prev.q, gtol=gtol
+                scene, phi_next, prev.q + dq * (phi_next - prev.phi), index, k, negative_tol, prev.q, gtol=gtol,
+                nbr=prev.neighbourhood,
             )
         except ConvergenceError:
             # Step-size control: no equilibrium found near the predictor; halve the step. If even
@@ -209,9 +201,9 @@ def critical_twist(
         idx_hi = int(np.sum(ev_hi < negative_tol))
     ref = cur.stability.eigenvectors[:, idx_hi]
     _, f_hi, _, v_hi, _ = branch_analysis(scene, hi.q, hi.phi, idx_hi, k=k, tol=negative_tol, ref=ref,
-                                          pinv_tol=negative_tol if contact else 0.0)
+                                          pinv_tol=negative_tol if contact else 0.0, nbr=hi.neighbourhood)
     _, f_lo, d_lo, v_lo, dq_lo = branch_analysis(scene, lo.q, lo.phi, 0, k=k, tol=negative_tol, ref=v_hi,
-                                                 pinv_tol=negative_tol if contact else 0.0)
+                                                 pinv_tol=negative_tol if contact else 0.0, nbr=lo.neighbourhood)
     evals = 2
     bracket = (lo.phi, hi.phi)
     # First guess: Newton from the stable end if it stays inside the bracket, else secant.
@@ -223,7 +215,8 @@ def critical_twist(
     phi_error = abs(hi.phi - lo.phi)
     for _ in range(max_refine):
         scene, e, f_c, d_c, v_c, dq_c = _step(
-            scene, phi_c, base.q + base_dq * (phi_c - base.phi), 0, k, negative_tol, base.q, ref=v_ref, gtol=gtol
+            scene, phi_c, base.q + base_dq * (phi_c - base.phi), 0, k, negative_tol, base.q, ref=v_ref, gtol=gtol,
+            nbr=base.neighbourhood,
         )
         evals += 1
         if np.sign(f_c) == np.sign(f_lo):
@@ -393,14 +386,16 @@ def follow_twist(
     lk0 = float(getattr(scene, "Lk0", 0.0))
 
     def analyse(sc, e):
-        st, _, _, _, dq = branch_analysis(sc, e.q, e.phi, 0, k=k, tol=negative_tol, pinv_tol=pinv_tol)
+        st, _, _, _, dq = branch_analysis(sc, e.q, e.phi, 0, k=k, tol=negative_tol, pinv_tol=pinv_tol,
+                                          nbr=e.neighbourhood)
         return replace(e, stability=st), dq
 
     def attempt(sc, prev, dq, phi):
         """Corrector from the tangent predictor. Returns (ok, why, scene, equilibrium, tangent)."""
         q_pred = prev.q + dq * (phi - prev.phi)
         try:
-            e, sc2 = relax(sc, phi, q_pred, gtol=gtol, previous=prev, with_stability=False)
+            e = relax(sc, phi, q_pred, gtol=gtol, previous=prev, with_stability=False, nbr=prev.neighbourhood)
+            sc2 = sc
         except (ConvergenceError, TopologyChangeError) as exc:
             return False, f"{type(exc).__name__}: {exc}", sc, None, None
         x_pred = np.asarray(sc.unpack(jnp.asarray(q_pred), phi)[0])
@@ -434,11 +429,11 @@ def follow_twist(
 
     points, instabilities = [], []
     if start is None:
-        e0, scene = relax(scene, phi_start, q0, gtol=gtol, with_stability=False)
+        e0 = relax(scene, phi_start, q0, gtol=gtol, with_stability=False)
     else:
         e0 = start
-        if contact:
-            scene = scene.with_contacts(e0.q)
+        if e0.neighbourhood is None:
+            e0 = replace(e0, neighbourhood=scene.neighbourhood(e0.q, e0.phi))
     if negative_tol is None:
         negative_tol = CONTACT_NEGATIVE_TOL if contact else DEFAULT_NEGATIVE_TOL
     pinv_tol = negative_tol if contact else 0.0
@@ -460,18 +455,23 @@ def follow_twist(
             emit(name, scene, e, dq)
             h = min(step, 2.0 * h)
             continue
-        # The branch was lost at phi_next: bisect between the last stable state and there.
+        # The branch was lost at phi_next: shrink the bracket between the last stable state and
+        # there to tol, aiming each trial with a model of the critical eigenvalue (a few solves
+        # where bisection needs ~log2(step/tol) ~ 11).
         lost_phi, lost_why, lost_eq = phi_next, why, e
-        say(f"[{name}] lost at phi = {phi_next / math.pi:+.5f} pi ({why}); bisecting")
+        say(f"[{name}] lost at phi = {phi_next / math.pi:+.5f} pi ({why}); locating the end")
         lost_from = prev.phi
+        failures = 0
         while abs(lost_phi - prev.phi) > tol:
-            mid = 0.5 * (prev.phi + lost_phi)
-            ok, why, sc, e, dq_new = attempt(scene, prev, dq, mid)
+            trial = _end_trial(older, prev, lost_phi, lost_eq, direction, tol, negative_tol, failures)
+            ok, why, sc, e, dq_new = attempt(scene, prev, dq, trial)
             if ok:
                 older, (scene, prev, dq) = prev, (sc, e, dq_new)
                 emit(name, scene, e, dq)
+                failures = 0
             else:
-                lost_phi, lost_why, lost_eq, lost_from = mid, why, e, prev.phi
+                lost_phi, lost_why, lost_eq, lost_from = trial, why, e, prev.phi
+                failures += 1
         if abs(lost_phi - lost_from) > tol:
             # The nearest failure was met from a state further back: confirm it from the last
             # stable state, so that a predictor too far off is not taken for the branch's end.
@@ -513,6 +513,66 @@ def follow_twist(
     return TwistPath(points=points, instabilities=instabilities, reason=reason, seconds=time.perf_counter() - t0)
 
 
+def _critical_candidates(older, prev, negative_tol, candidates=5):
+    """(lambda_prev, lambda_older, eigenvector) of the lowest eigen-modes of ``prev`` above the
+    near-zero band, each matched in ``older`` by eigenvector overlap (no new spectrum needed)."""
+    st, so = prev.stability, older.stability
+    if st is None or so is None:
+        return []
+    out = []
+    for j in range(min(candidates, len(st.eigenvalues))):
+        lam = float(st.eigenvalues[j])
+        if abs(lam) <= negative_tol:
+            continue
+        v = np.asarray(st.eigenvectors[:, j])
+        ov = np.abs(np.asarray(so.eigenvectors).T @ v)
+        out.append((lam, float(so.eigenvalues[int(np.argmax(ov))]), v))
+    return out
+
+
+def _end_trial(older, prev, phi_lost, lost_eq, direction, tol, negative_tol, failures):
+    """The next twist to try when locating where a branch ends, between the last stable state
+    ``prev`` and the nearest twist ``phi_lost`` where the branch was lost.
+
+    Model: near a fold the critical eigenvalue goes like sqrt(phi* - phi), so lambda^2 is linear
+    in phi; its secant through ``older`` and ``prev`` (the mode that reaches zero first) gives
+    phi*, never beyond it at a transversal crossing (where it lands short). When the lost state
+    is an equilibrium with a negative eigenvalue (a crossing), lambda is interpolated linearly
+    between the two ends instead. The trial aims 0.3 tol short of phi*, or 0.9 tol beyond the
+    stable end when that is already there, so that a good model closes the bracket to tol in two
+    solves. Safeguards: bisection when there is no model, after two failures in a row, or when
+    the model lands outside the inner 90% of the bracket."""
+    width = direction * (phi_lost - prev.phi)
+    mid = prev.phi + 0.5 * direction * width
+    if failures >= 2 or older is None or older.phi == prev.phi:
+        return mid
+    estimates = []
+    for lam, lam_old, v in _critical_candidates(older, prev, negative_tol):
+        if lam <= 0.0:
+            continue
+        if lost_eq is not None and lost_eq.stability is not None:
+            ov = np.abs(np.asarray(lost_eq.stability.eigenvectors).T @ v)
+            lam_lost = float(lost_eq.stability.eigenvalues[int(np.argmax(ov))])
+            if lam_lost < -negative_tol and ov.max() > 0.5:
+                estimates.append(prev.phi + (phi_lost - prev.phi) * lam / (lam - lam_lost))
+                continue
+        slope = (lam**2 - lam_old**2) / (prev.phi - older.phi)  # d(lambda^2)/dphi
+        if direction * slope < 0.0 and lam < lam_old:
+            estimates.append(prev.phi - lam**2 / slope)
+    if not estimates:
+        return mid
+    est = min(estimates, key=lambda p: direction * (p - prev.phi))
+    trial = est - direction * 0.3 * tol
+    if direction * (trial - prev.phi) < 0.5 * tol:
+        trial = prev.phi + direction * 0.9 * tol
+    lo, hi = prev.phi + direction * 0.05 * width, phi_lost - direction * 0.05 * width
+    if not (direction * (trial - lo) >= 0.0 and direction * (hi - trial) >= 0.0):
+        if direction * (trial - prev.phi) > 0.0 and direction * (phi_lost - trial) > 0.0 and width < 4.0 * tol:
+            return trial
+        return mid
+    return trial
+
+
 def _locate(phi_stable, phi_lost, lam, dlam, direction):
     """phi* from the last stable state: the eigenvalue's Newton extrapolation phi - lam/dlam when
     it is close (it is exact to second order for a crossing, also when a slightly negative
@@ -540,7 +600,9 @@ def _escape_soft_saddle(scene, e, prev, x_pred, jump_tol, gtol, closed, analyse)
     amp = 0.25 * jump_tol / max(float(np.max(np.linalg.norm(x_mode, axis=1))), 1e-300)
     for sgn in (1.0, -1.0):
         try:
-            e2, sc2 = relax(scene, e.phi, e.q + sgn * amp * mode_q, gtol=gtol, previous=prev, with_stability=False)
+            e2 = relax(scene, e.phi, e.q + sgn * amp * mode_q, gtol=gtol, previous=prev, with_stability=False,
+                       nbr=e.neighbourhood)
+            sc2 = scene
         except (ConvergenceError, TopologyChangeError):
             continue
         if polyline_distance(e2.x, x_pred, closed) > jump_tol:
@@ -573,7 +635,7 @@ def _critical_mode(scene, prev, older, lost_eq, kind, direction, k, negative_tol
     found = []
     for j in range(min(candidates, len(ev))):
         _, lam_j, dlam_j, v_j, _ = branch_analysis(scene, prev.q, prev.phi, j, k=k, tol=negative_tol,
-                                                   pinv_tol=pinv_tol)
+                                                   pinv_tol=pinv_tol, nbr=prev.neighbourhood)
         secant = math.nan
         if older is not None and older.stability is not None and older.phi != prev.phi:
             ov = np.abs(np.asarray(older.stability.eigenvectors).T @ np.asarray(v_j))
@@ -605,7 +667,8 @@ def _switch_branch(scene, prev, dq, phi, mode, lost_eq, perturbation, jump_tol, 
     best = None
     for label, q_start in starts:
         try:
-            e, sc = relax(scene, phi, q_start, gtol=gtol, previous=prev, with_stability=False)
+            e = relax(scene, phi, q_start, gtol=gtol, previous=prev, with_stability=False, nbr=prev.neighbourhood)
+            sc = scene
         except (ConvergenceError, TopologyChangeError) as exc:
             say(f"  switch from {label}: {type(exc).__name__}: {exc}")
             continue

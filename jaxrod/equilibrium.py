@@ -8,29 +8,42 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .hessian import scaled_hessian
 from .material import check_finite
+from .neighbourhood import WRITHE_DRIFT_LIMIT, Neighbourhood
 from .solvers import LBFGS, ConvergenceError, DampedNewton, Newton, Solution, minimise
 from .stability import DEFAULT_NEGATIVE_TOL, Stability, stability
 
-__all__ = ["Equilibrium", "solve_equilibrium", "relax", "TopologyChangeError", "scaled_energy", "scaled_zero_modes"]
+__all__ = ["Equilibrium", "solve_equilibrium", "relax", "TopologyChangeError", "scaled_energy", "scaled_zero_modes",
+           "structured_hessian"]
 
 
-# Module-level functions of (u, (scene, phi)): the solvers' jitted loops take the function as a
-# static argument and the scene as a pytree argument, so one compilation serves every scene of
-# the same kind and size, whatever its material or twist.
+# Module-level functions of (u, (scene, phi, nbr)): the solvers' jitted loops take the function as
+# a static argument and the scene and its neighbourhood as pytree arguments, so one compilation
+# serves every scene of the same kind and size, whatever its material or twist.
 def scaled_energy(u, args):
-    scene, phi = args
-    return scene.scaled_energy(u, phi)
+    scene, phi, nbr = args
+    return scene.scaled_energy(u, phi, nbr)
 
 
 def scaled_zero_modes(u, args):
-    scene, phi = args
+    scene, phi, _ = args
     return scene.scaled_zero_modes(u, phi)
 
 
-def contact_list_stale(u, args):
-    scene, phi = args
-    return scene.contact_list_stale(scene.from_scaled(u), phi)
+def structured_hessian(u, args):
+    scene, phi, nbr = args
+    return scaled_hessian(scene, u, phi, nbr)
+
+
+def neighbourhood_stale(u, args):
+    scene, _, nbr = args
+    return nbr.stale(scene.positions(scene.from_scaled(u)))
+
+
+def _grown(scene, q, phi, nbr):
+    """A fresh neighbourhood around q, at least as large as the last one (no recompilation)."""
+    return scene.neighbourhood(q, phi, capacity=None if nbr is None else nbr.capacity)
 
 
 class TopologyChangeError(RuntimeError):
@@ -38,26 +51,26 @@ class TopologyChangeError(RuntimeError):
 
 
 def relax(scene, phi=0.0, q0=None, gtol=1e-9, max_rounds=200, max_displacement=None, k=8,
-          negative_tol=DEFAULT_NEGATIVE_TOL, previous=None, progress=None, with_stability=True):
-    """Minimise the energy of a scene with self-contact from q0 (default scene.q_init) without
-    letting the rod pass through itself.
+          negative_tol=DEFAULT_NEGATIVE_TOL, previous=None, progress=None, with_stability=True, nbr=None):
+    """Minimise the energy of a scene (with or without self-contact) from q0 (default
+    scene.q_init) without letting the rod pass through itself.
 
-    Damped Newton (exact Hessian, shifted positive definite) with every node's step capped at
-    ``max_displacement`` (default D/4, so no strand can jump across another between two energy
-    evaluations); the run pauses whenever a node has moved more than skin/2 since the contact
-    candidate list was built, the list is rebuilt, and the run resumes. After every pause the
-    writhe is compared with the last one: a jump of 1 or more (strand passage changes it by ~2)
-    raises ``TopologyChangeError``. ``previous`` (an Equilibrium, e.g. the last continuation step)
-    makes the first comparison against its writhe, so a step that jumped a strand across another
-    before the solve even started is refused too.
+    Damped Newton (exact structured Hessian, shifted positive definite) with every node's step
+    capped at ``max_displacement`` (default D/4 with contact, so no strand can jump across
+    another between two energy evaluations); the run pauses whenever a node has moved more than
+    skin/2 since the neighbourhood (contact candidates, writhe) was built, the neighbourhood is
+    rebuilt, and the run resumes. After every pause the writhe is compared with the last one: a
+    jump of 1 or more (strand passage changes it by ~2) raises ``TopologyChangeError``.
+    ``previous`` (an Equilibrium, e.g. the last continuation step) makes the first comparison
+    against its writhe, so a step that jumped a strand across another before the solve even
+    started is refused too. ``nbr``: a neighbourhood to start from (its capacity is kept).
 
-    Returns (equilibrium, scene): the scene carries the contact list valid at the equilibrium.
+    Returns the ``Equilibrium``; its ``neighbourhood`` is valid at the equilibrium.
     """
     phi = check_finite("phi", phi)
     q = np.asarray(scene.q_init if q0 is None else q0, dtype=float)
     has_contact = "contact" in scene.terms
     if has_contact:
-        scene = scene.with_contacts(q)
         cap = 0.25 * float(scene.material.D) if max_displacement is None else float(max_displacement)
     else:
         cap = math.inf if max_displacement is None else float(max_displacement)
@@ -65,10 +78,13 @@ def relax(scene, phi=0.0, q0=None, gtol=1e-9, max_rounds=200, max_displacement=N
     solver = DampedNewton(
         zero_modes=scaled_zero_modes if scene.n_zero_modes else None,
         max_step=cap / float(scene.length_scale),
-        leave=contact_list_stale if has_contact else None,
+        leave=neighbourhood_stale if has_contact else None,
+        hessian=structured_hessian,
     )
-    wr_last = float(scene.writhe(jnp.asarray(q), phi)) if previous is None else float(previous.Wr)
-    if abs(float(scene.writhe(jnp.asarray(q), phi)) - wr_last) >= 1.0:
+    nbr = _grown(scene, q, phi, nbr)
+    wr_start = float(nbr.wr_ref)
+    wr_last = wr_start if previous is None else float(previous.Wr)
+    if abs(wr_start - wr_last) >= 1.0:
         raise TopologyChangeError(
             f"the starting state's writhe differs from the previous equilibrium's ({wr_last:.4f}) by 1 or more: "
             "the step passed the rod through itself"
@@ -76,29 +92,29 @@ def relax(scene, phi=0.0, q0=None, gtol=1e-9, max_rounds=200, max_displacement=N
     total = 0
     for round_ in range(max_rounds):
         u0 = scene.to_scaled(jnp.asarray(q))
-        sol = minimise(scaled_energy, u0, (scene, jnp.asarray(phi)), solver, gtol, None, throw=False)
+        sol = minimise(scaled_energy, u0, (scene, jnp.asarray(phi), nbr), solver, gtol, None, throw=False)
         total += sol.iterations
         q = np.asarray(scene.from_scaled(jnp.asarray(sol.y)))
-        wr = float(scene.writhe(jnp.asarray(q), phi))
+        nbr_new = _grown(scene, q, phi, nbr)
+        wr = float(nbr_new.wr_ref)
         say(f"relax round {round_}: {sol.reason}, {sol.iterations} steps, |g| = {sol.grad_norm:.2e}, Wr = {wr:.4f}")
         if abs(wr - wr_last) >= 1.0:
             raise TopologyChangeError(
                 f"writhe jumped from {wr_last:.4f} to {wr:.4f}: the rod passed through itself"
             )
         wr_last = wr
-        if sol.reason == "left_region":
-            scene = scene.with_contacts(q)
+        drifted = abs(wr - float(nbr.wr_ref)) > WRITHE_DRIFT_LIMIT
+        nbr = nbr_new
+        if sol.reason == "left_region" or drifted:
             continue
         if not sol.converged:
             raise ConvergenceError(f"relaxation did not converge: {sol!r}")
-        if has_contact:
-            scene = scene.with_contacts(q)
         sol = Solution(y=sol.y, value=sol.value, grad_norm=sol.grad_norm, iterations=total,
                        converged=True, reason="converged", solver=f"damped_newton({round_ + 1} rounds)",
                        gtol=sol.gtol)
-        return equilibrium_from_solution(scene, phi, sol, k=k, with_stability=with_stability,
-                                         negative_tol=negative_tol), scene
-    raise ConvergenceError(f"relaxation needed more than {max_rounds} contact-list rebuilds")
+        return equilibrium_from_solution(scene, phi, sol, nbr, k=k, with_stability=with_stability,
+                                         negative_tol=negative_tol)
+    raise ConvergenceError(f"relaxation needed more than {max_rounds} neighbourhood rebuilds")
 
 
 @dataclass(frozen=True)
@@ -109,7 +125,8 @@ class Equilibrium:
     phi: imposed twist; energy: total; energy_terms: dict per term; solution: the solver's
     ``Solution`` (iterations, gradient norm, stop reason); stability: ``Stability`` (or None when
     explicitly not computed); Wr, Tw, Lk: writhe, twist and linking number (open clamped rods:
-    of the centreline extended along the clamp axis).
+    of the centreline extended along the clamp axis); neighbourhood: the ``Neighbourhood``
+    (contact candidates, writhe) valid at this state, for fast evaluations around it.
     """
 
     q: np.ndarray
@@ -123,6 +140,7 @@ class Equilibrium:
     Wr: float
     Tw: float
     Lk: float
+    neighbourhood: Neighbourhood | None = None
 
     @property
     def stable(self):
@@ -147,6 +165,7 @@ def solve_equilibrium(
     negative_tol=DEFAULT_NEGATIVE_TOL,
     throw=True,
     near_null_tol=0.0,
+    nbr=None,
 ):
     """Equilibrium of ``scene`` at imposed twist ``phi`` starting from ``q0`` (default scene.q_init).
 
@@ -154,8 +173,11 @@ def solve_equilibrium(
     use it as a continuation corrector), 'lbfgs' (minimiser), or 'auto' (L-BFGS to 1e-5, then
     Newton to ``gtol``: global and fast). gtol bounds the max-abs gradient of the scaled energy.
     near_null_tol: Newton leaves eigen-directions with |lambda| below it alone (see ``Newton``).
-    The result carries its stability (k lowest eigenvalues, negative count) unless
-    ``with_stability`` is False. Raises ``ConvergenceError`` if the solver fails and ``throw``.
+    nbr: a ``Neighbourhood`` to reuse (its capacity is kept); it is rebuilt around q0 and, if
+    the state moved out of it (contact list stale, writhe drifted), around the result, and the
+    solve repeated. The result carries its stability (k lowest eigenvalues, negative count)
+    unless ``with_stability`` is False. Raises ``ConvergenceError`` if the solver fails and
+    ``throw``.
     """
     phi = check_finite("phi", phi)
     q0 = np.asarray(scene.q_init if q0 is None else q0, dtype=float)
@@ -163,41 +185,57 @@ def solve_equilibrium(
         raise ValueError(f"q0 must have shape ({scene.n_dof},), got {q0.shape}")
     if not np.all(np.isfinite(q0)):
         raise ValueError("q0 must be finite")
-    u0 = scene.to_scaled(jnp.asarray(q0))
-    newton = Newton(zero_modes=scaled_zero_modes if scene.n_zero_modes else None, near_null_tol=float(near_null_tol))
-    args = (scene, jnp.asarray(phi))
-    if method == "newton":
-        sol = minimise(scaled_energy, u0, args, newton, gtol, max_steps, throw)
-    elif method == "lbfgs":
-        sol = minimise(scaled_energy, u0, args, LBFGS(), gtol, max_steps, throw)
-    elif method == "auto":
-        pre = minimise(scaled_energy, u0, args, LBFGS(), max(gtol, 1e-5), max_steps, throw=False)
-        start = pre.y if np.all(np.isfinite(pre.y)) else np.asarray(u0)
-        sol = minimise(scaled_energy, start, args, newton, gtol, None, throw)
-        sol = Solution(
-            y=sol.y, value=sol.value, grad_norm=sol.grad_norm,
-            iterations=pre.iterations + sol.iterations, converged=sol.converged,
-            reason=sol.reason, solver=f"lbfgs({pre.iterations})+newton({sol.iterations})", gtol=sol.gtol,
-        )
-    else:
+    if method not in ("newton", "lbfgs", "auto"):
         raise ValueError(f"method must be 'newton', 'lbfgs' or 'auto', got {method!r}")
-    return equilibrium_from_solution(scene, phi, sol, k, with_stability, negative_tol)
+    newton = Newton(zero_modes=scaled_zero_modes if scene.n_zero_modes else None, near_null_tol=float(near_null_tol),
+                    hessian=structured_hessian)
+    q = q0
+    nbr = _grown(scene, q, phi, nbr)
+    for _ in range(20):
+        u0 = scene.to_scaled(jnp.asarray(q))
+        args = (scene, jnp.asarray(phi), nbr)
+        if method == "newton":
+            sol = minimise(scaled_energy, u0, args, newton, gtol, max_steps, throw=False)
+        elif method == "lbfgs":
+            sol = minimise(scaled_energy, u0, args, LBFGS(), gtol, max_steps, throw=False)
+        else:
+            pre = minimise(scaled_energy, u0, args, LBFGS(), max(gtol, 1e-5), max_steps, throw=False)
+            start = pre.y if np.all(np.isfinite(pre.y)) else np.asarray(u0)
+            sol = minimise(scaled_energy, start, args, newton, gtol, None, throw=False)
+            sol = Solution(
+                y=sol.y, value=sol.value, grad_norm=sol.grad_norm,
+                iterations=pre.iterations + sol.iterations, converged=sol.converged,
+                reason=sol.reason, solver=f"lbfgs({pre.iterations})+newton({sol.iterations})", gtol=sol.gtol,
+            )
+        if not np.all(np.isfinite(sol.y)):
+            break
+        q_new = np.asarray(scene.from_scaled(jnp.asarray(sol.y)))
+        nbr_new = _grown(scene, q_new, phi, nbr)
+        moved_out = bool(nbr.stale(scene.positions(jnp.asarray(q_new)))) or \
+            abs(float(nbr_new.wr_ref) - float(nbr.wr_ref)) > WRITHE_DRIFT_LIMIT
+        q, nbr = q_new, nbr_new
+        if not moved_out:
+            break
+    if throw and not sol.converged:
+        raise ConvergenceError(f"{sol.solver} did not converge: {sol!r}")
+    return equilibrium_from_solution(scene, phi, sol, nbr, k, with_stability, negative_tol)
 
 
 @jax.jit
-def _diagnostics(scene, u, phi):
+def _diagnostics(scene, u, phi, nbr):
     q = scene.from_scaled(u)
-    x, theta = scene.unpack(q, phi)
-    return q, x, theta, scene.energy_terms(q, phi), scene.writhe(q, phi), scene.twist(q, phi)
+    x, theta = scene.unpack(q, phi, nbr)
+    return q, x, theta, scene.energy_terms(q, phi, nbr), scene.twist(q, phi, nbr)
 
 
-def equilibrium_from_solution(scene, phi, sol, k=8, with_stability=True, negative_tol=DEFAULT_NEGATIVE_TOL):
-    """Wrap a solver ``Solution`` (scaled DOFs) into an ``Equilibrium`` with its diagnostics."""
-    q, x, theta, terms, wr, tw = jax.device_get(_diagnostics(scene, jnp.asarray(sol.y), jnp.asarray(phi)))
+def equilibrium_from_solution(scene, phi, sol, nbr, k=8, with_stability=True, negative_tol=DEFAULT_NEGATIVE_TOL):
+    """Wrap a solver ``Solution`` (scaled DOFs) into an ``Equilibrium`` with its diagnostics;
+    ``nbr`` must be the neighbourhood built at sol.y (its writhe is the state's)."""
+    q, x, theta, terms, tw = jax.device_get(_diagnostics(scene, jnp.asarray(sol.y), jnp.asarray(phi), nbr))
     terms = {k_: float(v) for k_, v in terms.items()}
-    wr, tw = float(wr), float(tw)
-    stab = stability(scene, q, phi, k=k, tol=negative_tol) if with_stability else None
+    wr, tw = float(nbr.wr_ref), float(tw)
+    stab = stability(scene, q, phi, k=k, tol=negative_tol, nbr=nbr) if with_stability else None
     return Equilibrium(
         q=q, x=np.asarray(x), theta=np.asarray(theta), phi=phi, energy=float(sum(terms.values())),
-        energy_terms=terms, solution=sol, stability=stab, Wr=wr, Tw=tw, Lk=wr + tw,
+        energy_terms=terms, solution=sol, stability=stab, Wr=wr, Tw=tw, Lk=wr + tw, neighbourhood=nbr,
     )

@@ -61,7 +61,7 @@ def vertex_profiles(scene, eq):
     kb = curvature_binormals(jnp.roll(e, 1, axis=0), e)
     lengths = jnp.linalg.norm(e, axis=1)
     vor = 0.5 * (lengths + jnp.roll(lengths, 1))
-    m = scene.vertex_twists(jnp.asarray(eq.q), eq.phi)
+    m = scene.vertex_twists(jnp.asarray(eq.q), eq.phi, eq.neighbourhood)
     L = float(jnp.sum(lengths))
     s = np.concatenate([[0.0], np.cumsum(np.asarray(lengths))[:-1]])
     kappa = np.asarray(jnp.linalg.norm(kb, axis=1) / vor)
@@ -82,7 +82,7 @@ def step_record(scene, eq, branch="", n_samples=None):
 
     q = jnp.asarray(eq.q)
     x = np.asarray(eq.x)
-    ecc = np.asarray(scene.eccentric_line(q, eq.phi))
+    ecc = np.asarray(scene.eccentric_line(q, eq.phi, nbr=eq.neighbourhood))
     D = None if scene.material.D is None else float(scene.material.D)
     s_over_L, kappa_L, tau_L = vertex_profiles(scene, eq)
     kappa_nodes = kappa_L / float(scene.length)
@@ -90,7 +90,8 @@ def step_record(scene, eq, branch="", n_samples=None):
     stab = eq.stability
     n_contact = 0
     if "contact" in scene.terms:
-        n_contact = int(contact_count(jnp.asarray(x), scene.contact_pairs, scene.contact_mask, True, D))
+        nbr = eq.neighbourhood if eq.neighbourhood is not None else scene.neighbourhood(eq.q, eq.phi)
+        n_contact = int(contact_count(jnp.asarray(x), nbr.pairs, nbr.mask, True, D))
     r = x - x.mean(axis=0)
     row = {
         "branch": branch,

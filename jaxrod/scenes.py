@@ -41,6 +41,7 @@ from .geometry import (
 )
 from .material import Material, check_finite, check_int_at_least, check_positive
 from .contact import contact_energy
+from .neighbourhood import Neighbourhood, build_neighbourhood
 from .topology import writhe
 
 __all__ = [
@@ -157,13 +158,38 @@ class Scene:
         """B / (edge length): unit of energy in the scaled variables."""
         return self.material.B / self.length_scale
 
-    def unpack(self, q, phi):
-        """Full state: x (N,3), theta (M,)."""
+    def unpack(self, q, phi, nbr=None):
+        """Full state: x (N,3), theta (M,). ``nbr`` (a ``Neighbourhood``), where given, supplies
+        the writhe that fixes the holonomy's 2 pi branch instead of computing it (O(N^2))."""
         raise NotImplementedError
 
-    def vertex_twists(self, q, phi):
+    def vertex_twists(self, q, phi, nbr=None):
         """Twist angle m (K,) across each vertex (radians), the imposed twist included."""
         raise NotImplementedError
+
+    def positions(self, q):
+        """Node positions x (N,3) of the state q (no twist angles, no holonomy: cheap)."""
+        n = self.n_nodes
+        return q[: 3 * n].reshape(n, 3)
+
+    def _writhe_for_lift(self, x, nbr):
+        """The writhe that fixes the holonomy's branch: frozen in ``nbr`` or computed exactly."""
+        return self.exact_writhe(x) if nbr is None else nbr.wr_ref
+
+    def exact_writhe(self, x):
+        """Exact polygon writhe of the nodes x (N,3) (closed) or of the extended centreline (clamped)."""
+        return writhe(x, closed=self.closed)
+
+    # ------------------------------------------------------------------ neighbourhood
+    def neighbourhood(self, q, phi=0.0, skin=None, capacity=None):
+        """The ``Neighbourhood`` of state q (physical DOFs): contact candidate pairs (if the scene
+        has contact) and the exact writhe, built outside jit. ``capacity``: pad the pair list to
+        at least this many rows (reuse compiled code across rebuilds)."""
+        x = np.asarray(self.positions(jnp.asarray(q)))
+        wr = float(self.exact_writhe(jnp.asarray(x)))
+        D = None if self.material.D is None else float(self.material.D)
+        return build_neighbourhood(x, wr, self.closed, float(np.mean(np.asarray(self.rest_lengths))), D,
+                                   "contact" in self.terms, skin=skin, capacity=capacity)
 
     @property
     def n_free_nodes(self):
@@ -178,35 +204,50 @@ class Scene:
         )
 
     # ------------------------------------------------------------------ energy
-    def energy_terms(self, q, phi):
-        """Dict of the scene's energy terms at (q, phi)."""
-        x, _ = self.unpack(q, phi)
+    def energy_terms(self, q, phi, nbr=None, terms=None):
+        """Dict of the scene's energy terms at (q, phi). Without ``nbr`` the exact energy (writhe
+        computed, contact over all pairs: O(N^2)); with a valid ``nbr`` the same value in O(N)
+        (see ``jaxrod.neighbourhood``). ``terms``: a subset of the scene's terms to evaluate."""
+        terms = self.terms if terms is None else terms
+        x, _ = self.unpack(q, phi, nbr)
         m = self.material
         vor = self.voronoi
         out = {}
-        if "stretch" in self.terms:
+        if "stretch" in terms:
             out["stretch"] = E.stretch_energy(x, self.rest_lengths, m.EA, self.closed)
-        if "bend" in self.terms:
+        if "bend" in terms:
             out["bend"] = E.bend_energy(x, vor, m.B, self.closed)
-        if "twist" in self.terms:
-            out["twist"] = E.twist_energy(self.vertex_twists(q, phi), vor, m.C)
-        if "contact" in self.terms:
-            out["contact"] = contact_energy(
-                x, self.contact_pairs, self.contact_mask, self.closed, m.D, m.B, self.contact_stiffness
-            )
+        if "twist" in terms:
+            out["twist"] = E.twist_energy(self.vertex_twists(q, phi, nbr), vor, m.C)
+        if "contact" in terms and "contact" in self.terms:
+            pairs, mask = self.contact_candidates(nbr)
+            out["contact"] = contact_energy(x, pairs, mask, self.closed, m.D, m.B, self.contact_stiffness)
         return out
 
-    def energy(self, q, phi):
-        """Total energy (scalar) at free DOFs q (n,) and imposed twist phi."""
-        return sum(self.energy_terms(q, phi).values())
+    def contact_candidates(self, nbr=None):
+        """(pairs (P,2), mask (P,)): the neighbourhood's candidate list, or every pair further
+        apart along the rod than pi D/2 (the exact energy's list) when nbr is None."""
+        if nbr is not None:
+            return nbr.pairs, nbr.mask
+        n_edges = self.rest_lengths.shape[0]
+        i, j = np.triu_indices(n_edges, k=1)
+        sep = np.abs(i - j)
+        if self.closed:
+            sep = np.minimum(sep, n_edges - sep)
+        gap = jnp.maximum(1.0, jnp.ceil(math.pi * self.material.D / 2.0 / self.length_scale))
+        return jnp.asarray(np.stack([i, j], axis=1), dtype=jnp.int32), jnp.asarray(sep) > gap
 
-    def scaled_energy(self, u, phi):
+    def energy(self, q, phi, nbr=None):
+        """Total energy (scalar) at free DOFs q (n,) and imposed twist phi (``nbr``: see energy_terms)."""
+        return sum(self.energy_terms(q, phi, nbr).values())
+
+    def scaled_energy(self, u, phi, nbr=None):
         """Energy in units of ``energy_scale`` of scaled DOFs u = q / dof_scale.
 
         Solvers and the stability analysis work on this function, so that their tolerances
         and eigenvalues are dimensionless and comparable across materials and resolutions.
         """
-        return self.energy(u * self.dof_scale, phi) / self.energy_scale
+        return self.energy(u * self.dof_scale, phi, nbr) / self.energy_scale
 
     def to_scaled(self, q):
         return q / self.dof_scale
@@ -219,34 +260,33 @@ class Scene:
         """Space-parallel reference directors u (M,3) of the edges."""
         raise NotImplementedError
 
-    def material_frames(self, q, phi):
+    def material_frames(self, q, phi, nbr=None):
         """Material frames (d1, d2, d3), each (M,3), of the edges."""
-        x, theta = self.unpack(q, phi)
+        x, theta = self.unpack(q, phi, nbr)
         t = unit(edges(x, self.closed))
         return material_directors(t, self.reference_directors(x), theta)
 
-    def eccentric_line(self, q, phi, offset=None):
+    def eccentric_line(self, q, phi, offset=None, nbr=None):
         """A line drawn on the rod surface: nodes displaced by ``offset`` (default D/2, or a
         tenth of the mean edge if D is unknown) along the material director d1 carried to the
         nodes. (N,3). With the centreline it forms the ribbon whose Gauss linking number is Lk."""
-        x, _ = self.unpack(q, phi)
-        d1, _, _ = self.material_frames(q, phi)
+        x, _ = self.unpack(q, phi, nbr)
+        d1, _, _ = self.material_frames(q, phi, nbr)
         if offset is None:
             offset = 0.1 * self.length_scale if self.material.D is None else 0.5 * self.material.D
         return x + offset * node_directors(x, d1, self.closed)
 
     def writhe(self, q, phi=0.0):
         """Writhe of the centreline (closed rods) or of the centreline extended along the clamps."""
-        x, _ = self.unpack(q, phi)
-        return writhe(x, closed=self.closed)
+        return self.exact_writhe(self.positions(q))
 
-    def twist(self, q, phi):
+    def twist(self, q, phi, nbr=None):
         """Total twist Tw = sum of vertex twists / 2 pi."""
-        return jnp.sum(self.vertex_twists(q, phi)) / TWO_PI
+        return jnp.sum(self.vertex_twists(q, phi, nbr)) / TWO_PI
 
-    def linking_number(self, q, phi):
+    def linking_number(self, q, phi, nbr=None):
         """Lk = Wr + Tw: Lk0 + phi/(2 pi) while the rod does not pass through itself."""
-        return self.writhe(q, phi) + self.twist(q, phi)
+        return self.writhe(q, phi) + self.twist(q, phi, nbr)
 
     # ------------------------------------------------------------------ zero modes
     def zero_modes(self, q, phi):
@@ -275,54 +315,25 @@ def _rigid_and_twist_modes(x, n_theta):
     return jnp.stack(cols, axis=1)
 
 
-@_pytree(
-    ["material", "rest_lengths", "q_init", "Lk0", "contact_pairs", "contact_mask", "contact_stiffness",
-     "contact_x_built", "contact_skin"],
-    ["terms", "name"],
-)
+@_pytree(["material", "rest_lengths", "q_init", "Lk0", "contact_stiffness"], ["terms", "name"])
 @dataclass(frozen=True, eq=False)
 class ClosedRod(Scene):
     """Closed rod (ring, knot). DOFs: q = [x.ravel() (3N), theta (N)].
 
     Lk0 is the linking number of the ribbon at phi = 0; the rod is cut at the joint (vertex 0,
     between edge N-1 and edge 0), twisted by phi and glued, so Lk = Lk0 + phi / (2 pi).
+    contact_stiffness: kappa_c of soft self-contact (relative to B/D^2) when "contact" is a term.
+    The contact candidate list is not part of the scene: it lives in a ``Neighbourhood`` passed
+    to the energy (``scene.neighbourhood(q)``), rebuilt by the solvers when it goes stale.
     """
 
     Lk0: float = 0.0
-    contact_pairs: np.ndarray = None  # (P, 2) candidate segment pairs (see jaxrod.contact)
-    contact_mask: np.ndarray = None  # (P,) real pairs (the rest is padding)
-    contact_stiffness: float = 0.0  # kappa_c, relative to B/D^2
-    contact_x_built: np.ndarray = None  # (N, 3) nodes where the candidate list was built
-    contact_skin: float = 0.0  # the list is valid while no node moves more than skin/2
+    contact_stiffness: float = 0.0
 
     closed = True
     n_zero_modes = 7
 
-    def with_contacts(self, q, skin=None, capacity=None):
-        """This scene with its contact candidate list rebuilt around state q (same capacity as
-        before when it suffices, so compiled code is reused)."""
-        from .contact import candidate_pairs
-
-        if "contact" not in self.terms:
-            return self
-        x = np.asarray(self.unpack(jnp.asarray(q), 0.0)[0])
-        if capacity is None and self.contact_pairs is not None:
-            capacity = int(np.shape(self.contact_pairs)[0])
-        cl = candidate_pairs(x, True, float(np.mean(np.asarray(self.rest_lengths))), float(self.material.D),
-                             skin=skin, capacity=capacity)
-        return replace(self, contact_pairs=jnp.asarray(cl.pairs), contact_mask=jnp.asarray(cl.mask),
-                       contact_x_built=jnp.asarray(x), contact_skin=float(cl.skin))
-
-    def contact_list_stale(self, q, phi):
-        """True when some node has moved more than skin/2 from where the contact list was built
-        (always False without contact)."""
-        if "contact" not in self.terms:
-            return jnp.asarray(False)
-        x, _ = self.unpack(q, phi)
-        moved = jnp.max(jnp.linalg.norm(x - self.contact_x_built, axis=1))
-        return moved > 0.5 * self.contact_skin
-
-    def unpack(self, q, phi):
+    def unpack(self, q, phi, nbr=None):
         n = self.n_nodes
         return q[: 3 * n].reshape(n, 3), q[3 * n:]
 
@@ -335,14 +346,18 @@ class ClosedRod(Scene):
         director carried once round the rod by parallel transport to the one it started from."""
         return tantrix_holonomy(unit(edges(x, True)))
 
-    def joint_reference_twist(self, x):
+    def joint_reference_twist(self, x, nbr=None):
         """The holonomy lifted to the branch 2 pi (Lk0 - Wr(x)) (see module docstring)."""
-        return _lift(self.raw_holonomy(x), TWO_PI * (self.Lk0 - writhe(x, closed=True)))
+        return _lift(self.raw_holonomy(x), TWO_PI * (self.Lk0 - self._writhe_for_lift(x, nbr)))
 
-    def vertex_twists(self, q, phi):
+    def vertex_twists(self, q, phi, nbr=None):
         x, theta = self.unpack(q, phi)
         m = theta - jnp.roll(theta, 1)
-        return m.at[0].add(self.joint_reference_twist(x) + phi)
+        return m.at[0].add(self.joint_reference_twist(x, nbr) + phi)
+
+    def holonomy_vertex(self):
+        """Index of the vertex whose twist carries the holonomy (a dense rank-1 Hessian term)."""
+        return 0
 
     def zero_modes(self, q, phi):
         x, theta = self.unpack(q, phi)
@@ -384,6 +399,15 @@ class ClampedRod(Scene):
     def reference_directors(self, x):
         return transport_along(self.director_start, unit(edges(x, False)))
 
+    def positions(self, q):
+        return self.nodes(q)
+
+    def exact_writhe(self, x):
+        return self.extended_writhe(x)
+
+    def holonomy_vertex(self):
+        return self.rest_lengths.shape[0] - 2
+
     def extended_writhe(self, x):
         """Writhe of the centreline extended at both ends by rays along the clamp axis (length
         100 L, enough to fix the 2 pi branch: the neglected far part is O(1e-2) at most)."""
@@ -392,26 +416,23 @@ class ClampedRod(Scene):
         ext = jnp.concatenate([(x[0] - far * a)[None], x, (x[-1] + far * a)[None]], axis=0)
         return writhe(ext, closed=False)
 
-    def end_angle(self, x):
+    def end_angle(self, x, nbr=None):
         """Angle of the last edge's space-parallel reference director relative to the untwisted
         end clamp director (the tantrix starts and ends on the clamp axis, so it is closed),
         lifted to the branch 2 pi (Lk0 - Wr_ext(x))."""
         raw = -tantrix_holonomy(unit(edges(x, False)))
-        return _lift(raw, TWO_PI * (self.Lk0 - self.extended_writhe(x)))
+        return _lift(raw, TWO_PI * (self.Lk0 - self._writhe_for_lift(x, nbr)))
 
-    def unpack(self, q, phi):
+    def unpack(self, q, phi, nbr=None):
         x = self.nodes(q)
         _, theta_free = self.interior(q)
-        theta_end = phi + self.end_angle(x)
+        theta_end = phi + self.end_angle(x, nbr)
         theta = jnp.concatenate([jnp.zeros(1, dtype=q.dtype), theta_free, jnp.reshape(theta_end, (1,))])
         return x, theta
 
-    def vertex_twists(self, q, phi):
-        _, theta = self.unpack(q, phi)
+    def vertex_twists(self, q, phi, nbr=None):
+        _, theta = self.unpack(q, phi, nbr)
         return theta[1:] - theta[:-1]
-
-    def writhe(self, q, phi=0.0):
-        return self.extended_writhe(self.nodes(q))
 
 
 @_pytree(["material", "rest_lengths", "q_init"], ["terms", "name"])
@@ -421,15 +442,18 @@ class FreeRod(Scene):
 
     n_zero_modes = 7
 
-    def unpack(self, q, phi):
+    def unpack(self, q, phi, nbr=None):
         n = self.n_nodes
         return q[: 3 * n].reshape(n, 3), q[3 * n:]
+
+    def holonomy_vertex(self):
+        return None
 
     def reference_directors(self, x):
         t = unit(edges(x, False))
         return transport_along(perpendicular_unit(t[0]), t)
 
-    def vertex_twists(self, q, phi):
+    def vertex_twists(self, q, phi, nbr=None):
         _, theta = self.unpack(q, phi)
         return theta[1:] - theta[:-1]
 
@@ -482,8 +506,7 @@ def closed_curve(points, material, N=None, length=None, Lk0=None, name="closed c
     if material.D is None:
         raise ValueError("contact needs the rod diameter: give the material a D")
     stiffness = check_positive("contact_stiffness", contact_stiffness)
-    scene = replace(scene, terms=scene.terms + ("contact",), contact_stiffness=stiffness)
-    return scene.with_contacts(q0)
+    return replace(scene, terms=scene.terms + ("contact",), contact_stiffness=stiffness)
 
 
 # Ropelength L/D of the ideal (tightest) trefoil (Baranska, Przybyl, Pieranski 2008: 16.372).

@@ -56,6 +56,7 @@ class Newton:
     zero_modes: object = None
     max_backtracks: int = 40
     near_null_tol: float = 0.0
+    hessian: object = None
 
 
 @dataclass(frozen=True)
@@ -65,12 +66,21 @@ class DampedNewton:
     near bifurcations), caps max |dy| at ``max_step``, and backtracks until the energy decreases
     (Armijo). ``zero_modes`` as in ``Newton``. ``leave(y, args) -> bool`` (optional) stops the run
     with reason 'left_region' (e.g. when a contact candidate list must be rebuilt); the caller
-    then refreshes whatever depended on the region and calls again."""
+    then refreshes whatever depended on the region and calls again.
+
+    ``hessian(y, args) -> (n, n)`` (optional, both Newton solvers): an exact Hessian cheaper than
+    ``jax.hessian`` of ``fun`` (e.g. ``jaxrod.hessian.scaled_hessian``, assembled from the rod's
+    structure); it is a static argument, like ``fun``.
+
+    The shift is found without an eigen-decomposition when it can be: a Cholesky factorisation
+    of H (plus a tiny shift) either succeeds, and H is positive definite (the common case near a
+    stable equilibrium), or the lowest eigenvalue is computed and H shifted past it."""
 
     zero_modes: object = None
     max_step: float = float("inf")
     leave: object = None
     max_backtracks: int = 40
+    hessian: object = None
 
 
 @dataclass(frozen=True)
@@ -147,11 +157,18 @@ def _lbfgs_loop(fun, y0, args, gtol, memory, max_ls, max_steps):
     return y, value, gnorm, it, code
 
 
-@partial(jax.jit, static_argnames=("fun", "zero_modes", "max_steps", "max_backtracks", "near_null"))
-def _newton_loop(fun, zero_modes, y0, args, gtol, max_steps, max_backtracks, near_null=False, near_null_tol=0.0):
+def _hessian_of(f, hessian, args):
+    if hessian is None:
+        return jax.hessian(f)
+    return lambda y: hessian(y, args)
+
+
+@partial(jax.jit, static_argnames=("fun", "zero_modes", "max_steps", "max_backtracks", "near_null", "hessian"))
+def _newton_loop(fun, zero_modes, y0, args, gtol, max_steps, max_backtracks, near_null=False, near_null_tol=0.0,
+                 hessian=None):
     f = lambda y: fun(y, args)
     grad = jax.grad(f)
-    hess = jax.hessian(f)
+    hess = _hessian_of(f, hessian, args)
 
     def newton_step(y):
         g = grad(y)
@@ -211,11 +228,11 @@ def _newton_loop(fun, zero_modes, y0, args, gtol, max_steps, max_backtracks, nea
     return y, value, gnorm, it, code
 
 
-@partial(jax.jit, static_argnames=("fun", "zero_modes", "leave", "max_steps", "max_backtracks"))
-def _damped_newton_loop(fun, zero_modes, leave, y0, args, gtol, max_step, max_steps, max_backtracks):
+@partial(jax.jit, static_argnames=("fun", "zero_modes", "leave", "max_steps", "max_backtracks", "hessian"))
+def _damped_newton_loop(fun, zero_modes, leave, y0, args, gtol, max_step, max_steps, max_backtracks, hessian=None):
     f = lambda y: fun(y, args)  # noqa: E731
     grad = jax.grad(f)
-    hess = jax.hessian(f)
+    hess = _hessian_of(f, hessian, args)
 
     def direction(y):
         g = grad(y)
@@ -224,10 +241,20 @@ def _damped_newton_loop(fun, zero_modes, leave, y0, args, gtol, max_step, max_st
         if zero_modes is not None:
             z = orthonormal_columns(zero_modes(y, args))
             h = h + (jnp.max(jnp.abs(jnp.diag(h))) + 1.0) * (z @ z.T)
-        lam_min = jnp.linalg.eigvalsh(h)[0]
         scale = jnp.max(jnp.abs(jnp.diag(h))) + 1.0
-        mu = jnp.maximum(0.0, -1.1 * lam_min) + 1e-10 * scale
-        dy = -jnp.linalg.solve(h + mu * jnp.eye(h.shape[0]), g)
+        eye = jnp.eye(h.shape[0])
+        # Positive definite already? Then one Cholesky gives the step; otherwise shift past the
+        # lowest eigenvalue (eigvalsh only then: ~5x the cost of a Cholesky).
+        chol = jnp.linalg.cholesky(h + 1e-10 * scale * eye)
+        definite = jnp.all(jnp.isfinite(chol))
+        mu = jax.lax.cond(
+            definite,
+            lambda hh: jnp.asarray(1e-10) * scale,
+            lambda hh: jnp.maximum(0.0, -1.1 * jnp.linalg.eigvalsh(hh)[0]) + 1e-10 * scale,
+            h,
+        )
+        chol = jax.lax.cond(definite, lambda hh: chol, lambda hh: jnp.linalg.cholesky(hh + mu * eye), h)
+        dy = -jax.scipy.linalg.cho_solve((chol, True), g)
         big = jnp.max(jnp.abs(dy))
         return jnp.where(big > max_step, dy * (max_step / big), dy), g
 
@@ -292,13 +319,14 @@ def minimise(fun, y0, args=None, solver=LBFGS(), gtol=1e-9, max_steps=None, thro
         steps = 50 if max_steps is None else int(max_steps)
         y, value, gnorm, it, code = _newton_loop(
             fun, solver.zero_modes, y0, args, gtol, steps, solver.max_backtracks,
-            solver.near_null_tol > 0.0, solver.near_null_tol,
+            solver.near_null_tol > 0.0, solver.near_null_tol, solver.hessian,
         )
         name = "newton"
     elif isinstance(solver, DampedNewton):
         steps = 500 if max_steps is None else int(max_steps)
         y, value, gnorm, it, code = _damped_newton_loop(
-            fun, solver.zero_modes, solver.leave, y0, args, gtol, solver.max_step, steps, solver.max_backtracks
+            fun, solver.zero_modes, solver.leave, y0, args, gtol, solver.max_step, steps, solver.max_backtracks,
+            solver.hessian,
         )
         name = "damped_newton"
     else:

@@ -16,6 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .hessian import project_out, scaled_hessian as structured_scaled_hessian
 from .material import check_finite
 from .solvers import orthonormal_columns
 
@@ -60,42 +61,45 @@ class Stability:
         )
 
 
-@jax.jit
-def scaled_hessian(scene, u, phi):
-    """Hessian (n, n) of scene.scaled_energy at scaled DOFs u."""
-    h = jax.hessian(scene.scaled_energy)(u, phi)
-    return 0.5 * (h + h.T)
+def scaled_hessian(scene, u, phi, nbr=None):
+    """Exact Hessian (n, n) of scene.scaled_energy at scaled DOFs u (structured assembly, see
+    ``jaxrod.hessian``; the neighbourhood is built at u when not given)."""
+    if nbr is None:
+        nbr = scene.neighbourhood(scene.from_scaled(u), phi)
+    return structured_scaled_hessian(scene, u, phi, nbr)
 
 
 @jax.jit
-def spectrum(scene, u, phi):
+def _spectrum(scene, u, phi, nbr):
+    h = structured_scaled_hessian(scene, u, phi, nbr)
+    z = orthonormal_columns(scene.scaled_zero_modes(u, phi))
+    # Zero modes projected out and lifted above the Gershgorin bound, so they sit at the top.
+    lam, vec = jnp.linalg.eigh(project_out(h, z))
+    n_zero = jnp.sum(jnp.any(z != 0.0, axis=0))
+    return lam, vec, n_zero
+
+
+def spectrum(scene, u, phi, nbr=None):
     """Full spectrum with zero modes removed.
 
     Returns (eigenvalues (n,), eigenvectors (n, n), n_zero): ascending; the n_zero symmetry
     directions are lifted above every physical eigenvalue, so they sit at the top.
     """
-    h = scaled_hessian(scene, u, phi)
-    n = h.shape[0]
-    z = orthonormal_columns(scene.scaled_zero_modes(u, phi))
-    p = jnp.eye(n) - z @ z.T
-    # Gershgorin bound on |eigenvalues|: lifting the zero modes above it keeps them out of the way.
-    lift = 2.0 * jnp.max(jnp.sum(jnp.abs(h), axis=1)) + 1.0
-    hp = p @ h @ p + lift * (z @ z.T)
-    lam, vec = jnp.linalg.eigh(0.5 * (hp + hp.T))
-    n_zero = jnp.sum(jnp.any(z != 0.0, axis=0))
-    return lam, vec, n_zero
+    if nbr is None:
+        nbr = scene.neighbourhood(scene.from_scaled(u), phi)
+    return _spectrum(scene, u, phi, nbr)
 
 
-def stability(scene, q, phi, k=8, tol=DEFAULT_NEGATIVE_TOL):
+def stability(scene, q, phi, k=8, tol=DEFAULT_NEGATIVE_TOL, nbr=None):
     """Stability of the state q (physical DOFs) at imposed twist phi: a ``Stability``."""
     phi = check_finite("phi", phi)
     u = scene.to_scaled(jnp.asarray(q))
-    lam, vec, n_zero = spectrum(scene, u, phi)
+    lam, vec, n_zero = spectrum(scene, u, phi, nbr)
     return _stability_from_spectrum(np.asarray(lam), np.asarray(vec), int(n_zero), k, tol)
 
 
 @jax.jit
-def _branch_sensitivities(scene, u, phi, v, lam, vec, skip, dscene, dphi):
+def _branch_sensitivities(scene, u, phi, v, lam, vec, skip, dscene, dphi, nbr):
     """Derivative of the eigenvalue v^T H v along the equilibrium branch u*(scene, phi), in the
     direction (dscene, dphi) of the scene's parameters (a pytree tangent: material, rest lengths)
     and of phi.
@@ -106,7 +110,7 @@ def _branch_sensitivities(scene, u, phi, v, lam, vec, skip, dscene, dphi):
     come from nested forward-mode jvps: no third-order tensor is formed.
     Returns (d lambda, du*).
     """
-    f = lambda uu, sc, pp: sc.scaled_energy(uu, pp)  # noqa: E731
+    f = lambda uu, sc, pp: sc.scaled_energy(uu, pp, nbr)  # noqa: E731
     dg = jax.jvp(lambda sc, pp: jax.grad(f)(u, sc, pp), (scene, phi), (dscene, dphi))[1]
     coef = vec.T @ dg
     safe = jnp.where(skip, 1.0, lam)
@@ -148,15 +152,15 @@ def _skip_mask(lam, n_zero, index, cluster_rtol, pinv_tol=0.0):
 
 
 @jax.jit
-def _branch_analysis(scene, u, phi, index, ref, cluster_rtol, pinv_tol):
-    lam, vec, n_zero = spectrum(scene, u, phi)
+def _branch_analysis(scene, u, phi, index, ref, cluster_rtol, pinv_tol, nbr):
+    lam, vec, n_zero = _spectrum(scene, u, phi, nbr)
     n = lam.shape[0]
     # With a reference vector, follow the mode by eigenvector overlap (robust to reordering).
     overlap = jnp.where(jnp.arange(n) < n - n_zero, jnp.abs(vec.T @ ref), -1.0)
     index = jnp.where(jnp.any(ref != 0.0), jnp.argmax(overlap), index)
     skip = _skip_mask(lam, n_zero, index, cluster_rtol, pinv_tol)
     dlam, du = _branch_sensitivities(
-        scene, u, phi, vec[:, index], lam, vec, skip, _zero_tangent(scene), jnp.asarray(1.0)
+        scene, u, phi, vec[:, index], lam, vec, skip, _zero_tangent(scene), jnp.asarray(1.0), nbr
     )
     return lam, vec, n_zero, dlam, du, index
 
@@ -171,7 +175,8 @@ def _stability_from_spectrum(lam, vec, n_zero, k, tol):
     )
 
 
-def branch_analysis(scene, q, phi, index, k=8, tol=DEFAULT_NEGATIVE_TOL, cluster_rtol=1e-4, ref=None, pinv_tol=0.0):
+def branch_analysis(scene, q, phi, index, k=8, tol=DEFAULT_NEGATIVE_TOL, cluster_rtol=1e-4, ref=None, pinv_tol=0.0,
+                    nbr=None):
     """One Hessian and one eigen-decomposition at an equilibrium q, giving everything a
     continuation step needs: its ``Stability``; eigenvalue number ``index`` (ascending, zero modes
     removed) -- or, if ``ref`` (a unit vector in the scaled DOFs) is given, the mode that overlaps
@@ -183,13 +188,15 @@ def branch_analysis(scene, q, phi, index, k=8, tol=DEFAULT_NEGATIVE_TOL, cluster
     """
     u = scene.to_scaled(jnp.asarray(q))
     ref = jnp.zeros_like(u) if ref is None else jnp.asarray(ref)
-    lam, vec, n_zero, dlam, du, index = _branch_analysis(scene, u, phi, index, ref, cluster_rtol, pinv_tol)
+    if nbr is None:
+        nbr = scene.neighbourhood(q, phi)
+    lam, vec, n_zero, dlam, du, index = _branch_analysis(scene, u, phi, index, ref, cluster_rtol, pinv_tol, nbr)
     lam, vec, n_zero, index = np.asarray(lam), np.asarray(vec), int(n_zero), int(index)
     stab = _stability_from_spectrum(lam, vec, n_zero, k, tol)
     return stab, float(lam[index]), float(dlam), vec[:, index], np.asarray(scene.from_scaled(du))
 
 
-def eigenvalue_phi_derivative(scene, q, phi, index, cluster_rtol=1e-4):
+def eigenvalue_phi_derivative(scene, q, phi, index, cluster_rtol=1e-4, nbr=None):
     """Eigenvalue number ``index`` (ascending, zero modes removed) of the Hessian at an equilibrium
     q, its derivative along the equilibrium branch with respect to phi (Hellmann-Feynman plus the
     branch's own motion, by forward-mode autodiff through the Hessian), its eigenvector (scaled
@@ -197,7 +204,7 @@ def eigenvalue_phi_derivative(scene, q, phi, index, cluster_rtol=1e-4):
 
     Returns (lam, dlam_dphi, v, dq_dphi).
     """
-    _, lam, dlam, v, dq = branch_analysis(scene, q, phi, index, cluster_rtol=cluster_rtol)
+    _, lam, dlam, v, dq = branch_analysis(scene, q, phi, index, cluster_rtol=cluster_rtol, nbr=nbr)
     return lam, dlam, v, dq
 
 
@@ -219,13 +226,15 @@ def critical_twist_derivative(scene, critical, parameter, cluster_rtol=1e-4, pin
         dscene = parameter(scene)
     eq = critical.equilibrium
     u = scene.to_scaled(jnp.asarray(eq.q))
-    lam, vec, n_zero = spectrum(scene, u, eq.phi)
+    nbr = eq.neighbourhood if eq.neighbourhood is not None else scene.neighbourhood(eq.q, eq.phi)
+    lam, vec, n_zero = spectrum(scene, u, eq.phi, nbr)
     n = lam.shape[0]
     overlap = np.abs(np.asarray(vec).T @ np.asarray(critical.mode))
     overlap[n - int(n_zero):] = -1.0
     index = int(np.argmax(overlap))  # the critical mode itself (not a near-zero sliding mode)
     skip = _skip_mask(lam, n_zero, index, cluster_rtol, pinv_tol)
     v = vec[:, index]
-    dlam_dp, _ = _branch_sensitivities(scene, u, eq.phi, v, lam, vec, skip, dscene, jnp.asarray(0.0))
-    dlam_dphi, _ = _branch_sensitivities(scene, u, eq.phi, v, lam, vec, skip, _zero_tangent(scene), jnp.asarray(1.0))
+    dlam_dp, _ = _branch_sensitivities(scene, u, eq.phi, v, lam, vec, skip, dscene, jnp.asarray(0.0), nbr)
+    dlam_dphi, _ = _branch_sensitivities(scene, u, eq.phi, v, lam, vec, skip, _zero_tangent(scene), jnp.asarray(1.0),
+                                         nbr)
     return -float(dlam_dp) / float(dlam_dphi)

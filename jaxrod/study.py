@@ -179,12 +179,12 @@ def twist_study(scene, phi_min, phi_max, step=0.5 * math.pi, out=None, tol=2e-4 
             last = np.load(files[-1])
             branch = str(last["branch"])[:-1]
             say(f"{direction}: resuming from phi = {float(last['phi']) / math.pi:+.5f} pi on {branch}")
-            e, sc = relax(scene, float(last["phi"]), last["q"], gtol=1e-9, with_stability=False)
-            begin, skip_first = e, True
+            e = relax(scene, float(last["phi"]), last["q"], gtol=1e-9, with_stability=False)
+            sc, begin, skip_first = scene, e, True
         else:
             if start is None:
                 say("relaxing the knot at phi = 0")
-                start, scene = relax(scene, 0.0, None, gtol=1e-9, with_stability=False)
+                start = relax(scene, 0.0, None, gtol=1e-9, with_stability=False)
             sc, begin, branch, skip_first = scene, start, "symmetric", False
         if critical.get("negative_tol") is None:
             critical["negative_tol"] = CONTACT_NEGATIVE_TOL if "contact" in scene.terms else DEFAULT_NEGATIVE_TOL
