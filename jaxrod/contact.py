@@ -103,7 +103,10 @@ def candidate_pairs(x, closed, rest_length, D, skin=None, exclude=None, capacity
     gap = max(1, int(math.ceil(exclude / rest_length)))
     keep = _arc_separation(i, j, n_edges, closed) > gap
     pairs = np.stack([i[keep], j[keep]], axis=1)
-    cap = max(16, 2 * len(pairs)) if capacity is None else int(capacity)
+    # Default capacity: generous (3x the count, at least 4 per segment), so that the list seldom
+    # outgrows it when the rod deforms: a new capacity is a new array shape, which recompiles
+    # every jitted function that takes the list.
+    cap = max(16, 3 * len(pairs), 4 * n_edges) if capacity is None else int(capacity)
     if cap < len(pairs):
         cap = 2 * len(pairs)
     padded = np.zeros((cap, 2), dtype=np.int32)

@@ -18,7 +18,7 @@ import numpy as np
 
 import jax.numpy as jnp
 
-from .equilibrium import Equilibrium, TopologyChangeError, relax, solve_equilibrium
+from .equilibrium import Equilibrium, LeftBranchError, TopologyChangeError, relax, solve_equilibrium
 from .geometry import polyline_distance
 from .material import check_finite, check_positive
 from .solvers import ConvergenceError
@@ -393,12 +393,15 @@ def follow_twist(
     def attempt(sc, prev, dq, phi):
         """Corrector from the tangent predictor. Returns (ok, why, scene, equilibrium, tangent)."""
         q_pred = prev.q + dq * (phi - prev.phi)
+        x_pred = np.asarray(sc.positions(jnp.asarray(q_pred)))
         try:
-            e = relax(sc, phi, q_pred, gtol=gtol, previous=prev, with_stability=False, nbr=prev.neighbourhood)
+            e = relax(sc, phi, q_pred, gtol=gtol, previous=prev, with_stability=False, nbr=prev.neighbourhood,
+                      guide=(x_pred, jump_tol))
             sc2 = sc
+        except LeftBranchError as exc:
+            return False, f"jump: {exc}", sc, None, None
         except (ConvergenceError, TopologyChangeError) as exc:
             return False, f"{type(exc).__name__}: {exc}", sc, None, None
-        x_pred = np.asarray(sc.unpack(jnp.asarray(q_pred), phi)[0])
         moved = polyline_distance(e.x, x_pred, closed)
         if moved > jump_tol:
             return False, f"jump: the state moved {moved:.3g} from the predicted shape", sc2, e, None
@@ -461,17 +464,18 @@ def follow_twist(
         lost_phi, lost_why, lost_eq = phi_next, why, e
         say(f"[{name}] lost at phi = {phi_next / math.pi:+.5f} pi ({why}); locating the end")
         lost_from = prev.phi
-        failures = 0
+        failures, probe_held = 0, False
         while abs(lost_phi - prev.phi) > tol:
-            trial = _end_trial(older, prev, lost_phi, lost_eq, direction, tol, negative_tol, failures)
+            trial, probe = _end_trial(older, prev, lost_phi, lost_eq, direction, tol, negative_tol,
+                                      failures, probe_held)
             ok, why, sc, e, dq_new = attempt(scene, prev, dq, trial)
             if ok:
                 older, (scene, prev, dq) = prev, (sc, e, dq_new)
                 emit(name, scene, e, dq)
-                failures = 0
+                failures, probe_held = 0, probe
             else:
                 lost_phi, lost_why, lost_eq, lost_from = trial, why, e, prev.phi
-                failures += 1
+                failures, probe_held = failures + 1, False
         if abs(lost_phi - lost_from) > tol:
             # The nearest failure was met from a state further back: confirm it from the last
             # stable state, so that a predictor too far off is not taken for the branch's end.
@@ -530,22 +534,23 @@ def _critical_candidates(older, prev, negative_tol, candidates=5):
     return out
 
 
-def _end_trial(older, prev, phi_lost, lost_eq, direction, tol, negative_tol, failures):
+def _end_trial(older, prev, phi_lost, lost_eq, direction, tol, negative_tol, failures, probe_held):
     """The next twist to try when locating where a branch ends, between the last stable state
-    ``prev`` and the nearest twist ``phi_lost`` where the branch was lost.
+    ``prev`` and the nearest twist ``phi_lost`` where the branch was lost. Returns (phi, probe).
 
     Model: near a fold the critical eigenvalue goes like sqrt(phi* - phi), so lambda^2 is linear
     in phi; its secant through ``older`` and ``prev`` (the mode that reaches zero first) gives
     phi*, never beyond it at a transversal crossing (where it lands short). When the lost state
     is an equilibrium with a negative eigenvalue (a crossing), lambda is interpolated linearly
-    between the two ends instead. The trial aims 0.3 tol short of phi*, or 0.9 tol beyond the
-    stable end when that is already there, so that a good model closes the bracket to tol in two
-    solves. Safeguards: bisection when there is no model, after two failures in a row, or when
-    the model lands outside the inner 90% of the bracket."""
+    between the two ends instead. The trial aims 0.3 tol short of phi*, or, when the stable end
+    is already there, probes 0.9 tol beyond it (probe = True), so that a good model closes the
+    bracket to tol in two solves. Safeguards: bisection when there is no model, after two
+    failures in a row, after a probe that held (the model is lagging: no creeping by tol), or
+    when the model lands outside the inner 90% of the bracket."""
     width = direction * (phi_lost - prev.phi)
     mid = prev.phi + 0.5 * direction * width
-    if failures >= 2 or older is None or older.phi == prev.phi:
-        return mid
+    if failures >= 2 or probe_held or older is None or older.phi == prev.phi:
+        return mid, False
     estimates = []
     for lam, lam_old, v in _critical_candidates(older, prev, negative_tol):
         if lam <= 0.0:
@@ -560,17 +565,18 @@ def _end_trial(older, prev, phi_lost, lost_eq, direction, tol, negative_tol, fai
         if direction * slope < 0.0 and lam < lam_old:
             estimates.append(prev.phi - lam**2 / slope)
     if not estimates:
-        return mid
+        return mid, False
     est = min(estimates, key=lambda p: direction * (p - prev.phi))
-    trial = est - direction * 0.3 * tol
+    trial, probe = est - direction * 0.3 * tol, False
     if direction * (trial - prev.phi) < 0.5 * tol:
-        trial = prev.phi + direction * 0.9 * tol
+        trial, probe = prev.phi + direction * 0.9 * tol, True
+    inside = direction * (trial - prev.phi) > 0.0 and direction * (phi_lost - trial) > 0.0
     lo, hi = prev.phi + direction * 0.05 * width, phi_lost - direction * 0.05 * width
-    if not (direction * (trial - lo) >= 0.0 and direction * (hi - trial) >= 0.0):
-        if direction * (trial - prev.phi) > 0.0 and direction * (phi_lost - trial) > 0.0 and width < 4.0 * tol:
-            return trial
-        return mid
-    return trial
+    if direction * (trial - lo) >= 0.0 and direction * (hi - trial) >= 0.0:
+        return trial, probe
+    if inside and width < 4.0 * tol:
+        return trial, probe
+    return mid, False
 
 
 def _locate(phi_stable, phi_lost, lam, dlam, direction):
@@ -662,8 +668,9 @@ def _switch_branch(scene, prev, dq, phi, mode, lost_eq, perturbation, jump_tol, 
     biggest = float(np.max(np.linalg.norm(x_mode, axis=1)))
     amp = (jump_tol if perturbation is None else float(perturbation)) / max(biggest, 1e-300)
     starts = [("+mode", q_pred + amp * mode_q), ("-mode", q_pred - amp * mode_q)]
-    if lost_eq is not None:
-        starts.append(("jumped", np.asarray(lost_eq.q)))
+    # Where the corrector itself goes when left alone (it was stopped early while locating the
+    # end, so that state is computed here, once).
+    starts.append(("jumped", np.asarray(lost_eq.q) if lost_eq is not None else q_pred))
     best = None
     for label, q_start in starts:
         try:

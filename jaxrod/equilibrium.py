@@ -8,13 +8,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .geometry import polyline_distance
 from .hessian import scaled_hessian
 from .material import check_finite
 from .neighbourhood import WRITHE_DRIFT_LIMIT, Neighbourhood
 from .solvers import LBFGS, ConvergenceError, DampedNewton, Newton, Solution, minimise
 from .stability import DEFAULT_NEGATIVE_TOL, Stability, stability
 
-__all__ = ["Equilibrium", "solve_equilibrium", "relax", "TopologyChangeError", "scaled_energy", "scaled_zero_modes",
+__all__ = ["Equilibrium", "solve_equilibrium", "relax", "TopologyChangeError", "LeftBranchError", "scaled_energy", "scaled_zero_modes",
            "structured_hessian"]
 
 
@@ -50,8 +51,14 @@ class TopologyChangeError(RuntimeError):
     """The rod passed through itself (its writhe jumped by ~2): the knot type changed."""
 
 
+class LeftBranchError(ConvergenceError):
+    """A relaxation guided along a branch moved further from the guide shape than allowed: the
+    state is jumping to another branch (raised early, before the jump is complete)."""
+
+
 def relax(scene, phi=0.0, q0=None, gtol=1e-9, max_rounds=200, max_displacement=None, k=8,
-          negative_tol=DEFAULT_NEGATIVE_TOL, previous=None, progress=None, with_stability=True, nbr=None):
+          negative_tol=DEFAULT_NEGATIVE_TOL, previous=None, progress=None, with_stability=True, nbr=None,
+          guide=None):
     """Minimise the energy of a scene (with or without self-contact) from q0 (default
     scene.q_init) without letting the rod pass through itself.
 
@@ -64,6 +71,9 @@ def relax(scene, phi=0.0, q0=None, gtol=1e-9, max_rounds=200, max_displacement=N
     ``previous`` (an Equilibrium, e.g. the last continuation step) makes the first comparison
     against its writhe, so a step that jumped a strand across another before the solve even
     started is refused too. ``nbr``: a neighbourhood to start from (its capacity is kept).
+    ``guide``: (x_guide (N,3), distance): raise ``LeftBranchError`` as soon as, at a pause, the
+    shape is further than ``distance`` from x_guide (``polyline_distance``, blind to sliding):
+    a continuation step that is jumping off its branch is stopped early, not relaxed to the end.
 
     Returns the ``Equilibrium``; its ``neighbourhood`` is valid at the equilibrium.
     """
@@ -103,6 +113,10 @@ def relax(scene, phi=0.0, q0=None, gtol=1e-9, max_rounds=200, max_displacement=N
                 f"writhe jumped from {wr_last:.4f} to {wr:.4f}: the rod passed through itself"
             )
         wr_last = wr
+        if guide is not None and sol.reason == "left_region":
+            moved = polyline_distance(np.asarray(scene.positions(jnp.asarray(q))), guide[0], scene.closed)
+            if moved > guide[1]:
+                raise LeftBranchError(f"the state moved {moved:.3g} from the guide shape (more than {guide[1]:.3g})")
         drifted = abs(wr - float(nbr.wr_ref)) > WRITHE_DRIFT_LIMIT
         nbr = nbr_new
         if sol.reason == "left_region" or drifted:

@@ -161,8 +161,13 @@ def _local_block(scene, u, phi, nbr, pat):
     return jnp.where(jnp.asarray(pat.mask), h_local, 0.0), w, a
 
 
-def _contact_blocks(scene, u, nbr, pat):
-    """(P, 12, 12) scaled Hessian blocks of the contact pairs and their (P, 12) DOF indices."""
+def _add_contact_hessian(h, scene, u, nbr, pat):
+    """h (n, n) plus the scaled Hessian blocks (12 x 12: the four nodes of the two segments) of
+    the contact pairs within reach. The energy is exactly zero beyond D (and C2 at D), so only
+    pairs whose segments may be within D carry a block: typically a few in ten of the
+    candidates. They are gathered to the front of the list and processed in chunks of fixed
+    size, as many chunks as needed (a ``while_loop``), so the cost follows the pairs in reach,
+    not the list's capacity."""
     m = scene.material
     pairs = nbr.pairs
     n_nodes = scene.n_nodes
@@ -170,14 +175,40 @@ def _contact_blocks(scene, u, nbr, pat):
     nodes = jnp.stack([pairs[:, 0], (pairs[:, 0] + 1) % n_nodes, pairs[:, 1], (pairs[:, 1] + 1) % n_nodes], 1)
     local_pair = np.array([[0, 2]], dtype=np.int32)
 
-    def pair_energy(x4):
-        return contact_energy(x4, local_pair, np.array([True]), False, m.D, m.B, scene.contact_stiffness)
+    def pair_energy(y):
+        return contact_energy(y.reshape(4, 3), local_pair, np.array([True]), False, m.D, m.B,
+                              scene.contact_stiffness)
 
-    blocks = jax.vmap(lambda idx: jax.hessian(lambda y: pair_energy(y.reshape(4, 3)))(x[idx].ravel()))(nodes)
+    block = jax.hessian(pair_energy)
+    a0, a1, b0, b1 = (x[nodes[:, k]] for k in range(4))
+    # Two segments within D of each other have midpoints within D + (|a| + |b|)/2.
+    gap = jnp.linalg.norm(0.5 * (a0 + a1 - b0 - b1), axis=1)
+    reach = m.D + 0.5 * (jnp.linalg.norm(a1 - a0, axis=1) + jnp.linalg.norm(b1 - b0, axis=1))
+    near = nbr.mask & (gap < reach)
+    count = jnp.sum(near)
+    p = pairs.shape[0]
+    chunk = max(8, min(p, 64))
+    n_chunks = -(-p // chunk)
+    (order,) = jnp.nonzero(near, size=n_chunks * chunk, fill_value=0)  # pairs in reach first
     scale = scene.length_scale**2 / scene.energy_scale
-    blocks = blocks * (scale * nbr.mask)[:, None, None]
-    dof = jnp.asarray(pat.x_dof)[nodes].reshape(-1, 12)
-    return blocks, dof
+    x_dof = jnp.asarray(pat.x_dof)
+
+    def more(c):
+        k, _ = c
+        return k * chunk < count
+
+    def add_chunk(c):
+        k, hh = c
+        idx = jax.lax.dynamic_slice(order, (k * chunk,), (chunk,))
+        keep = (k * chunk + jnp.arange(chunk)) < count
+        nd = nodes[idx]
+        blocks = jax.vmap(block)(x[nd].reshape(chunk, 12)) * (scale * keep)[:, None, None]
+        dof = x_dof[nd].reshape(chunk, 12)
+        rows = jnp.broadcast_to(dof[:, :, None], blocks.shape)
+        cols = jnp.broadcast_to(dof[:, None, :], blocks.shape)
+        return k + 1, hh.at[rows.ravel(), cols.ravel()].add(blocks.ravel())
+
+    return jax.lax.while_loop(more, add_chunk, (0, h))[1]
 
 
 @jax.jit
@@ -188,10 +219,7 @@ def scaled_hessian(scene, u, phi, nbr):
     h, w, a = _local_block(scene, u, phi, nbr, pat)
     h = h + w * jnp.outer(a, a)
     if "contact" in scene.terms and nbr.pairs.shape[0] > 0:
-        blocks, dof = _contact_blocks(scene, u, nbr, pat)
-        rows = jnp.broadcast_to(dof[:, :, None], blocks.shape)
-        cols = jnp.broadcast_to(dof[:, None, :], blocks.shape)
-        h = h.at[rows.ravel(), cols.ravel()].add(blocks.ravel())
+        h = _add_contact_hessian(h, scene, u, nbr, pat)
     return 0.5 * (h + h.T)
 
 

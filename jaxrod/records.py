@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -54,19 +55,40 @@ def vertex_profiles(scene, eq):
     rotated by phi before gluing), and a profile read from the eccentric line would show the
     mismatch as a spike at the joint.
     """
+    nbr = eq.neighbourhood if eq.neighbourhood is not None else scene.neighbourhood(eq.q, eq.phi)
+    s, kappa, tau = _profiles(scene, jnp.asarray(eq.q), jnp.asarray(eq.phi), nbr)
+    return np.asarray(s), np.asarray(kappa), np.asarray(tau)
+
+
+@jax.jit
+def _profiles(scene, q, phi, nbr):
     from .geometry import curvature_binormals, edges
 
-    x = jnp.asarray(eq.x)
+    x = scene.positions(q)
     e = edges(x, True)
     kb = curvature_binormals(jnp.roll(e, 1, axis=0), e)
     lengths = jnp.linalg.norm(e, axis=1)
     vor = 0.5 * (lengths + jnp.roll(lengths, 1))
-    m = scene.vertex_twists(jnp.asarray(eq.q), eq.phi, eq.neighbourhood)
-    L = float(jnp.sum(lengths))
-    s = np.concatenate([[0.0], np.cumsum(np.asarray(lengths))[:-1]])
-    kappa = np.asarray(jnp.linalg.norm(kb, axis=1) / vor)
-    tau = np.asarray(m / vor)
-    return s / L, kappa * L, tau * L
+    m = scene.vertex_twists(q, phi, nbr)
+    L = jnp.sum(lengths)
+    s = jnp.concatenate([jnp.zeros(1), jnp.cumsum(lengths)[:-1]])
+    return s / L, jnp.linalg.norm(kb, axis=1) / vor * L, m / vor * L
+
+
+@jax.jit
+def _record_arrays(scene, q, phi, nbr):
+    """Everything a record needs from JAX in one compiled call: eccentric line (N,3), profiles,
+    contact count, Gauss linking number of centreline and eccentric line."""
+    from .contact import contact_count
+
+    x = scene.positions(q)
+    ecc = scene.eccentric_line(q, phi, nbr=nbr)
+    s, kappa_L, tau_L = _profiles(scene, q, phi, nbr)
+    if "contact" in scene.terms:
+        n_contact = contact_count(x, nbr.pairs, nbr.mask, True, scene.material.D)
+    else:
+        n_contact = jnp.asarray(0)
+    return ecc, s, kappa_L, tau_L, n_contact, linking_number(x, ecc)
 
 
 def step_record(scene, eq, branch="", n_samples=None):
@@ -78,20 +100,16 @@ def step_record(scene, eq, branch="", n_samples=None):
     ``x`` (N,3) centreline, ``eccentric`` (N,3) the line at D/2 along d1.
     """
     from .analysis import count_peaks, symmetry_order
-    from .contact import contact_count
 
-    q = jnp.asarray(eq.q)
     x = np.asarray(eq.x)
-    ecc = np.asarray(scene.eccentric_line(q, eq.phi, nbr=eq.neighbourhood))
+    nbr = eq.neighbourhood if eq.neighbourhood is not None else scene.neighbourhood(eq.q, eq.phi)
+    ecc, s_over_L, kappa_L, tau_L, n_contact, lk_gauss = jax.device_get(
+        _record_arrays(scene, jnp.asarray(eq.q), jnp.asarray(eq.phi), nbr))
     D = None if scene.material.D is None else float(scene.material.D)
-    s_over_L, kappa_L, tau_L = vertex_profiles(scene, eq)
     kappa_nodes = kappa_L / float(scene.length)
     terms = eq.energy_terms
     stab = eq.stability
-    n_contact = 0
-    if "contact" in scene.terms:
-        nbr = eq.neighbourhood if eq.neighbourhood is not None else scene.neighbourhood(eq.q, eq.phi)
-        n_contact = int(contact_count(jnp.asarray(x), nbr.pairs, nbr.mask, True, D))
+    n_contact = int(n_contact)
     r = x - x.mean(axis=0)
     row = {
         "branch": branch,
@@ -105,7 +123,7 @@ def step_record(scene, eq, branch="", n_samples=None):
         "Wr": float(eq.Wr),
         "Tw": float(eq.Tw),
         "Lk_frames": float(eq.Lk),
-        "Lk_gauss": float(linking_number(jnp.asarray(x), jnp.asarray(ecc))),
+        "Lk_gauss": float(lk_gauss),
         "Lk_expected": float(scene.Lk0) + float(eq.phi) / (2.0 * math.pi),
         "n_negative": int(stab.n_negative) if stab is not None else -1,
         "stable": int(bool(stab.stable)) if stab is not None else -1,

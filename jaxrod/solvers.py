@@ -72,9 +72,9 @@ class DampedNewton:
     ``jax.hessian`` of ``fun`` (e.g. ``jaxrod.hessian.scaled_hessian``, assembled from the rod's
     structure); it is a static argument, like ``fun``.
 
-    The shift is found without an eigen-decomposition when it can be: a Cholesky factorisation
-    of H (plus a tiny shift) either succeeds, and H is positive definite (the common case near a
-    stable equilibrium), or the lowest eigenvalue is computed and H shifted past it."""
+    The shift is found without an eigen-decomposition: Cholesky factorisations of H + mu I for
+    mu = 1e-10, 1e-8, ... times the largest diagonal entry, until one succeeds (the first one
+    near a stable equilibrium)."""
 
     zero_modes: object = None
     max_step: float = float("inf")
@@ -243,17 +243,18 @@ def _damped_newton_loop(fun, zero_modes, leave, y0, args, gtol, max_step, max_st
             h = h + (jnp.max(jnp.abs(jnp.diag(h))) + 1.0) * (z @ z.T)
         scale = jnp.max(jnp.abs(jnp.diag(h))) + 1.0
         eye = jnp.eye(h.shape[0])
-        # Positive definite already? Then one Cholesky gives the step; otherwise shift past the
-        # lowest eigenvalue (eigvalsh only then: ~5x the cost of a Cholesky).
-        chol = jnp.linalg.cholesky(h + 1e-10 * scale * eye)
-        definite = jnp.all(jnp.isfinite(chol))
-        mu = jax.lax.cond(
-            definite,
-            lambda hh: jnp.asarray(1e-10) * scale,
-            lambda hh: jnp.maximum(0.0, -1.1 * jnp.linalg.eigvalsh(hh)[0]) + 1e-10 * scale,
-            h,
-        )
-        chol = jax.lax.cond(definite, lambda hh: chol, lambda hh: jnp.linalg.cholesky(hh + mu * eye), h)
+        # Shift mu just large enough to make H + mu I positive definite. Cholesky attempts first
+        # (an attempt fails with NaNs): mu = 1e-10 scale (H already definite: near a stable
+        # equilibrium), then 1e-6 (soft modes slightly below zero: strands sliding in a loose knot
+        # sit at ~ -1e-7); only if both fail, the lowest eigenvalue by eigvalsh (~15x a Cholesky),
+        # since a shift much larger than needed would shorten the steps and slow the descent.
+        mu0, mu1 = 1e-10 * scale, 1e-6 + 1e-10 * scale
+        chol0 = jnp.linalg.cholesky(h + mu0 * eye)
+        chol = jax.lax.cond(
+            jnp.all(jnp.isfinite(chol0)), lambda: chol0, lambda: jnp.linalg.cholesky(h + mu1 * eye))
+        chol = jax.lax.cond(
+            jnp.all(jnp.isfinite(chol)), lambda: chol,
+            lambda: jnp.linalg.cholesky(h + (jnp.maximum(0.0, -1.1 * jnp.linalg.eigvalsh(h)[0]) + mu0) * eye))
         dy = -jax.scipy.linalg.cho_solve((chol, True), g)
         big = jnp.max(jnp.abs(dy))
         return jnp.where(big > max_step, dy * (max_step / big), dy), g
