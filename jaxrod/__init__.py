@@ -31,7 +31,7 @@ from .scenes import (  # noqa: E402
     torus_knot,
     trefoil,
 )
-from .solvers import LBFGS, ConvergenceError, DampedNewton, Newton, Solution, minimise  # noqa: E402
+from .solvers import LBFGS, ConvergenceError, DampedNewton, Newton, Solution, StopReason, minimise  # noqa: E402
 from .stability import Stability, critical_twist_derivative, eigenvalue_phi_derivative, stability  # noqa: E402
 from .equilibrium import Equilibrium, TopologyChangeError, relax, solve_equilibrium  # noqa: E402
 from .continuation import (  # noqa: E402
@@ -56,6 +56,7 @@ __all__ = [
     "LBFGS",
     "Newton",
     "Solution",
+    "StopReason",
     "ConvergenceError",
     "minimise",
     "Stability",

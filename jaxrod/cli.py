@@ -99,6 +99,8 @@ def _enable_compilation_cache(args):
     except OSError:
         return  # read-only home: run without a cache
     jax.config.update("jax_compilation_cache_dir", path)
+    # Every compilation, also the many small ones under the default 1 s threshold.
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
 
 
 def _michell(args):

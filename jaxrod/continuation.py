@@ -10,6 +10,7 @@ Hessian evaluations reach 1e-10 rad, where bisection would need ~30.
 """
 from __future__ import annotations
 
+import enum
 import math
 import time
 from dataclasses import dataclass, field, replace
@@ -24,7 +25,40 @@ from .material import check_finite, check_positive
 from .solvers import ConvergenceError
 from .stability import DEFAULT_NEGATIVE_TOL, branch_analysis
 
-__all__ = ["CriticalPoint", "critical_twist", "NoCrossingError", "BranchPoint", "Instability", "TwistPath", "follow_twist"]
+__all__ = ["StepFailure", "BranchEnd", "CriticalPoint", "critical_twist", "NoCrossingError", "BranchPoint", "Instability", "TwistPath", "follow_twist"]
+
+
+class StepFailure(enum.Enum):
+    """Why a continuation step was refused (never parsed from a message)."""
+
+    NOT_CONVERGED = "not converged"  # the corrector failed (ConvergenceError)
+    TOPOLOGY = "topology"  # the rod passed through itself
+    JUMP = "jump"  # the state left the branch (moved more than jump_tol from the prediction)
+    LINKING = "linking"  # Lk is not Lk0 + phi/2pi
+    UNSTABLE = "unstable"  # converged on the branch, but with a negative eigenvalue
+
+
+class BranchEnd(str, enum.Enum):
+    """How a followed stable branch ended (a str enum: compares equal to its value, and its
+    value is what studies write to JSON)."""
+
+    UNSTABLE = "unstable"  # the corrector stayed on the branch, which acquired a negative eigenvalue
+    JUMP = "jump"  # the minimiser left the branch (a fold, or a subcritical bifurcation)
+
+    def __str__(self):
+        return self.value
+
+    def __format__(self, spec):
+        return format(self.value, spec)
+
+
+@dataclass(frozen=True)
+class _Refusal:
+    failure: StepFailure
+    detail: str
+
+    def __str__(self):
+        return f"{self.failure.value}: {self.detail}"
 
 
 class NoCrossingError(RuntimeError):
@@ -399,15 +433,17 @@ def follow_twist(
                       guide=(x_pred, jump_tol))
             sc2 = sc
         except LeftBranchError as exc:
-            return False, f"jump: {exc}", sc, None, None
-        except (ConvergenceError, TopologyChangeError) as exc:
-            return False, f"{type(exc).__name__}: {exc}", sc, None, None
+            return False, _Refusal(StepFailure.JUMP, str(exc)), sc, None, None
+        except TopologyChangeError as exc:
+            return False, _Refusal(StepFailure.TOPOLOGY, str(exc)), sc, None, None
+        except ConvergenceError as exc:
+            return False, _Refusal(StepFailure.NOT_CONVERGED, str(exc)), sc, None, None
         moved = polyline_distance(e.x, x_pred, closed)
         if moved > jump_tol:
-            return False, f"jump: the state moved {moved:.3g} from the predicted shape", sc2, e, None
+            return False, _Refusal(StepFailure.JUMP, f"the state moved {moved:.3g} from the predicted shape"), sc2, e, None
         e, dq2 = analyse(sc2, e)
         if closed and abs(e.Lk - (lk0 + phi / (2.0 * math.pi))) > 1e-6:
-            return False, f"Lk = {e.Lk:.8f} is not Lk0 + phi/2pi", sc2, e, None
+            return False, _Refusal(StepFailure.LINKING, f"Lk = {e.Lk:.8f} is not Lk0 + phi/2pi"), sc2, e, None
         if e.stability.n_negative > 0 and contact:
             # A soft, sliding-type mode of a loose knot may turn slightly negative: the minimiser
             # then stalls on a saddle that differs from a stable state only by a slide of the
@@ -417,7 +453,7 @@ def follow_twist(
             if escaped is not None:
                 sc2, e, dq2 = escaped
         if e.stability.n_negative > 0:
-            return False, f"unstable: {e.stability.n_negative} negative eigenvalue(s)", sc2, e, dq2
+            return False, _Refusal(StepFailure.UNSTABLE, f"{e.stability.n_negative} negative eigenvalue(s)"), sc2, e, dq2
         return True, "", sc2, e, dq2
 
     def emit(name, sc, e, dq):
@@ -487,9 +523,9 @@ def follow_twist(
                 h = 2.0 * tol
                 continue
             lost_why, lost_eq = why, e
-        kind = "unstable" if lost_why.startswith("unstable") else "jump"
+        kind = BranchEnd.UNSTABLE if lost_why.failure is StepFailure.UNSTABLE else BranchEnd.JUMP
         inst = _critical_mode(scene, prev, older, lost_eq, kind, direction, k, negative_tol, pinv_tol)
-        rate = inst.dlambda_dphi if kind == "unstable" or not math.isfinite(inst.dlambda_dphi_secant) \
+        rate = inst.dlambda_dphi if kind is BranchEnd.UNSTABLE or not math.isfinite(inst.dlambda_dphi_secant) \
             else inst.dlambda_dphi_secant
         phi_c, phi_err = _locate(prev.phi, lost_phi, inst.eigenvalue, rate, direction)
         inst = replace(inst, phi=phi_c, phi_error=phi_err, bracket=(prev.phi, lost_phi), from_branch=name,

@@ -12,7 +12,7 @@ from .geometry import polyline_distance
 from .hessian import scaled_hessian
 from .material import check_finite
 from .neighbourhood import WRITHE_DRIFT_LIMIT, Neighbourhood
-from .solvers import LBFGS, ConvergenceError, DampedNewton, Newton, Solution, minimise
+from .solvers import LBFGS, ConvergenceError, DampedNewton, Newton, Solution, StopReason, minimise
 from .stability import DEFAULT_NEGATIVE_TOL, Stability, stability
 
 __all__ = ["Equilibrium", "solve_equilibrium", "relax", "TopologyChangeError", "LeftBranchError", "scaled_energy", "scaled_zero_modes",
@@ -113,18 +113,18 @@ def relax(scene, phi=0.0, q0=None, gtol=1e-9, max_rounds=200, max_displacement=N
                 f"writhe jumped from {wr_last:.4f} to {wr:.4f}: the rod passed through itself"
             )
         wr_last = wr
-        if guide is not None and sol.reason == "left_region":
+        if guide is not None and sol.reason is StopReason.LEFT_REGION:
             moved = polyline_distance(np.asarray(scene.positions(jnp.asarray(q))), guide[0], scene.closed)
             if moved > guide[1]:
                 raise LeftBranchError(f"the state moved {moved:.3g} from the guide shape (more than {guide[1]:.3g})")
         drifted = abs(wr - float(nbr.wr_ref)) > WRITHE_DRIFT_LIMIT
         nbr = nbr_new
-        if sol.reason == "left_region" or drifted:
+        if sol.reason is StopReason.LEFT_REGION or drifted:
             continue
         if not sol.converged:
             raise ConvergenceError(f"relaxation did not converge: {sol!r}")
         sol = Solution(y=sol.y, value=sol.value, grad_norm=sol.grad_norm, iterations=total,
-                       converged=True, reason="converged", solver=f"damped_newton({round_ + 1} rounds)",
+                       converged=True, reason=StopReason.CONVERGED, solver=f"damped_newton({round_ + 1} rounds)",
                        gtol=sol.gtol)
         return equilibrium_from_solution(scene, phi, sol, nbr, k=k, with_stability=with_stability,
                                          negative_tol=negative_tol)

@@ -17,6 +17,7 @@ raises ``ConvergenceError`` instead of returning something that looks like an an
 """
 from __future__ import annotations
 
+import enum
 from dataclasses import dataclass
 from functools import partial
 
@@ -26,10 +27,29 @@ import numpy as np
 import optax
 import optax.tree_utils as otu
 
-__all__ = ["LBFGS", "Newton", "DampedNewton", "Solution", "ConvergenceError", "minimise", "orthonormal_columns"]
+__all__ = ["LBFGS", "Newton", "DampedNewton", "Solution", "StopReason", "ConvergenceError", "minimise",
+           "orthonormal_columns"]
 
-# Stop reasons (codes inside the jitted loop, names outside).
-_REASONS = {0: "converged", 1: "max_steps", 2: "nonfinite", 3: "stalled", 4: "left_region"}
+
+class StopReason(str, enum.Enum):
+    """Why a solver stopped (integer codes inside the jitted loops). A str enum: it compares
+    equal to its value, so ``sol.reason == "converged"`` also works."""
+
+    CONVERGED = "converged"  # max |grad| <= gtol
+    MAX_STEPS = "max_steps"  # iteration budget spent
+    NONFINITE = "nonfinite"  # a NaN or inf appeared
+    STALLED = "stalled"  # the line search found no acceptable step
+    LEFT_REGION = "left_region"  # the caller's ``leave`` test fired (e.g. a stale contact list)
+
+    def __str__(self):
+        return self.value
+
+    def __format__(self, spec):
+        return format(self.value, spec)
+
+
+_REASONS = {0: StopReason.CONVERGED, 1: StopReason.MAX_STEPS, 2: StopReason.NONFINITE, 3: StopReason.STALLED,
+            4: StopReason.LEFT_REGION}
 
 
 class ConvergenceError(RuntimeError):

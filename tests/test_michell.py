@@ -19,7 +19,8 @@ def _phi_star(N, nu, slenderness=0.01):
 
 @pytest.fixture(scope="module")
 def series():
-    return {N: _phi_star(N, 0.5) for N in (32, 64, 128, 256)}
+    # N = 256 adds ~0.5e-3 of accuracy and a compilation per test run: the benchmark has it.
+    return {N: _phi_star(N, 0.5) for N in (32, 64, 128)}
 
 
 @pytest.mark.parametrize("nu", [0.0, 0.25])
@@ -41,7 +42,7 @@ def test_convergence_order_and_richardson(series):
     orders = np.log2(err[:-1] / err[1:])
     assert np.all((orders > 1.8) & (orders < 2.2)), orders
     # Richardson with the observed second order: (4 phi(2N) - phi(N)) / 3
-    rich = (4 * series[256].phi - series[128].phi) / 3
+    rich = (4 * series[128].phi - series[64].phi) / 3
     assert abs(rich - analytic) / analytic < 1e-4
     for N in Ns:
         assert series[N].phi_error < 1e-6 * math.pi
