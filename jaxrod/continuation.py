@@ -23,6 +23,7 @@ from .equilibrium import Equilibrium, LeftBranchError, TopologyChangeError, rela
 from .geometry import polyline_distance
 from .material import check_finite, check_positive
 from .solvers import ConvergenceError
+from .sparse_branch import solve_equilibrium_sparse, sparse_branch_analysis
 from .stability import DEFAULT_NEGATIVE_TOL, branch_analysis
 
 __all__ = ["StepFailure", "BranchEnd", "CriticalPoint", "critical_twist", "NoCrossingError", "BranchPoint", "Instability", "TwistPath", "follow_twist"]
@@ -102,25 +103,49 @@ CONTACT_NEGATIVE_TOL = 1e-6
 CONTACT_GTOL = 1e-7
 
 
-def _step(scene, phi, q_pred, index, k, negative_tol, fallback_q=None, ref=None, gtol=1e-9, nbr=None):
+def _step(scene, phi, q_pred, index, k, negative_tol, fallback_q=None, ref=None, gtol=1e-9, nbr=None,
+          sparse=False):
     """Newton corrector from the predictor (the neighbourhood is rebuilt, and the solve
     repeated, if nodes moved out of it), then one spectrum. Returns (scene, equilibrium with its
-    stability, tracked eigenvalue, its phi-derivative, its eigenvector, branch tangent dq/dphi)."""
+    stability, tracked eigenvalue, its phi-derivative, its eigenvector, branch tangent dq/dphi).
+    sparse: the O(N) block-tridiagonal corrector and analysis (``jaxrod.sparse_branch``)."""
     contact = "contact" in scene.terms
     near_null = negative_tol if contact else 0.0
+
+    def correct(q_start):
+        if sparse:
+            return solve_equilibrium_sparse(scene, phi, q_start, gtol=gtol, nbr=nbr)
+        return solve_equilibrium(scene, phi, q_start, method="newton", with_stability=False,
+                                 near_null_tol=near_null, gtol=gtol, nbr=nbr)
+
     try:
-        e = solve_equilibrium(scene, phi, q_pred, method="newton", with_stability=False, near_null_tol=near_null,
-                              gtol=gtol, nbr=nbr)
+        e = correct(q_pred)
     except ConvergenceError:
         if fallback_q is None:
             raise
-        e = solve_equilibrium(scene, phi, fallback_q, method="newton", with_stability=False,
-                              near_null_tol=near_null, gtol=gtol, nbr=nbr)
+        e = correct(fallback_q)
     pinv_tol = negative_tol if contact else 0.0
-    stab, lam, dlam, v, dq = branch_analysis(
+    analysis = sparse_branch_analysis if sparse else branch_analysis
+    stab, lam, dlam, v, dq = analysis(
         scene, e.q, phi, index, k=k, tol=negative_tol, ref=ref, pinv_tol=pinv_tol, nbr=e.neighbourhood
     )
     return scene, replace(e, stability=stab), lam, dlam, v, dq
+
+
+# "auto" takes the O(n) block path from this many DOFs on (N ~ 250 nodes): below it the dense
+# path is fast enough, and compiled already for most small scenes.
+_SPARSE_MIN_DOF = 1000
+
+
+def _use_sparse(scene, linear_algebra):
+    """Whether ``critical_twist`` uses the block path (see its ``linear_algebra``)."""
+    if linear_algebra not in ("auto", "dense", "sparse"):
+        raise ValueError(f"linear_algebra must be 'auto', 'dense' or 'sparse', got {linear_algebra!r}")
+    if linear_algebra == "sparse" and "contact" in scene.terms:
+        raise ValueError("linear_algebra='sparse' does not handle self-contact: use 'dense'")
+    if linear_algebra == "auto":
+        return "contact" not in scene.terms and scene.n_dof >= _SPARSE_MIN_DOF
+    return linear_algebra == "sparse"
 
 
 def critical_twist(
@@ -135,6 +160,7 @@ def critical_twist(
     max_refine=30,
     progress=None,
     gtol=None,
+    linear_algebra="auto",
 ):
     """First phi beyond ``phi_start`` (in the direction of ``phi_stop``) where the negative count
     of the equilibrium branch changes.
@@ -147,7 +173,12 @@ def critical_twist(
     CONTACT_NEGATIVE_TOL = 1e-6 for scenes with self-contact, whose sliding modes sit at ~1e-7).
     Scenes with contact get their candidate list rebuilt along the way. gtol: the equilibria's
     gradient tolerance (default 1e-9, or CONTACT_GTOL = 1e-7 with contact).
-    progress: optional callable(str) for progress lines. Returns a ``CriticalPoint``; raises
+    progress: optional callable(str) for progress lines.
+    linear_algebra: "dense" (n x n Hessian, ``eigh``: O(n^3) per step), "sparse" (block-tridiagonal
+    Newton, inertia, eigenpairs and tangent of ``jaxrod.sparse_branch``: O(n) per step; not with
+    contact) or "auto" (sparse for scenes without contact with n_dof >= 1000, else dense). With
+    "sparse" the stability's eigenvectors are the k lowest only, so the crossing mode must be
+    among them (k > the negative count). Returns a ``CriticalPoint``; raises
     ``NoCrossingError`` if the count never changes before phi_stop.
     """
     t0 = time.perf_counter()
@@ -165,19 +196,25 @@ def critical_twist(
     max_step = abs(phi_stop - phi_start) / 40.0 if step is None else check_positive("step", abs(step))
     min_step = max_step / 16.0
     say = progress or (lambda s: None)
+    sparse = _use_sparse(scene, linear_algebra)
+    analysis = sparse_branch_analysis if sparse else branch_analysis
 
     if contact:
         relaxed = relax(scene, phi_start, q0, with_stability=False, gtol=gtol)
+    elif sparse and scene.n_dof >= _SPARSE_MIN_DOF:
+        # Large n: no dense relaxation (O(n^3) per step); Newton from q0 (for rings and straight
+        # clamped rods the initial shape already is the equilibrium, up to the twist angles).
+        relaxed = solve_equilibrium_sparse(scene, phi_start, q0, gtol=gtol)
     else:
         relaxed = solve_equilibrium(scene, phi_start, q0, method="auto", with_stability=False, gtol=gtol)
     pinv_tol = negative_tol if contact else 0.0
-    st0, _, _, _, dq = branch_analysis(scene, relaxed.q, phi_start, 0, k=k, tol=negative_tol, pinv_tol=pinv_tol,
+    st0, _, _, _, dq = analysis(scene, relaxed.q, phi_start, 0, k=k, tol=negative_tol, pinv_tol=pinv_tol,
                                        nbr=relaxed.neighbourhood)
     count0 = int(st0.n_negative)
     # The eigenvalue that crosses next: the lowest one clearly above zero (near-zero modes skipped).
     index = int(np.sum(st0.eigenvalues < negative_tol)) if st0.eigenvalues.size else 0
     if index != 0:
-        st0, _, _, _, dq = branch_analysis(
+        st0, _, _, _, dq = analysis(
             scene, relaxed.q, phi_start, index, k=k, tol=negative_tol, pinv_tol=pinv_tol, nbr=relaxed.neighbourhood
         )
     prev = replace(relaxed, stability=st0)
@@ -186,6 +223,7 @@ def critical_twist(
 
     # Scan with a tangent predictor until the count changes.
     h = max_step
+    before = None  # the scan state before prev (a fallback stable end for the refinement)
     while True:
         phi_next = prev.phi + direction * h
         if direction * (phi_next - phi_stop) > 1e-12:
@@ -195,7 +233,7 @@ def critical_twist(
         try:
             scene, cur, lam_c, dlam_c, _, dq_c = _step(
                 scene, phi_next, prev.q + dq * (phi_next - prev.phi), index, k, negative_tol, prev.q, gtol=gtol,
-                nbr=prev.neighbourhood,
+                nbr=prev.neighbourhood, sparse=sparse,
             )
         except ConvergenceError:
             # Step-size control: no equilibrium found near the predictor; halve the step. If even
@@ -221,7 +259,7 @@ def critical_twist(
             ahead = -lam_c / dlam_c * direction
             if ahead > 0.0:
                 h = min(max_step, max(min_step, 1.1 * ahead))
-        prev, dq = cur, dq_c
+        before, prev, dq = prev, cur, dq_c
 
     # Refine. The crossing mode: at the far end, the negative eigenvalue nearest zero; followed
     # by eigenvector overlap from there on (robust to reordering and to near-zero modes).
@@ -234,11 +272,20 @@ def critical_twist(
     else:  # the count went down: a negative eigenvalue became positive
         idx_hi = int(np.sum(ev_hi < negative_tol))
     ref = cur.stability.eigenvectors[:, idx_hi]
-    _, f_hi, _, v_hi, _ = branch_analysis(scene, hi.q, hi.phi, idx_hi, k=k, tol=negative_tol, ref=ref,
-                                          pinv_tol=negative_tol if contact else 0.0, nbr=hi.neighbourhood)
-    _, f_lo, d_lo, v_lo, dq_lo = branch_analysis(scene, lo.q, lo.phi, 0, k=k, tol=negative_tol, ref=v_hi,
-                                                 pinv_tol=negative_tol if contact else 0.0, nbr=lo.neighbourhood)
     evals = 2
+    _, f_hi, _, v_hi, _ = analysis(scene, hi.q, hi.phi, idx_hi, k=k, tol=negative_tol, ref=ref,
+                                          pinv_tol=negative_tol if contact else 0.0, nbr=hi.neighbourhood)
+    _, f_lo, d_lo, v_lo, dq_lo = analysis(scene, lo.q, lo.phi, 0, k=k, tol=negative_tol, ref=v_hi,
+                                                 pinv_tol=negative_tol if contact else 0.0, nbr=lo.neighbourhood)
+    if np.sign(f_lo) == np.sign(f_hi) and before is not None:
+        # The crossing eigenvalue already changed sign at lo but stayed inside the near-zero band
+        # (|lambda| < negative_tol, e.g. a soft ring of N ~ 1000, lambda ~ 1e-9): the count missed
+        # it there. Take the scan state before as the stable end, so that the bracket holds a sign
+        # change (the sign tests below rely on it).
+        lo, evals = before, 3
+        _, f_lo, d_lo, v_lo, dq_lo = analysis(scene, lo.q, lo.phi, 0, k=k, tol=negative_tol, ref=v_hi,
+                                              pinv_tol=negative_tol if contact else 0.0, nbr=lo.neighbourhood)
+    evals = max(evals, 2)
     bracket = (lo.phi, hi.phi)
     # First guess: Newton from the stable end if it stays inside the bracket, else secant.
     a, b = sorted(bracket)
@@ -250,7 +297,7 @@ def critical_twist(
     for _ in range(max_refine):
         scene, e, f_c, d_c, v_c, dq_c = _step(
             scene, phi_c, base.q + base_dq * (phi_c - base.phi), 0, k, negative_tol, base.q, ref=v_ref, gtol=gtol,
-            nbr=base.neighbourhood,
+            nbr=base.neighbourhood, sparse=sparse,
         )
         evals += 1
         if np.sign(f_c) == np.sign(f_lo):

@@ -336,3 +336,52 @@ def test_timing_michell_ring_1024():
         print(f"  {name:36s} {comp:7.2f}  {run:8.4f}")
     print(f"  lowest eigenvalues {np.asarray(ep.values)} at 0.5 phi*")
     print(f"  lowest eigenvalues {np.asarray(ep2.values)} at 1.5 phi*: negative counts (pinned, bordered) {counts}")
+
+
+# ------------------------------------------------------------------------------------------------
+# critical_twist on the block path (jaxrod.sparse_branch) against the dense one
+# (same N = 24 scenes as above, so the block pieces are compiled already)
+
+
+@pytest.mark.parametrize("kind", ["ring", "clamped"])
+def test_critical_twist_sparse_equals_dense(kind):
+    if kind == "ring":
+        scene, guess = ring_scene(0.5), jr.michell_critical_twist(0.5)
+    else:
+        mat = jr.Material.from_ratio(B=1.0, nu=0.5, D=0.01)
+        scene, guess = jr.clamped_rod(N, 1.0, mat), jr.clamped_critical_twist(mat.B, mat.C)
+    run = lambda la: jr.critical_twist(scene, 0.0, 2 * guess, step=guess / 8, linear_algebra=la)  # noqa: E731
+    sparse, dense = run("sparse"), run("dense")
+    assert sparse.phi == pytest.approx(dense.phi, rel=1e-9)
+    assert guess < sparse.phi < 1.1 * guess  # the discrete threshold (N = 24), from above
+    assert sparse.multiplicity == dense.multiplicity == 2  # degenerate pairs (rotation symmetry)
+    assert sparse.dlambda_dphi == pytest.approx(dense.dlambda_dphi, rel=1e-6)
+    assert abs(sparse.eigenvalue) < 1e-9 and sparse.phi_error < 1e-6 * np.pi
+    assert sparse.equilibrium.solution.solver == "sparse_newton"
+
+
+def test_sparse_branch_analysis_matches_dense():
+    from jaxrod.sparse_branch import solve_equilibrium_sparse, sparse_branch_analysis
+
+    scene = ring_scene(0.5)
+    phi = 0.9 * jr.michell_critical_twist(0.5)
+    e = solve_equilibrium_sparse(scene, phi)
+    assert e.solution.converged and e.neighbourhood is not None and e.stability is None
+    sp = sparse_branch_analysis(scene, e.q, phi, 0, nbr=e.neighbourhood)
+    de = jr.stability.branch_analysis(scene, e.q, phi, 0, nbr=e.neighbourhood)
+    assert sp[0].n_negative == de[0].n_negative == 0 and sp[0].n_zero_modes == de[0].n_zero_modes
+    np.testing.assert_allclose(sp[0].eigenvalues, de[0].eigenvalues, rtol=1e-8)
+    assert sp[1] == pytest.approx(de[1], rel=1e-8) and sp[2] == pytest.approx(de[2], rel=1e-8)
+    np.testing.assert_allclose(sp[4], de[4], atol=1e-9)  # tangent dq/dphi (physical DOFs)
+    # The tracked mode by overlap with a reference vector: its degenerate partner is found too.
+    sp1 = sparse_branch_analysis(scene, e.q, phi, 0, ref=sp[0].eigenvectors[:, 1], nbr=e.neighbourhood)
+    assert abs(np.dot(sp1[3], sp[0].eigenvectors[:, 1])) == pytest.approx(1.0, abs=1e-8)
+
+
+def test_linear_algebra_choice():
+    from jaxrod.continuation import _use_sparse
+
+    assert not _use_sparse(ring_scene(0.5), "auto")
+    assert _use_sparse(jr.michell_ring(256), "auto") and not _use_sparse(jr.michell_ring(256), "dense")
+    with pytest.raises(ValueError):
+        _use_sparse(ring_scene(0.5), "banded")
