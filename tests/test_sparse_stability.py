@@ -362,13 +362,14 @@ def test_critical_twist_sparse_equals_dense(kind):
 
 def test_sparse_branch_analysis_matches_dense():
     from jaxrod.sparse_branch import solve_equilibrium_sparse, sparse_branch_analysis
+    from jaxrod.stability import branch_analysis
 
     scene = ring_scene(0.5)
     phi = 0.9 * jr.michell_critical_twist(0.5)
     e = solve_equilibrium_sparse(scene, phi)
     assert e.solution.converged and e.neighbourhood is not None and e.stability is None
     sp = sparse_branch_analysis(scene, e.q, phi, 0, nbr=e.neighbourhood)
-    de = jr.stability.branch_analysis(scene, e.q, phi, 0, nbr=e.neighbourhood)
+    de = branch_analysis(scene, e.q, phi, 0, nbr=e.neighbourhood)
     assert sp[0].n_negative == de[0].n_negative == 0 and sp[0].n_zero_modes == de[0].n_zero_modes
     np.testing.assert_allclose(sp[0].eigenvalues, de[0].eigenvalues, rtol=1e-8)
     assert sp[1] == pytest.approx(de[1], rel=1e-8) and sp[2] == pytest.approx(de[2], rel=1e-8)
