@@ -289,60 +289,6 @@ def test_tangent_matches_dense_pseudo_inverse(states, kind, frac):
 # timing
 
 
-@pytest.mark.skipif(os.environ.get("JAXROD_SPARSE_TIMING") != "1",
-                    reason="timing print for N = 1024 (~20 s of compilation): set JAXROD_SPARSE_TIMING=1")
-def test_timing_michell_ring_1024():
-    Nbig = 1024
-    scene = jr.michell_ring(Nbig, 0.5)
-    phi = 0.5 * jr.michell_critical_twist(0.5)
-    q = jnp.asarray(scene.q_init)
-    nbr = scene.neighbourhood(q, phi)
-    u = scene.to_scaled(q)
-    report = {}
-
-    def timed(name, f):
-        t0 = time.perf_counter()
-        r = jax.block_until_ready(f())
-        t1 = time.perf_counter()
-        jax.block_until_ready(f())
-        t2 = time.perf_counter()
-        report[name] = (t1 - t0 - (t2 - t1), t2 - t1)
-        return r
-
-    timed("block_hessian", lambda: ss.block_hessian(scene, u, phi, nbr))
-    # The planar ring with uniform twist: one pinned Newton step from q_init (twist is quadratic).
-    g, _ = timed("gradient_and_phi_derivative", lambda: ss.gradient_and_phi_derivative(scene, u, phi, nbr))
-    d = timed("newton_direction", lambda: ss.newton_direction(scene, u, phi, nbr, g))
-    u = u + d
-    g, _ = ss.gradient_and_phi_derivative(scene, u, phi, nbr)
-    assert float(jnp.max(jnp.abs(g))) < 1e-8
-    n_neg = timed("inertia_at_equilibrium", lambda: ss.inertia_at_equilibrium(scene, u, phi, nbr))
-    timed("projected_count_below", lambda: ss.projected_count_below(scene, u, phi, nbr, -DEFAULT_NEGATIVE_TOL))
-    ep = timed("lowest_eigenpairs_projected(k=4)", lambda: ss.lowest_eigenpairs_projected(scene, u, phi, nbr, 4))
-    timed("tangent", lambda: ss.tangent(scene, u, phi, nbr))
-    assert int(n_neg) == 0 and float(ep.values[0]) > 0 and float(jnp.max(ep.residuals)) < 1e-8
-    # Beyond the threshold (lambda_1 ~ -1e-8 here, within a factor kappa ~ N of tol): the pinned
-    # count against the distortion-free bordered one.
-    phi2 = 1.5 * jr.michell_critical_twist(0.5)
-    u2 = scene.to_scaled(q)
-    u2 = u2 + ss.newton_direction(scene, u2, phi2, nbr, ss.gradient_and_phi_derivative(scene, u2, phi2, nbr)[0])
-    counts = (int(ss.inertia_at_equilibrium(scene, u2, phi2, nbr)),
-              int(ss.projected_count_below(scene, u2, phi2, nbr, -DEFAULT_NEGATIVE_TOL)))
-    ep2 = ss.lowest_eigenpairs_projected(scene, u2, phi2, nbr, 4)
-    assert counts[0] == counts[1] == int(np.sum(np.asarray(ep2.values) < -DEFAULT_NEGATIVE_TOL)) > 0
-    print(f"\nmichell_ring({Nbig}) (n = {scene.n_dof}): first call minus second (compilation of what is not"
-          " yet compiled: the pieces are shared, in this order) / second call, seconds")
-    for name, (comp, run) in report.items():
-        print(f"  {name:36s} {comp:7.2f}  {run:8.4f}")
-    print(f"  lowest eigenvalues {np.asarray(ep.values)} at 0.5 phi*")
-    print(f"  lowest eigenvalues {np.asarray(ep2.values)} at 1.5 phi*: negative counts (pinned, bordered) {counts}")
-
-
-# ------------------------------------------------------------------------------------------------
-# critical_twist on the block path (jaxrod.sparse_branch) against the dense one
-# (same N = 24 scenes as above, so the block pieces are compiled already)
-
-
 @pytest.mark.parametrize("kind", ["ring", "clamped"])
 def test_critical_twist_sparse_equals_dense(kind):
     if kind == "ring":
