@@ -123,7 +123,7 @@ class Solution:
 
     def __repr__(self):
         return (
-            f"Solution(solver={self.solver}, converged={self.converged}, reason={self.reason!r}, "
+            f"Solution(solver={self.solver}, converged={self.converged}, reason={str(self.reason)!r}, "
             f"iterations={self.iterations}, grad_norm={self.grad_norm:.3e}, value={self.value:.12g})"
         )
 
