@@ -143,8 +143,10 @@ def holonomy_rank_one(scene, u, phi, nbr):
     return w, a
 
 
-def _local_block(scene, u, phi, nbr, pat):
-    """The local part (n, n) dense, from coloured Hessian-vector products of the elastic energy."""
+def local_products(scene, u, phi, nbr, pat):
+    """(hv, w, a): the local part's products with the coloured probes, hv (colours, n), row c
+    being H_local @ probe_c, from which every entry of the local part can be read; and the
+    rank-one term (w, a) that was subtracted from the full products to get them."""
     elastic = tuple(t for t in scene.terms if t != "contact")
 
     def f(uu):
@@ -155,7 +157,12 @@ def _local_block(scene, u, phi, nbr, pat):
     probes = jnp.asarray(pat.probes)
     hv = jax.vmap(lambda p: jax.jvp(g, (u,), (p,))[1])(probes)  # (colours, n)
     w, a = holonomy_rank_one(scene, u, phi, nbr)
-    hv = hv - w * (probes @ a)[:, None] * a[None, :]
+    return hv - w * (probes @ a)[:, None] * a[None, :], w, a
+
+
+def _local_block(scene, u, phi, nbr, pat):
+    """The local part (n, n) dense, from coloured Hessian-vector products of the elastic energy."""
+    hv, w, a = local_products(scene, u, phi, nbr, pat)
     # Entry (r, c) of the local part is row r of the product with c's colour.
     h_local = hv.T[:, jnp.asarray(pat.colour)]
     return jnp.where(jnp.asarray(pat.mask), h_local, 0.0), w, a

@@ -64,7 +64,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import banded
-from .hessian import _kind, _pattern, holonomy_rank_one
+from .hessian import _kind, _pattern, local_products
 from .solvers import orthonormal_columns
 from .stability import DEFAULT_NEGATIVE_TOL
 
@@ -247,17 +247,7 @@ def _block_hessian(scene, u, phi, nbr):
     _check_scene(scene)
     lay = block_layout(scene)
     pat = _pattern(lay.kind, lay.n_nodes)
-    elastic = tuple(t for t in scene.terms if t != "contact")
-
-    def f(uu):
-        q = uu * scene.dof_scale
-        return sum(scene.energy_terms(q, phi, nbr, terms=elastic).values()) / scene.energy_scale
-
-    g = jax.grad(f)
-    probes = jnp.asarray(pat.probes)
-    hv = jax.vmap(lambda p: jax.jvp(g, (u,), (p,))[1])(probes)  # (colours, n)
-    w, a = holonomy_rank_one(scene, u, phi, nbr)
-    hv = hv - w * (probes @ a)[:, None] * a[None, :]
+    hv, w, a = local_products(scene, u, phi, nbr, pat)
     flat = hv.ravel()
 
     def gather(src, ok):
