@@ -77,6 +77,7 @@ class Newton:
     max_backtracks: int = 40
     near_null_tol: float = 0.0
     hessian: object = None
+    direction: object = None  # (y, args, g) -> Newton step dy, replacing the dense solve (static)
 
 
 @dataclass(frozen=True)
@@ -183,15 +184,18 @@ def _hessian_of(f, hessian, args):
     return lambda y: hessian(y, args)
 
 
-@partial(jax.jit, static_argnames=("fun", "zero_modes", "max_steps", "max_backtracks", "near_null", "hessian"))
+@partial(jax.jit, static_argnames=("fun", "zero_modes", "max_steps", "max_backtracks", "near_null", "hessian",
+                                   "direction"))
 def _newton_loop(fun, zero_modes, y0, args, gtol, max_steps, max_backtracks, near_null=False, near_null_tol=0.0,
-                 hessian=None):
+                 hessian=None, direction=None):
     f = lambda y: fun(y, args)
     grad = jax.grad(f)
     hess = _hessian_of(f, hessian, args)
 
     def newton_step(y):
         g = grad(y)
+        if direction is not None:  # a structured solve supplied by the caller (e.g. O(N) banded)
+            return direction(y, args, g), g
         h = hess(y)
         if zero_modes is not None:
             z = orthonormal_columns(zero_modes(y, args))
@@ -340,7 +344,7 @@ def minimise(fun, y0, args=None, solver=LBFGS(), gtol=1e-9, max_steps=None, thro
         steps = 50 if max_steps is None else int(max_steps)
         y, value, gnorm, it, code = _newton_loop(
             fun, solver.zero_modes, y0, args, gtol, steps, solver.max_backtracks,
-            solver.near_null_tol > 0.0, solver.near_null_tol, solver.hessian,
+            solver.near_null_tol > 0.0, solver.near_null_tol, solver.hessian, solver.direction,
         )
         name = "newton"
     elif isinstance(solver, DampedNewton):

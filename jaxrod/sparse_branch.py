@@ -5,8 +5,8 @@ Built on ``jaxrod.sparse_stability`` (block-tridiagonal Hessian + rank one, gaug
 n x n array is ever formed: every piece costs O(N). Scope as there: scenes WITHOUT the "contact"
 term. Used by ``jaxrod.critical_twist(..., linear_algebra="sparse")``.
 
-* :func:`sparse_newton`: a jitted ``lax.while_loop`` of pinned Newton steps with backtracking on
-  |grad|^2 (the merit of ``jaxrod.solvers._newton_loop``), returning a ``Solution``.
+* :func:`sparse_newton`: ``minimise`` with ``Newton(direction=...)``: the solvers' jitted Newton
+  loop (backtracking on |grad|^2) with the pinned block solve as its step, returning a ``Solution``.
 * :func:`solve_equilibrium_sparse`: the same wrapped into an ``Equilibrium`` (with its
   neighbourhood, no stability), like ``solve_equilibrium(..., with_stability=False)``.
 * :func:`sparse_branch_analysis`: (Stability, lam_index, dlam_dphi, v_index, dq_dphi), the tuple of
@@ -14,17 +14,17 @@ term. Used by ``jaxrod.critical_twist(..., linear_algebra="sparse")``.
 """
 from __future__ import annotations
 
-import functools
+from dataclasses import replace
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from . import sparse_stability as ss
-from .equilibrium import _grown, equilibrium_from_solution
+from .equilibrium import _grown, equilibrium_from_solution, scaled_energy
 from .material import check_finite
 from .neighbourhood import WRITHE_DRIFT_LIMIT
-from .solvers import ConvergenceError, Solution, _REASONS
+from .solvers import ConvergenceError, Newton, minimise
 from .stability import DEFAULT_NEGATIVE_TOL, Stability
 
 __all__ = ["sparse_newton", "solve_equilibrium_sparse", "sparse_branch_analysis", "eigenvalue_branch_derivative"]
@@ -34,47 +34,10 @@ __all__ = ["sparse_newton", "solve_equilibrium_sparse", "sparse_branch_analysis"
 # Newton corrector
 
 
-@functools.partial(jax.jit, static_argnames=("max_steps", "max_backtracks"))
-def _newton_loop(scene, u0, phi, nbr, gtol, max_steps, max_backtracks):
-    """(u, value, max|g|, iterations, reason code) -- codes as ``jaxrod.solvers._REASONS``."""
-    f = lambda y: scene.scaled_energy(y, phi, nbr)  # noqa: E731
-    grad = jax.grad(f)
-
-    def g2(y):
-        g = grad(y)
-        return jnp.where(jnp.all(jnp.isfinite(g)), jnp.sum(g * g), jnp.inf)
-
-    def cond(carry):
-        _, it, gnorm, code = carry
-        return (it < max_steps) & (gnorm > gtol) & (code == 0)
-
-    def body(carry):
-        y, it, _, _ = carry
-        g = grad(y)
-        dy = ss.newton_direction(scene, y, phi, nbr, g)
-        g2_0 = jnp.sum(g * g)
-
-        # Backtrack on |grad|^2 (not the energy): the corrector must also converge to saddles.
-        def ls_cond(c):
-            alpha, k, g2_new = c
-            return (k < max_backtracks) & ~(g2_new < (1.0 - 1e-4 * alpha) * g2_0)
-
-        def ls_body(c):
-            alpha, k, _ = c
-            return 0.5 * alpha, k + 1, g2(y + 0.5 * alpha * dy)
-
-        alpha, _, g2_new = jax.lax.while_loop(ls_cond, ls_body, (1.0, 0, g2(y + dy)))
-        accepted = g2_new < (1.0 - 1e-4 * alpha) * g2_0
-        y_new = jnp.where(accepted, y + alpha * dy, y)
-        code = jnp.where(~jnp.all(jnp.isfinite(dy)), 2, jnp.where(accepted, 0, 3))
-        return y_new, it + 1, jnp.max(jnp.abs(grad(y_new))), code
-
-    gnorm0 = jnp.max(jnp.abs(grad(u0)))
-    y, it, gnorm, code = jax.lax.while_loop(cond, body, (u0, 0, gnorm0, jnp.where(jnp.isfinite(gnorm0), 0, 2)))
-    value = f(y)
-    code = jnp.where(~(jnp.isfinite(value) & jnp.isfinite(gnorm)), 2,
-                     jnp.where(gnorm <= gtol, 0, jnp.where(code == 0, 1, code)))
-    return y, value, gnorm, it, code
+def _pinned_direction(u, args, g):
+    """The Newton step of ``Newton(direction=...)`` by the gauge-pinned block solve."""
+    scene, phi, nbr = args
+    return ss.newton_direction(scene, u, phi, nbr, g)
 
 
 def sparse_newton(scene, u0, phi, nbr, gtol=1e-9, max_steps=50, max_backtracks=40):
@@ -82,12 +45,10 @@ def sparse_newton(scene, u0, phi, nbr, gtol=1e-9, max_steps=50, max_backtracks=4
     (``sparse_stability.newton_direction``): converges to the nearest stationary point, stable or
     not. gtol bounds max |grad| of the scaled energy. Returns a ``Solution`` (y (n,) scaled DOFs);
     never raises (check ``converged``)."""
-    u0 = jnp.asarray(u0, dtype=jnp.float64)
-    y, value, gnorm, it, code = _newton_loop(scene, u0, jnp.asarray(phi, jnp.float64), nbr, gtol, int(max_steps),
-                                             int(max_backtracks))
-    code = int(code)
-    return Solution(y=np.asarray(y), value=float(value), grad_norm=float(gnorm), iterations=int(it),
-                    converged=code == 0, reason=_REASONS[code], solver="sparse_newton", gtol=float(gtol))
+    solver = Newton(direction=_pinned_direction, max_backtracks=int(max_backtracks))
+    sol = minimise(scaled_energy, u0, (scene, jnp.asarray(phi, jnp.float64), nbr), solver, gtol, int(max_steps),
+                   throw=False)
+    return replace(sol, solver="sparse_newton")
 
 
 def solve_equilibrium_sparse(scene, phi, q0=None, gtol=1e-9, max_steps=50, nbr=None, throw=True):
