@@ -21,7 +21,7 @@ import jax.numpy as jnp
 
 from .equilibrium import Equilibrium, LeftBranchError, TopologyChangeError, relax, solve_equilibrium
 from .geometry import polyline_distance
-from .material import check_finite, check_positive
+from .validation import check_finite, check_positive
 from .solvers import ConvergenceError
 from .sparse_branch import solve_equilibrium_sparse, sparse_branch_analysis
 from .stability import DEFAULT_NEGATIVE_TOL, branch_analysis
@@ -97,6 +97,10 @@ class CriticalPoint:
 # scaled units and change sign from step to step: with self-contact an eigenvalue counts as
 # negative, and enters the branch tangent, only beyond this.
 CONTACT_NEGATIVE_TOL = 1e-6
+# Damped-Newton iterations a continuation corrector may take between two neighbourhood pauses.
+# From the tangent predictor a step converges in 2-15; one still crawling after 60 is not near
+# its branch (seen: 500 iterations, 9 s, on a trefoil past its fold) and the step is refused.
+CORRECTOR_MAX_STEPS = 60
 # The corrector's gradient tolerance with contact: the residual along the sliding modes relaxes
 # only as fast as their ~1e-8 stiffness allows, and barely couples to the crossing eigenvalue.
 # 1e-7 (forces in units of B/l^2) is ~1e-7 of the twist moments in a twisted knot.
@@ -170,7 +174,11 @@ def critical_twist(
     tracked eigenvalue, extrapolated with its derivative, is about to cross (never lengthens it:
     a mode from higher up is still caught by the count). tol: requested accuracy in phi.
     negative_tol: an eigenvalue counts as negative below -negative_tol (default 1e-10, or
-    CONTACT_NEGATIVE_TOL = 1e-6 for scenes with self-contact, whose sliding modes sit at ~1e-7).
+    CONTACT_NEGATIVE_TOL = 1e-6
+# Damped-Newton iterations a continuation corrector may take between two neighbourhood pauses.
+# From the tangent predictor a step converges in 2-15; one still crawling after 60 is not near
+# its branch (seen: 500 iterations, 9 s, on a trefoil past its fold) and the step is refused.
+CORRECTOR_MAX_STEPS = 60 for scenes with self-contact, whose sliding modes sit at ~1e-7).
     Scenes with contact get their candidate list rebuilt along the way. gtol: the equilibria's
     gradient tolerance (default 1e-9, or CONTACT_GTOL = 1e-7 with contact).
     progress: optional callable(str) for progress lines.
@@ -477,7 +485,7 @@ def follow_twist(
         x_pred = np.asarray(sc.positions(jnp.asarray(q_pred)))
         try:
             e = relax(sc, phi, q_pred, gtol=gtol, previous=prev, with_stability=False, nbr=prev.neighbourhood,
-                      guide=(x_pred, jump_tol))
+                      guide=(x_pred, jump_tol), max_steps=CORRECTOR_MAX_STEPS)
             sc2 = sc
         except LeftBranchError as exc:
             return False, _Refusal(StepFailure.JUMP, str(exc)), sc, None, None
@@ -547,18 +555,19 @@ def follow_twist(
         lost_phi, lost_why, lost_eq = phi_next, why, e
         say(f"[{name}] lost at phi = {phi_next / math.pi:+.5f} pi ({why}); locating the end")
         lost_from = prev.phi
-        failures, probe_held = 0, False
+        failures, successes, probe_held = 0, 0, False
         while abs(lost_phi - prev.phi) > tol:
             trial, probe = _end_trial(older, prev, lost_phi, lost_eq, direction, tol, negative_tol,
-                                      failures, probe_held)
+                                      failures, probe_held, successes)
             ok, why, sc, e, dq_new = attempt(scene, prev, dq, trial)
             if ok:
                 older, (scene, prev, dq) = prev, (sc, e, dq_new)
                 emit(name, scene, e, dq)
-                failures, probe_held = 0, probe
+                failures, successes, probe_held = 0, successes + 1, probe
             else:
+                say(f"[{name}] phi = {trial / math.pi:+.5f} pi refused ({why})")
                 lost_phi, lost_why, lost_eq, lost_from = trial, why, e, prev.phi
-                failures, probe_held = failures + 1, False
+                failures, successes, probe_held = failures + 1, 0, False
         if abs(lost_phi - lost_from) > tol:
             # The nearest failure was met from a state further back: confirm it from the last
             # stable state, so that a predictor too far off is not taken for the branch's end.
@@ -567,7 +576,9 @@ def follow_twist(
                 say(f"[{name}] phi = {lost_phi / math.pi:+.5f} pi reached from closer by: going on")
                 older, (scene, prev, dq) = prev, (sc, e, dq_new)
                 emit(name, scene, e, dq)
-                h = 2.0 * tol
+                # The step that failed was too long for the predictor, not past the end: go on
+                # with half of it (not from 2 tol, which needs ~10 doublings back to ``step``).
+                h = max(2.0 * tol, 0.5 * abs(lost_phi - lost_from))
                 continue
             lost_why, lost_eq = why, e
         kind = BranchEnd.UNSTABLE if lost_why.failure is StepFailure.UNSTABLE else BranchEnd.JUMP
@@ -617,7 +628,7 @@ def _critical_candidates(older, prev, negative_tol, candidates=5):
     return out
 
 
-def _end_trial(older, prev, phi_lost, lost_eq, direction, tol, negative_tol, failures, probe_held):
+def _end_trial(older, prev, phi_lost, lost_eq, direction, tol, negative_tol, failures, probe_held, successes=0):
     """The next twist to try when locating where a branch ends, between the last stable state
     ``prev`` and the nearest twist ``phi_lost`` where the branch was lost. Returns (phi, probe).
 
@@ -628,11 +639,12 @@ def _end_trial(older, prev, phi_lost, lost_eq, direction, tol, negative_tol, fai
     between the two ends instead. The trial aims 0.3 tol short of phi*, or, when the stable end
     is already there, probes 0.9 tol beyond it (probe = True), so that a good model closes the
     bracket to tol in two solves. Safeguards: bisection when there is no model, after two
-    failures in a row, after a probe that held (the model is lagging: no creeping by tol), or
+    failures or two successes in a row (a model that keeps landing short converges on a point
+    that is not the end: the stable end would creep towards it), after a probe that held, or
     when the model lands outside the inner 90% of the bracket."""
     width = direction * (phi_lost - prev.phi)
     mid = prev.phi + 0.5 * direction * width
-    if failures >= 2 or probe_held or older is None or older.phi == prev.phi:
+    if failures >= 2 or successes >= 2 or probe_held or older is None or older.phi == prev.phi:
         return mid, False
     estimates = []
     for lam, lam_old, v in _critical_candidates(older, prev, negative_tol):
@@ -642,7 +654,10 @@ def _end_trial(older, prev, phi_lost, lost_eq, direction, tol, negative_tol, fai
             ov = np.abs(np.asarray(lost_eq.stability.eigenvectors).T @ v)
             lam_lost = float(lost_eq.stability.eigenvalues[int(np.argmax(ov))])
             if lam_lost < -negative_tol and ov.max() > 0.5:
-                estimates.append(prev.phi + (phi_lost - prev.phi) * lam / (lam - lam_lost))
+                # The branch is lost where lambda passes -negative_tol (the stability test's
+                # threshold), not where it passes zero: aim there, or the lost end creeps
+                # towards a lambda of -negative_tol and the bracket barely shrinks.
+                estimates.append(prev.phi + (phi_lost - prev.phi) * (lam + negative_tol) / (lam - lam_lost))
                 continue
         slope = (lam**2 - lam_old**2) / (prev.phi - older.phi)  # d(lambda^2)/dphi
         if direction * slope < 0.0 and lam < lam_old:
@@ -689,8 +704,10 @@ def _escape_soft_saddle(scene, e, prev, x_pred, jump_tol, gtol, closed, analyse)
     amp = 0.25 * jump_tol / max(float(np.max(np.linalg.norm(x_mode, axis=1))), 1e-300)
     for sgn in (1.0, -1.0):
         try:
+            # Guided: a push along a real buckling mode runs off the predicted shape and is
+            # stopped at its first pause instead of being relaxed to the end.
             e2 = relax(scene, e.phi, e.q + sgn * amp * mode_q, gtol=gtol, previous=prev, with_stability=False,
-                       nbr=e.neighbourhood)
+                       nbr=e.neighbourhood, guide=(x_pred, jump_tol), max_steps=CORRECTOR_MAX_STEPS)
             sc2 = scene
         except (ConvergenceError, TopologyChangeError):
             continue

@@ -10,7 +10,7 @@ import numpy as np
 
 from .geometry import polyline_distance
 from .hessian import scaled_hessian
-from .material import check_finite
+from .validation import check_finite
 from .neighbourhood import WRITHE_DRIFT_LIMIT, Neighbourhood
 from .solvers import LBFGS, ConvergenceError, DampedNewton, Newton, Solution, StopReason, minimise
 from .stability import DEFAULT_NEGATIVE_TOL, Stability, stability
@@ -58,7 +58,7 @@ class LeftBranchError(ConvergenceError):
 
 def relax(scene, phi=0.0, q0=None, gtol=1e-9, max_rounds=200, max_displacement=None, k=8,
           negative_tol=DEFAULT_NEGATIVE_TOL, previous=None, progress=None, with_stability=True, nbr=None,
-          guide=None):
+          guide=None, max_steps=None):
     """Minimise the energy of a scene (with or without self-contact) from q0 (default
     scene.q_init) without letting the rod pass through itself.
 
@@ -74,6 +74,8 @@ def relax(scene, phi=0.0, q0=None, gtol=1e-9, max_rounds=200, max_displacement=N
     ``guide``: (x_guide (N,3), distance): raise ``LeftBranchError`` as soon as, at a pause, the
     shape is further than ``distance`` from x_guide (``polyline_distance``, blind to sliding):
     a continuation step that is jumping off its branch is stopped early, not relaxed to the end.
+    ``max_steps``: damped-Newton iterations allowed between two pauses (default 500); a corrector
+    starting near its branch needs a few, so a small budget stops one that crawls.
 
     Returns the ``Equilibrium``; its ``neighbourhood`` is valid at the equilibrium.
     """
@@ -102,7 +104,7 @@ def relax(scene, phi=0.0, q0=None, gtol=1e-9, max_rounds=200, max_displacement=N
     total = 0
     for round_ in range(max_rounds):
         u0 = scene.to_scaled(jnp.asarray(q))
-        sol = minimise(scaled_energy, u0, (scene, jnp.asarray(phi), nbr), solver, gtol, None, throw=False)
+        sol = minimise(scaled_energy, u0, (scene, jnp.asarray(phi), nbr), solver, gtol, max_steps, throw=False)
         total += sol.iterations
         q = np.asarray(scene.from_scaled(jnp.asarray(sol.y)))
         nbr_new = _grown(scene, q, phi, nbr)

@@ -139,7 +139,7 @@ def orthonormal_columns(z, rtol=1e-10):
     return u * keep[None, :]
 
 
-@partial(jax.jit, static_argnames=("fun", "memory", "max_ls", "max_steps"))
+@partial(jax.jit, static_argnames=("fun", "memory", "max_ls"))
 def _lbfgs_loop(fun, y0, args, gtol, memory, max_ls, max_steps):
     f = lambda y: fun(y, args)
     opt = optax.lbfgs(
@@ -184,7 +184,7 @@ def _hessian_of(f, hessian, args):
     return lambda y: hessian(y, args)
 
 
-@partial(jax.jit, static_argnames=("fun", "zero_modes", "max_steps", "max_backtracks", "near_null", "hessian",
+@partial(jax.jit, static_argnames=("fun", "zero_modes", "max_backtracks", "near_null", "hessian",
                                    "direction"))
 def _newton_loop(fun, zero_modes, y0, args, gtol, max_steps, max_backtracks, near_null=False, near_null_tol=0.0,
                  hessian=None, direction=None):
@@ -252,13 +252,13 @@ def _newton_loop(fun, zero_modes, y0, args, gtol, max_steps, max_backtracks, nea
     return y, value, gnorm, it, code
 
 
-@partial(jax.jit, static_argnames=("fun", "zero_modes", "leave", "max_steps", "max_backtracks", "hessian"))
+@partial(jax.jit, static_argnames=("fun", "zero_modes", "leave", "max_backtracks", "hessian"))
 def _damped_newton_loop(fun, zero_modes, leave, y0, args, gtol, max_step, max_steps, max_backtracks, hessian=None):
     f = lambda y: fun(y, args)  # noqa: E731
     grad = jax.grad(f)
     hess = _hessian_of(f, hessian, args)
 
-    def direction(y):
+    def direction(y, soft):
         g = grad(y)
         h = hess(y)
         h = 0.5 * (h + h.T)
@@ -272,24 +272,28 @@ def _damped_newton_loop(fun, zero_modes, leave, y0, args, gtol, max_step, max_st
         # equilibrium), then 1e-6 (soft modes slightly below zero: strands sliding in a loose knot
         # sit at ~ -1e-7); only if both fail, the lowest eigenvalue by eigvalsh (~15x a Cholesky),
         # since a shift much larger than needed would shorten the steps and slow the descent.
+        # ``soft``: the last iteration needed mu1 already; then the mu0 attempt (a sure failure
+        # next to a slightly negative sliding mode, one wasted factorisation per iteration) is
+        # skipped.
         mu0, mu1 = 1e-10 * scale, 1e-6 + 1e-10 * scale
-        chol0 = jnp.linalg.cholesky(h + mu0 * eye)
-        chol = jax.lax.cond(
-            jnp.all(jnp.isfinite(chol0)), lambda: chol0, lambda: jnp.linalg.cholesky(h + mu1 * eye))
+        chol0 = jnp.linalg.cholesky(h + jnp.where(soft, mu1, mu0) * eye)
+        first_ok = jnp.all(jnp.isfinite(chol0))
+        chol = jax.lax.cond(first_ok, lambda: chol0, lambda: jnp.linalg.cholesky(h + mu1 * eye))
+        soft = soft | ~first_ok
         chol = jax.lax.cond(
             jnp.all(jnp.isfinite(chol)), lambda: chol,
             lambda: jnp.linalg.cholesky(h + (jnp.maximum(0.0, -1.1 * jnp.linalg.eigvalsh(h)[0]) + mu0) * eye))
         dy = -jax.scipy.linalg.cho_solve((chol, True), g)
         big = jnp.max(jnp.abs(dy))
-        return jnp.where(big > max_step, dy * (max_step / big), dy), g
+        return jnp.where(big > max_step, dy * (max_step / big), dy), g, soft
 
     def cond(carry):
-        y, it, gnorm, code, _ = carry
+        y, it, gnorm, code, _, _ = carry
         return (it < max_steps) & (gnorm > gtol) & (code == 0)
 
     def body(carry):
-        y, it, _, _, fy = carry
-        dy, g = direction(y)
+        y, it, _, _, fy, soft = carry
+        dy, g, soft = direction(y, soft)
         slope = jnp.dot(g, dy)
 
         def ls_cond(c):
@@ -310,12 +314,12 @@ def _damped_newton_loop(fun, zero_modes, leave, y0, args, gtol, max_step, max_st
         gnorm = jnp.max(jnp.abs(grad(y_new)))
         left = leave(y_new, args) if leave is not None else False
         code = jnp.where(accepted, jnp.where(left & (gnorm > gtol), 4, 0), 3)
-        return y_new, it + 1, gnorm, code, f_y
+        return y_new, it + 1, gnorm, code, f_y, soft
 
     f0 = f(y0)
     gnorm0 = jnp.max(jnp.abs(grad(y0)))
     code0 = jnp.where(jnp.isfinite(gnorm0) & jnp.isfinite(f0), 0, 2)
-    y, it, gnorm, code, value = jax.lax.while_loop(cond, body, (y0, 0, gnorm0, code0, f0))
+    y, it, gnorm, code, value, _ = jax.lax.while_loop(cond, body, (y0, 0, gnorm0, code0, f0, jnp.asarray(False)))
     code = jnp.where(
         ~(jnp.isfinite(value) & jnp.isfinite(gnorm)), 2,
         jnp.where(gnorm <= gtol, 0, jnp.where(code == 0, 1, code)),

@@ -195,8 +195,13 @@ def test_inertia_matches_dense_negative_count(states):
             fast = int(ss.inertia_at_equilibrium(st.scene, st.u, st.phi, st.nbr, DEFAULT_NEGATIVE_TOL))
             assert fast == st.dense.n_negative, (kind, nu, st.phi / pc, fast, st.dense.n_negative,
                                                  st.dense.eigenvalues[:4])
-            bordered = int(ss.projected_count_below(st.scene, st.u, st.phi, st.nbr, -DEFAULT_NEGATIVE_TOL))
-            assert bordered == fast, (kind, nu, st.phi / pc, bordered, fast)
+            # The bordered count factors T - s I with s = -1e-10: its pivots along T's exact null
+            # vectors are ~|s| with round-off ~1e-16 ||M|| (see its docstring), so it is only
+            # compared where no eigenvalue lies within 1e-9 of the threshold (at the critical
+            # twist itself the lowest pair is +8e-12 and the bordered count is round-off).
+            if np.min(np.abs(np.asarray(st.dense.eigenvalues) + DEFAULT_NEGATIVE_TOL)) > 1e-9:
+                bordered = int(ss.projected_count_below(st.scene, st.u, st.phi, st.nbr, -DEFAULT_NEGATIVE_TOL))
+                assert bordered == fast, (kind, nu, st.phi / pc, bordered, fast)
             compared += 1
             seen.add(fast)
         near = [st.dense.n_negative for st in sts[-len(NEAR):]]
