@@ -109,13 +109,11 @@ def _michell(args):
     matplotlib.use("Agg")  # files only, no display needed
     from . import plotting
     from .continuation import critical_twist
-    from .material import check_finite, check_int_at_least, check_positive
+    from .validation import check_int_at_least, check_poisson_ratio, check_positive
     from .scenes import michell_critical_twist, michell_ring
 
     check_int_at_least("N", args.N, 4)
-    nu = check_finite("nu", args.nu)
-    if not (-1.0 < nu <= 0.5):
-        raise ValueError(f"nu must lie in (-1, 0.5], got {args.nu!r}")
+    nu = check_poisson_ratio("nu", args.nu)
     check_positive("slenderness", args.slenderness)
     say = (lambda s: None) if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
     t0 = time.perf_counter()
@@ -242,7 +240,7 @@ def _trefoil(args):
     import matplotlib
 
     matplotlib.use("Agg")
-    from .material import check_int_at_least
+    from .validation import check_int_at_least
     from .scenes import DEFAULT_CONTACT_STIFFNESS, trefoil
     from .study import figures, study_summary, twist_study
 

@@ -1,4 +1,4 @@
-"""Material of a circular, isotropic, naturally straight elastic rod, and input validation."""
+"""Material of a circular, isotropic, naturally straight elastic rod."""
 from __future__ import annotations
 
 import math
@@ -6,35 +6,10 @@ import math
 import jax
 from dataclasses import dataclass
 
-__all__ = ["Material", "check_finite", "check_positive", "check_int_at_least"]
+# The checks live in ``jaxrod.validation``; imported here too, where they used to be defined.
+from .validation import check_finite, check_int_at_least, check_poisson_ratio, check_positive
 
-
-def check_finite(name, value):
-    """Raise ValueError naming ``name`` unless ``value`` is a finite real number."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a real number, got {value!r}") from None
-    if not math.isfinite(v):
-        raise ValueError(f"{name} must be finite, got {value!r}")
-    return v
-
-
-def check_positive(name, value):
-    """Raise ValueError naming ``name`` unless ``value`` is finite and > 0."""
-    v = check_finite(name, value)
-    if v <= 0.0:
-        raise ValueError(f"{name} must be positive, got {value!r}")
-    return v
-
-
-def check_int_at_least(name, value, minimum):
-    """Raise ValueError naming ``name`` unless ``value`` is an integer >= minimum."""
-    if isinstance(value, bool) or int(value) != value:
-        raise ValueError(f"{name} must be an integer, got {value!r}")
-    if int(value) < minimum:
-        raise ValueError(f"{name} must be at least {minimum}, got {value!r}")
-    return int(value)
+__all__ = ["Material"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -63,9 +38,7 @@ class Material:
         """From Young's modulus E, Poisson ratio nu in (-1, 0.5] and diameter D."""
         E = check_positive("E", E)
         D = check_positive("D", D)
-        nu = check_finite("nu", nu)
-        if not (-1.0 < nu <= 0.5):
-            raise ValueError(f"nu must lie in (-1, 0.5], got {nu!r}")
+        nu = check_poisson_ratio("nu", nu)
         B = E * math.pi * D**4 / 64.0
         return cls(B=B, C=B / (1.0 + nu), EA=E * math.pi * D**2 / 4.0, D=D)
 
@@ -74,9 +47,7 @@ class Material:
         """Bending stiffness B, Poisson ratio nu and diameter D (EA = 16 B / D^2, C = B/(1+nu))."""
         B = check_positive("B", B)
         D = check_positive("D", D)
-        nu = check_finite("nu", nu)
-        if not (-1.0 < nu <= 0.5):
-            raise ValueError(f"nu must lie in (-1, 0.5], got {nu!r}")
+        nu = check_poisson_ratio("nu", nu)
         return cls(B=B, C=B / (1.0 + nu), EA=16.0 * B / D**2, D=D)
 
     @property

@@ -39,7 +39,8 @@ from .geometry import (
     unit,
     voronoi_lengths,
 )
-from .material import Material, check_finite, check_int_at_least, check_positive
+from .material import Material
+from .validation import check_finite, check_int_at_least, check_positive
 from .contact import contact_energy
 from .neighbourhood import Neighbourhood, build_neighbourhood
 from .topology import writhe

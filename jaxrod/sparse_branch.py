@@ -22,7 +22,7 @@ import numpy as np
 
 from . import sparse_stability as ss
 from .equilibrium import _grown, equilibrium_from_solution, scaled_energy
-from .material import check_finite
+from .validation import check_finite
 from .neighbourhood import WRITHE_DRIFT_LIMIT
 from .solvers import ConvergenceError, Newton, minimise
 from .stability import DEFAULT_NEGATIVE_TOL, Stability

@@ -30,7 +30,7 @@ import numpy as np
 from .continuation import CONTACT_NEGATIVE_TOL, follow_twist
 from .stability import DEFAULT_NEGATIVE_TOL
 from .equilibrium import relax
-from .material import check_finite, check_positive
+from .validation import check_finite, check_positive
 from .records import ROW_KEYS, step_record
 
 __all__ = ["twist_study", "StudyResult", "read_table", "figures", "study_summary"]

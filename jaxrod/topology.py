@@ -31,6 +31,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .geometry import safe_norm
+
 __all__ = [
     "writhe",
     "linking_number",
@@ -54,18 +56,6 @@ _DUMMY = (
 )
 
 
-def _safe_norm(v):
-    """Euclidean norm over the last axis with a finite (zero) gradient at v == 0.
-
-    v: (..., 3) -> (...,)
-    """
-    sq = jnp.sum(v * v, axis=-1)
-    nonzero = sq > 0.0
-    # Feed sqrt a harmless 1 where sq == 0 so its derivative (1/(2 sqrt)) stays
-    # finite; the outer where then restores the true value 0.
-    return jnp.where(nonzero, jnp.sqrt(jnp.where(nonzero, sq, 1.0)), 0.0)
-
-
 def _angle_term(a, b):
     """``asin(a_hat . b_hat)`` for non-normalised vectors a, b: (..., 3) -> (...,).
 
@@ -79,7 +69,7 @@ def _angle_term(a, b):
         conditioned everywhere except at a == 0 or b == 0.
     """
     dot = jnp.sum(a * b, axis=-1)
-    crs = _safe_norm(jnp.cross(a, b))
+    crs = safe_norm(jnp.cross(a, b))
     # atan2(0, 0) has a NaN gradient; it only occurs for degenerate (collinear)
     # configurations, which we map to the value 0 with a zero gradient.
     degenerate = (dot == 0.0) & (crs == 0.0)
@@ -132,7 +122,7 @@ def _triangle_solid_angle(a, b, c):
     triangle does not contain the origin: the numerator carries the sign
     linearly, so coplanar configurations are not special.
     """
-    la, lb, lc = _safe_norm(a), _safe_norm(b), _safe_norm(c)
+    la, lb, lc = safe_norm(a), safe_norm(b), safe_norm(c)
     num = jnp.sum(a * jnp.cross(b, c), axis=-1)
     den = (
         la * lb * lc
@@ -310,7 +300,7 @@ def writhe_quadrature(x):
     diag = jnp.eye(n, dtype=bool)
     # i == j has rij == 0: replace the distance before dividing (double-where)
     # so both value and gradient stay finite, then drop the term.
-    dist = jnp.where(diag, 1.0, _safe_norm(jnp.where(diag[:, :, None], 1.0, rij)))
+    dist = jnp.where(diag, 1.0, safe_norm(jnp.where(diag[:, :, None], 1.0, rij)))
     return jnp.sum(jnp.where(diag, 0.0, num / dist**3)) / _FOUR_PI
 
 

@@ -2,14 +2,14 @@
 import numpy as np
 import jax.numpy as jnp
 
-from jaxrod import Material, closed_curve, clamped_rod, free_rod
+from jaxrod import Material, closed_curve, clamped_rod, free_rod, scenes
 
 MAT = Material(B=1.3, C=0.9, EA=40.0)
 
 
 def trefoil_points(n, scale=1.0):
-    t = 2 * np.pi * np.arange(n) / n
-    return scale * np.stack([np.sin(t) + 2 * np.sin(2 * t), np.cos(t) - 2 * np.cos(2 * t), -np.sin(3 * t)], axis=1)
+    """The left-handed trefoil (z = -sin 3t) of ``jaxrod.scenes.trefoil_points``, scaled."""
+    return scale * scenes.trefoil_points(n, chirality="left")
 
 
 def wobbly_loop(n, seed=0, amp=0.15):

@@ -1,0 +1,43 @@
+"""Input checks shared by the API and the CLI: each raises ``ValueError`` naming the parameter."""
+from __future__ import annotations
+
+import math
+
+__all__ = ["check_finite", "check_positive", "check_int_at_least", "check_poisson_ratio"]
+
+
+def check_finite(name, value):
+    """Raise ValueError naming ``name`` unless ``value`` is a finite real number."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a real number, got {value!r}") from None
+    if not math.isfinite(v):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return v
+
+
+def check_positive(name, value):
+    """Raise ValueError naming ``name`` unless ``value`` is finite and > 0."""
+    v = check_finite(name, value)
+    if v <= 0.0:
+        raise ValueError(f"{name} must be positive, got {value!r}")
+    return v
+
+
+def check_int_at_least(name, value, minimum):
+    """Raise ValueError naming ``name`` unless ``value`` is an integer >= minimum."""
+    if isinstance(value, bool) or int(value) != value:
+        raise ValueError(f"{name} must be an integer, got {value!r}")
+    if int(value) < minimum:
+        raise ValueError(f"{name} must be at least {minimum}, got {value!r}")
+    return int(value)
+
+
+def check_poisson_ratio(name, value):
+    """Raise ValueError naming ``name`` unless ``value`` lies in (-1, 0.5], the range of an
+    isotropic material's Poisson ratio (B/C = 1 + nu must stay positive)."""
+    nu = check_finite(name, value)
+    if not (-1.0 < nu <= 0.5):
+        raise ValueError(f"{name} must lie in (-1, 0.5], got {value!r}")
+    return nu
