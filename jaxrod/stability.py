@@ -130,11 +130,8 @@ def _lowest_spectrum(scene, u, phi, nbr, tol):
 
 @jax.jit
 def _spectrum(scene, u, phi, nbr):
-    h = structured_scaled_hessian(scene, u, phi, nbr)
-    z = orthonormal_columns(scene.scaled_zero_modes(u, phi))
-    # Zero modes projected out and lifted above the Gershgorin bound, so they sit at the top.
-    lam, vec = jnp.linalg.eigh(project_out(h, z))
-    n_zero = jnp.sum(jnp.any(z != 0.0, axis=0))
+    hp, _, n_zero = _projected_hessian(scene, u, phi, nbr)
+    lam, vec = jnp.linalg.eigh(hp)
     return lam, vec, n_zero
 
 
@@ -267,16 +264,6 @@ def _stability_from_lowest(lam, vec, n_zero, n_negative, k, tol):
     return Stability(
         eigenvalues=lam[:k], eigenvectors=vec[:, :k], n_negative=n_negative,
         n_zero_modes=n_zero, stable=n_negative == 0, tol=tol,
-    )
-
-
-def _stability_from_spectrum(lam, vec, n_zero, k, tol):
-    physical = lam[: lam.shape[0] - n_zero]
-    k = min(k, physical.shape[0])
-    n_neg = int(np.sum(physical < -tol))
-    return Stability(
-        eigenvalues=physical[:k], eigenvectors=vec[:, :k], n_negative=n_neg,
-        n_zero_modes=n_zero, stable=n_neg == 0, tol=tol,
     )
 
 
