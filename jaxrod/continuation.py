@@ -108,11 +108,12 @@ CONTACT_GTOL = 1e-7
 
 
 def _step(scene, phi, q_pred, index, k, negative_tol, fallback_q=None, ref=None, gtol=1e-9, nbr=None,
-          sparse=False):
+          sparse=False, guess=None):
     """Newton corrector from the predictor (the neighbourhood is rebuilt, and the solve
     repeated, if nodes moved out of it), then one spectrum. Returns (scene, equilibrium with its
     stability, tracked eigenvalue, its phi-derivative, its eigenvector, branch tangent dq/dphi).
-    sparse: the O(N) block-tridiagonal corrector and analysis (``jaxrod.sparse_branch``)."""
+    sparse: the O(N) block-tridiagonal corrector and analysis (``jaxrod.sparse_branch``); guess:
+    an estimate of the lowest eigenvalue there (sparse only: it picks the eigensolver's shift)."""
     contact = "contact" in scene.terms
     near_null = negative_tol if contact else 0.0
 
@@ -129,10 +130,12 @@ def _step(scene, phi, q_pred, index, k, negative_tol, fallback_q=None, ref=None,
             raise
         e = correct(fallback_q)
     pinv_tol = negative_tol if contact else 0.0
-    analysis = sparse_branch_analysis if sparse else branch_analysis
-    stab, lam, dlam, v, dq = analysis(
-        scene, e.q, phi, index, k=k, tol=negative_tol, ref=ref, pinv_tol=pinv_tol, nbr=e.neighbourhood
-    )
+    if sparse:
+        stab, lam, dlam, v, dq = sparse_branch_analysis(scene, e.q, phi, index, k=k, tol=negative_tol, ref=ref,
+                                                        nbr=e.neighbourhood, guess=guess)
+    else:
+        stab, lam, dlam, v, dq = branch_analysis(scene, e.q, phi, index, k=k, tol=negative_tol, ref=ref,
+                                                 pinv_tol=pinv_tol, nbr=e.neighbourhood)
     return scene, replace(e, stability=stab), lam, dlam, v, dq
 
 
@@ -174,11 +177,7 @@ def critical_twist(
     tracked eigenvalue, extrapolated with its derivative, is about to cross (never lengthens it:
     a mode from higher up is still caught by the count). tol: requested accuracy in phi.
     negative_tol: an eigenvalue counts as negative below -negative_tol (default 1e-10, or
-    CONTACT_NEGATIVE_TOL = 1e-6
-# Damped-Newton iterations a continuation corrector may take between two neighbourhood pauses.
-# From the tangent predictor a step converges in 2-15; one still crawling after 60 is not near
-# its branch (seen: 500 iterations, 9 s, on a trefoil past its fold) and the step is refused.
-CORRECTOR_MAX_STEPS = 60 for scenes with self-contact, whose sliding modes sit at ~1e-7).
+    CONTACT_NEGATIVE_TOL = 1e-6 for scenes with self-contact, whose sliding modes sit at ~1e-7).
     Scenes with contact get their candidate list rebuilt along the way. gtol: the equilibria's
     gradient tolerance (default 1e-9, or CONTACT_GTOL = 1e-7 with contact).
     progress: optional callable(str) for progress lines.
@@ -216,13 +215,15 @@ CORRECTOR_MAX_STEPS = 60 for scenes with self-contact, whose sliding modes sit a
     else:
         relaxed = solve_equilibrium(scene, phi_start, q0, method="auto", with_stability=False, gtol=gtol)
     pinv_tol = negative_tol if contact else 0.0
-    st0, _, _, _, dq = analysis(scene, relaxed.q, phi_start, 0, k=k, tol=negative_tol, pinv_tol=pinv_tol,
-                                       nbr=relaxed.neighbourhood)
+    # The sparse eigensolver takes an estimate of the lowest eigenvalue (it picks its shift).
+    hint = (lambda g: {"guess": g}) if sparse else (lambda g: {})  # noqa: E731
+    st0, lam_t, dlam_t, _, dq = analysis(scene, relaxed.q, phi_start, 0, k=k, tol=negative_tol,
+                                         pinv_tol=pinv_tol, nbr=relaxed.neighbourhood)
     count0 = int(st0.n_negative)
     # The eigenvalue that crosses next: the lowest one clearly above zero (near-zero modes skipped).
     index = int(np.sum(st0.eigenvalues < negative_tol)) if st0.eigenvalues.size else 0
     if index != 0:
-        st0, _, _, _, dq = analysis(
+        st0, lam_t, dlam_t, _, dq = analysis(
             scene, relaxed.q, phi_start, index, k=k, tol=negative_tol, pinv_tol=pinv_tol, nbr=relaxed.neighbourhood
         )
     prev = replace(relaxed, stability=st0)
@@ -242,6 +243,7 @@ CORRECTOR_MAX_STEPS = 60 for scenes with self-contact, whose sliding modes sit a
             scene, cur, lam_c, dlam_c, _, dq_c = _step(
                 scene, phi_next, prev.q + dq * (phi_next - prev.phi), index, k, negative_tol, prev.q, gtol=gtol,
                 nbr=prev.neighbourhood, sparse=sparse,
+                guess=min(prev.stability.eigenvalues[0], lam_t + dlam_t * (phi_next - prev.phi)),
             )
         except ConvergenceError:
             # Step-size control: no equilibrium found near the predictor; halve the step. If even
@@ -267,7 +269,7 @@ CORRECTOR_MAX_STEPS = 60 for scenes with self-contact, whose sliding modes sit a
             ahead = -lam_c / dlam_c * direction
             if ahead > 0.0:
                 h = min(max_step, max(min_step, 1.1 * ahead))
-        before, prev, dq = prev, cur, dq_c
+        before, prev, dq, lam_t, dlam_t = prev, cur, dq_c, lam_c, dlam_c
 
     # Refine. The crossing mode: at the far end, the negative eigenvalue nearest zero; followed
     # by eigenvector overlap from there on (robust to reordering and to near-zero modes).
@@ -281,10 +283,10 @@ CORRECTOR_MAX_STEPS = 60 for scenes with self-contact, whose sliding modes sit a
         idx_hi = int(np.sum(ev_hi < negative_tol))
     ref = cur.stability.eigenvectors[:, idx_hi]
     evals = 2
-    _, f_hi, _, v_hi, _ = analysis(scene, hi.q, hi.phi, idx_hi, k=k, tol=negative_tol, ref=ref,
-                                          pinv_tol=negative_tol if contact else 0.0, nbr=hi.neighbourhood)
-    _, f_lo, d_lo, v_lo, dq_lo = analysis(scene, lo.q, lo.phi, 0, k=k, tol=negative_tol, ref=v_hi,
-                                                 pinv_tol=negative_tol if contact else 0.0, nbr=lo.neighbourhood)
+    _, f_hi, _, v_hi, _ = analysis(scene, hi.q, hi.phi, idx_hi, k=k, tol=negative_tol, ref=ref, pinv_tol=pinv_tol,
+                                   nbr=hi.neighbourhood, **hint(hi.stability.eigenvalues[0]))
+    _, f_lo, d_lo, v_lo, dq_lo = analysis(scene, lo.q, lo.phi, 0, k=k, tol=negative_tol, ref=v_hi, pinv_tol=pinv_tol,
+                                          nbr=lo.neighbourhood, **hint(lo.stability.eigenvalues[0]))
     if np.sign(f_lo) == np.sign(f_hi) and before is not None:
         # The crossing eigenvalue already changed sign at lo but stayed inside the near-zero band
         # (|lambda| < negative_tol, e.g. a soft ring of N ~ 1000, lambda ~ 1e-9): the count missed
@@ -292,7 +294,8 @@ CORRECTOR_MAX_STEPS = 60 for scenes with self-contact, whose sliding modes sit a
         # change (the sign tests below rely on it).
         lo, evals = before, 3
         _, f_lo, d_lo, v_lo, dq_lo = analysis(scene, lo.q, lo.phi, 0, k=k, tol=negative_tol, ref=v_hi,
-                                              pinv_tol=negative_tol if contact else 0.0, nbr=lo.neighbourhood)
+                                              pinv_tol=pinv_tol, nbr=lo.neighbourhood,
+                                              **hint(lo.stability.eigenvalues[0]))
     evals = max(evals, 2)
     bracket = (lo.phi, hi.phi)
     # First guess: Newton from the stable end if it stays inside the bracket, else secant.
@@ -300,12 +303,13 @@ CORRECTOR_MAX_STEPS = 60 for scenes with self-contact, whose sliding modes sit a
     phi_c = lo.phi - f_lo / d_lo if d_lo != 0.0 else math.nan
     if not (math.isfinite(phi_c) and a < phi_c < b):
         phi_c = lo.phi - f_lo * (hi.phi - lo.phi) / (f_hi - f_lo)
-    base, base_dq, v_ref = lo, dq_lo, v_lo
+    base, base_dq, v_ref, f_base, d_base = lo, dq_lo, v_lo, f_lo, d_lo
     phi_error = abs(hi.phi - lo.phi)
     for _ in range(max_refine):
         scene, e, f_c, d_c, v_c, dq_c = _step(
             scene, phi_c, base.q + base_dq * (phi_c - base.phi), 0, k, negative_tol, base.q, ref=v_ref, gtol=gtol,
             nbr=base.neighbourhood, sparse=sparse,
+            guess=min(base.stability.eigenvalues[0], f_base + d_base * (phi_c - base.phi)),
         )
         evals += 1
         if np.sign(f_c) == np.sign(f_lo):
@@ -319,7 +323,7 @@ CORRECTOR_MAX_STEPS = 60 for scenes with self-contact, whose sliding modes sit a
             if not (a < newton < b):
                 newton = 0.5 * (a + b)
         phi_error = abs(newton - phi_c)
-        base, base_dq, v_ref = e, dq_c, v_c
+        base, base_dq, v_ref, f_base, d_base = e, dq_c, v_c, f_c, d_c
         say(f"refine: phi = {phi_c / math.pi:.12f} pi, eigenvalue {f_c:+.3e}, next step {phi_error:.2e}")
         if phi_error < tol or f_c == 0.0:
             break

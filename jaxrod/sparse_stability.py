@@ -56,6 +56,7 @@ DOFs sees the full kappa.
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -537,7 +538,22 @@ def _auto_sigma(diag, off, cyclic, U, c, Zr, bound):
     return 2.0 * s_lo - s_hi
 
 
-def lowest_eigenpairs_projected(scene, u, phi, nbr, k, sigma=None, iterations=200, tol=1e-12, block=None):
+def _sigma_below(diag, off, cyclic, U, c, Zr, bound, guess):
+    """A shift below lambda_1 near an estimate ``guess`` of it (e.g. the previous continuation
+    step's): s = guess - max(|guess| / 2, delta) (delta = 1e-12 ||M||, |s| >= delta), accepted
+    if one Sylvester count shows no projected eigenvalue below s; otherwise ``_auto_sigma`` (9
+    counts). One factorisation instead of nine along a smooth branch."""
+    delta = 1e-12 * bound
+    s = guess - jnp.maximum(0.5 * jnp.abs(guess), delta)
+    s = jnp.where(jnp.abs(s) < delta, -delta, s)
+    ok = jnp.isfinite(s) & (_projected_count(diag, off, cyclic, U, c, Zr, s) == 0)
+    if bool(ok):
+        return s
+    return _auto_sigma(diag, off, cyclic, U, c, Zr, bound)
+
+
+def lowest_eigenpairs_projected(scene, u, phi, nbr, k, sigma=None, iterations=200, tol=1e-12, block=None,
+                                guess=None):
     """The k lowest eigenpairs of the projected Hessian (the first k of the dense
     ``jaxrod.stability.spectrum``, whose lifted zero modes sit at the top), in O(N) per step.
 
@@ -548,7 +564,8 @@ def lowest_eigenpairs_projected(scene, u, phi, nbr, k, sigma=None, iterations=20
 
     sigma: the shift (below the wanted eigenvalues); None chooses it automatically just below the
     lowest eigenvalue from 9 Sylvester counts of the projected matrix (see ``_auto_sigma``; 9
-    extra block factorisations). Convergence of pair i goes as |lambda_i - sigma| /
+    extra block factorisations), or, given ``guess`` (an estimate of the lowest eigenvalue, e.g.
+    the previous continuation step's), from one count below the guess (``_sigma_below``). Convergence of pair i goes as |lambda_i - sigma| /
     |lambda_{block+1} - sigma| per step: with the automatic shift, slow only when the wanted
     eigenvalues are far apart compared with the gap above them (e.g. one strongly negative
     eigenvalue and a dense cluster near zero); check ``residuals``.
@@ -563,7 +580,9 @@ def lowest_eigenpairs_projected(scene, u, phi, nbr, k, sigma=None, iterations=20
     diag, off, a, w = block_hessian(scene, u, phi, nbr)
     Q, _, _ = _gauge(scene, u, phi)
     diag, U, c, Zr, Z, bound = _eig_setup(lay, diag, off, a, w, Q)
-    if sigma is None:
+    if sigma is None and guess is not None and math.isfinite(float(guess)):
+        sigma = _sigma_below(diag, off, lay.cyclic, U, c, Zr, bound, jnp.asarray(float(guess), diag.dtype))
+    elif sigma is None:
         sigma = _auto_sigma(diag, off, lay.cyclic, U, c, Zr, bound)
     sigma = jnp.asarray(sigma, diag.dtype)
     lam, X, res = banded.lowest_eigenpairs(diag, off, lay.cyclic, U, c, Z, k, sigma, iterations=iterations,

@@ -131,6 +131,23 @@ def test_writhe_matches_literal_kl_formula():
     np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
 
 
+@pytest.mark.parametrize("closed", [True, False])
+def test_writhe_equals_sum_over_all_ordered_pairs(closed):
+    # ``writhe`` evaluates each unordered pair once, by cyclic offset; it must equal the
+    # literal sum of Omega over every ordered non-adjacent pair (odd and even N, open and
+    # closed, including the open rod's end pair (0, n-1) that no offset below n/2 holds).
+    rng = np.random.default_rng(11)
+    for N in (4, 7, 70, 133):
+        x = rng.normal(size=(N, 3))
+        a0, a1 = (x, np.roll(x, -1, axis=0)) if closed else (x[:-1], x[1:])
+        n = a0.shape[0]
+        i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+        gap = np.abs(i - j) if not closed else np.minimum((i - j) % n, (j - i) % n)
+        i, j = i[gap >= 2], j[gap >= 2]
+        literal = float(np.sum(np.asarray(topology._solid_angle_kl(a0[i], a1[i], a0[j], a1[j]))))
+        assert abs(float(writhe(jnp.asarray(x), closed=closed)) - literal / (4 * np.pi)) < 1e-11, N
+
+
 def test_small_and_degenerate_polygons():
     # Closed triangle: every pair of edges is adjacent -> 0; open 3-point
     # polyline likewise.  Must be finite, not NaN.
