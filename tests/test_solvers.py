@@ -5,7 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxrod import LBFGS, ConvergenceError, Material, Newton, clamped_critical_twist, clamped_rod
+from jaxrod import LBFGS, ConvergenceError, DampedNewton, Material, Newton, clamped_critical_twist, clamped_rod
 from jaxrod import critical_twist, minimise, solve_equilibrium, closed_curve
 from helpers import wobbly_loop
 
@@ -22,6 +22,23 @@ def test_minimise_converges_and_reports(solver, start):
     assert sol.grad_norm <= 1e-10
     assert sol.iterations > 0
     np.testing.assert_allclose(sol.y, np.ones(6), atol=1e-8)
+
+
+def double_wells(y, c):
+    return jnp.sum(c * (y**2 - 1.0) ** 2)
+
+
+def test_damped_newton_leaves_a_saddle_with_curvatures_over_six_decades():
+    # At y ~ 0 the Hessian is diag(-4 c): negative curvatures from -4e-3 to -4e3, so the shift
+    # that makes H + mu I definite must be found by growing attempts, and brought down again
+    # as each coordinate reaches its well (quadratic convergence at the end needs mu -> 0).
+    c = jnp.asarray(np.logspace(-3, 3, 7))
+    y0 = jnp.asarray(np.linspace(-0.02, 0.03, 7))
+    sol = minimise(double_wells, y0, c, DampedNewton(), gtol=1e-12)
+    assert sol.converged and sol.grad_norm <= 1e-12
+    np.testing.assert_allclose(np.abs(sol.y), 1.0, atol=1e-12)
+    np.testing.assert_array_equal(np.sign(sol.y), np.sign(np.asarray(y0)))
+    assert sol.iterations < 60, sol
 
 
 def test_unconverged_result_is_never_returned_as_an_answer():
