@@ -78,6 +78,8 @@ def _build_parser():
     t.add_argument("--tol", type=_angle, default=2e-4 * math.pi, help="accuracy of the critical twists (default 2e-4pi)")
     t.add_argument("--out", default="results/trefoil", help="output folder (default results/trefoil)")
     t.add_argument("--fresh", action="store_true", help="start over even if --out holds an interrupted run")
+    t.add_argument("--serial", action="store_true",
+                   help="follow the two directions one after the other (default: both at once, two threads)")
     t.add_argument("--no-figures", action="store_true", help="data only")
     t.add_argument("--json", action="store_true", help="print one JSON summary object")
     t.add_argument("--quiet", action="store_true", help="no progress on stderr")
@@ -252,7 +254,7 @@ def _trefoil(args):
     say(f"{scene.name}: D = {args.D}, L = {args.L}, N = {args.N}, nu = {args.nu}, kappa_c = {stiffness}; "
         f"phi from {args.phi_min / math.pi:+.3f} pi to {args.phi_max / math.pi:+.3f} pi; writing {args.out}/")
     result = twist_study(scene, args.phi_min, args.phi_max, step=args.step, out=args.out, tol=args.tol,
-                         progress=say, resume=not args.fresh)
+                         progress=say, resume=not args.fresh, parallel=not args.serial)
     summary = study_summary(result)
     summary.update({"D": args.D, "L": args.L, "N": args.N, "nu": args.nu, "chirality": args.chirality,
                     "contact_stiffness": stiffness, "out": args.out})

@@ -703,7 +703,7 @@ def _escape_soft_saddle(scene, e, prev, x_pred, jump_tol, gtol, closed, analyse)
     (scene, equilibrium, tangent) of a stable state within jump_tol of the predicted shape x_pred,
     or None."""
     v = np.asarray(e.stability.eigenvectors[:, 0])
-    mode_q = np.asarray(scene.from_scaled(jnp.asarray(v)))
+    mode_q = scene.from_scaled(np.asarray(v))
     x_mode = np.asarray(scene.unpack(jnp.asarray(mode_q), 0.0)[0])
     amp = 0.25 * jump_tol / max(float(np.max(np.linalg.norm(x_mode, axis=1))), 1e-300)
     for sgn in (1.0, -1.0):
@@ -767,7 +767,7 @@ def _switch_branch(scene, prev, dq, phi, mode, lost_eq, perturbation, jump_tol, 
     with the right Lk; return the lowest in energy as (scene, equilibrium, tangent) or None."""
     q_pred = prev.q + dq * (phi - prev.phi)
     x_pred = np.asarray(scene.unpack(jnp.asarray(q_pred), phi)[0])
-    mode_q = np.asarray(scene.from_scaled(jnp.asarray(mode)))
+    mode_q = scene.from_scaled(np.asarray(mode))
     x_mode = np.asarray(scene.unpack(jnp.asarray(mode_q), 0.0)[0])
     biggest = float(np.max(np.linalg.norm(x_mode, axis=1)))
     amp = (jump_tol if perturbation is None else float(perturbation)) / max(biggest, 1e-300)

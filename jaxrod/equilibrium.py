@@ -103,10 +103,10 @@ def relax(scene, phi=0.0, q0=None, gtol=1e-9, max_rounds=200, max_displacement=N
         )
     total = 0
     for round_ in range(max_rounds):
-        u0 = scene.to_scaled(jnp.asarray(q))
+        u0 = scene.to_scaled(np.asarray(q, dtype=float))
         sol = minimise(scaled_energy, u0, (scene, jnp.asarray(phi), nbr), solver, gtol, max_steps, throw=False)
         total += sol.iterations
-        q = np.asarray(scene.from_scaled(jnp.asarray(sol.y)))
+        q = scene.from_scaled(np.asarray(sol.y))
         nbr_new = _grown(scene, q, phi, nbr)
         wr = float(nbr_new.wr_ref)
         say(f"relax round {round_}: {sol.reason}, {sol.iterations} steps, |g| = {sol.grad_norm:.2e}, Wr = {wr:.4f}")
@@ -208,7 +208,7 @@ def solve_equilibrium(
     q = q0
     nbr = _grown(scene, q, phi, nbr)
     for _ in range(20):
-        u0 = scene.to_scaled(jnp.asarray(q))
+        u0 = scene.to_scaled(np.asarray(q, dtype=float))
         args = (scene, jnp.asarray(phi), nbr)
         if method == "newton":
             sol = minimise(scaled_energy, u0, args, newton, gtol, max_steps, throw=False)
@@ -225,7 +225,7 @@ def solve_equilibrium(
             )
         if not np.all(np.isfinite(sol.y)):
             break
-        q_new = np.asarray(scene.from_scaled(jnp.asarray(sol.y)))
+        q_new = scene.from_scaled(np.asarray(sol.y))
         nbr_new = _grown(scene, q_new, phi, nbr)
         moved_out = bool(nbr.stale(scene.positions(jnp.asarray(q_new)))) or \
             abs(float(nbr_new.wr_ref) - float(nbr.wr_ref)) > WRITHE_DRIFT_LIMIT

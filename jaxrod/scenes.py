@@ -186,7 +186,7 @@ class Scene:
         """The ``Neighbourhood`` of state q (physical DOFs): contact candidate pairs (if the scene
         has contact) and the exact writhe, built outside jit. ``capacity``: pad the pair list to
         at least this many rows (reuse compiled code across rebuilds)."""
-        x = np.asarray(self.positions(jnp.asarray(q)))
+        x = np.asarray(self.positions(np.asarray(q)))
         wr = float(self.exact_writhe(jnp.asarray(x)))
         D = None if self.material.D is None else float(self.material.D)
         return build_neighbourhood(x, wr, self.closed, float(np.mean(np.asarray(self.rest_lengths))), D,
@@ -250,10 +250,29 @@ class Scene:
         """
         return self.energy(u * self.dof_scale, phi, nbr) / self.energy_scale
 
+    def _host_dof_scale(self):
+        """``dof_scale`` as a numpy array, or None inside a trace (the scene's arrays abstract)."""
+        try:
+            h = float(np.mean(np.asarray(self.rest_lengths)))
+        except jax.errors.TracerArrayConversionError:
+            return None
+        n_x = 3 * self.n_free_nodes
+        return np.concatenate([np.full(n_x, h), np.ones(self.n_dof - n_x)])
+
     def to_scaled(self, q):
+        """Scaled DOFs u = q / dof_scale (numpy in, numpy out: no device dispatch per call)."""
+        if isinstance(q, np.ndarray):
+            scale = self._host_dof_scale()
+            if scale is not None:
+                return q / scale
         return q / self.dof_scale
 
     def from_scaled(self, u):
+        """Physical DOFs q = u * dof_scale (numpy in, numpy out)."""
+        if isinstance(u, np.ndarray):
+            scale = self._host_dof_scale()
+            if scale is not None:
+                return u * scale
         return u * self.dof_scale
 
     # ------------------------------------------------------------------ frames, topology

@@ -377,9 +377,9 @@ def minimise(fun, y0, args=None, solver=LBFGS(), gtol=1e-9, max_steps=None, thro
     gtol bounds max |grad f| at the returned point. Returns a ``Solution``; raises
     ``ConvergenceError`` if it did not converge and ``throw`` is True.
     """
-    y0 = jnp.asarray(y0, dtype=jnp.float64)
-    if not bool(jnp.all(jnp.isfinite(y0))):
+    if not np.all(np.isfinite(np.asarray(y0, dtype=float))):
         raise ValueError("y0 must be finite")
+    y0 = jnp.asarray(y0, dtype=jnp.float64)
     if isinstance(solver, LBFGS):
         steps = 20000 if max_steps is None else int(max_steps)
         y, value, gnorm, it, code = _lbfgs_loop(

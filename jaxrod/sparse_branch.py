@@ -67,10 +67,10 @@ def solve_equilibrium_sparse(scene, phi, q0=None, gtol=1e-9, max_steps=50, nbr=N
     # else: without contact the neighbourhood is only the frozen writhe, and a given one (the
     # previous step's) is checked against the solution's exact writhe below: no rebuild first.
     for _ in range(20):
-        sol = sparse_newton(scene, scene.to_scaled(jnp.asarray(q)), phi, nbr, gtol, max_steps)
+        sol = sparse_newton(scene, jnp.asarray(scene.to_scaled(q)), phi, nbr, gtol, max_steps)
         if not np.all(np.isfinite(sol.y)):
             break
-        q = np.asarray(scene.from_scaled(jnp.asarray(sol.y)))
+        q = scene.from_scaled(np.asarray(sol.y))
         nbr_new = _grown(scene, q, phi, nbr)
         drifted = abs(float(nbr_new.wr_ref) - float(nbr.wr_ref)) > WRITHE_DRIFT_LIMIT
         nbr = nbr_new
@@ -117,7 +117,7 @@ def sparse_branch_analysis(scene, q, phi, index, k=8, tol=DEFAULT_NEGATIVE_TOL, 
     result beyond the eigensolver's tolerance. cluster_rtol and pinv_tol are accepted for signature compatibility and ignored (no near-null
     sliding modes without contact).
     """
-    u = scene.to_scaled(jnp.asarray(q))
+    u = scene.to_scaled(np.asarray(q, dtype=float))
     if nbr is None:
         nbr = scene.neighbourhood(jnp.asarray(q), phi)
     n_neg = int(ss.inertia_at_equilibrium(scene, u, phi, nbr, tol))

@@ -150,7 +150,7 @@ def stability(scene, q, phi, k=8, tol=DEFAULT_NEGATIVE_TOL, nbr=None):
     """Stability of the state q (physical DOFs) at imposed twist phi: a ``Stability`` (the k
     lowest eigenpairs, zero modes removed, and the count of eigenvalues below -tol)."""
     phi = check_finite("phi", phi)
-    u = scene.to_scaled(jnp.asarray(q))
+    u = scene.to_scaled(np.asarray(q, dtype=float))
     if nbr is None:
         nbr = scene.neighbourhood(q, phi)
     lam, vec, n_zero, n_neg = _lowest_spectrum(scene, u, phi, nbr, tol)
@@ -278,7 +278,7 @@ def branch_analysis(scene, q, phi, index, k=8, tol=DEFAULT_NEGATIVE_TOL, cluster
 
     Returns (stability, lam, dlam_dphi, v, dq_dphi).
     """
-    u = scene.to_scaled(jnp.asarray(q))
+    u = scene.to_scaled(np.asarray(q, dtype=float))
     ref = jnp.zeros_like(u) if ref is None else jnp.asarray(ref)
     if nbr is None:
         nbr = scene.neighbourhood(q, phi)
@@ -320,7 +320,7 @@ def critical_twist_derivative(scene, critical, parameter, cluster_rtol=1e-4, pin
     else:
         dscene = parameter(scene)
     eq = critical.equilibrium
-    u = scene.to_scaled(jnp.asarray(eq.q))
+    u = scene.to_scaled(np.asarray(eq.q, dtype=float))
     nbr = eq.neighbourhood if eq.neighbourhood is not None else scene.neighbourhood(eq.q, eq.phi)
     lam, vec, n_zero = spectrum(scene, u, eq.phi, nbr)
     n = lam.shape[0]

@@ -22,6 +22,7 @@ import glob
 import json
 import math
 import os
+import threading
 import time
 from dataclasses import dataclass
 
@@ -111,16 +112,21 @@ def _instability_dict(inst, scene, out, direction, index):
 def _write_json(path, obj):
     tmp = path + ".tmp"
     with open(tmp, "w") as f:
-        json.dump(obj, f, indent=2)
+        json.dump(obj, f, indent=2, sort_keys=True)  # key order independent of which side ends first
     os.replace(tmp, path)  # never a half-written file
 
 
 def twist_study(scene, phi_min, phi_max, step=0.5 * math.pi, out=None, tol=2e-4 * math.pi, k=8,
-                progress=None, resume=True, max_switches=3):
+                progress=None, resume=True, max_switches=3, parallel=True):
     """Follow the knot's stable states from phi = 0 up to phi_max and down to phi_min (relaxed at
     phi = 0 first), switching branches at each instability (see ``follow_twist``). Records every
     step (``step_record``); with ``out`` writes the files described in the module docstring as it
-    goes and resumes an interrupted run. Returns a ``StudyResult``."""
+    goes and resumes an interrupted run. Returns a ``StudyResult``.
+
+    parallel: follow the two directions at once, in two threads (JAX releases the GIL while it
+    computes, so on two cores the study takes about as long as its longer side: README's trefoil
+    12.3 -> 9.5 s). The numbers are the same as in a serial run; rows reach branch.csv in the order
+    they are found, and the file is rewritten in canonical order (plus, then minus) at the end."""
     t0 = time.perf_counter()
     phi_min = check_finite("phi_min", phi_min)
     phi_max = check_finite("phi_max", phi_max)
@@ -151,45 +157,51 @@ def twist_study(scene, phi_min, phi_max, step=0.5 * math.pi, out=None, tol=2e-4 
             _write_json(run_path, params)
     header = list(ROW_KEYS) + ["direction"] + [f"lambda_{j}" for j in range(k)]
 
+    lock = threading.Lock()  # one writer at a time (files, rows, critical)
+
     def save_point(direction, counter, point):
         e = point.equilibrium
         row, extra = step_record(point.scene, e, branch=point.branch)
         row["direction"] = direction
-        if not out:
-            rows.append(row)
-            return
-        new = not os.path.exists(csv_path) or os.path.getsize(csv_path) == 0
-        with open(csv_path, "a", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=header, extrasaction="ignore")
-            if new:
-                w.writeheader()
-            w.writerow(row)
-        np.savez(os.path.join(out, "steps", f"{direction}_{counter:04d}.npz"), q=e.q, phi=e.phi,
-                 branch=point.branch, **extra)
+        with lock:
+            if not out:
+                rows.append(row)
+                return
+            new = not os.path.exists(csv_path) or os.path.getsize(csv_path) == 0
+            with open(csv_path, "a", newline="") as f:
+                w = csv.DictWriter(f, fieldnames=header, extrasaction="ignore")
+                if new:
+                    w.writeheader()
+                w.writerow(row)
+            np.savez(os.path.join(out, "steps", f"{direction}_{counter:04d}.npz"), q=e.q, phi=e.phi,
+                     branch=point.branch, **extra)
 
     rows = []
-    start = None
+    if critical.get("negative_tol") is None:
+        critical["negative_tol"] = CONTACT_NEGATIVE_TOL if "contact" in scene.terms else DEFAULT_NEGATIVE_TOL
+    todo = []
     for direction, target in (("plus", phi_max), ("minus", phi_min)):
         if direction in critical["finished"]:
             say(f"{direction}: already finished (resumed run)")
             continue
         files = sorted(glob.glob(os.path.join(out, "steps", f"{direction}_*.npz"))) if out else []
+        todo.append((direction, target, files))
+    if any(not files for _, _, files in todo):
+        say("relaxing the knot at phi = 0")
+        start = relax(scene, 0.0, None, gtol=1e-9, with_stability=False)
+
+    def run_direction(direction, target, files):
         counter = len(files)
         if files:  # resume from the last saved state of this direction
             last = np.load(files[-1])
             branch = str(last["branch"])[:-1]
             say(f"{direction}: resuming from phi = {float(last['phi']) / math.pi:+.5f} pi on {branch}")
-            e = relax(scene, float(last["phi"]), last["q"], gtol=1e-9, with_stability=False)
-            sc, begin, skip_first = scene, e, True
+            begin = relax(scene, float(last["phi"]), last["q"], gtol=1e-9, with_stability=False)
+            skip_first = True
         else:
-            if start is None:
-                say("relaxing the knot at phi = 0")
-                start = relax(scene, 0.0, None, gtol=1e-9, with_stability=False)
-            sc, begin, branch, skip_first = scene, start, "symmetric", False
-        if critical.get("negative_tol") is None:
-            critical["negative_tol"] = CONTACT_NEGATIVE_TOL if "contact" in scene.terms else DEFAULT_NEGATIVE_TOL
+            begin, branch, skip_first = start, "symmetric", False
 
-        def on_point(point, direction=direction):
+        def on_point(point):
             nonlocal counter, skip_first
             if skip_first:  # the resumed state itself is already on file
                 skip_first = False
@@ -197,22 +209,74 @@ def twist_study(scene, phi_min, phi_max, step=0.5 * math.pi, out=None, tol=2e-4 
             save_point(direction, counter, point)
             counter += 1
 
-        path = follow_twist(sc, begin.phi, target, step=step, start=begin, tol=tol, branch=branch, k=k,
+        path = follow_twist(scene, begin.phi, target, step=step, start=begin, tol=tol, branch=branch, k=k,
                             negative_tol=critical["negative_tol"], max_switches=max_switches,
                             on_point=on_point, progress=say)
-        for inst in path.instabilities:
-            index = sum(1 for c in critical["instabilities"] if c["direction"] == direction)
-            critical["instabilities"].append(_instability_dict(inst, sc, out, direction, index))
-        critical["finished"].append(direction)
-        critical["stopped_" + direction] = path.reason
-        _summarise(critical)
-        if out:
-            _write_json(crit_path, critical)
+        with lock:
+            for inst in path.instabilities:
+                index = sum(1 for c in critical["instabilities"] if c["direction"] == direction)
+                critical["instabilities"].append(_instability_dict(inst, scene, out, direction, index))
+            critical["finished"].append(direction)
+            critical["stopped_" + direction] = path.reason
+            _summarise(critical)
+            if out:
+                _write_json(crit_path, critical)
+
+    _run_all(run_direction, todo, parallel)
+    # Canonical order (plus before minus, each in the order of its steps; instabilities likewise),
+    # whichever direction finished first: a parallel run writes the same files as a serial one.
+    order = {"plus": 0, "minus": 1}
+    critical["instabilities"].sort(key=lambda c: order[c["direction"]])
+    critical["finished"].sort(key=order.get)
+    if out:
+        _rewrite_sorted(csv_path, header, order)
+    else:
+        rows.sort(key=lambda r: order[r["direction"]])
     table = read_table(csv_path) if out else {key: np.array([r.get(key, math.nan) for r in rows]) for key in header}
     _summarise(critical, table)
     if out:
         _write_json(crit_path, critical)
     return StudyResult(table=table, critical=critical, out=out, seconds=time.perf_counter() - t0)
+
+
+def _run_all(run_direction, todo, parallel):
+    """run_direction(*task) for each task, in daemon threads when ``parallel`` and there are two
+    (so that Ctrl-C still stops the process); the first exception raised in a thread is raised here."""
+    if not parallel or len(todo) < 2:
+        for task in todo:
+            run_direction(*task)
+        return
+    errors = []
+
+    def target(task):
+        try:
+            run_direction(*task)
+        except BaseException as exc:  # noqa: BLE001 -- handed to the main thread
+            errors.append(exc)
+
+    threads = [threading.Thread(target=target, args=(task,), daemon=True) for task in todo]
+    for t in threads:
+        t.start()
+    for t in threads:
+        while t.is_alive():
+            t.join(0.2)
+    if errors:
+        raise errors[0]
+
+
+def _rewrite_sorted(csv_path, header, order):
+    """Rewrite branch.csv with its rows stably sorted by direction (atomically)."""
+    if not os.path.exists(csv_path):
+        return
+    with open(csv_path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    rows.sort(key=lambda r: order.get(r.get("direction"), 2))
+    tmp = csv_path + ".tmp"
+    with open(tmp, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=header, extrasaction="ignore")
+        w.writeheader()
+        w.writerows(rows)
+    os.replace(tmp, csv_path)
 
 
 def _summarise(critical, table=None):

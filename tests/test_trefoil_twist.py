@@ -120,6 +120,13 @@ def test_study_writes_as_it_goes_and_resumes(tmp_path):
     crit = json.load(open(os.path.join(out, "critical.json")))
     assert crit["phi_plus"] is None and crit["phi_minus"] is None  # nothing buckles this early
     assert sorted(crit["finished"]) == ["minus", "plus"]
+    # The two sides ran in two threads: a serial run writes byte-identical files.
+    serial = str(tmp_path / "serial")
+    twist_study(scene, -1.0 * PI, 1.0 * PI, step=0.5 * PI, out=serial, parallel=False)
+    names = ["branch.csv", "critical.json"] + [os.path.join("steps", f) for f in os.listdir(os.path.join(out, "steps"))]
+    assert len(names) == 2 + 6
+    for name in names:
+        assert open(os.path.join(out, name), "rb").read() == open(os.path.join(serial, name), "rb").read(), name
     # Interrupt the minus side after its second step: drop its last row and state, mark unfinished.
     rows = open(os.path.join(out, "branch.csv")).read().splitlines()
     open(os.path.join(out, "branch.csv"), "w").write("\n".join(rows[:-1]) + "\n")
