@@ -58,6 +58,7 @@ print(MARK + json.dumps({"cold_s": times[0], "warm_s": times[1], "peak_rss_mb": 
 
 def extract(commit, into):
     """The ``jaxrod/`` folder of ``commit`` under ``into`` (git archive)."""
+    os.makedirs(into, exist_ok=True)
     archive = subprocess.run(["git", "-C", REPO, "archive", commit, "jaxrod"], check=True, capture_output=True)
     subprocess.run(["tar", "-x", "-C", into], input=archive.stdout, check=True)
     return into

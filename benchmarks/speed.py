@@ -581,6 +581,11 @@ def write_report(csv_path, md_path, png_path):
         L += [f"- {' '.join(v for v in (r['case'], 'N=' + r['N'], r['side'], r['engine']) if v)}: {r.get('error', '')}"
               for r in errors] + [""]
     L += [f"![speed]({img})", ""]
+    # The README's command 1 against the previous release: measured by benchmarks/command1.py.
+    command1 = os.path.join(HERE, "results", "command1.md")
+    if os.path.exists(command1):
+        with open(command1) as f:
+            L += ["#" + f.read().strip(), ""]
     os.makedirs(os.path.dirname(os.path.abspath(md_path)), exist_ok=True)
     with open(md_path, "w") as f:
         f.write("\n".join(L))
