@@ -35,7 +35,8 @@ from .solvers import LBFGS, ConvergenceError, DampedNewton, Newton, Solution, St
 from .stability import Stability, critical_twist_derivative, eigenvalue_phi_derivative, stability  # noqa: E402
 from .equilibrium import Equilibrium, TopologyChangeError, relax, solve_equilibrium  # noqa: E402
 from .continuation import (  # noqa: E402
-    BranchPoint, CriticalPoint, Instability, NoCrossingError, TwistPath, critical_twist, follow_twist,
+    BranchPoint, ContinuationOptions, CriticalPoint, Instability, NoCrossingError, PathStop, TwistPath,
+    critical_twist, follow_twist,
 )
 from . import analysis, contact, plotting, topology  # noqa: E402
 
@@ -73,6 +74,8 @@ __all__ = [
     "critical_twist",
     "follow_twist",
     "TwistPath",
+    "ContinuationOptions",
+    "PathStop",
     "BranchPoint",
     "Instability",
     "topology",

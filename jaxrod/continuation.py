@@ -21,12 +21,12 @@ import jax.numpy as jnp
 
 from .equilibrium import Equilibrium, LeftBranchError, TopologyChangeError, relax, solve_equilibrium
 from .geometry import polyline_distance
-from .validation import check_finite, check_positive
+from .validation import check_finite, check_int_at_least, check_positive
 from .solvers import ConvergenceError
 from .sparse_branch import solve_equilibrium_sparse, sparse_branch_analysis
 from .stability import DEFAULT_NEGATIVE_TOL, branch_analysis
 
-__all__ = ["StepFailure", "BranchEnd", "CriticalPoint", "critical_twist", "NoCrossingError", "BranchPoint", "Instability", "TwistPath", "follow_twist"]
+__all__ = ["ContinuationOptions", "Task", "PathStop", "StepFailure", "BranchEnd", "CriticalPoint", "critical_twist", "NoCrossingError", "BranchPoint", "Instability", "TwistPath", "follow_twist"]
 
 
 class StepFailure(enum.Enum):
@@ -107,6 +107,72 @@ CORRECTOR_MAX_STEPS = 60
 CONTACT_GTOL = 1e-7
 
 
+class Task(str, enum.Enum):
+    """What a continuation is for: its defaults differ (see ``ContinuationOptions``)."""
+
+    CRITICAL_TWIST = "critical_twist"  # the first crossing, refined by Newton on the eigenvalue
+    FOLLOW_TWIST = "follow_twist"  # a whole stable path, branch ends located to tol
+
+
+@dataclass(frozen=True)
+class ContinuationOptions:
+    """Tolerances and budgets of a twist continuation, every contact-aware default in one place.
+
+    step: largest step in phi (rad). Default: critical_twist |phi_stop - phi_start| / 40,
+      follow_twist 0.25 pi.
+    tol: accuracy of the located critical twist or branch end (rad). Default: critical_twist
+      1e-6 pi, follow_twist 2e-4 pi.
+    negative_tol: an eigenvalue counts as negative below -negative_tol. Default 1e-10, or
+      CONTACT_NEGATIVE_TOL = 1e-6 with self-contact (strands sliding along each other sit at
+      |lambda| ~ 1e-7 and must not count).
+    gtol: the equilibria's max |gradient| (scaled energy). Default 1e-9; critical_twist with
+      contact CONTACT_GTOL = 1e-7 (the sliding modes relax only as fast as their stiffness allows).
+    jump_tol: follow_twist: a corrector further than this from the predicted shape has left the
+      branch. Default D/2 (or L/20 without a diameter).
+    k: eigenpairs kept per state (default 8).
+    corrector_max_steps: damped-Newton iterations a follow_twist corrector may take between two
+      neighbourhood pauses (default CORRECTOR_MAX_STEPS = 60).
+
+    None means "the default for the scene and task": ``resolved(scene, task, span)`` fills them
+    in (and checks the values); ``critical_twist`` and ``follow_twist`` take an ``options`` object
+    and/or the same names as keywords (a keyword that is not None wins).
+    """
+
+    step: float | None = None
+    tol: float | None = None
+    negative_tol: float | None = None
+    gtol: float | None = None
+    jump_tol: float | None = None
+    k: int | None = None
+    corrector_max_steps: int | None = None
+
+    def updated(self, **values):
+        """A copy with every value that is not None replaced."""
+        return replace(self, **{key: v for key, v in values.items() if v is not None})
+
+    def resolved(self, scene, task, span):
+        """Every None filled in for ``scene`` (with or without contact) and ``task`` (a ``Task``);
+        span: |phi_stop - phi_start|. Raises ValueError naming a non-positive or non-finite value."""
+        task = Task(task)
+        contact = "contact" in scene.terms
+        critical = task is Task.CRITICAL_TWIST
+        defaults = {
+            "step": span / 40.0 if critical else 0.25 * math.pi,
+            "tol": 1e-6 * math.pi if critical else 2e-4 * math.pi,
+            "negative_tol": CONTACT_NEGATIVE_TOL if contact else DEFAULT_NEGATIVE_TOL,
+            "gtol": CONTACT_GTOL if (contact and critical) else 1e-9,
+            "jump_tol": _jump_tolerance(scene),
+            "k": 8,
+            "corrector_max_steps": CORRECTOR_MAX_STEPS,
+        }
+        values = {key: getattr(self, key) if getattr(self, key) is not None else d for key, d in defaults.items()}
+        for key in ("step", "tol", "negative_tol", "gtol", "jump_tol"):
+            values[key] = check_positive(key, abs(values[key]) if key == "step" else values[key])
+        for key in ("k", "corrector_max_steps"):
+            values[key] = check_int_at_least(key, values[key], 1)
+        return ContinuationOptions(**values)
+
+
 def _step(scene, phi, q_pred, index, k, negative_tol, fallback_q=None, ref=None, gtol=1e-9, nbr=None,
           sparse=False, guess=None):
     """Newton corrector from the predictor (the neighbourhood is rebuilt, and the solve
@@ -161,18 +227,21 @@ def critical_twist(
     phi_stop=None,
     step=None,
     q0=None,
-    tol=1e-6 * math.pi,
-    k=8,
+    tol=None,
+    k=None,
     negative_tol=None,
     max_refine=30,
     progress=None,
     gtol=None,
     linear_algebra="auto",
+    options=None,
 ):
     """First phi beyond ``phi_start`` (in the direction of ``phi_stop``) where the negative count
     of the equilibrium branch changes.
 
-    scene: a scene; q0: initial guess at phi_start (default scene.q_init, relaxed first);
+    Tolerances (step, tol, negative_tol, gtol, k): keywords or an ``options``
+    (``ContinuationOptions``, where their scene-aware defaults are defined); a keyword that is not
+    None wins. scene: a scene; q0: initial guess at phi_start (default scene.q_init, relaxed first);
     step: largest scan step (default |phi_stop - phi_start|/40); the scan shortens it when the
     tracked eigenvalue, extrapolated with its derivative, is about to cross (never lengthens it:
     a mode from higher up is still caught by the count). tol: requested accuracy in phi.
@@ -193,14 +262,11 @@ def critical_twist(
     phi_stop = check_finite("phi_stop", 8.0 * math.pi if phi_stop is None else phi_stop)
     if phi_stop == phi_start:
         raise ValueError("phi_stop must differ from phi_start")
-    tol = check_positive("tol", tol)
+    opts = (options or ContinuationOptions()).updated(step=step, tol=tol, negative_tol=negative_tol, gtol=gtol, k=k)
+    opts = opts.resolved(scene, Task.CRITICAL_TWIST, abs(phi_stop - phi_start))
+    tol, negative_tol, gtol, k, max_step = opts.tol, opts.negative_tol, opts.gtol, opts.k, opts.step
     contact = "contact" in scene.terms
-    if negative_tol is None:
-        negative_tol = CONTACT_NEGATIVE_TOL if contact else DEFAULT_NEGATIVE_TOL
-    if gtol is None:
-        gtol = CONTACT_GTOL if contact else 1e-9
     direction = 1.0 if phi_stop > phi_start else -1.0
-    max_step = abs(phi_stop - phi_start) / 40.0 if step is None else check_positive("step", abs(step))
     min_step = max_step / 16.0
     say = progress or (lambda s: None)
     sparse = _use_sparse(scene, linear_algebra)
@@ -398,20 +464,35 @@ class Instability:
     jumped_to: Equilibrium | None = field(default=None, repr=False)
 
 
+class PathStop(str, enum.Enum):
+    """Why ``follow_twist`` stopped (a str enum, like ``BranchEnd``)."""
+
+    PHI_STOP = "phi_stop"  # the whole range was covered
+    BRANCH_ENDED = "branch_ended"  # a branch ended, and no switch was to be made (switch=False, max_switches)
+    NO_STABLE_BRANCH = "no_stable_branch"  # a branch ended and no stable state was found beyond it
+
+    def __str__(self):
+        return self.value
+
+    def __format__(self, spec):
+        return format(self.value, spec)
+
+
 @dataclass(frozen=True)
 class TwistPath:
     """Result of ``follow_twist``: ``points`` (BranchPoint per accepted step, in order),
-    ``instabilities`` (Instability per branch end met), ``reason`` ('phi_stop' when the range was
-    covered; otherwise why the continuation stopped), ``seconds``."""
+    ``instabilities`` (Instability per branch end met), ``stop`` (a ``PathStop``), ``reason``
+    (the same in words, with the twist where it happened), ``seconds``."""
 
     points: list
     instabilities: list
     reason: str
     seconds: float
+    stop: PathStop = PathStop.PHI_STOP
 
     @property
     def completed(self):
-        return self.reason == "phi_stop"
+        return self.stop is PathStop.PHI_STOP
 
 
 def _jump_tolerance(scene):
@@ -423,12 +504,12 @@ def follow_twist(
     scene,
     phi_start=0.0,
     phi_stop=None,
-    step=0.25 * math.pi,
+    step=None,
     q0=None,
     start=None,
-    tol=2e-4 * math.pi,
+    tol=None,
     branch="symmetric",
-    k=8,
+    k=None,
     negative_tol=None,
     gtol=None,
     jump_tol=None,
@@ -437,6 +518,7 @@ def follow_twist(
     perturbation=None,
     on_point=None,
     progress=None,
+    options=None,
 ):
     """Follow the stable equilibrium branch from phi_start towards phi_stop; where it ends
     (an eigenvalue crosses zero or the branch folds), locate the end to ``tol`` and switch to the
@@ -458,8 +540,10 @@ def follow_twist(
     eigenvector and relaxed; the lower-energy stable state away from the old branch is the new
     branch ("buckled", then "buckled2", ...; the sign of the direction is appended).
 
-    scene: closed or clamped rod scene; q0 or start (an Equilibrium to begin from, used as is);
-    step: largest step in phi; on_point(BranchPoint) and progress(str): callbacks (e.g. to write
+    Tolerances (step, tol, negative_tol, gtol, jump_tol, k): keywords or an ``options``
+    (``ContinuationOptions``, where their scene-aware defaults are defined; a keyword that is not
+    None wins). scene: closed or clamped rod scene; q0 or start (an Equilibrium to begin from,
+    used as is); step: largest step in phi (default 0.25 pi); on_point(BranchPoint) and progress(str): callbacks (e.g. to write
     rows as they come). Returns a ``TwistPath``.
     """
     t0 = time.perf_counter()
@@ -467,11 +551,12 @@ def follow_twist(
     phi_stop = check_finite("phi_stop", 8.0 * math.pi if phi_stop is None else phi_stop)
     if phi_stop == phi_start:
         raise ValueError("phi_stop must differ from phi_start")
-    step = check_positive("step", abs(step))
-    tol = check_positive("tol", tol)
+    opts = (options or ContinuationOptions()).updated(step=step, tol=tol, negative_tol=negative_tol, gtol=gtol,
+                                                      jump_tol=jump_tol, k=k)
+    opts = opts.resolved(scene, Task.FOLLOW_TWIST, abs(phi_stop - phi_start))
+    step, tol, negative_tol, gtol, jump_tol, k = opts.step, opts.tol, opts.negative_tol, opts.gtol, opts.jump_tol, opts.k
+    corrector_max_steps = opts.corrector_max_steps
     contact = "contact" in scene.terms
-    gtol = 1e-9 if gtol is None else check_positive("gtol", gtol)
-    jump_tol = _jump_tolerance(scene) if jump_tol is None else check_positive("jump_tol", jump_tol)
     direction = 1.0 if phi_stop > phi_start else -1.0
     sign = "+" if direction > 0 else "-"
     say = progress or (lambda s: None)
@@ -489,7 +574,7 @@ def follow_twist(
         x_pred = np.asarray(sc.positions(jnp.asarray(q_pred)))
         try:
             e = relax(sc, phi, q_pred, gtol=gtol, previous=prev, with_stability=False, nbr=prev.neighbourhood,
-                      guide=(x_pred, jump_tol), max_steps=CORRECTOR_MAX_STEPS)
+                      guide=(x_pred, jump_tol), max_steps=corrector_max_steps)
             sc2 = sc
         except LeftBranchError as exc:
             return False, _Refusal(StepFailure.JUMP, str(exc)), sc, None, None
@@ -532,8 +617,6 @@ def follow_twist(
         e0 = start
         if e0.neighbourhood is None:
             e0 = replace(e0, neighbourhood=scene.neighbourhood(e0.q, e0.phi))
-    if negative_tol is None:
-        negative_tol = CONTACT_NEGATIVE_TOL if contact else DEFAULT_NEGATIVE_TOL
     pinv_tol = negative_tol if contact else 0.0
     e0, dq = analyse(scene, e0)
     name = f"{branch}{sign}"
@@ -541,7 +624,7 @@ def follow_twist(
     prev, older = e0, None
     h = step
     switches = 0
-    reason = "phi_stop"
+    reason, stop = "phi_stop", PathStop.PHI_STOP
     while direction * (phi_stop - prev.phi) > 1e-12:
         # Steps land on the grid of multiples of ``step`` (so whole turns are visited, where the
         # ribbon closes and the Gauss linking number can be compared) unless shortened.
@@ -597,7 +680,7 @@ def follow_twist(
             f"d/dphi {inst.dlambda_dphi:.3e}")
         if not switch or switches >= max_switches:
             instabilities.append(inst)
-            reason = f"branch ended at phi = {inst.phi:.8g} ({kind})"
+            reason, stop = f"branch ended at phi = {inst.phi:.8g} ({kind})", PathStop.BRANCH_ENDED
             break
         switches += 1
         new_name = _next_branch_name(name[:-1]) + sign
@@ -605,14 +688,15 @@ def follow_twist(
                                gtol, analyse, closed, lk0, say)
         if found is None:
             instabilities.append(inst)
-            reason = f"no stable branch found beyond phi = {lost_phi:.8g}"
+            reason, stop = f"no stable branch found beyond phi = {lost_phi:.8g}", PathStop.NO_STABLE_BRANCH
             break
         sc, e, dq_new = found
         instabilities.append(replace(inst, to_branch=new_name, jumped_to=e))
         scene, prev, dq, name, older = sc, e, dq_new, new_name, None
         emit(name, scene, e, dq)
         h = step
-    return TwistPath(points=points, instabilities=instabilities, reason=reason, seconds=time.perf_counter() - t0)
+    return TwistPath(points=points, instabilities=instabilities, reason=reason, seconds=time.perf_counter() - t0,
+                     stop=stop)
 
 
 def _critical_candidates(older, prev, negative_tol, candidates=5):

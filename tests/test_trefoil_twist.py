@@ -164,9 +164,34 @@ def test_follow_twist_locates_michell_like_critical_twist():
     analytic = jr.michell_critical_twist(0.5)
     path = jr.follow_twist(ring, 0.0, 1.5 * analytic, step=analytic / 4, tol=1e-4 * PI, switch=False)
     assert not path.completed and len(path.instabilities) == 1
+    assert path.stop is jr.PathStop.BRANCH_ENDED and path.stop == "branch_ended"
     inst = path.instabilities[0]
     assert inst.kind == "unstable" and inst.multiplicity == 2
     cp = jr.critical_twist(ring, 0.0, 1.5 * analytic, step=analytic / 4)
     assert abs(inst.phi - cp.phi) <= inst.phi_error
     assert abs(inst.phi - cp.phi) < 1e-6 * PI  # the extrapolation is far better than the bracket
     assert all(p.equilibrium.stable for p in path.points)
+
+
+def test_continuation_options_hold_the_contact_aware_defaults():
+    from jaxrod.continuation import CONTACT_GTOL, CONTACT_NEGATIVE_TOL, Task
+
+    knot, ring = jr.trefoil(D=8.0, L=292.0, N=61), jr.michell_ring(24)
+    o = jr.ContinuationOptions()
+    k = o.resolved(knot, Task.FOLLOW_TWIST, 10.0)
+    assert (k.negative_tol, k.gtol, k.jump_tol, k.step, k.tol) == (CONTACT_NEGATIVE_TOL, 1e-9, 4.0, 0.25 * PI, 2e-4 * PI)
+    c = o.resolved(knot, Task.CRITICAL_TWIST, 10.0)
+    assert (c.negative_tol, c.gtol, c.step, c.tol) == (CONTACT_NEGATIVE_TOL, CONTACT_GTOL, 0.25, 1e-6 * PI)
+    r = o.resolved(ring, "critical_twist", 8.0)
+    assert (r.negative_tol, r.gtol, r.k) == (1e-10, 1e-9, 8)
+    # Set values are kept, keywords that are not None win over the options object.
+    mine = jr.ContinuationOptions(tol=1e-3, k=4).updated(tol=None, gtol=1e-8)
+    assert mine.resolved(ring, Task.FOLLOW_TWIST, 1.0).tol == 1e-3 and mine.gtol == 1e-8 and mine.k == 4
+    for bad in (dict(tol=0.0), dict(gtol=float("nan")), dict(k=0), dict(jump_tol=-1.0)):
+        name = next(iter(bad))
+        with pytest.raises(ValueError, match=name):
+            jr.ContinuationOptions(**bad).resolved(ring, Task.FOLLOW_TWIST, 1.0)
+    # critical_twist takes the object: the same answer as with the keywords.
+    a = jr.critical_twist(ring, 0.0, 40.0, options=jr.ContinuationOptions(step=2.0, tol=1e-8))
+    b = jr.critical_twist(ring, 0.0, 40.0, step=2.0, tol=1e-8)
+    assert a.phi == b.phi and a.multiplicity == b.multiplicity == 2
