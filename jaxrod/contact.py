@@ -29,7 +29,7 @@ import numpy as np
 
 from .geometry import safe_norm
 
-__all__ = ["ContactList", "all_pairs", "candidate_pairs", "contact_energy", "contact_count", "needs_rebuild"]
+__all__ = ["ContactList", "all_pairs", "candidate_pairs", "contact_energy", "contact_count"]
 
 _GAUSS = {
     1: (np.array([0.5]), np.array([1.0])),
@@ -122,12 +122,6 @@ def candidate_pairs(x, closed, rest_length, D, skin=None, exclude=None, capacity
     mask = np.zeros(cap, dtype=bool)
     mask[: len(pairs)] = True
     return ContactList(pairs=padded, mask=mask, x_built=x.copy(), skin=skin)
-
-
-def needs_rebuild(contacts, x):
-    """True when some node has moved more than skin/2 since the list was built."""
-    moved = np.max(np.linalg.norm(np.asarray(x) - contacts.x_built, axis=1))
-    return bool(moved > 0.5 * contacts.skin)
 
 
 def _pair_quadrature(x, pairs, closed, n_gauss):

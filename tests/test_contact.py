@@ -6,7 +6,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxrod.contact import all_pairs, candidate_pairs, contact_count, contact_energy, needs_rebuild
+from jaxrod.contact import all_pairs, candidate_pairs, contact_count, contact_energy
+from jaxrod.neighbourhood import build_neighbourhood
 from helpers import trefoil_points
 
 
@@ -85,5 +86,8 @@ def test_candidate_list_matches_all_pairs_on_a_knot():
     assert cl.n_candidates < 0.2 * len(ref)  # the list is much shorter than all pairs
     touching = int(contact_count(jnp.asarray(x), cl.pairs, cl.mask, True, D))
     assert 0 < touching <= cl.n_candidates
-    assert not needs_rebuild(cl, x + 0.2 * cl.skin)
-    assert needs_rebuild(cl, x + np.array([0.0, 0.0, 0.6 * cl.skin]))
+    # The list goes stale (one test, ``Neighbourhood.stale``) once a node moved more than skin/2.
+    nbr = build_neighbourhood(x, 0.0, True, l, D, True)
+    assert float(nbr.skin) == cl.skin
+    assert not bool(nbr.stale(jnp.asarray(x + 0.2 * cl.skin)))  # every node moved 0.35 skin
+    assert bool(nbr.stale(jnp.asarray(x + np.array([0.0, 0.0, 0.6 * cl.skin]))))
