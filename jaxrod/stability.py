@@ -11,6 +11,8 @@ the top of the spectrum, so none of them can be mistaken for a soft or unstable 
 """
 from __future__ import annotations
 
+import functools
+import threading
 from dataclasses import dataclass
 import jax
 import jax.numpy as jnp
@@ -75,12 +77,10 @@ def scaled_hessian(scene, u, phi, nbr=None):
 LOWEST_COUNT = 24
 
 
-def _lowest_eigh_host(h, m):
-    import scipy.linalg
-
-    h = np.asarray(h)
-    lam, vec = scipy.linalg.eigh(h, subset_by_index=[0, m - 1], driver="evr", check_finite=False)
-    return lam.astype(h.dtype), vec.astype(h.dtype)
+# One LAPACK call at a time from this module: with ``twist_study``'s two threads, a
+# multi-threaded OpenBLAS (numpy imported before jaxrod, so its thread count stayed at the core
+# count) must not be entered twice at once.
+_LAPACK_LOCK = threading.Lock()
 
 
 def _fix_signs(vec):
@@ -91,19 +91,45 @@ def _fix_signs(vec):
     return vec * jnp.where(big < 0.0, -1.0, 1.0)
 
 
-def _lowest_eigh(h, m):
-    """(lam (m,), vec (n, m)): the m lowest eigenpairs of the symmetric h (n, n), ascending,
-    each eigenvector's largest entry positive; the full ``eigh`` when m is not much smaller
-    than n."""
-    n = h.shape[0]
+@functools.partial(jax.jit, static_argnames="m")
+def _lowest_of_small(hp, tol, m):
+    lam, vec = jnp.linalg.eigh(hp)
+    return lam[:m], _fix_signs(vec[:, :m]), jnp.sum(lam < -tol)
+
+
+def _lowest_of(hp, tol):
+    """(lam (m,), vec (n, m), count of eigenvalues below -tol) of the symmetric hp (n, n): the
+    m = LOWEST_COUNT lowest eigenpairs, ascending, each eigenvector's largest entry positive.
+
+    For m much smaller than n, LAPACK's dsyevr with an index range (scipy), on the host: JAX has
+    no partial eigensolver on CPU. Called outside jit, not through ``jax.pure_callback``: two
+    callbacks running at once (``twist_study``'s two threads) each waited for a transfer that
+    needed the other's XLA worker thread, and deadlocked. The count comes from the m lowest,
+    unless all of them are below -tol (a state many times unstable: then the whole spectrum).
+    Otherwise (2 m >= n) the full ``eigh``, jitted."""
+    n = hp.shape[0]
+    m = min(LOWEST_COUNT, n)
     if 2 * m >= n:
-        lam, vec = jnp.linalg.eigh(h)
-        return lam[:m], _fix_signs(vec[:, :m])
-    shapes = (jax.ShapeDtypeStruct((m,), h.dtype), jax.ShapeDtypeStruct((n, m), h.dtype))
-    lam, vec = jax.pure_callback(lambda a: _lowest_eigh_host(a, m), shapes, h)
-    return lam, _fix_signs(vec)
+        return _lowest_of_small(hp, tol, m)
+    import scipy.linalg
+
+    h = np.asarray(hp)
+    with _LAPACK_LOCK:
+        lam, vec = scipy.linalg.eigh(h, subset_by_index=[0, m - 1], driver="evr", check_finite=False)
+    big = vec[np.argmax(np.abs(vec), axis=0), np.arange(m)]
+    vec = vec * np.where(big < 0.0, -1.0, 1.0)[None, :]
+    neg = int(np.sum(lam < -tol))
+    if neg == m:
+        with _LAPACK_LOCK:
+            neg = int(np.sum(np.linalg.eigvalsh(h) < -tol))
+    return lam, vec, neg
 
 
+# The analyses below are Python compositions of separately jitted pieces: the projected Hessian
+# (the largest piece to compile, ~1.7 s per scene shape) is compiled once and shared by
+# ``stability``, ``spectrum`` and ``branch_analysis``; the eigen-solvers depend on the matrix
+# size only. One jit around each analysis compiled the Hessian into each of them.
+@jax.jit
 def _projected_hessian(scene, u, phi, nbr):
     """(H with the zero modes projected out and lifted to the top, z (n, k) their orthonormal
     basis, n_zero)."""
@@ -112,26 +138,20 @@ def _projected_hessian(scene, u, phi, nbr):
     return project_out(h, z), z, jnp.sum(jnp.any(z != 0.0, axis=0))
 
 
-def _count_below(hp, lam_low, threshold):
-    """Eigenvalues of hp below ``threshold``: from the lowest ones, unless all of those are below
-    it (then from the whole spectrum, a rare case: a state many times unstable)."""
-    m = lam_low.shape[0]
-    low = jnp.sum(lam_low < threshold)
-    return jax.lax.cond(low < m, lambda: low, lambda: jnp.sum(jnp.linalg.eigvalsh(hp) < threshold))
-
-
-@jax.jit
 def _lowest_spectrum(scene, u, phi, nbr, tol):
-    hp, z, n_zero = _projected_hessian(scene, u, phi, nbr)
-    m = min(LOWEST_COUNT, hp.shape[0])
-    lam, vec = _lowest_eigh(hp, m)
-    return lam, vec, n_zero, _count_below(hp, lam, -tol)
+    """(lam (m,), vec (n, m), n_zero, n_negative): the lowest eigenpairs of the projected Hessian
+    and the count of its eigenvalues below -tol."""
+    hp, _, n_zero = _projected_hessian(scene, u, phi, nbr)
+    lam, vec, n_neg = _lowest_of(hp, tol)
+    return lam, vec, n_zero, n_neg
 
 
-@jax.jit
+_eigh = jax.jit(jnp.linalg.eigh)
+
+
 def _spectrum(scene, u, phi, nbr):
     hp, _, n_zero = _projected_hessian(scene, u, phi, nbr)
-    lam, vec = jnp.linalg.eigh(hp)
+    lam, vec = _eigh(hp)
     return lam, vec, n_zero
 
 
@@ -236,11 +256,18 @@ def _skip_mask(lam, n_zero, index, cluster_rtol, pinv_tol=0.0):
     )
 
 
-@jax.jit
 def _branch_analysis(scene, u, phi, index, ref, cluster_rtol, pinv_tol, nbr, tol):
     hp, z, n_zero = _projected_hessian(scene, u, phi, nbr)
-    m = min(LOWEST_COUNT, hp.shape[0])
-    lam, vec = _lowest_eigh(hp, m)
+    lam, vec, n_neg = _lowest_of(hp, tol)
+    dlam, du, index = _branch_tangent(scene, u, phi, index, ref, cluster_rtol, pinv_tol, nbr, hp, z, n_zero, lam, vec)
+    return lam, vec, n_zero, n_neg, dlam, du, index
+
+
+@jax.jit
+def _branch_tangent(scene, u, phi, index, ref, cluster_rtol, pinv_tol, nbr, hp, z, n_zero, lam, vec):
+    """The tracked mode (by index, or by overlap with ref), its eigenvalue's phi-derivative along
+    the branch and the branch tangent du/dphi (deflated solve), from the lowest eigenpairs."""
+    m = lam.shape[0]
     # Lifted zero modes (only present when the subset reaches the top of a small spectrum) are
     # never tracked.
     physical = jnp.arange(m) < hp.shape[0] - n_zero
@@ -252,7 +279,7 @@ def _branch_analysis(scene, u, phi, index, ref, cluster_rtol, pinv_tol, nbr, tol
     dlam, du = _branch_motion_sensitivities(
         scene, u, phi, vec[:, index], motion, _zero_tangent(scene), jnp.asarray(1.0), nbr
     )
-    return lam, vec, n_zero, _count_below(hp, lam, -tol), dlam, du, index
+    return dlam, du, index
 
 
 def _stability_from_lowest(lam, vec, n_zero, n_negative, k, tol):
