@@ -519,6 +519,7 @@ def follow_twist(
     on_point=None,
     progress=None,
     options=None,
+    on_instability=None,
 ):
     """Follow the stable equilibrium branch from phi_start towards phi_stop; where it ends
     (an eigenvalue crosses zero or the branch folds), locate the end to ``tol`` and switch to the
@@ -544,7 +545,9 @@ def follow_twist(
     (``ContinuationOptions``, where their scene-aware defaults are defined; a keyword that is not
     None wins). scene: closed or clamped rod scene; q0 or start (an Equilibrium to begin from,
     used as is); step: largest step in phi (default 0.25 pi); on_point(BranchPoint) and progress(str): callbacks (e.g. to write
-    rows as they come). Returns a ``TwistPath``.
+    rows as they come); on_instability(Instability): called as soon as a branch end is located
+    (and, after a switch, before the new branch's first point), so that a study can keep it on
+    file at once. Returns a ``TwistPath``.
     """
     t0 = time.perf_counter()
     phi_start = check_finite("phi_start", phi_start if start is None else start.phi)
@@ -680,6 +683,8 @@ def follow_twist(
             f"d/dphi {inst.dlambda_dphi:.3e}")
         if not switch or switches >= max_switches:
             instabilities.append(inst)
+            if on_instability is not None:
+                on_instability(inst)
             reason, stop = f"branch ended at phi = {inst.phi:.8g} ({kind})", PathStop.BRANCH_ENDED
             break
         switches += 1
@@ -688,10 +693,14 @@ def follow_twist(
                                gtol, analyse, closed, lk0, say)
         if found is None:
             instabilities.append(inst)
+            if on_instability is not None:
+                on_instability(inst)
             reason, stop = f"no stable branch found beyond phi = {lost_phi:.8g}", PathStop.NO_STABLE_BRANCH
             break
         sc, e, dq_new = found
         instabilities.append(replace(inst, to_branch=new_name, jumped_to=e))
+        if on_instability is not None:  # before the new branch's first point is reported
+            on_instability(instabilities[-1])
         scene, prev, dq, name, older = sc, e, dq_new, new_name, None
         emit(name, scene, e, dq)
         h = step

@@ -104,9 +104,18 @@ def _instability_dict(inst, scene, out, direction, index):
     if out:
         name = f"critical_mode_{direction}_{index}.npz"
         mode_q = np.asarray(scene.from_scaled(inst.mode))
-        np.savez(os.path.join(out, name), mode_scaled=inst.mode, mode_q=mode_q, q=before.q, phi=before.phi)
+        _savez(os.path.join(out, name), mode_scaled=inst.mode, mode_q=mode_q, q=before.q, phi=before.phi)
         d["mode_file"] = name
     return d
+
+
+def _savez(path, **arrays):
+    """np.savez to ``path`` atomically: written under a hidden temporary name in the same
+    folder (outside the ``<direction>_*.npz`` pattern that resume counts), then renamed."""
+    folder, name = os.path.split(path)
+    tmp = os.path.join(folder, ".tmp-" + name)
+    np.savez(tmp, **arrays)
+    os.replace(tmp, path)
 
 
 def _write_json(path, obj):
@@ -173,8 +182,8 @@ def twist_study(scene, phi_min, phi_max, step=0.5 * math.pi, out=None, tol=2e-4 
                 if new:
                     w.writeheader()
                 w.writerow(row)
-            np.savez(os.path.join(out, "steps", f"{direction}_{counter:04d}.npz"), q=e.q, phi=e.phi,
-                     branch=point.branch, **extra)
+            _savez(os.path.join(out, "steps", f"{direction}_{counter:04d}.npz"), q=e.q, phi=e.phi,
+                   branch=point.branch, **extra)
 
     rows = []
     if critical.get("negative_tol") is None:
@@ -209,13 +218,20 @@ def twist_study(scene, phi_min, phi_max, step=0.5 * math.pi, out=None, tol=2e-4 
             save_point(direction, counter, point)
             counter += 1
 
-        path = follow_twist(scene, begin.phi, target, step=step, start=begin, tol=tol, branch=branch, k=k,
-                            negative_tol=critical["negative_tol"], max_switches=max_switches,
-                            on_point=on_point, progress=say)
-        with lock:
-            for inst in path.instabilities:
+        def on_instability(inst):
+            # On file at once (critical.json and the mode file), before the new branch's first
+            # row: a run interrupted after it resumes with the instability already known.
+            with lock:
                 index = sum(1 for c in critical["instabilities"] if c["direction"] == direction)
                 critical["instabilities"].append(_instability_dict(inst, scene, out, direction, index))
+                _summarise(critical)
+                if out:
+                    _write_json(crit_path, critical)
+
+        path = follow_twist(scene, begin.phi, target, step=step, start=begin, tol=tol, branch=branch, k=k,
+                            negative_tol=critical["negative_tol"], max_switches=max_switches,
+                            on_point=on_point, progress=say, on_instability=on_instability)
+        with lock:
             critical["finished"].append(direction)
             critical["stopped_" + direction] = path.reason
             _summarise(critical)

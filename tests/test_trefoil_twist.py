@@ -195,3 +195,32 @@ def test_continuation_options_hold_the_contact_aware_defaults():
     a = jr.critical_twist(ring, 0.0, 40.0, options=jr.ContinuationOptions(step=2.0, tol=1e-8))
     b = jr.critical_twist(ring, 0.0, 40.0, step=2.0, tol=1e-8)
     assert a.phi == b.phi and a.multiplicity == b.multiplicity == 2
+
+
+def test_interrupted_after_a_branch_switch_keeps_the_instability(tmp_path):
+    # Issue 8, defect 1: critical.json used to be written only when a direction ended, so a run
+    # stopped after the first buckled row resumed with no instability on file ("phi_plus = none").
+    scene = jr.trefoil(D=8.0, L=292.0, N=61)
+    whole = str(tmp_path / "whole")
+    ref = twist_study(scene, -0.5 * PI, 7.5 * PI, step=0.5 * PI, out=whole, parallel=False)
+    assert ref.critical["phi_plus"] is not None
+
+    class Stop(Exception):
+        pass
+
+    def stop_at_first_buckled_row(message):
+        if message.startswith("[buckled+] phi"):
+            raise Stop(message)
+
+    cut = str(tmp_path / "cut")
+    with pytest.raises(Stop):
+        twist_study(scene, -0.5 * PI, 7.5 * PI, step=0.5 * PI, out=cut, parallel=False,
+                    progress=stop_at_first_buckled_row)
+    crit = json.load(open(os.path.join(cut, "critical.json")))
+    assert crit["phi_plus"] == ref.critical["phi_plus"]  # on file before the buckled row
+    assert os.path.exists(os.path.join(cut, crit["phi_plus_mode_file"]))
+    assert not any(name.startswith(".tmp-") for name in os.listdir(cut))
+    again = twist_study(scene, -0.5 * PI, 7.5 * PI, step=0.5 * PI, out=cut, parallel=False)
+    assert again.critical["phi_plus"] == ref.critical["phi_plus"]
+    assert [c["phi"] for c in again.critical["instabilities"]] == [c["phi"] for c in ref.critical["instabilities"]]
+    assert np.array_equal(again.table["phi"], ref.table["phi"])
