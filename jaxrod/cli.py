@@ -310,6 +310,28 @@ def main(argv=None):
         where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
         print(f"jaxrod: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        hint = f"; the same command resumes from what is in {args.out}/" if args.command == "trefoil" else ""
+        print(f"jaxrod: interrupted{hint}", file=sys.stderr)
+        return 130
+    except Exception as exc:  # noqa: BLE001 -- a failed computation: one line, what to change
+        from .continuation import NoCrossingError
+        from .solvers import ConvergenceError
+
+        if isinstance(exc, NoCrossingError):
+            advice = ("no critical twist up to twice Michell's value: raise --N (a ring of a few nodes "
+                      "does not buckle)" if args.command == "michell" else
+                      "no critical twist in the range: widen it (--phi-min / --phi-max) or raise --N")
+        elif isinstance(exc, ConvergenceError):
+            advice = ("no equilibrium found: raise --N (for a knot, edges no longer than the diameter: "
+                      "N >= L/D), or loosen the knot (larger --L/--D)")
+        else:
+            raise
+        detail = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        if len(detail) > 160:
+            detail = detail[:157] + "..."
+        print(f"jaxrod: error: {advice} ({detail})", file=sys.stderr)
+        return 1
     return 1
 
 

@@ -201,3 +201,31 @@ def test_trefoil_bad_input_exits_2_with_one_line(tmp_path, capsys, args, name):
     assert main(["trefoil", "--out", str(tmp_path / "x"), "--quiet"] + args) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("jaxrod: error:") and name in err[0]
+
+
+@pytest.mark.parametrize(
+    "exc, code, words",
+    [
+        ("no_crossing", 1, "widen it (--phi-min / --phi-max)"),
+        ("convergence", 1, "raise --N"),
+        ("interrupt", 130, "resumes"),
+    ],
+)
+def test_failed_computation_is_one_line_with_advice(monkeypatch, capsys, tmp_path, exc, code, words):
+    # Issue 8, defect 3: a computation that fails (no crossing in range, no equilibrium) or is
+    # interrupted ends in one line that says what to do, not a traceback.
+    import jaxrod.cli as cli
+    from jaxrod import NoCrossingError
+    from jaxrod.solvers import ConvergenceError
+
+    errors = {"no_crossing": NoCrossingError("negative count stayed 0 from phi = 0 to 20"),
+              "convergence": ConvergenceError("relaxation did not converge: Solution(...)\nmore"),
+              "interrupt": KeyboardInterrupt()}
+
+    def fail(args):
+        raise errors[exc]
+
+    monkeypatch.setattr(cli, "_trefoil", fail)
+    assert main(["trefoil", "--out", str(tmp_path / "t")]) == code
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("jaxrod: ") and words in err[0], err
