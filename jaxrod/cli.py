@@ -1,7 +1,9 @@
-"""Command line: ``jaxrod michell ...``, ``jaxrod analyze CENTRELINE ECCENTRIC ...``.
+"""Command line: ``jaxrod michell ...``, ``jaxrod trefoil ...``, ``jaxrod analyze CENTRELINE ECCENTRIC ...``.
 
 Progress goes to stderr; results to stdout (``--json``: one JSON object); figures and data
-(PNG, CSV, JSON) into ``--out DIR``. Bad input exits with status 2 and a one-line message.
+(PNG, CSV, JSON) into ``--out DIR``. Bad input exits with status 2, a computation that fails
+(no critical twist in range, no equilibrium) with status 1, Ctrl-C with 130: each with one line
+on stderr that says what to change (or, for an interrupted study, that it resumes).
 """
 from __future__ import annotations
 
