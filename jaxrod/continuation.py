@@ -39,18 +39,22 @@ class StepFailure(enum.Enum):
     UNSTABLE = "unstable"  # converged on the branch, but with a negative eigenvalue
 
 
-class BranchEnd(str, enum.Enum):
-    """How a followed stable branch ended (a str enum: compares equal to its value, and its
-    value is what studies write to JSON)."""
-
-    UNSTABLE = "unstable"  # the corrector stayed on the branch, which acquired a negative eigenvalue
-    JUMP = "jump"  # the minimiser left the branch (a fold, or a subcritical bifurcation)
+class _ValueEnum(str, enum.Enum):
+    """A str enum that compares equal to, prints and formats as its value (what studies write
+    to JSON)."""
 
     def __str__(self):
         return self.value
 
     def __format__(self, spec):
         return format(self.value, spec)
+
+
+class BranchEnd(_ValueEnum):
+    """How a followed stable branch ended."""
+
+    UNSTABLE = "unstable"  # the corrector stayed on the branch, which acquired a negative eigenvalue
+    JUMP = "jump"  # the minimiser left the branch (a fold, or a subcritical bifurcation)
 
 
 @dataclass(frozen=True)
@@ -196,12 +200,9 @@ def _step(scene, phi, q_pred, index, k, negative_tol, fallback_q=None, ref=None,
             raise
         e = correct(fallback_q)
     pinv_tol = negative_tol if contact else 0.0
-    if sparse:
-        stab, lam, dlam, v, dq = sparse_branch_analysis(scene, e.q, phi, index, k=k, tol=negative_tol, ref=ref,
-                                                        nbr=e.neighbourhood, guess=guess)
-    else:
-        stab, lam, dlam, v, dq = branch_analysis(scene, e.q, phi, index, k=k, tol=negative_tol, ref=ref,
-                                                 pinv_tol=pinv_tol, nbr=e.neighbourhood)
+    analysis = sparse_branch_analysis if sparse else branch_analysis
+    stab, lam, dlam, v, dq = analysis(scene, e.q, phi, index, k=k, tol=negative_tol, ref=ref, pinv_tol=pinv_tol,
+                                      nbr=e.neighbourhood, guess=guess)
     return scene, replace(e, stability=stab), lam, dlam, v, dq
 
 
@@ -281,8 +282,6 @@ def critical_twist(
     else:
         relaxed = solve_equilibrium(scene, phi_start, q0, method="auto", with_stability=False, gtol=gtol)
     pinv_tol = negative_tol if contact else 0.0
-    # The sparse eigensolver takes an estimate of the lowest eigenvalue (it picks its shift).
-    hint = (lambda g: {"guess": g}) if sparse else (lambda g: {})  # noqa: E731
     st0, lam_t, dlam_t, _, dq = analysis(scene, relaxed.q, phi_start, 0, k=k, tol=negative_tol,
                                          pinv_tol=pinv_tol, nbr=relaxed.neighbourhood)
     count0 = int(st0.n_negative)
@@ -350,9 +349,9 @@ def critical_twist(
     ref = cur.stability.eigenvectors[:, idx_hi]
     evals = 2
     _, f_hi, _, v_hi, _ = analysis(scene, hi.q, hi.phi, idx_hi, k=k, tol=negative_tol, ref=ref, pinv_tol=pinv_tol,
-                                   nbr=hi.neighbourhood, **hint(hi.stability.eigenvalues[0]))
+                                   nbr=hi.neighbourhood, guess=hi.stability.eigenvalues[0])
     _, f_lo, d_lo, v_lo, dq_lo = analysis(scene, lo.q, lo.phi, 0, k=k, tol=negative_tol, ref=v_hi, pinv_tol=pinv_tol,
-                                          nbr=lo.neighbourhood, **hint(lo.stability.eigenvalues[0]))
+                                          nbr=lo.neighbourhood, guess=lo.stability.eigenvalues[0])
     if np.sign(f_lo) == np.sign(f_hi) and before is not None:
         # The crossing eigenvalue already changed sign at lo but stayed inside the near-zero band
         # (|lambda| < negative_tol, e.g. a soft ring of N ~ 1000, lambda ~ 1e-9): the count missed
@@ -361,7 +360,7 @@ def critical_twist(
         lo, evals = before, 3
         _, f_lo, d_lo, v_lo, dq_lo = analysis(scene, lo.q, lo.phi, 0, k=k, tol=negative_tol, ref=v_hi,
                                               pinv_tol=pinv_tol, nbr=lo.neighbourhood,
-                                              **hint(lo.stability.eigenvalues[0]))
+                                              guess=lo.stability.eigenvalues[0])
     evals = max(evals, 2)
     bracket = (lo.phi, hi.phi)
     # First guess: Newton from the stable end if it stays inside the bracket, else secant.
@@ -464,18 +463,12 @@ class Instability:
     jumped_to: Equilibrium | None = field(default=None, repr=False)
 
 
-class PathStop(str, enum.Enum):
-    """Why ``follow_twist`` stopped (a str enum, like ``BranchEnd``)."""
+class PathStop(_ValueEnum):
+    """Why ``follow_twist`` stopped."""
 
     PHI_STOP = "phi_stop"  # the whole range was covered
     BRANCH_ENDED = "branch_ended"  # a branch ended, and no switch was to be made (switch=False, max_switches)
     NO_STABLE_BRANCH = "no_stable_branch"  # a branch ended and no stable state was found beyond it
-
-    def __str__(self):
-        return self.value
-
-    def __format__(self, spec):
-        return format(self.value, spec)
 
 
 @dataclass(frozen=True)

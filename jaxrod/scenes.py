@@ -196,13 +196,14 @@ class Scene:
     def n_free_nodes(self):
         return self.n_nodes
 
+    def _scale_vector(self, xp, length_scale):
+        n_x = 3 * self.n_free_nodes
+        return xp.concatenate([xp.full(n_x, 1.0) * length_scale, xp.ones(self.n_dof - n_x)])
+
     @property
     def dof_scale(self):
         """Per-DOF scale (n,): free node coordinates in units of edge length, angles in radians."""
-        n_x = 3 * self.n_free_nodes
-        return jnp.concatenate(
-            [jnp.full(n_x, 1.0) * self.length_scale, jnp.ones(self.n_dof - n_x)]
-        )
+        return self._scale_vector(jnp, self.length_scale)
 
     # ------------------------------------------------------------------ energy
     def energy_terms(self, q, phi, nbr=None, terms=None):
@@ -256,8 +257,7 @@ class Scene:
             h = float(np.mean(np.asarray(self.rest_lengths)))
         except jax.errors.TracerArrayConversionError:
             return None
-        n_x = 3 * self.n_free_nodes
-        return np.concatenate([np.full(n_x, h), np.ones(self.n_dof - n_x)])
+        return self._scale_vector(np, h)
 
     def to_scaled(self, q):
         """Scaled DOFs u = q / dof_scale (numpy in, numpy out: no device dispatch per call)."""

@@ -94,9 +94,9 @@ class DampedNewton:
     structure); it is a static argument, like ``fun``.
 
     The shift is found without an eigen-decomposition, by Cholesky attempts on H + mu I: mu =
-    1e-10 times the largest diagonal entry first (it succeeds next to a stable equilibrium), and
-    after an iteration that needed a shift, from a fraction of that shift, growing by a factor 3
-    until a factorisation succeeds."""
+    1e-10 times the largest diagonal entry first (it succeeds next to a stable equilibrium), or,
+    after an iteration that needed a shift, a tenth of that shift; on failure mu grows by 4 per
+    attempt until a factorisation succeeds, and the bracket is then narrowed twice."""
 
     zero_modes: object = None
     max_step: float = float("inf")

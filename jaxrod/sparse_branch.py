@@ -114,8 +114,8 @@ def sparse_branch_analysis(scene, q, phi, index, k=8, tol=DEFAULT_NEGATIVE_TOL, 
     branch (its tangent has no component along the symmetry-breaking critical modes).
     guess: an estimate of the lowest eigenvalue (the previous step's), which saves 8 of the 9
     factorisations that choose the shift (``lowest_eigenpairs_projected``); never changes the
-    result beyond the eigensolver's tolerance. cluster_rtol and pinv_tol are accepted for signature compatibility and ignored (no near-null
-    sliding modes without contact).
+    result beyond the eigensolver's tolerance. cluster_rtol and pinv_tol are accepted for
+    signature compatibility and ignored (no near-null sliding modes without contact).
     """
     u = scene.to_scaled(np.asarray(q, dtype=float))
     if nbr is None:

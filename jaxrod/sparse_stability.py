@@ -565,8 +565,8 @@ def lowest_eigenpairs_projected(scene, u, phi, nbr, k, sigma=None, iterations=20
     sigma: the shift (below the wanted eigenvalues); None chooses it automatically just below the
     lowest eigenvalue from 9 Sylvester counts of the projected matrix (see ``_auto_sigma``; 9
     extra block factorisations), or, given ``guess`` (an estimate of the lowest eigenvalue, e.g.
-    the previous continuation step's), from one count below the guess (``_sigma_below``). Convergence of pair i goes as |lambda_i - sigma| /
-    |lambda_{block+1} - sigma| per step: with the automatic shift, slow only when the wanted
+    the previous continuation step's), from one count below the guess (``_sigma_below``).
+    Convergence of pair i goes as |lambda_i - sigma| / |lambda_{block+1} - sigma| per step: with the automatic shift, slow only when the wanted
     eigenvalues are far apart compared with the gap above them (e.g. one strongly negative
     eigenvalue and a dense cluster near zero); check ``residuals``.
     k, iterations, block: static; iterations, tol, block as ``banded.lowest_eigenpairs`` (tol

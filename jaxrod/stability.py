@@ -83,12 +83,12 @@ LOWEST_COUNT = 24
 _LAPACK_LOCK = threading.Lock()
 
 
-def _fix_signs(vec):
+def _fix_signs(vec, xp=jnp):
     """Eigenvectors (n, m) with their largest-magnitude entry positive: the sign LAPACK returns
     depends on the routine, and the continuation's choices (which way to push along a mode
-    first) must not."""
-    big = jnp.take_along_axis(vec, jnp.argmax(jnp.abs(vec), axis=0)[None, :], axis=0)
-    return vec * jnp.where(big < 0.0, -1.0, 1.0)
+    first) must not. xp: jax.numpy (traced) or numpy (host)."""
+    big = xp.take_along_axis(vec, xp.argmax(xp.abs(vec), axis=0)[None, :], axis=0)
+    return vec * xp.where(big < 0.0, -1.0, 1.0)
 
 
 @functools.partial(jax.jit, static_argnames="m")
@@ -116,8 +116,7 @@ def _lowest_of(hp, tol):
     h = np.asarray(hp)
     with _LAPACK_LOCK:
         lam, vec = scipy.linalg.eigh(h, subset_by_index=[0, m - 1], driver="evr", check_finite=False)
-    big = vec[np.argmax(np.abs(vec), axis=0), np.arange(m)]
-    vec = vec * np.where(big < 0.0, -1.0, 1.0)[None, :]
+    vec = _fix_signs(vec, np)
     neg = int(np.sum(lam < -tol))
     if neg == m:
         with _LAPACK_LOCK:
@@ -295,13 +294,14 @@ def _stability_from_lowest(lam, vec, n_zero, n_negative, k, tol):
 
 
 def branch_analysis(scene, q, phi, index, k=8, tol=DEFAULT_NEGATIVE_TOL, cluster_rtol=1e-4, ref=None, pinv_tol=0.0,
-                    nbr=None):
+                    nbr=None, guess=None):
     """One Hessian and one eigen-decomposition at an equilibrium q, giving everything a
     continuation step needs: its ``Stability``; eigenvalue number ``index`` (ascending, zero modes
     removed) -- or, if ``ref`` (a unit vector in the scaled DOFs) is given, the mode that overlaps
     it most --, that eigenvalue's derivative along the branch with respect to phi, its eigenvector
     (scaled DOFs); and the branch tangent dq/dphi (physical DOFs), with modes |lambda| <= pinv_tol
-    left out of it.
+    left out of it. guess (an estimate of the lowest eigenvalue) is accepted for signature
+    compatibility with ``sparse_branch_analysis``, whose eigensolver uses it; not needed here.
 
     Returns (stability, lam, dlam_dphi, v, dq_dphi).
     """
