@@ -19,14 +19,15 @@ import numpy as np
 
 import jax.numpy as jnp
 
-from .equilibrium import Equilibrium, LeftBranchError, TopologyChangeError, relax, solve_equilibrium
+from .equilibrium import (Equilibrium, LeftBranchError, TopologyChangeError, equilibrium_arrays, equilibrium_from_arrays,
+                          relax, solve_equilibrium)
 from .geometry import polyline_distance
 from .validation import check_finite, check_int_at_least, check_positive
 from .solvers import ConvergenceError
 from .sparse_branch import solve_equilibrium_sparse, sparse_branch_analysis
 from .stability import DEFAULT_NEGATIVE_TOL, branch_analysis
 
-__all__ = ["ContinuationOptions", "Task", "PathStop", "StepFailure", "BranchEnd", "CriticalPoint", "critical_twist", "NoCrossingError", "BranchPoint", "Instability", "TwistPath", "follow_twist"]
+__all__ = ["ContinuationOptions", "Task", "PathStop", "StepFailure", "BranchEnd", "CriticalPoint", "critical_twist", "NoCrossingError", "BranchPoint", "Instability", "TwistPath", "follow_twist", "PathState", "Phase"]
 
 
 class StepFailure(enum.Enum):
@@ -177,33 +178,155 @@ class ContinuationOptions:
         return ContinuationOptions(**values)
 
 
-def _step(scene, phi, q_pred, index, k, negative_tol, fallback_q=None, ref=None, gtol=1e-9, nbr=None,
-          sparse=False, guess=None):
-    """Newton corrector from the predictor (the neighbourhood is rebuilt, and the solve
-    repeated, if nodes moved out of it), then one spectrum. Returns (scene, equilibrium with its
-    stability, tracked eigenvalue, its phi-derivative, its eigenvector, branch tangent dq/dphi).
-    sparse: the O(N) block-tridiagonal corrector and analysis (``jaxrod.sparse_branch``); guess:
-    an estimate of the lowest eigenvalue there (sparse only: it picks the eigensolver's shift)."""
-    contact = "contact" in scene.terms
-    near_null = negative_tol if contact else 0.0
+@dataclass(frozen=True)
+class _Step:
+    """The outcome of one predictor-corrector step (``_Engine.step``).
 
-    def correct(q_start):
-        if sparse:
-            return solve_equilibrium_sparse(scene, phi, q_start, gtol=gtol, nbr=nbr)
-        return solve_equilibrium(scene, phi, q_start, method="newton", with_stability=False,
-                                 near_null_tol=near_null, gtol=gtol, nbr=nbr)
+    equilibrium: the corrected state (with its stability once analysed; None if the corrector
+    failed); tangent: dq/dphi there; eigenvalue, dlambda_dphi, mode: the tracked eigenpair and
+    its derivative along the branch; refusal: why the step was refused (None: accepted)."""
 
-    try:
-        e = correct(q_pred)
-    except ConvergenceError:
-        if fallback_q is None:
-            raise
-        e = correct(fallback_q)
-    pinv_tol = negative_tol if contact else 0.0
-    analysis = sparse_branch_analysis if sparse else branch_analysis
-    stab, lam, dlam, v, dq = analysis(scene, e.q, phi, index, k=k, tol=negative_tol, ref=ref, pinv_tol=pinv_tol,
-                                      nbr=e.neighbourhood, guess=guess)
-    return scene, replace(e, stability=stab), lam, dlam, v, dq
+    equilibrium: Equilibrium | None
+    tangent: np.ndarray | None = field(default=None, repr=False)
+    eigenvalue: float = math.nan
+    dlambda_dphi: float = math.nan
+    mode: np.ndarray | None = field(default=None, repr=False)
+    refusal: _Refusal | None = None
+
+    @property
+    def ok(self):
+        return self.refusal is None
+
+
+@dataclass(frozen=True)
+class _Engine:
+    """The one predictor-corrector-accept step that both continuations are loops over.
+
+    Predictor: the branch tangent, q(phi) = q_prev + dq/dphi (phi - phi_prev). Corrector, by task:
+    ``critical_twist`` uses Newton (it must also converge *past* the crossing, onto the branch
+    that has just turned unstable, to bracket and refine it; the O(n) block Newton for large
+    rings and rods), ``follow_twist`` the damped-Newton minimiser of ``relax``, guided by the
+    predicted shape, which cannot wander onto an unstable branch. Analysis (shared): the
+    stability, the tracked eigenpair with its derivative along the branch, and the new tangent.
+    Acceptance: any converged state for ``critical_twist`` (it watches the negative count
+    itself); for ``follow_twist`` a state that stayed within jump_tol of the prediction, has
+    Lk = Lk0 + phi/2pi (closed rods) and no negative eigenvalue (after a soft-saddle escape)."""
+
+    scene: object
+    task: Task
+    opts: ContinuationOptions
+    sparse: bool = False
+
+    @property
+    def contact(self):
+        return "contact" in self.scene.terms
+
+    @property
+    def closed(self):
+        return bool(self.scene.closed)
+
+    @property
+    def lk0(self):
+        return float(getattr(self.scene, "Lk0", 0.0))
+
+    @property
+    def pinv_tol(self):
+        # Near-zero sliding modes of a contact knot are left out of the tangent's pseudo-inverse.
+        return self.opts.negative_tol if self.contact else 0.0
+
+    def analyse(self, e, index=0, ref=None, guess=None):
+        """(stability, eigenvalue, dlambda_dphi, mode, tangent) at the equilibrium e: the eigenpair
+        tracked is number ``index``, or the one nearest ``ref`` (an eigenvector)."""
+        analysis = sparse_branch_analysis if self.sparse else branch_analysis
+        return analysis(self.scene, e.q, e.phi, index, k=self.opts.k, tol=self.opts.negative_tol, ref=ref,
+                        pinv_tol=self.pinv_tol, nbr=e.neighbourhood, guess=guess)
+
+    def analysed(self, e, index=0, ref=None, guess=None):
+        """``analyse`` as a _Step: the equilibrium with its stability attached."""
+        stab, lam, dlam, v, dq = self.analyse(e, index, ref, guess)
+        return _Step(replace(e, stability=stab), dq, lam, dlam, v)
+
+    def step(self, prev, tangent, phi, index=0, ref=None, guess=None):
+        """Predict from ``prev`` (an Equilibrium) along ``tangent`` to ``phi``, correct, analyse and
+        accept or refuse. index, ref, guess: the tracked eigenpair (see ``analyse``). Returns a
+        _Step."""
+        q_pred = prev.q + tangent * (phi - prev.phi)
+        if self.task is Task.CRITICAL_TWIST:
+            return self._newton_step(prev, q_pred, phi, index, ref, guess)
+        return self._minimiser_step(prev, q_pred, phi)
+
+    def _newton(self, phi, q_start, nbr):
+        if self.sparse:
+            return solve_equilibrium_sparse(self.scene, phi, q_start, gtol=self.opts.gtol, nbr=nbr)
+        return solve_equilibrium(self.scene, phi, q_start, method="newton", with_stability=False,
+                                 near_null_tol=self.opts.negative_tol if self.contact else 0.0,
+                                 gtol=self.opts.gtol, nbr=nbr)
+
+    def _newton_step(self, prev, q_pred, phi, index, ref, guess):
+        try:
+            e = self._newton(phi, q_pred, prev.neighbourhood)
+        except ConvergenceError:
+            try:  # from the last state itself, in case the predictor overshot
+                e = self._newton(phi, prev.q, prev.neighbourhood)
+            except ConvergenceError as exc:
+                return _Step(None, refusal=_Refusal(StepFailure.NOT_CONVERGED, str(exc)))
+        return self.analysed(e, index, ref, guess)
+
+    def _minimiser_step(self, prev, q_pred, phi):
+        opts = self.opts
+        x_pred = np.asarray(self.scene.positions(jnp.asarray(q_pred)))
+        try:
+            e = relax(self.scene, phi, q_pred, gtol=opts.gtol, previous=prev, with_stability=False,
+                      nbr=prev.neighbourhood, guide=(x_pred, opts.jump_tol), max_steps=opts.corrector_max_steps)
+        except LeftBranchError as exc:
+            return _Step(None, refusal=_Refusal(StepFailure.JUMP, str(exc)))
+        except TopologyChangeError as exc:
+            return _Step(None, refusal=_Refusal(StepFailure.TOPOLOGY, str(exc)))
+        except ConvergenceError as exc:
+            return _Step(None, refusal=_Refusal(StepFailure.NOT_CONVERGED, str(exc)))
+        moved = polyline_distance(e.x, x_pred, self.closed)
+        if moved > opts.jump_tol:
+            return _Step(e, refusal=_Refusal(StepFailure.JUMP, f"the state moved {moved:.3g} from the predicted shape"))
+        s = self.analysed(e)
+        if self.closed and abs(s.equilibrium.Lk - (self.lk0 + phi / (2.0 * math.pi))) > 1e-6:
+            return replace(s, tangent=None,
+                           refusal=_Refusal(StepFailure.LINKING, f"Lk = {s.equilibrium.Lk:.8f} is not Lk0 + phi/2pi"))
+        if s.equilibrium.stability.n_negative > 0 and self.contact:
+            # A soft, sliding-type mode of a loose knot may turn slightly negative: the minimiser
+            # then stalls on a saddle that differs from a stable state only by a slide of the
+            # material along the same shape. Push along the negative mode and relax: if a stable
+            # state of the *same shape* appears, the branch goes on (no false detection).
+            escaped = self._escape_soft_saddle(s.equilibrium, prev, x_pred)
+            if escaped is not None:
+                s = escaped
+        n_negative = s.equilibrium.stability.n_negative
+        if n_negative > 0:
+            return replace(s, refusal=_Refusal(StepFailure.UNSTABLE, f"{n_negative} negative eigenvalue(s)"))
+        return s
+
+    def _escape_soft_saddle(self, e, prev, x_pred):
+        """From a saddle e, relax after pushes of +-jump_tol/4 along its most negative mode; the
+        analysed _Step of a stable state within jump_tol of the predicted shape x_pred, or None."""
+        jump_tol = self.opts.jump_tol
+        v = np.asarray(e.stability.eigenvectors[:, 0])
+        mode_q = self.scene.from_scaled(np.asarray(v))
+        x_mode = np.asarray(self.scene.unpack(jnp.asarray(mode_q), 0.0)[0])
+        amp = 0.25 * jump_tol / max(float(np.max(np.linalg.norm(x_mode, axis=1))), 1e-300)
+        for sgn in (1.0, -1.0):
+            try:
+                # Guided: a push along a real buckling mode runs off the predicted shape and is
+                # stopped at its first pause instead of being relaxed to the end.
+                e2 = relax(self.scene, e.phi, e.q + sgn * amp * mode_q, gtol=self.opts.gtol, previous=prev,
+                           with_stability=False, nbr=e.neighbourhood, guide=(x_pred, jump_tol),
+                           max_steps=self.opts.corrector_max_steps)
+            except (ConvergenceError, TopologyChangeError):
+                continue
+            if polyline_distance(e2.x, x_pred, self.closed) > jump_tol:
+                continue
+            s = self.analysed(e2)
+            if s.equilibrium.stability.n_negative == 0:
+                return s
+        return None
 
 
 # "auto" takes the O(n) block path from this many DOFs on (N ~ 250 nodes): below it the dense
@@ -271,7 +394,7 @@ def critical_twist(
     min_step = max_step / 16.0
     say = progress or (lambda s: None)
     sparse = _use_sparse(scene, linear_algebra)
-    analysis = sparse_branch_analysis if sparse else branch_analysis
+    engine = _Engine(scene, Task.CRITICAL_TWIST, opts, sparse)
 
     if contact:
         relaxed = relax(scene, phi_start, q0, with_stability=False, gtol=gtol)
@@ -281,17 +404,14 @@ def critical_twist(
         relaxed = solve_equilibrium_sparse(scene, phi_start, q0, gtol=gtol)
     else:
         relaxed = solve_equilibrium(scene, phi_start, q0, method="auto", with_stability=False, gtol=gtol)
-    pinv_tol = negative_tol if contact else 0.0
-    st0, lam_t, dlam_t, _, dq = analysis(scene, relaxed.q, phi_start, 0, k=k, tol=negative_tol,
-                                         pinv_tol=pinv_tol, nbr=relaxed.neighbourhood)
-    count0 = int(st0.n_negative)
+    start = engine.analysed(relaxed)
+    count0 = int(start.equilibrium.stability.n_negative)
     # The eigenvalue that crosses next: the lowest one clearly above zero (near-zero modes skipped).
-    index = int(np.sum(st0.eigenvalues < negative_tol)) if st0.eigenvalues.size else 0
+    ev0 = start.equilibrium.stability.eigenvalues
+    index = int(np.sum(ev0 < negative_tol)) if ev0.size else 0
     if index != 0:
-        st0, lam_t, dlam_t, _, dq = analysis(
-            scene, relaxed.q, phi_start, index, k=k, tol=negative_tol, pinv_tol=pinv_tol, nbr=relaxed.neighbourhood
-        )
-    prev = replace(relaxed, stability=st0)
+        start = engine.analysed(relaxed, index)
+    prev, dq, lam_t, dlam_t = start.equilibrium, start.tangent, start.eigenvalue, start.dlambda_dphi
     scan = [(prev.phi, count0, prev.stability.eigenvalues.copy())]
     say(f"phi = {prev.phi / math.pi:+.4f} pi: {count0} negative, lowest {prev.stability.eigenvalues[0]:.3e}")
 
@@ -304,13 +424,9 @@ def critical_twist(
             raise NoCrossingError(
                 f"negative count stayed {count0} from phi = {phi_start:.6g} to {phi_stop:.6g}"
             )
-        try:
-            scene, cur, lam_c, dlam_c, _, dq_c = _step(
-                scene, phi_next, prev.q + dq * (phi_next - prev.phi), index, k, negative_tol, prev.q, gtol=gtol,
-                nbr=prev.neighbourhood, sparse=sparse,
-                guess=min(prev.stability.eigenvalues[0], lam_t + dlam_t * (phi_next - prev.phi)),
-            )
-        except ConvergenceError:
+        s = engine.step(prev, dq, phi_next, index,
+                        guess=min(prev.stability.eigenvalues[0], lam_t + dlam_t * (phi_next - prev.phi)))
+        if not s.ok:
             # Step-size control: no equilibrium found near the predictor; halve the step. If even
             # tiny steps fail, the branch ends here (a fold: the state must jump elsewhere).
             h *= 0.5
@@ -321,6 +437,7 @@ def critical_twist(
                 ) from None
             say(f"corrector failed at phi = {phi_next / math.pi:+.4f} pi: step halved to {h:.3e}")
             continue
+        cur = s.equilibrium
         scan.append((cur.phi, cur.stability.n_negative, cur.stability.eigenvalues.copy()))
         say(
             f"phi = {cur.phi / math.pi:+.4f} pi: {cur.stability.n_negative} negative, "
@@ -330,11 +447,11 @@ def critical_twist(
             break
         # Newton-extrapolated crossing of the tracked eigenvalue: aim 10% past it.
         h = max_step
-        if dlam_c != 0.0:
-            ahead = -lam_c / dlam_c * direction
+        if s.dlambda_dphi != 0.0:
+            ahead = -s.eigenvalue / s.dlambda_dphi * direction
             if ahead > 0.0:
                 h = min(max_step, max(min_step, 1.1 * ahead))
-        before, prev, dq, lam_t, dlam_t = prev, cur, dq_c, lam_c, dlam_c
+        before, prev, dq, lam_t, dlam_t = prev, cur, s.tangent, s.eigenvalue, s.dlambda_dphi
 
     # Refine. The crossing mode: at the far end, the negative eigenvalue nearest zero; followed
     # by eigenvector overlap from there on (robust to reordering and to near-zero modes).
@@ -348,19 +465,15 @@ def critical_twist(
         idx_hi = int(np.sum(ev_hi < negative_tol))
     ref = cur.stability.eigenvectors[:, idx_hi]
     evals = 2
-    _, f_hi, _, v_hi, _ = analysis(scene, hi.q, hi.phi, idx_hi, k=k, tol=negative_tol, ref=ref, pinv_tol=pinv_tol,
-                                   nbr=hi.neighbourhood, guess=hi.stability.eigenvalues[0])
-    _, f_lo, d_lo, v_lo, dq_lo = analysis(scene, lo.q, lo.phi, 0, k=k, tol=negative_tol, ref=v_hi, pinv_tol=pinv_tol,
-                                          nbr=lo.neighbourhood, guess=lo.stability.eigenvalues[0])
+    _, f_hi, _, v_hi, _ = engine.analyse(hi, idx_hi, ref=ref, guess=hi.stability.eigenvalues[0])
+    _, f_lo, d_lo, v_lo, dq_lo = engine.analyse(lo, ref=v_hi, guess=lo.stability.eigenvalues[0])
     if np.sign(f_lo) == np.sign(f_hi) and before is not None:
         # The crossing eigenvalue already changed sign at lo but stayed inside the near-zero band
         # (|lambda| < negative_tol, e.g. a soft ring of N ~ 1000, lambda ~ 1e-9): the count missed
         # it there. Take the scan state before as the stable end, so that the bracket holds a sign
         # change (the sign tests below rely on it).
         lo, evals = before, 3
-        _, f_lo, d_lo, v_lo, dq_lo = analysis(scene, lo.q, lo.phi, 0, k=k, tol=negative_tol, ref=v_hi,
-                                              pinv_tol=pinv_tol, nbr=lo.neighbourhood,
-                                              guess=lo.stability.eigenvalues[0])
+        _, f_lo, d_lo, v_lo, dq_lo = engine.analyse(lo, ref=v_hi, guess=lo.stability.eigenvalues[0])
     evals = max(evals, 2)
     bracket = (lo.phi, hi.phi)
     # First guess: Newton from the stable end if it stays inside the bracket, else secant.
@@ -371,11 +484,12 @@ def critical_twist(
     base, base_dq, v_ref, f_base, d_base = lo, dq_lo, v_lo, f_lo, d_lo
     phi_error = abs(hi.phi - lo.phi)
     for _ in range(max_refine):
-        scene, e, f_c, d_c, v_c, dq_c = _step(
-            scene, phi_c, base.q + base_dq * (phi_c - base.phi), 0, k, negative_tol, base.q, ref=v_ref, gtol=gtol,
-            nbr=base.neighbourhood, sparse=sparse,
-            guess=min(base.stability.eigenvalues[0], f_base + d_base * (phi_c - base.phi)),
-        )
+        s = engine.step(base, base_dq, phi_c, ref=v_ref,
+                        guess=min(base.stability.eigenvalues[0], f_base + d_base * (phi_c - base.phi)))
+        if not s.ok:
+            raise ConvergenceError(f"critical twist refinement: no equilibrium at phi = {phi_c:.10g} "
+                                   f"({s.refusal.detail})")
+        e, f_c, d_c, v_c, dq_c = s.equilibrium, s.eigenvalue, s.dlambda_dphi, s.mode, s.tangent
         evals += 1
         if np.sign(f_c) == np.sign(f_lo):
             lo, f_lo = e, f_c
@@ -493,6 +607,114 @@ def _jump_tolerance(scene):
     return 0.5 * float(D) if D is not None else 0.05 * float(scene.length)
 
 
+class Phase(_ValueEnum):
+    """Where a ``follow_twist`` run stands (``PathState.phase``)."""
+
+    FOLLOW = "follow"  # stepping along the branch
+    LOCATE = "locate"  # the branch was lost: shrinking the bracket around its end to tol
+    CONFIRM = "confirm"  # the nearest failure was met from further back: retry it from the last state
+    END = "end"  # the end is bracketed: locate phi*, then switch branches or stop
+    DONE = "done"
+
+
+@dataclass(frozen=True)
+class PathState:
+    """Everything a ``follow_twist`` run needs to go on, between two corrector calls.
+
+    ``follow_twist(..., on_state=f)`` calls f(state) after every step tried (and after the
+    points and instabilities that step reported); ``follow_twist(..., resume=state)`` goes on
+    from it exactly as the uninterrupted run would (the continuation is deterministic: a
+    resumed run reports the same points and instabilities, to the last bit). ``to_arrays()``
+    and ``PathState.from_arrays(scene, arrays)`` store it in an npz file (every equilibrium by
+    its scaled DOFs, solver record and neighbourhood; the stabilities are recomputed on load).
+
+    phase: a ``Phase``; branch: name of the branch followed ('symmetric+', ...); prev: last
+    stable state (with stability), tangent: dq/dphi there; older: the state before it (or None);
+    h: current step; switches: branch switches made; n_points / n_instabilities: reported so far
+    (a study keeps as many rows and instabilities on file); lost_*: the nearest twist where the
+    branch was lost, the refusal there and its state, and from which twist it was tried;
+    failures / successes / probe_held: the end locator's memory (see ``_end_trial``);
+    stop / reason: why the run stopped (phase DONE).
+    """
+
+    phase: Phase
+    branch: str
+    prev: Equilibrium = field(repr=False)
+    tangent: np.ndarray = field(repr=False)
+    older: Equilibrium | None = field(default=None, repr=False)
+    h: float = 0.0
+    switches: int = 0
+    n_points: int = 0
+    n_instabilities: int = 0
+    lost_phi: float = math.nan
+    lost_from: float = math.nan
+    lost_refusal: _Refusal | None = None
+    lost_equilibrium: Equilibrium | None = field(default=None, repr=False)
+    failures: int = 0
+    successes: int = 0
+    probe_held: bool = False
+    stop: PathStop | None = None
+    reason: str = ""
+
+    def to_arrays(self):
+        """The state as a dict of numpy arrays (for ``np.savez``)."""
+        out = {"phase": np.asarray(self.phase.value), "branch": np.asarray(self.branch), "h": np.asarray(self.h)}
+        for key in ("switches", "n_points", "n_instabilities", "failures", "successes"):
+            out[key] = np.asarray(getattr(self, key), dtype=np.int64)
+        out.update(lost_phi=np.asarray(self.lost_phi), lost_from=np.asarray(self.lost_from),
+                   probe_held=np.asarray(self.probe_held), stop=np.asarray("" if self.stop is None else self.stop.value),
+                   reason=np.asarray(self.reason))
+        if self.lost_refusal is not None:
+            out["lost_failure"] = np.asarray(self.lost_refusal.failure.value)
+            out["lost_detail"] = np.asarray(self.lost_refusal.detail)
+        for name in ("prev", "older", "lost_equilibrium"):
+            e = getattr(self, name)
+            if e is not None:
+                out.update(equilibrium_arrays(e, name + "_"))
+                out[name + "_analysed"] = np.asarray(e.stability is not None)
+        return out
+
+    @classmethod
+    def from_arrays(cls, arrays):
+        """A state from ``to_arrays``'s dict (or an opened npz), with its equilibria still to be
+        rebuilt: ``follow_twist(resume=...)`` does that (it knows the scene and the options)."""
+        return _StoredPathState(dict(arrays))
+
+
+@dataclass(frozen=True)
+class _StoredPathState:
+    """A ``PathState`` as loaded from a file: arrays, equilibria not yet rebuilt."""
+
+    arrays: dict
+
+    def restore(self, engine):
+        a = self.arrays
+
+        def equilibrium(name):
+            if name + "_y" not in a:
+                return None, None
+            e = equilibrium_from_arrays(engine.scene, a, name + "_")
+            if not bool(a[name + "_analysed"]):
+                return e, None
+            s = engine.analysed(e)
+            return s.equilibrium, s.tangent
+
+        prev, tangent = equilibrium("prev")
+        older, _ = equilibrium("older")
+        lost, _ = equilibrium("lost_equilibrium")
+        refusal = None
+        if "lost_failure" in a:
+            refusal = _Refusal(StepFailure(str(a["lost_failure"])), str(a["lost_detail"]))
+        stop = str(a["stop"])
+        return PathState(
+            phase=Phase(str(a["phase"])), branch=str(a["branch"]), prev=prev, tangent=tangent, older=older,
+            h=float(a["h"]), switches=int(a["switches"]), n_points=int(a["n_points"]),
+            n_instabilities=int(a["n_instabilities"]), lost_phi=float(a["lost_phi"]), lost_from=float(a["lost_from"]),
+            lost_refusal=refusal, lost_equilibrium=lost, failures=int(a["failures"]), successes=int(a["successes"]),
+            probe_held=bool(a["probe_held"]), stop=PathStop(stop) if stop else None, reason=str(a["reason"]),
+        )
+
+
 def follow_twist(
     scene,
     phi_start=0.0,
@@ -513,6 +735,8 @@ def follow_twist(
     progress=None,
     options=None,
     on_instability=None,
+    on_state=None,
+    resume=None,
 ):
     """Follow the stable equilibrium branch from phi_start towards phi_stop; where it ends
     (an eigenvalue crosses zero or the branch folds), locate the end to ``tol`` and switch to the
@@ -524,10 +748,10 @@ def follow_twist(
     A step is accepted when the corrector converges, the state stays within ``jump_tol``
     (default D/2) of the predicted shape (a distance blind to material sliding along the
     centreline), the linking number is Lk0 + phi/2 pi (closed rods) and no eigenvalue is below
-    -negative_tol. Otherwise the step is halved; once the failing twist is within ``tol`` of the
-    last accepted one, the branch has ended there (a failure that persists as the step goes to
-    zero is not a step-size artefact). Near-zero modes (|lambda| < negative_tol: strands sliding
-    in a loose knot, ~1e-7) never count.
+    -negative_tol (see ``_Engine``). Otherwise the step is halved; once the failing twist is
+    within ``tol`` of the last accepted one, the branch has ended there (a failure that persists
+    as the step goes to zero is not a step-size artefact). Near-zero modes (|lambda| <
+    negative_tol: strands sliding in a loose knot, ~1e-7) never count.
 
     Branch switching: at the nearest twist where the branch was lost, the predicted state is
     pushed by +-``perturbation`` (default D/2 at the node that moves most) along the critical
@@ -537,168 +761,173 @@ def follow_twist(
     Tolerances (step, tol, negative_tol, gtol, jump_tol, k): keywords or an ``options``
     (``ContinuationOptions``, where their scene-aware defaults are defined; a keyword that is not
     None wins). scene: closed or clamped rod scene; q0 or start (an Equilibrium to begin from,
-    used as is); step: largest step in phi (default 0.25 pi); on_point(BranchPoint) and progress(str): callbacks (e.g. to write
-    rows as they come); on_instability(Instability): called as soon as a branch end is located
-    (and, after a switch, before the new branch's first point), so that a study can keep it on
-    file at once. Returns a ``TwistPath``.
+    used as is); step: largest step in phi (default 0.25 pi); on_point(BranchPoint) and
+    progress(str): callbacks (e.g. to write rows as they come); on_instability(Instability):
+    called as soon as a branch end is located (and, after a switch, before the new branch's
+    first point), so that a study can keep it on file at once. on_state(PathState): called after
+    every step tried; resume: a ``PathState`` (or ``PathState.from_arrays``) to go on from, in
+    place of phi_start / q0 / start / branch (the same scene, phi_stop and tolerances must be
+    given). The run is deterministic, so a resumed run reports exactly the points and
+    instabilities that the uninterrupted one reports after that state. Returns a ``TwistPath``
+    (with the points and instabilities of this call).
     """
     t0 = time.perf_counter()
+    if resume is not None and phi_start is not None and start is None:
+        phi_start = 0.0  # not used: the run goes on from the resumed state
     phi_start = check_finite("phi_start", phi_start if start is None else start.phi)
     phi_stop = check_finite("phi_stop", 8.0 * math.pi if phi_stop is None else phi_stop)
-    if phi_stop == phi_start:
-        raise ValueError("phi_stop must differ from phi_start")
     opts = (options or ContinuationOptions()).updated(step=step, tol=tol, negative_tol=negative_tol, gtol=gtol,
                                                       jump_tol=jump_tol, k=k)
-    opts = opts.resolved(scene, Task.FOLLOW_TWIST, abs(phi_stop - phi_start))
-    step, tol, negative_tol, gtol, jump_tol, k = opts.step, opts.tol, opts.negative_tol, opts.gtol, opts.jump_tol, opts.k
-    corrector_max_steps = opts.corrector_max_steps
-    contact = "contact" in scene.terms
-    direction = 1.0 if phi_stop > phi_start else -1.0
-    sign = "+" if direction > 0 else "-"
+    engine = _Engine(scene, Task.FOLLOW_TWIST, opts)
+    points, instabilities = [], []
     say = progress or (lambda s: None)
-    closed = bool(scene.closed)
-    lk0 = float(getattr(scene, "Lk0", 0.0))
 
-    def analyse(sc, e):
-        st, _, _, _, dq = branch_analysis(sc, e.q, e.phi, 0, k=k, tol=negative_tol, pinv_tol=pinv_tol,
-                                          nbr=e.neighbourhood)
-        return replace(e, stability=st), dq
-
-    def attempt(sc, prev, dq, phi):
-        """Corrector from the tangent predictor. Returns (ok, why, scene, equilibrium, tangent)."""
-        q_pred = prev.q + dq * (phi - prev.phi)
-        x_pred = np.asarray(sc.positions(jnp.asarray(q_pred)))
-        try:
-            e = relax(sc, phi, q_pred, gtol=gtol, previous=prev, with_stability=False, nbr=prev.neighbourhood,
-                      guide=(x_pred, jump_tol), max_steps=corrector_max_steps)
-            sc2 = sc
-        except LeftBranchError as exc:
-            return False, _Refusal(StepFailure.JUMP, str(exc)), sc, None, None
-        except TopologyChangeError as exc:
-            return False, _Refusal(StepFailure.TOPOLOGY, str(exc)), sc, None, None
-        except ConvergenceError as exc:
-            return False, _Refusal(StepFailure.NOT_CONVERGED, str(exc)), sc, None, None
-        moved = polyline_distance(e.x, x_pred, closed)
-        if moved > jump_tol:
-            return False, _Refusal(StepFailure.JUMP, f"the state moved {moved:.3g} from the predicted shape"), sc2, e, None
-        e, dq2 = analyse(sc2, e)
-        if closed and abs(e.Lk - (lk0 + phi / (2.0 * math.pi))) > 1e-6:
-            return False, _Refusal(StepFailure.LINKING, f"Lk = {e.Lk:.8f} is not Lk0 + phi/2pi"), sc2, e, None
-        if e.stability.n_negative > 0 and contact:
-            # A soft, sliding-type mode of a loose knot may turn slightly negative: the minimiser
-            # then stalls on a saddle that differs from a stable state only by a slide of the
-            # material along the same shape. Push along the negative mode and relax: if a stable
-            # state of the *same shape* appears, the branch goes on (no false detection).
-            escaped = _escape_soft_saddle(sc2, e, prev, x_pred, jump_tol, gtol, closed, analyse)
-            if escaped is not None:
-                sc2, e, dq2 = escaped
-        if e.stability.n_negative > 0:
-            return False, _Refusal(StepFailure.UNSTABLE, f"{e.stability.n_negative} negative eigenvalue(s)"), sc2, e, dq2
-        return True, "", sc2, e, dq2
-
-    def emit(name, sc, e, dq):
-        point = BranchPoint(branch=name, equilibrium=e, tangent=dq, scene=sc)
+    def emit(state, s):
+        e = s.equilibrium
+        point = BranchPoint(branch=state.branch, equilibrium=e, tangent=s.tangent, scene=scene)
         points.append(point)
         if on_point is not None:
             on_point(point)
         lam = e.stability.eigenvalues
-        say(f"[{name}] phi = {e.phi / math.pi:+.5f} pi: E = {e.energy:.6g}, Wr = {e.Wr:.4f}, "
+        say(f"[{state.branch}] phi = {e.phi / math.pi:+.5f} pi: E = {e.energy:.6g}, Wr = {e.Wr:.4f}, "
             f"Tw = {e.Tw:.4f}, {e.stability.n_negative} negative, lowest " + " ".join(f"{v:.2e}" for v in lam[:3]))
-        return point
+        return replace(state, n_points=state.n_points + 1)
 
-    points, instabilities = [], []
-    if start is None:
-        e0 = relax(scene, phi_start, q0, gtol=gtol, with_stability=False)
+    def record(state, inst):
+        instabilities.append(inst)
+        if on_instability is not None:
+            on_instability(inst)
+        return replace(state, n_instabilities=state.n_instabilities + 1)
+
+    if resume is not None:
+        state = resume.restore(engine) if isinstance(resume, _StoredPathState) else resume
+        direction = 1.0 if phi_stop > state.prev.phi or (phi_stop == state.prev.phi and state.branch[-1:] == "+") \
+            else -1.0
+        opts = opts.resolved(scene, Task.FOLLOW_TWIST, abs(phi_stop - state.prev.phi) or 1.0)
+        engine = replace(engine, opts=opts)
     else:
-        e0 = start
-        if e0.neighbourhood is None:
-            e0 = replace(e0, neighbourhood=scene.neighbourhood(e0.q, e0.phi))
-    pinv_tol = negative_tol if contact else 0.0
-    e0, dq = analyse(scene, e0)
-    name = f"{branch}{sign}"
-    emit(name, scene, e0, dq)
-    prev, older = e0, None
-    h = step
-    switches = 0
-    reason, stop = "phi_stop", PathStop.PHI_STOP
-    while direction * (phi_stop - prev.phi) > 1e-12:
+        if phi_stop == phi_start:
+            raise ValueError("phi_stop must differ from phi_start")
+        direction = 1.0 if phi_stop > phi_start else -1.0
+        opts = opts.resolved(scene, Task.FOLLOW_TWIST, abs(phi_stop - phi_start))
+        engine = replace(engine, opts=opts)
+        if start is None:
+            e0 = relax(scene, phi_start, q0, gtol=opts.gtol, with_stability=False)
+        else:
+            e0 = start
+            if e0.neighbourhood is None:
+                e0 = replace(e0, neighbourhood=scene.neighbourhood(e0.q, e0.phi))
+        s = engine.analysed(e0)
+        state = PathState(phase=Phase.FOLLOW, branch=f"{branch}{'+' if direction > 0 else '-'}",
+                          prev=s.equilibrium, tangent=s.tangent, h=opts.step)
+        state = emit(state, s)
+        if on_state is not None:
+            on_state(state)
+    follower = _Follower(engine, phi_stop, direction, switch, max_switches, perturbation, emit, record, say)
+    while state.phase is not Phase.DONE:
+        state = follower.advance(state)
+        if on_state is not None:
+            on_state(state)
+    return TwistPath(points=points, instabilities=instabilities, reason=state.reason,
+                     seconds=time.perf_counter() - t0, stop=state.stop)
+
+
+@dataclass(frozen=True)
+class _Follower:
+    """``follow_twist``'s loop body: ``advance(state)`` tries one step (or, at a located end,
+    switches branches) and returns the next ``PathState``."""
+
+    engine: _Engine
+    phi_stop: float
+    direction: float
+    switch: bool
+    max_switches: int
+    perturbation: float | None
+    emit: object
+    record: object
+    say: object
+
+    def advance(self, state):
+        return {Phase.FOLLOW: self._follow, Phase.LOCATE: self._locate, Phase.CONFIRM: self._confirm,
+                Phase.END: self._end}[state.phase](state)
+
+    def _accept(self, state, s, **changes):
+        state = replace(state, older=state.prev, prev=s.equilibrium, tangent=s.tangent, **changes)
+        return self.emit(state, s)
+
+    def _follow(self, state):
+        prev, step, direction = state.prev, self.engine.opts.step, self.direction
+        if direction * (self.phi_stop - prev.phi) <= 1e-12:
+            return replace(state, phase=Phase.DONE, stop=PathStop.PHI_STOP, reason="phi_stop")
         # Steps land on the grid of multiples of ``step`` (so whole turns are visited, where the
         # ribbon closes and the Gauss linking number can be compared) unless shortened.
         grid = step * (math.floor(prev.phi / step + 1e-9) + 1 if direction > 0 else math.ceil(prev.phi / step - 1e-9) - 1)
-        phi_next = prev.phi + direction * min(h, abs(phi_stop - prev.phi), abs(grid - prev.phi))
-        ok, why, sc, e, dq_new = attempt(scene, prev, dq, phi_next)
-        if ok:
-            older, (scene, prev, dq) = prev, (sc, e, dq_new)
-            emit(name, scene, e, dq)
-            h = min(step, 2.0 * h)
-            continue
+        phi_next = prev.phi + direction * min(state.h, abs(self.phi_stop - prev.phi), abs(grid - prev.phi))
+        s = self.engine.step(prev, state.tangent, phi_next)
+        if s.ok:
+            return self._accept(state, s, h=min(step, 2.0 * state.h))
         # The branch was lost at phi_next: shrink the bracket between the last stable state and
         # there to tol, aiming each trial with a model of the critical eigenvalue (a few solves
         # where bisection needs ~log2(step/tol) ~ 11).
-        lost_phi, lost_why, lost_eq = phi_next, why, e
-        say(f"[{name}] lost at phi = {phi_next / math.pi:+.5f} pi ({why}); locating the end")
-        lost_from = prev.phi
-        failures, successes, probe_held = 0, 0, False
-        while abs(lost_phi - prev.phi) > tol:
-            trial, probe = _end_trial(older, prev, lost_phi, lost_eq, direction, tol, negative_tol,
-                                      failures, probe_held, successes)
-            ok, why, sc, e, dq_new = attempt(scene, prev, dq, trial)
-            if ok:
-                older, (scene, prev, dq) = prev, (sc, e, dq_new)
-                emit(name, scene, e, dq)
-                failures, successes, probe_held = 0, successes + 1, probe
-            else:
-                say(f"[{name}] phi = {trial / math.pi:+.5f} pi refused ({why})")
-                lost_phi, lost_why, lost_eq, lost_from = trial, why, e, prev.phi
-                failures, successes, probe_held = failures + 1, 0, False
-        if abs(lost_phi - lost_from) > tol:
-            # The nearest failure was met from a state further back: confirm it from the last
-            # stable state, so that a predictor too far off is not taken for the branch's end.
-            ok, why, sc, e, dq_new = attempt(scene, prev, dq, lost_phi)
-            if ok:
-                say(f"[{name}] phi = {lost_phi / math.pi:+.5f} pi reached from closer by: going on")
-                older, (scene, prev, dq) = prev, (sc, e, dq_new)
-                emit(name, scene, e, dq)
-                # The step that failed was too long for the predictor, not past the end: go on
-                # with half of it (not from 2 tol, which needs ~10 doublings back to ``step``).
-                h = max(2.0 * tol, 0.5 * abs(lost_phi - lost_from))
-                continue
-            lost_why, lost_eq = why, e
-        kind = BranchEnd.UNSTABLE if lost_why.failure is StepFailure.UNSTABLE else BranchEnd.JUMP
-        inst = _critical_mode(scene, prev, older, lost_eq, kind, direction, k, negative_tol, pinv_tol)
+        self.say(f"[{state.branch}] lost at phi = {phi_next / math.pi:+.5f} pi ({s.refusal}); locating the end")
+        return replace(state, phase=Phase.LOCATE, lost_phi=phi_next, lost_refusal=s.refusal,
+                       lost_equilibrium=s.equilibrium, lost_from=prev.phi, failures=0, successes=0, probe_held=False)
+
+    def _locate(self, state):
+        tol, prev = self.engine.opts.tol, state.prev
+        if abs(state.lost_phi - prev.phi) <= tol:
+            # Bracketed. If the nearest failure was met from a state further back, confirm it from
+            # the last stable state, so that a predictor too far off is not taken for the end.
+            return replace(state, phase=Phase.CONFIRM if abs(state.lost_phi - state.lost_from) > tol else Phase.END)
+        trial, probe = _end_trial(state.older, prev, state.lost_phi, state.lost_equilibrium, self.direction, tol,
+                                  self.engine.opts.negative_tol, state.failures, state.probe_held, state.successes)
+        s = self.engine.step(prev, state.tangent, trial)
+        if s.ok:
+            return self._accept(state, s, failures=0, successes=state.successes + 1, probe_held=probe)
+        self.say(f"[{state.branch}] phi = {trial / math.pi:+.5f} pi refused ({s.refusal})")
+        return replace(state, lost_phi=trial, lost_refusal=s.refusal, lost_equilibrium=s.equilibrium,
+                       lost_from=prev.phi, failures=state.failures + 1, successes=0, probe_held=False)
+
+    def _confirm(self, state):
+        s = self.engine.step(state.prev, state.tangent, state.lost_phi)
+        if not s.ok:
+            return replace(state, phase=Phase.END, lost_refusal=s.refusal, lost_equilibrium=s.equilibrium)
+        self.say(f"[{state.branch}] phi = {state.lost_phi / math.pi:+.5f} pi reached from closer by: going on")
+        # The step that failed was too long for the predictor, not past the end: go on with half
+        # of it (not from 2 tol, which needs ~10 doublings back to ``step``).
+        h = max(2.0 * self.engine.opts.tol, 0.5 * abs(state.lost_phi - state.lost_from))
+        return self._accept(state, s, phase=Phase.FOLLOW, h=h)
+
+    def _end(self, state):
+        engine, prev, direction, lost_phi = self.engine, state.prev, self.direction, state.lost_phi
+        kind = BranchEnd.UNSTABLE if state.lost_refusal.failure is StepFailure.UNSTABLE else BranchEnd.JUMP
+        inst = _critical_mode(engine, prev, state.older, kind, direction)
         rate = inst.dlambda_dphi if kind is BranchEnd.UNSTABLE or not math.isfinite(inst.dlambda_dphi_secant) \
             else inst.dlambda_dphi_secant
         phi_c, phi_err = _locate(prev.phi, lost_phi, inst.eigenvalue, rate, direction)
-        inst = replace(inst, phi=phi_c, phi_error=phi_err, bracket=(prev.phi, lost_phi), from_branch=name,
-                       negative_tol=negative_tol)
-        say(f"[{name}] branch ends at phi* = {inst.phi / math.pi:+.6f} pi +- {inst.phi_error:.1e} rad "
-            f"({kind}; last: {lost_why}); critical eigenvalue {inst.eigenvalue:.3e}, "
-            f"d/dphi {inst.dlambda_dphi:.3e}")
-        if not switch or switches >= max_switches:
-            instabilities.append(inst)
-            if on_instability is not None:
-                on_instability(inst)
-            reason, stop = f"branch ended at phi = {inst.phi:.8g} ({kind})", PathStop.BRANCH_ENDED
-            break
-        switches += 1
-        new_name = _next_branch_name(name[:-1]) + sign
-        found = _switch_branch(scene, prev, dq, lost_phi, inst.mode, lost_eq, perturbation, jump_tol,
-                               gtol, analyse, closed, lk0, say)
+        inst = replace(inst, phi=phi_c, phi_error=phi_err, bracket=(prev.phi, lost_phi), from_branch=state.branch,
+                       negative_tol=engine.opts.negative_tol)
+        self.say(f"[{state.branch}] branch ends at phi* = {inst.phi / math.pi:+.6f} pi +- {inst.phi_error:.1e} rad "
+                 f"({kind}; last: {state.lost_refusal}); critical eigenvalue {inst.eigenvalue:.3e}, "
+                 f"d/dphi {inst.dlambda_dphi:.3e}")
+        if not self.switch or state.switches >= self.max_switches:
+            state = self.record(state, inst)
+            return replace(state, phase=Phase.DONE, stop=PathStop.BRANCH_ENDED,
+                           reason=f"branch ended at phi = {inst.phi:.8g} ({kind})")
+        found = _switch_branch(engine, prev, state.tangent, lost_phi, inst.mode, state.lost_equilibrium,
+                               self.perturbation, self.say)
         if found is None:
-            instabilities.append(inst)
-            if on_instability is not None:
-                on_instability(inst)
-            reason, stop = f"no stable branch found beyond phi = {lost_phi:.8g}", PathStop.NO_STABLE_BRANCH
-            break
-        sc, e, dq_new = found
-        instabilities.append(replace(inst, to_branch=new_name, jumped_to=e))
-        if on_instability is not None:  # before the new branch's first point is reported
-            on_instability(instabilities[-1])
-        scene, prev, dq, name, older = sc, e, dq_new, new_name, None
-        emit(name, scene, e, dq)
-        h = step
-    return TwistPath(points=points, instabilities=instabilities, reason=reason, seconds=time.perf_counter() - t0,
-                     stop=stop)
+            state = self.record(replace(state, switches=state.switches + 1), inst)
+            return replace(state, phase=Phase.DONE, stop=PathStop.NO_STABLE_BRANCH,
+                           reason=f"no stable branch found beyond phi = {lost_phi:.8g}")
+        new_name = _next_branch_name(state.branch[:-1]) + state.branch[-1]
+        state = self.record(state, replace(inst, to_branch=new_name, jumped_to=found.equilibrium))
+        state = replace(state, phase=Phase.FOLLOW, branch=new_name, prev=found.equilibrium, tangent=found.tangent,
+                        older=None, h=engine.opts.step, switches=state.switches + 1, lost_phi=math.nan,
+                        lost_from=math.nan, lost_refusal=None, lost_equilibrium=None, failures=0, successes=0,
+                        probe_held=False)
+        # The new branch's first point, after its instability (a study then has both on file).
+        return self.emit(state, found)
 
 
 def _critical_candidates(older, prev, negative_tol, candidates=5):
@@ -784,31 +1013,6 @@ def _locate(phi_stable, phi_lost, lam, dlam, direction):
     return mid, half
 
 
-def _escape_soft_saddle(scene, e, prev, x_pred, jump_tol, gtol, closed, analyse):
-    """From a saddle e, relax after pushes of +-jump_tol/4 along its most negative mode; return
-    (scene, equilibrium, tangent) of a stable state within jump_tol of the predicted shape x_pred,
-    or None."""
-    v = np.asarray(e.stability.eigenvectors[:, 0])
-    mode_q = scene.from_scaled(np.asarray(v))
-    x_mode = np.asarray(scene.unpack(jnp.asarray(mode_q), 0.0)[0])
-    amp = 0.25 * jump_tol / max(float(np.max(np.linalg.norm(x_mode, axis=1))), 1e-300)
-    for sgn in (1.0, -1.0):
-        try:
-            # Guided: a push along a real buckling mode runs off the predicted shape and is
-            # stopped at its first pause instead of being relaxed to the end.
-            e2 = relax(scene, e.phi, e.q + sgn * amp * mode_q, gtol=gtol, previous=prev, with_stability=False,
-                       nbr=e.neighbourhood, guide=(x_pred, jump_tol), max_steps=CORRECTOR_MAX_STEPS)
-            sc2 = scene
-        except (ConvergenceError, TopologyChangeError):
-            continue
-        if polyline_distance(e2.x, x_pred, closed) > jump_tol:
-            continue
-        e2, dq2 = analyse(sc2, e2)
-        if e2.stability.n_negative == 0:
-            return sc2, e2, dq2
-    return None
-
-
 def _next_branch_name(name):
     """symmetric -> buckled -> buckled2 -> buckled3 ..."""
     if not name.startswith("buckled"):
@@ -817,7 +1021,7 @@ def _next_branch_name(name):
     return f"buckled{int(tail) + 1 if tail.isdigit() else 2}"
 
 
-def _critical_mode(scene, prev, older, lost_eq, kind, direction, k, negative_tol, pinv_tol, candidates=5):
+def _critical_mode(engine, prev, older, kind, direction, candidates=5):
     """The critical eigenpair at the last stable state ``prev``: of its lowest ``candidates``
     eigenvalues, the one that reaches zero first when extrapolated with its secant rate from the
     state before (``older``, matched by eigenvector overlap); without ``older``, with the
@@ -830,8 +1034,7 @@ def _critical_mode(scene, prev, older, lost_eq, kind, direction, k, negative_tol
     ev = st.eigenvalues
     found = []
     for j in range(min(candidates, len(ev))):
-        _, lam_j, dlam_j, v_j, _ = branch_analysis(scene, prev.q, prev.phi, j, k=k, tol=negative_tol,
-                                                   pinv_tol=pinv_tol, nbr=prev.neighbourhood)
+        _, lam_j, dlam_j, v_j, _ = engine.analyse(prev, j)
         secant = math.nan
         if older is not None and older.stability is not None and older.phi != prev.phi:
             ov = np.abs(np.asarray(older.stability.eigenvectors).T @ np.asarray(v_j))
@@ -847,10 +1050,11 @@ def _critical_mode(scene, prev, older, lost_eq, kind, direction, k, negative_tol
                        dlambda_dphi_secant=float(secant), mode=np.asarray(v), equilibrium=prev)
 
 
-def _switch_branch(scene, prev, dq, phi, mode, lost_eq, perturbation, jump_tol, gtol, analyse, closed, lk0, say):
+def _switch_branch(engine, prev, dq, phi, mode, lost_eq, perturbation, say):
     """Relax from the predicted state pushed both ways along the critical mode (and from the
     state the corrector itself jumped to, if any); keep stable states away from the old branch
-    with the right Lk; return the lowest in energy as (scene, equilibrium, tangent) or None."""
+    with the right Lk; return the lowest in energy as an analysed _Step, or None."""
+    scene, closed, jump_tol = engine.scene, engine.closed, engine.opts.jump_tol
     q_pred = prev.q + dq * (phi - prev.phi)
     x_pred = np.asarray(scene.unpack(jnp.asarray(q_pred), phi)[0])
     mode_q = scene.from_scaled(np.asarray(mode))
@@ -864,18 +1068,19 @@ def _switch_branch(scene, prev, dq, phi, mode, lost_eq, perturbation, jump_tol, 
     best = None
     for label, q_start in starts:
         try:
-            e = relax(scene, phi, q_start, gtol=gtol, previous=prev, with_stability=False, nbr=prev.neighbourhood)
-            sc = scene
+            e = relax(scene, phi, q_start, gtol=engine.opts.gtol, previous=prev, with_stability=False,
+                      nbr=prev.neighbourhood)
         except (ConvergenceError, TopologyChangeError) as exc:
             say(f"  switch from {label}: {type(exc).__name__}: {exc}")
             continue
         moved = polyline_distance(e.x, x_pred, closed)
-        e, dq_e = analyse(sc, e)
-        lk_ok = (not closed) or abs(e.Lk - (lk0 + phi / (2.0 * math.pi))) <= 1e-6
+        s = engine.analysed(e)
+        e = s.equilibrium
+        lk_ok = (not closed) or abs(e.Lk - (engine.lk0 + phi / (2.0 * math.pi))) <= 1e-6
         say(f"  switch from {label}: E = {e.energy:.8g}, Wr = {e.Wr:.4f}, moved {moved:.3g}, "
             f"{e.stability.n_negative} negative, Lk ok: {lk_ok}")
         if moved <= jump_tol or not e.stability.stable or not lk_ok:
             continue
-        if best is None or e.energy < best[1].energy:
-            best = (sc, e, dq_e)
+        if best is None or e.energy < best.equilibrium.energy:
+            best = s
     return best

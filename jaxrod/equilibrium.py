@@ -262,3 +262,35 @@ def equilibrium_from_solution(scene, phi, sol, nbr, k=8, with_stability=True, ne
         q=q, x=np.asarray(x), theta=np.asarray(theta), phi=phi, energy=float(sum(terms.values())),
         energy_terms=terms, solution=sol, stability=stab, Wr=wr, Tw=tw, Lk=wr + tw, neighbourhood=nbr,
     )
+
+
+# Fields of an Equilibrium's ``Solution`` kept in a checkpoint (y, the scaled DOFs, separately).
+_SOLUTION_SCALARS = ("value", "grad_norm", "iterations", "converged", "reason", "solver", "gtol")
+
+
+def equilibrium_arrays(e, prefix):
+    """What rebuilds ``e`` exactly (``equilibrium_from_arrays``), as numpy arrays named
+    ``prefix + field`` for an npz file: the solver's scaled DOFs and scalars, phi and the
+    neighbourhood. The diagnostics (x, energies, Wr, Tw) are recomputed from them by the same
+    compiled function, so they come back bit for bit; the stability is not stored (recompute it)."""
+    nbr = e.neighbourhood
+    out = {prefix + "y": np.asarray(e.solution.y), prefix + "phi": np.asarray(float(e.phi))}
+    for key in _SOLUTION_SCALARS:
+        value = getattr(e.solution, key)
+        out[prefix + "solution_" + key] = np.asarray(str(value) if key in ("reason", "solver") else value)
+    for key in ("pairs", "mask", "x_built", "skin", "wr_ref"):
+        out[prefix + "nbr_" + key] = np.asarray(getattr(nbr, key))
+    return out
+
+
+def equilibrium_from_arrays(scene, arrays, prefix):
+    """The ``Equilibrium`` stored by ``equilibrium_arrays`` (without its stability)."""
+    get = lambda key: arrays[prefix + key]  # noqa: E731
+    nbr = Neighbourhood(*(jnp.asarray(get("nbr_" + key)) for key in ("pairs", "mask", "x_built", "skin", "wr_ref")))
+    sol = Solution(
+        y=np.asarray(get("y")), value=float(get("solution_value")), grad_norm=float(get("solution_grad_norm")),
+        iterations=int(get("solution_iterations")), converged=bool(get("solution_converged")),
+        reason=StopReason(str(get("solution_reason"))), solver=str(get("solution_solver")),
+        gtol=float(get("solution_gtol")),
+    )
+    return equilibrium_from_solution(scene, float(get("phi")), sol, nbr, with_stability=False)
