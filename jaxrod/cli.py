@@ -271,7 +271,10 @@ def _trefoil(args):
         for key in ("phi_plus", "phi_minus"):
             v = summary[key]
             print(f"{key:10s} = " + ("none in range" if v is None else f"{v:+.6f} rad = {v / math.pi:+.5f} pi"))
-        print(f"tightening side: {summary.get('tightening_side')}; time {summary['seconds']:.1f} s; data in {args.out}/")
+        total = summary.get("seconds_total")
+        resumed = f" ({total:.1f} s with the interrupted runs)" if total and total > summary["seconds"] + 0.05 else ""
+        print(f"tightening side: {summary.get('tightening_side')}; time {summary['seconds']:.1f} s{resumed}; "
+              f"data in {args.out}/")
     return 0
 
 

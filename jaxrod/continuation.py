@@ -772,13 +772,9 @@ def follow_twist(
     (with the points and instabilities of this call).
     """
     t0 = time.perf_counter()
-    if resume is not None and phi_start is not None and start is None:
-        phi_start = 0.0  # not used: the run goes on from the resumed state
-    phi_start = check_finite("phi_start", phi_start if start is None else start.phi)
     phi_stop = check_finite("phi_stop", 8.0 * math.pi if phi_stop is None else phi_stop)
     opts = (options or ContinuationOptions()).updated(step=step, tol=tol, negative_tol=negative_tol, gtol=gtol,
                                                       jump_tol=jump_tol, k=k)
-    engine = _Engine(scene, Task.FOLLOW_TWIST, opts)
     points, instabilities = [], []
     say = progress or (lambda s: None)
 
@@ -800,17 +796,20 @@ def follow_twist(
         return replace(state, n_instabilities=state.n_instabilities + 1)
 
     if resume is not None:
+        # The direction is the branch name's sign; the span only sizes the default step, which
+        # the resumed run must share with the first one (pass the same phi_stop).
+        stored_phi = float(resume.arrays["prev_phi"]) if isinstance(resume, _StoredPathState) else resume.prev.phi
+        opts = opts.resolved(scene, Task.FOLLOW_TWIST, abs(phi_stop - stored_phi) or 1.0)
+        engine = _Engine(scene, Task.FOLLOW_TWIST, opts)
         state = resume.restore(engine) if isinstance(resume, _StoredPathState) else resume
-        direction = 1.0 if phi_stop > state.prev.phi or (phi_stop == state.prev.phi and state.branch[-1:] == "+") \
-            else -1.0
-        opts = opts.resolved(scene, Task.FOLLOW_TWIST, abs(phi_stop - state.prev.phi) or 1.0)
-        engine = replace(engine, opts=opts)
+        direction = 1.0 if state.branch.endswith("+") else -1.0
     else:
+        phi_start = check_finite("phi_start", phi_start if start is None else start.phi)
         if phi_stop == phi_start:
             raise ValueError("phi_stop must differ from phi_start")
         direction = 1.0 if phi_stop > phi_start else -1.0
         opts = opts.resolved(scene, Task.FOLLOW_TWIST, abs(phi_stop - phi_start))
-        engine = replace(engine, opts=opts)
+        engine = _Engine(scene, Task.FOLLOW_TWIST, opts)
         if start is None:
             e0 = relax(scene, phi_start, q0, gtol=opts.gtol, with_stability=False)
         else:

@@ -9,11 +9,18 @@ recorded as it is made, resumable, with the figures of the seed paper.
 * ``steps/<direction>_<NNNN>.npz`` the state (q, phi, branch) and its profiles
   (s/L, kappa L, tau L, centreline, eccentric line) at every step;
 * ``critical.json``  the instabilities met so far (rewritten whenever one is found) and which
-  directions are finished.
+  directions are finished;
+* ``state_<direction>.npz`` the continuation's state (``PathState``) after every step tried,
+  written after the rows, step files and instabilities it counts;
+* ``time.json``      the computing time over this run and the interrupted runs before it.
 
-Interrupted, it is called again with the same arguments: finished directions are skipped, an
-unfinished one restarts from its last saved state (nothing computed is lost). ``figures(DIR)``
-draws bifurcation diagram, Lk/Tw/Wr, kappa(s)/tau(s) profiles and 3D snapshots from the files.
+Step files, states and JSON files are written atomically (a temporary name, then a rename);
+rows are appended (a row cut short by a kill is dropped on resume). Interrupted at any moment
+(even by ``kill -9``) and called again with the same arguments, the study drops whatever was
+written after the last saved state, goes on from that state, and ends with files identical to
+those of an uninterrupted run: finished directions are skipped, nothing computed before the
+last state is lost. ``figures(DIR)`` draws bifurcation diagram, Lk/Tw/Wr, kappa(s)/tau(s)
+profiles and 3D snapshots from the files.
 """
 from __future__ import annotations
 
@@ -28,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .continuation import CONTACT_NEGATIVE_TOL, follow_twist
+from .continuation import CONTACT_NEGATIVE_TOL, PathState, follow_twist
 from .stability import DEFAULT_NEGATIVE_TOL
 from .equilibrium import relax
 from .validation import check_finite, check_positive
@@ -40,12 +47,14 @@ __all__ = ["twist_study", "StudyResult", "read_table", "figures", "study_summary
 @dataclass(frozen=True)
 class StudyResult:
     """table: dict column -> array (all rows, both directions); critical: the critical.json dict;
-    out: the folder (or None); seconds: time of this call."""
+    out: the folder (or None); seconds: time of this call; seconds_total: of all calls on this
+    folder (an interrupted run and its resumptions)."""
 
     table: dict
     critical: dict
     out: str | None
     seconds: float
+    seconds_total: float = math.nan
 
 
 def _scene_parameters(scene):
@@ -160,7 +169,8 @@ def twist_study(scene, phi_min, phi_max, step=0.5 * math.pi, out=None, tol=2e-4 
                 with open(crit_path) as f:
                     critical = json.load(f)
         else:
-            for stale in [csv_path, crit_path] + glob.glob(os.path.join(out, "steps", "*.npz")):
+            for stale in [csv_path, crit_path, os.path.join(out, "time.json")] + \
+                    glob.glob(os.path.join(out, "state_*.npz")) + glob.glob(os.path.join(out, "steps", "*.npz")):
                 if os.path.exists(stale):
                     os.remove(stale)
             _write_json(run_path, params)
@@ -188,33 +198,26 @@ def twist_study(scene, phi_min, phi_max, step=0.5 * math.pi, out=None, tol=2e-4 
     rows = []
     if critical.get("negative_tol") is None:
         critical["negative_tol"] = CONTACT_NEGATIVE_TOL if "contact" in scene.terms else DEFAULT_NEGATIVE_TOL
+    stored = _reconcile(out, critical, header, say) if out else {}
+    seconds_before = _read_seconds(out) if out else 0.0
     todo = []
     for direction, target in (("plus", phi_max), ("minus", phi_min)):
         if direction in critical["finished"]:
             say(f"{direction}: already finished (resumed run)")
             continue
-        files = sorted(glob.glob(os.path.join(out, "steps", f"{direction}_*.npz"))) if out else []
-        todo.append((direction, target, files))
-    if any(not files for _, _, files in todo):
+        todo.append((direction, target, stored.get(direction)))
+    if any(state is None for _, _, state in todo):
         say("relaxing the knot at phi = 0")
         start = relax(scene, 0.0, None, gtol=1e-9, with_stability=False)
 
-    def run_direction(direction, target, files):
-        counter = len(files)
-        if files:  # resume from the last saved state of this direction
-            last = np.load(files[-1])
-            branch = str(last["branch"])[:-1]
-            say(f"{direction}: resuming from phi = {float(last['phi']) / math.pi:+.5f} pi on {branch}")
-            begin = relax(scene, float(last["phi"]), last["q"], gtol=1e-9, with_stability=False)
-            skip_first = True
-        else:
-            begin, branch, skip_first = start, "symmetric", False
+    def run_direction(direction, target, state):
+        counter = 0 if state is None else int(state.arrays["n_points"])
+        if state is not None:
+            say(f"{direction}: resuming on {state.arrays['branch']} at phi = "
+                f"{float(state.arrays['prev_phi']) / math.pi:+.5f} pi ({state.arrays['phase']}, step {counter})")
 
         def on_point(point):
-            nonlocal counter, skip_first
-            if skip_first:  # the resumed state itself is already on file
-                skip_first = False
-                return
+            nonlocal counter
             save_point(direction, counter, point)
             counter += 1
 
@@ -228,9 +231,19 @@ def twist_study(scene, phi_min, phi_max, step=0.5 * math.pi, out=None, tol=2e-4 
                 if out:
                     _write_json(crit_path, critical)
 
-        path = follow_twist(scene, begin.phi, target, step=step, start=begin, tol=tol, branch=branch, k=k,
-                            negative_tol=critical["negative_tol"], max_switches=max_switches,
-                            on_point=on_point, progress=say, on_instability=on_instability)
+        def on_state(path_state):
+            # After the rows, step files and instabilities that this state counts: a run killed
+            # at any moment resumes from the last state on file, and drops what came after it.
+            if out:
+                with lock:
+                    _savez(os.path.join(out, f"state_{direction}.npz"), **path_state.to_arrays())
+                    _write_json(os.path.join(out, "time.json"),
+                                {"seconds_total": seconds_before + time.perf_counter() - t0})
+
+        path = follow_twist(scene, 0.0, target, step=step, start=start if state is None else None, tol=tol,
+                            k=k, negative_tol=critical["negative_tol"], max_switches=max_switches,
+                            on_point=on_point, progress=say, on_instability=on_instability, on_state=on_state,
+                            resume=state)
         with lock:
             critical["finished"].append(direction)
             critical["stopped_" + direction] = path.reason
@@ -250,9 +263,104 @@ def twist_study(scene, phi_min, phi_max, step=0.5 * math.pi, out=None, tol=2e-4 
         rows.sort(key=lambda r: order[r["direction"]])
     table = read_table(csv_path) if out else {key: np.array([r.get(key, math.nan) for r in rows]) for key in header}
     _summarise(critical, table)
+    seconds = time.perf_counter() - t0
     if out:
         _write_json(crit_path, critical)
-    return StudyResult(table=table, critical=critical, out=out, seconds=time.perf_counter() - t0)
+        _write_json(os.path.join(out, "time.json"), {"seconds_total": seconds_before + seconds})
+    return StudyResult(table=table, critical=critical, out=out, seconds=seconds,
+                       seconds_total=seconds_before + seconds)
+
+
+def _read_seconds(out):
+    try:
+        with open(os.path.join(out, "time.json")) as f:
+            return float(json.load(f)["seconds_total"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return 0.0
+
+
+def _reconcile(out, critical, header, say):
+    """Make the files of an interrupted run agree with its saved continuation states: a direction
+    keeps the rows, step files and instabilities its state counts (written before it), and
+    drops what was written after it (a kill between a row and its state). A direction without a
+    state starts over. Returns {direction: PathState.from_arrays(...)} for those with a state."""
+    stored, keep_rows, keep_inst = {}, {}, {}
+    for direction in ("plus", "minus"):
+        path = os.path.join(out, f"state_{direction}.npz")
+        if os.path.exists(path):
+            with np.load(path) as f:
+                stored[direction] = PathState.from_arrays({key: f[key] for key in f.files})
+            arrays = stored[direction].arrays
+            keep_rows[direction] = int(arrays["n_points"])
+            keep_inst[direction] = int(arrays["n_instabilities"])
+            if not _files_cover(out, critical, direction, keep_rows[direction], keep_inst[direction]):
+                # The state counts rows, step files or instabilities that are not on file (removed
+                # by hand): it cannot be continued from; this direction starts over.
+                say(f"{direction}: files missing that its saved state counts: starting this direction over")
+                del stored[direction]
+                keep_rows[direction] = keep_inst[direction] = 0
+                if direction in critical["finished"]:
+                    critical["finished"].remove(direction)
+        else:
+            keep_rows[direction] = keep_inst[direction] = 0
+            if direction in critical["finished"]:  # finished before states were kept: leave it
+                keep_rows[direction] = keep_inst[direction] = None
+    dropped = []
+    for direction in ("plus", "minus"):
+        if keep_rows[direction] is None:
+            continue
+        for fn in sorted(glob.glob(os.path.join(out, "steps", f"{direction}_*.npz"))):
+            if int(os.path.basename(fn)[len(direction) + 1:-4]) >= keep_rows[direction]:
+                os.remove(fn)
+                dropped.append(os.path.basename(fn))
+    kept, seen = [], {"plus": 0, "minus": 0}
+    for c in critical["instabilities"]:
+        d = c["direction"]
+        if keep_inst[d] is not None and seen[d] >= keep_inst[d]:
+            dropped.append(f"instability at phi = {c['phi'] / math.pi:+.5f} pi ({d})")
+            continue
+        seen[d] += 1
+        kept.append(c)
+    critical["instabilities"] = kept
+    csv_path = os.path.join(out, "branch.csv")
+    if os.path.exists(csv_path):
+        with open(csv_path, newline="") as f:
+            rows = list(csv.DictReader(f))
+        good, seen = [], {"plus": 0, "minus": 0}
+        for row in rows:
+            d = row.get("direction")
+            complete = d in seen and row.get(header[-1]) is not None  # a line cut short has fewer fields
+            if complete and (keep_rows[d] is None or seen[d] < keep_rows[d]):
+                seen[d] += 1
+                good.append(row)
+        if len(good) != len(rows):
+            dropped.append(f"{len(rows) - len(good)} row(s) of branch.csv")
+            _write_rows(csv_path, header, good)
+    if dropped:
+        say("resuming: dropped what was written after the last saved state: " + ", ".join(dropped))
+    return stored
+
+
+def _files_cover(out, critical, direction, n_points, n_instabilities):
+    """Whether ``out`` holds the first n_points step files and rows of ``direction`` and its
+    first n_instabilities instabilities."""
+    steps = all(os.path.exists(os.path.join(out, "steps", f"{direction}_{i:04d}.npz")) for i in range(n_points))
+    rows = 0
+    csv_path = os.path.join(out, "branch.csv")
+    if os.path.exists(csv_path):
+        with open(csv_path, newline="") as f:
+            rows = sum(1 for row in csv.DictReader(f) if row.get("direction") == direction)
+    found = sum(1 for c in critical["instabilities"] if c["direction"] == direction)
+    return steps and rows >= n_points and found >= n_instabilities
+
+
+def _write_rows(csv_path, header, rows):
+    tmp = csv_path + ".tmp"
+    with open(tmp, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=header, extrasaction="ignore")
+        w.writeheader()
+        w.writerows(rows)
+    os.replace(tmp, csv_path)
 
 
 def _run_all(run_direction, todo, parallel):
@@ -287,12 +395,7 @@ def _rewrite_sorted(csv_path, header, order):
     with open(csv_path, newline="") as f:
         rows = list(csv.DictReader(f))
     rows.sort(key=lambda r: order.get(r.get("direction"), 2))
-    tmp = csv_path + ".tmp"
-    with open(tmp, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=header, extrasaction="ignore")
-        w.writeheader()
-        w.writerows(rows)
-    os.replace(tmp, csv_path)
+    _write_rows(csv_path, header, rows)
 
 
 def _summarise(critical, table=None):
@@ -336,6 +439,7 @@ def study_summary(result):
     for key in ("phi_plus", "phi_minus", "phi_tightening", "phi_opening"):
         s[key + "_over_pi"] = None if c.get(key) is None else c[key] / math.pi
     s["seconds"] = result.seconds
+    s["seconds_total"] = result.seconds_total  # this run and the interrupted ones before it
     s["steps"] = int(len(result.table.get("phi", [])))
     return s
 

@@ -127,7 +127,8 @@ def test_study_writes_as_it_goes_and_resumes(tmp_path):
     assert len(names) == 2 + 6
     for name in names:
         assert open(os.path.join(out, name), "rb").read() == open(os.path.join(serial, name), "rb").read(), name
-    # Interrupt the minus side after its second step: drop its last row and state, mark unfinished.
+    # A folder damaged by hand (the minus side's last step file and row removed, so its saved
+    # state counts more than is on file): that side starts over, says so, and ends the same.
     rows = open(os.path.join(out, "branch.csv")).read().splitlines()
     open(os.path.join(out, "branch.csv"), "w").write("\n".join(rows[:-1]) + "\n")
     os.remove(os.path.join(out, "steps", "minus_0002.npz"))
@@ -135,12 +136,9 @@ def test_study_writes_as_it_goes_and_resumes(tmp_path):
     json.dump(crit, open(os.path.join(out, "critical.json"), "w"))
     said = []
     twist_study(scene, -1.0 * PI, 1.0 * PI, step=0.5 * PI, out=out, progress=said.append)
-    again = read_table(os.path.join(out, "branch.csv"))
-    assert len(again["phi"]) == 6
-    assert np.allclose(again["phi"], table["phi"])
-    assert np.allclose(again["energy"], table["energy"], rtol=1e-9)
+    assert open(os.path.join(out, "branch.csv"), "rb").read() == open(os.path.join(serial, "branch.csv"), "rb").read()
     assert "plus: already finished (resumed run)" in said  # not recomputed
-    assert any(m.startswith("minus: resuming from phi = -0.50000 pi") for m in said)
+    assert any(m.startswith("minus: files missing") for m in said), said
     # Other parameters in the same folder are refused, naming the problem.
     with pytest.raises(ValueError, match="other parameters"):
         twist_study(scene, -1.0 * PI, 2.0 * PI, step=0.5 * PI, out=out)
@@ -195,32 +193,3 @@ def test_continuation_options_hold_the_contact_aware_defaults():
     a = jr.critical_twist(ring, 0.0, 40.0, options=jr.ContinuationOptions(step=2.0, tol=1e-8))
     b = jr.critical_twist(ring, 0.0, 40.0, step=2.0, tol=1e-8)
     assert a.phi == b.phi and a.multiplicity == b.multiplicity == 2
-
-
-def test_interrupted_after_a_branch_switch_keeps_the_instability(tmp_path):
-    # Issue 8, defect 1: critical.json used to be written only when a direction ended, so a run
-    # stopped after the first buckled row resumed with no instability on file ("phi_plus = none").
-    scene = jr.trefoil(D=8.0, L=292.0, N=61)
-    whole = str(tmp_path / "whole")
-    ref = twist_study(scene, -0.5 * PI, 7.5 * PI, step=0.5 * PI, out=whole, parallel=False)
-    assert ref.critical["phi_plus"] is not None
-
-    class Stop(Exception):
-        pass
-
-    def stop_at_first_buckled_row(message):
-        if message.startswith("[buckled+] phi"):
-            raise Stop(message)
-
-    cut = str(tmp_path / "cut")
-    with pytest.raises(Stop):
-        twist_study(scene, -0.5 * PI, 7.5 * PI, step=0.5 * PI, out=cut, parallel=False,
-                    progress=stop_at_first_buckled_row)
-    crit = json.load(open(os.path.join(cut, "critical.json")))
-    assert crit["phi_plus"] == ref.critical["phi_plus"]  # on file before the buckled row
-    assert os.path.exists(os.path.join(cut, crit["phi_plus_mode_file"]))
-    assert not any(name.startswith(".tmp-") for name in os.listdir(cut))
-    again = twist_study(scene, -0.5 * PI, 7.5 * PI, step=0.5 * PI, out=cut, parallel=False)
-    assert again.critical["phi_plus"] == ref.critical["phi_plus"]
-    assert [c["phi"] for c in again.critical["instabilities"]] == [c["phi"] for c in ref.critical["instabilities"]]
-    assert np.array_equal(again.table["phi"], ref.table["phi"])

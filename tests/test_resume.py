@@ -1,0 +1,100 @@
+"""A study killed (SIGKILL) at any moment resumes to exactly the files of an uninterrupted run
+(issue 8, acceptance 1): mid-row (between a row of branch.csv and its step file, with a
+half-written temporary file left behind), mid-bisection (while a branch end is being
+located) and just after a branch switch. Each kill is a real ``kill -9`` of a subprocess; the
+resumed runs are chained on one folder, and the result is compared with a run that was never
+interrupted: branch.csv and critical.json byte for byte, every array of every step file and
+critical-mode file exactly (so phi* is identical, not merely to 1e-12)."""
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import jaxrod as jr
+from jaxrod.study import twist_study
+
+PI = math.pi
+RANGE = (-0.5 * PI, 7.5 * PI)  # the opening side's fold at 6.60 pi, a switch, the buckled branch
+
+# The subprocess: a study whose hook kills the process (SIGKILL: no cleanup, no finally).
+SCRIPT = textwrap.dedent("""
+    import math, os, signal, sys
+    import jaxrod as jr
+    import jaxrod.study as study
+
+    out, moment = sys.argv[1], sys.argv[2]
+    kill = lambda: os.kill(os.getpid(), signal.SIGKILL)
+    saves = [0]
+    real_savez = study._savez
+
+    def savez(path, **arrays):
+        # mid-row: the 6th step file, after its row of branch.csv; a partial temporary file is
+        # left where the atomic write would have renamed it.
+        if moment == "mid-row" and os.sep + "steps" + os.sep in path:
+            saves[0] += 1
+            if saves[0] == 6:
+                folder, name = os.path.split(path)
+                with open(os.path.join(folder, ".tmp-" + name), "wb") as f:
+                    f.write(b"PK\\x03\\x04 half a zip")
+                kill()
+        real_savez(path, **arrays)
+
+    study._savez = savez
+
+    def progress(message):
+        if moment == "mid-bisection" and " refused (" in message:
+            kill()
+        if moment == "after-switch" and message.startswith("[buckled+] phi"):
+            kill()
+
+    scene = jr.trefoil(D=8.0, L=292.0, N=61)
+    study.twist_study(scene, %r, %r, step=0.5 * math.pi, out=out, progress=progress)
+""" % RANGE)
+
+
+def _run(script, out, moment):
+    return subprocess.run([sys.executable, str(script), str(out), moment], capture_output=True, text=True,
+                          timeout=600)
+
+
+def _arrays(path):
+    with np.load(path) as f:
+        return {key: f[key] for key in f.files}
+
+
+def test_sigkill_at_three_moments_resumes_to_the_uninterrupted_files(tmp_path):
+    scene = jr.trefoil(D=8.0, L=292.0, N=61)
+    whole = tmp_path / "whole"
+    ref = twist_study(scene, *RANGE, step=0.5 * PI, out=str(whole))
+    assert ref.critical["phi_plus"] is not None and len(ref.critical["instabilities"]) >= 1
+
+    script = tmp_path / "killed_study.py"
+    script.write_text(SCRIPT)
+    cut = tmp_path / "cut"
+    for moment in ("mid-row", "mid-bisection", "after-switch"):
+        run = _run(script, cut, moment)
+        assert run.returncode == -signal.SIGKILL, (moment, run.returncode, run.stderr[-2000:])
+        if moment == "mid-row":
+            assert any(name.startswith(".tmp-") for name in os.listdir(cut / "steps"))
+        if moment == "after-switch":
+            # Killed right after the buckled branch's first row: the instability is on file.
+            crit = json.loads((cut / "critical.json").read_text())
+            assert crit["phi_plus"] == ref.critical["phi_plus"]
+    final = _run(script, cut, "none")
+    assert final.returncode == 0, final.stderr[-2000:]
+
+    for name in ("branch.csv", "critical.json"):
+        assert (cut / name).read_bytes() == (whole / name).read_bytes(), name
+    steps = sorted(os.listdir(whole / "steps"))
+    assert sorted(n for n in os.listdir(cut / "steps") if not n.startswith(".tmp-")) == steps
+    modes = sorted(n for n in os.listdir(whole) if n.startswith("critical_mode_"))
+    assert sorted(n for n in os.listdir(cut) if n.startswith("critical_mode_")) == modes
+    for path in [os.path.join("steps", n) for n in steps] + modes:
+        a, b = _arrays(whole / path), _arrays(cut / path)
+        assert a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a), path
+    # The total time covers all five runs.
+    assert json.loads((cut / "time.json").read_text())["seconds_total"] > ref.seconds_total
