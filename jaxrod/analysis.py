@@ -82,6 +82,7 @@ from __future__ import annotations
 
 import csv
 import math
+import warnings
 import os
 from dataclasses import dataclass
 
@@ -123,6 +124,11 @@ class RodAnalysis:
     Lk_exact: exact Gauss linking number of the centreline and the eccentric line (NaN if open).
     Lk_quadrature: midpoint-rule Gauss linking integral, the paper's estimate (NaN if open).
     Lk_frames: Wr + Tw.
+    warnings: what looked wrong with the data (each also issued as a ``UserWarning``): a curve
+      closed although its ends are far apart, an eccentric line much shorter or longer than the
+      centreline, nodes paired with a far point (another strand's line), nodes whose normal
+      plane misses the eccentric line, Lk from the frames disagreeing with the Gauss linking
+      number. Empty when nothing did.
     """
 
     s: np.ndarray
@@ -144,6 +150,7 @@ class RodAnalysis:
     Lk_exact: float
     Lk_quadrature: float
     Lk_frames: float
+    warnings: tuple = ()
 
 
 # ---------------------------------------------------------------------------- validation
@@ -535,7 +542,75 @@ def analyze(centreline, eccentric, closed=True, n_samples=None, smoothing_modes=
         Lk_exact=Lk_exact,
         Lk_quadrature=Lk_quad,
         Lk_frames=Wr + Tw,
+        warnings=tuple(_data_warnings(c_pts, e_pts, x, r, crossed, closed, Wr + Tw, Lk_exact, L, e_t, e_T)),
     )
+
+
+# A closed curve's end gap beyond this many times its median point spacing is not a closed loop.
+_OPEN_GAP = 5.0
+# An eccentric line drawn on a rod is about as long as its centreline (longer where it winds).
+_ECCENTRIC_LENGTH_RANGE = (0.8, 2.0)
+# A paired point further than this multiple of the median offset belongs to another strand.
+_FAR_PAIRING = 2.0
+
+
+def _pairing_jumps(e_t, e_T, closed):
+    """Nodes where the paired point's parameter on the eccentric line does not advance like its
+    neighbours' (it goes back, or leaps ahead): the node was paired with a piece of the line
+    that runs along another strand."""
+    step = np.diff(np.concatenate([e_t, e_t[:1]]) if closed else e_t)
+    if closed:
+        step = (step + 0.5 * e_T) % e_T - 0.5 * e_T  # the closed line's parameter wraps at e_T
+    typical = float(np.median(step))
+    if typical == 0.0:
+        return np.ones(e_t.shape[0], dtype=bool)
+    odd = (step * np.sign(typical) <= 0.0) | (np.abs(step) > 4.0 * abs(typical))
+    nodes = np.zeros(e_t.shape[0], dtype=bool)
+    nodes[: odd.shape[0]] |= odd
+    nodes[1: odd.shape[0] + 1 if closed else None] |= odd[: e_t.shape[0] - 1]
+    if closed:
+        nodes[0] |= odd[-1]
+    return nodes
+
+
+def _data_warnings(c_pts, e_pts, x, offset, crossed, closed, lk_frames, lk_exact, L, e_t, e_T):
+    """Warnings about data that ``analyze`` accepts but whose results are doubtful (issued as
+    UserWarning, returned as strings)."""
+    found = []
+
+    def polyline_length(p, loop):
+        return float(np.sum(np.linalg.norm(np.diff(np.vstack([p, p[:1]]) if loop else p, axis=0), axis=1)))
+
+    if closed:
+        for name, pts in (("centreline", c_pts), ("eccentric", e_pts)):
+            steps = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+            gap = float(np.linalg.norm(pts[0] - pts[-1]))
+            if gap > _OPEN_GAP * float(np.median(steps)):
+                found.append(f"{name}: its ends are {gap:.3g} apart ({gap / np.median(steps):.0f} times the point "
+                             "spacing), yet the curve was closed: pass closed=False (--open) for an open rod")
+    ratio = polyline_length(e_pts, closed) / polyline_length(c_pts, closed)
+    lo, hi = _ECCENTRIC_LENGTH_RANGE
+    if not lo <= ratio <= hi:
+        found.append(f"eccentric: the line is {ratio:.2f} times as long as the centreline (expected {lo}-{hi}): "
+                     "it may not follow the whole rod")
+    far = offset > _FAR_PAIRING * float(np.median(offset))
+    if np.any(far):
+        found.append(f"eccentric: at {int(far.sum())} node(s) the paired point is more than {_FAR_PAIRING:g} times "
+                     "the median offset from the centreline (another strand's line?): profiles there are unreliable")
+    jumps = _pairing_jumps(e_t, e_T, closed) & crossed  # unpaired nodes are reported below
+    if np.any(jumps):
+        found.append(f"eccentric: at {int(jumps.sum())} node(s) the pairing jumps along the eccentric line (a node "
+                     "paired with the line of another strand, or a line drawn in pieces): d1, tau, kappa1, kappa2 "
+                     "are unreliable there")
+    if not np.all(crossed):
+        found.append(f"eccentric: at {int((~crossed).sum())} node(s) the normal plane misses the eccentric line "
+                     "(the nearest point was used): d1, tau, kappa1, kappa2 are unreliable there")
+    if closed and math.isfinite(lk_exact) and abs(lk_frames - lk_exact) > 0.1:
+        found.append(f"Lk from the frames ({lk_frames:.3f}) and the Gauss linking number ({lk_exact:.0f}) disagree: "
+                     "the eccentric line may not follow the whole rod, or pairs with another strand")
+    for message in found:
+        warnings.warn(message, UserWarning, stacklevel=3)
+    return found
 
 
 # ---------------------------------------------------------------------------- profile descriptors

@@ -359,6 +359,7 @@ def critical_twist(
     gtol=None,
     linear_algebra="auto",
     options=None,
+    on_step=None,
 ):
     """First phi beyond ``phi_start`` (in the direction of ``phi_stop``) where the negative count
     of the equilibrium branch changes.
@@ -373,7 +374,8 @@ def critical_twist(
     CONTACT_NEGATIVE_TOL = 1e-6 for scenes with self-contact, whose sliding modes sit at ~1e-7).
     Scenes with contact get their candidate list rebuilt along the way. gtol: the equilibria's
     gradient tolerance (default 1e-9, or CONTACT_GTOL = 1e-7 with contact).
-    progress: optional callable(str) for progress lines.
+    progress: optional callable(str) for progress lines; on_step: optional callable(phi,
+    n_negative) after every equilibrium of the scan and the refinement (e.g. a progress bar).
     linear_algebra: "dense" (n x n Hessian, ``eigh``: O(n^3) per step), "sparse" (block-tridiagonal
     Newton, inertia, eigenpairs and tangent of ``jaxrod.sparse_branch``: O(n) per step; not with
     contact) or "auto" (sparse for scenes without contact with n_dof >= 1000, else dense). With
@@ -393,6 +395,7 @@ def critical_twist(
     direction = 1.0 if phi_stop > phi_start else -1.0
     min_step = max_step / 16.0
     say = progress or (lambda s: None)
+    stepped = on_step or (lambda phi, n_negative: None)
     sparse = _use_sparse(scene, linear_algebra)
     engine = _Engine(scene, Task.CRITICAL_TWIST, opts, sparse)
 
@@ -438,6 +441,7 @@ def critical_twist(
             say(f"corrector failed at phi = {phi_next / math.pi:+.4f} pi: step halved to {h:.3e}")
             continue
         cur = s.equilibrium
+        stepped(cur.phi, int(cur.stability.n_negative))
         scan.append((cur.phi, cur.stability.n_negative, cur.stability.eigenvalues.copy()))
         say(
             f"phi = {cur.phi / math.pi:+.4f} pi: {cur.stability.n_negative} negative, "
@@ -490,6 +494,7 @@ def critical_twist(
             raise ConvergenceError(f"critical twist refinement: no equilibrium at phi = {phi_c:.10g} "
                                    f"({s.refusal.detail})")
         e, f_c, d_c, v_c, dq_c = s.equilibrium, s.eigenvalue, s.dlambda_dphi, s.mode, s.tangent
+        stepped(e.phi, int(e.stability.n_negative))
         evals += 1
         if np.sign(f_c) == np.sign(f_lo):
             lo, f_lo = e, f_c

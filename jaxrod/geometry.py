@@ -32,6 +32,9 @@ __all__ = [
     "node_directors",
     "voronoi_lengths",
     "resample_closed",
+    "polyline_distance",
+    "segment_distances",
+    "closest_approach",
 ]
 
 
@@ -217,3 +220,40 @@ def polyline_distance(a, b, closed=True):
     t = np.clip(np.sum(rel * seg, axis=-1) / np.maximum(np.sum(seg * seg, axis=-1), 1e-300), 0.0, 1.0)
     d = np.linalg.norm(rel - t[..., None] * seg, axis=-1)
     return float(np.max(np.min(d, axis=1)))
+
+
+def segment_distances(p0, p1, q0, q1):
+    """Distances between segments [p0, p1] and [q0, q1], row by row (numpy, each (K, 3) -> (K,)):
+    the closest points' parameters clamped to the segments (degenerate segments allowed)."""
+    d1, d2, r = p1 - p0, q1 - q0, p0 - q0
+    a, e = np.sum(d1 * d1, axis=1), np.sum(d2 * d2, axis=1)
+    b, c, f = np.sum(d1 * d2, axis=1), np.sum(d1 * r, axis=1), np.sum(d2 * r, axis=1)
+    tiny = 1e-300
+    denom = a * e - b * b
+    # s on the first segment: unconstrained optimum where the segments are not parallel.
+    s = np.where(denom > 1e-12 * np.maximum(a * e, tiny), np.clip((b * f - c * e) / np.maximum(denom, tiny), 0, 1), 0.0)
+    t = (b * s + f) / np.maximum(e, tiny)
+    # t outside [0, 1]: clamp it and recompute s for that end.
+    t_clamped = np.clip(t, 0.0, 1.0)
+    s = np.where(t != t_clamped, np.clip((b * t_clamped - c) / np.maximum(a, tiny), 0.0, 1.0), s)
+    t = np.where(e > tiny, t_clamped, 0.0)
+    gap = (p0 + s[:, None] * d1) - (q0 + t[:, None] * d2)
+    return np.linalg.norm(gap, axis=1)
+
+
+def closest_approach(x, closed=True, exclude=1):
+    """Smallest distance between two segments of the polyline x (N, 3) (numpy) that are more than
+    ``exclude`` segments apart along it (neighbours share a node, so are always at distance 0).
+    0 means the curve passes through itself. O(N^2) time in N/2 vectorised sweeps, O(N) memory."""
+    x = np.asarray(x, dtype=float)
+    n_seg = x.shape[0] if closed else x.shape[0] - 1
+    a0 = x[:n_seg]
+    a1 = np.roll(x, -1, axis=0)[:n_seg] if closed else x[1:]
+    best = np.inf
+    top = n_seg // 2 if closed else n_seg - 1
+    for offset in range(exclude + 1, top + 1):
+        i = np.arange(n_seg) if closed else np.arange(n_seg - offset)
+        j = (i + offset) % n_seg
+        if i.size:
+            best = min(best, float(np.min(segment_distances(a0[i], a1[i], a0[j], a1[j]))))
+    return best

@@ -16,14 +16,16 @@ __all__ = [
     "plot_profiles",
     "plot_snapshot",
     "plot_snapshots",
+    "view_frame",
     "plot_critical_vs_ratio",
 ]
 
 
-def plot_eigenvalue_scan(scan, critical=None, path=None, n_show=6, title=None):
+def plot_eigenvalue_scan(scan, critical=None, path=None, n_show=6, title=None, analytic=None):
     """Lowest eigenvalues (zero modes removed) against phi/pi along a scan.
 
-    scan: list of (phi, n_negative, eigenvalues (k,)); critical: optional CriticalPoint.
+    scan: list of (phi, n_negative, eigenvalues (k,)); critical: optional CriticalPoint;
+    analytic: optional (phi in rad, label), e.g. Michell's 2 pi sqrt(3)(1 + nu), marked too.
     """
     phi = np.array([s[0] for s in scan]) / math.pi
     lam = np.array([s[2][:n_show] for s in scan])
@@ -33,10 +35,14 @@ def plot_eigenvalue_scan(scan, critical=None, path=None, n_show=6, title=None):
     ax.axhline(0.0, color="k", lw=0.8)
     if critical is not None:
         ax.axvline(critical.phi / math.pi, color="r", ls="--", lw=1,
-                   label=f"phi* = {critical.phi / math.pi:.6f} pi")
-        ax.legend()
-    ax.set_xlabel("imposed twist phi / pi")
-    ax.set_ylabel("lowest Hessian eigenvalues (B/l units)")
+                   label=f"phi* = {critical.phi / math.pi:.6f} pi (computed)")
+    if analytic is not None:
+        ax.axvline(float(analytic[0]) / math.pi, color="k", ls=":", lw=1.2,
+                   label=f"{analytic[1]} = {float(analytic[0]) / math.pi:.6f} pi")
+    if critical is not None or analytic is not None:
+        ax.legend(fontsize=8, loc="upper right")
+    ax.set_xlabel("imposed twist phi / pi (rad / pi)")
+    ax.set_ylabel("lowest Hessian eigenvalues (units of B/l)")
     ax.set_title(title or "Stability along the twist continuation")
     fig.tight_layout()
     if path is not None:
@@ -179,7 +185,7 @@ def plot_bifurcation(table, critical=None, path=None, title=None):
     if not lam_cols:
         raise ValueError("table: no eigenvalue columns 'lambda_0', 'lambda_1', ...")
     lam = np.stack([_column(table, c, n).astype(float) for c in lam_cols], axis=1)
-    fig, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(7, 6.5),
+    fig, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(9.5, 6.5),
                                       gridspec_kw={"height_ratios": [1, 1]})
     for b, lab in enumerate(labels):
         sel = branch == lab
@@ -198,12 +204,12 @@ def plot_bifurcation(table, critical=None, path=None, title=None):
     bottom.axhline(0.0, color="k", lw=0.8)
     bottom.set_yscale("symlog", linthresh=1e-7)
     _draw_critical((top, bottom), critical, len(labels))
-    top.set_ylabel("writhe Wr")
-    bottom.set_ylabel("lowest Hessian eigenvalues")
-    bottom.set_xlabel("imposed twist phi / pi")
-    top.legend(fontsize=8, loc="best")
+    top.set_ylabel("writhe Wr (turns)")
+    bottom.set_ylabel("lowest Hessian eigenvalues\n(units of B/l; symlog)")
+    bottom.set_xlabel("imposed twist phi / pi (rad / pi)")
+    top.legend(**_OUTSIDE)  # legends beside the axes, never over the data
     if len(labels) > 1:
-        bottom.legend(fontsize=8, loc="best")
+        bottom.legend(**_OUTSIDE)
     top.grid(True, alpha=0.3)
     bottom.grid(True, alpha=0.3)
     top.set_title(title or "Bifurcation diagram")
@@ -211,6 +217,7 @@ def plot_bifurcation(table, critical=None, path=None, title=None):
 
 
 _LINESTYLES = ("-", "--", ":", "-.")
+_OUTSIDE = {"fontsize": 8, "loc": "upper left", "bbox_to_anchor": (1.01, 1.0), "borderaxespad": 0.0}
 _MARKERS = ("o", "s", "^", "D", "v", "P", "X")
 
 
@@ -224,17 +231,21 @@ def plot_linking(table, critical=None, path=None, title=None):
     x, branch, labels, n = _table_basics(table)
     cols = {c: _column(table, c, n).astype(float) for c in ("Lk_frames", "Lk_gauss", "Wr", "Tw")}
     colours = {"Lk_frames": "C0", "Lk_gauss": "C0", "Wr": "C1", "Tw": "C2"}
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fig, ax = plt.subplots(figsize=(9.5, 4.5))
+    # The line drawn on a twisted rod closes only at whole turns (its ends were turned by phi
+    # before gluing): its Gauss linking number is an integer, and means Lk, only there.
+    whole = np.abs(x / 2.0 - np.round(x / 2.0)) < 1e-9
     for b, lab in enumerate(labels):
         sel = branch == lab
         ls, mk = _LINESTYLES[b % len(_LINESTYLES)], _MARKERS[b % len(_MARKERS)]
         ax.plot(x[sel], cols["Lk_frames"][sel], ls, color=colours["Lk_frames"], lw=1.5)
-        ax.plot(x[sel], cols["Lk_gauss"][sel], mk, color=colours["Lk_gauss"], ms=5, mfc="none", ls="none")
+        at = sel & whole
+        ax.plot(x[at], cols["Lk_gauss"][at], mk, color=colours["Lk_gauss"], ms=6, mfc="none", ls="none")
         ax.plot(x[sel], cols["Wr"][sel], ls, color=colours["Wr"], lw=1.2)
         ax.plot(x[sel], cols["Tw"][sel], ls, color=colours["Tw"], lw=1.2)
     # Legend: quantities by colour, branches by style.
     ax.plot([], [], "-", color="C0", label="Lk (frames, Wr + Tw)")
-    ax.plot([], [], "o", color="C0", mfc="none", label="Lk (Gauss integral)")
+    ax.plot([], [], "o", color="C0", mfc="none", label="Lk (Gauss integral,\nat whole turns)")
     ax.plot([], [], "-", color="C1", label="Wr")
     ax.plot([], [], "-", color="C2", label="Tw")
     if len(labels) > 1 or labels[0]:
@@ -243,17 +254,17 @@ def plot_linking(table, critical=None, path=None, title=None):
                     color="0.4", mfc="none", label=f"branch {lab}")
     _draw_critical((ax,), critical, 3)
     ax.axhline(0.0, color="k", lw=0.5)
-    ax.set_xlabel("imposed twist phi / pi")
-    ax.set_ylabel("turns")
-    ax.legend(fontsize=8, loc="best")
+    ax.set_xlabel("imposed twist phi / pi (rad / pi)")
+    ax.set_ylabel("Lk, Wr, Tw (turns)")
+    ax.legend(**_OUTSIDE)
     ax.grid(True, alpha=0.3)
     ax.set_title(title or "Linking number, writhe and twist")
     return _finish(fig, path)
 
 
 # ---------------------------------------------------------------------------- profiles
-def plot_profiles(s_over_L, profiles, labels, path=None, title=None, ylabel_kappa="kappa L",
-                  ylabel_tau="tau L"):
+def plot_profiles(s_over_L, profiles, labels, path=None, title=None, ylabel_kappa="curvature kappa L (-)",
+                  ylabel_tau="twist density tau L (rad)"):
     """Curvature (top) and twist (bottom) profiles against s/L, one curve per label.
 
     s_over_L: (n,) common grid; profiles: list of (kappa_L, tau_L) pairs of (n,) arrays (already
@@ -267,7 +278,7 @@ def plot_profiles(s_over_L, profiles, labels, path=None, title=None, ylabel_kapp
         raise ValueError(f"{len(profiles)} profiles but {len(labels)} labels")
     if not profiles:
         raise ValueError("profiles: nothing to plot")
-    fig, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(7, 5.5))
+    fig, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(9.5, 5.5))
     for i, (pair, lab) in enumerate(zip(profiles, labels)):
         try:
             kappa, tau = (np.asarray(a, dtype=float) for a in pair)
@@ -282,8 +293,8 @@ def plot_profiles(s_over_L, profiles, labels, path=None, title=None, ylabel_kapp
     bottom.axhline(0.0, color="k", lw=0.5)
     top.set_ylabel(ylabel_kappa)
     bottom.set_ylabel(ylabel_tau)
-    bottom.set_xlabel("s / L")
-    top.legend(fontsize=8, loc="best")
+    bottom.set_xlabel("arc length s / L (-)")
+    top.legend(**_OUTSIDE)
     top.grid(True, alpha=0.3)
     bottom.grid(True, alpha=0.3)
     top.set_title(title or "Curvature and twist profiles")
@@ -298,39 +309,92 @@ def _points(name, a):
     return a
 
 
-def plot_snapshot(x, eccentric, path=None, title=None, ax=None):
-    """3D view of a closed rod: the centreline x (N,3) as a thick closed line and the eccentric line
-    (M,3) as a thin contrasting closed line (the stripe). Equal aspect ratio (box aspect from the data
-    ranges, each at least 5% of the largest so that planar shapes stay visible).
+def view_frame(x):
+    """(3, 3) rows e1, e2, e3: a view of the closed curve x (N, 3) along its axis of least spread
+    (e3; for a trefoil, its three-fold symmetry axis), oriented towards +z, with e1 the global x
+    axis projected onto the view plane (so that successive states are seen the same way)."""
+    x = _points("x", x)
+    centred = x - x.mean(axis=0)
+    _, vectors = np.linalg.eigh(centred.T @ centred)
+    e3 = vectors[:, 0]
+    if e3[2] < 0.0:
+        e3 = -e3
+    for axis in (np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])):
+        e1 = axis - (axis @ e3) * e3
+        if np.linalg.norm(e1) > 0.3:
+            break
+    e1 /= np.linalg.norm(e1)
+    return np.stack([e1, np.cross(e3, e1), e3])
 
-    ax: a 3D axis to draw into (e.g. from :func:`plot_snapshots`); default a new figure. Returns the
-    figure; with ``path`` the figure is saved and closed (the whole figure, if ``ax`` was given).
+
+def _capsules(p, q, half_width, n_arc=8):
+    """(K, 2 n_arc + 2, 2) outlines of 2D capsules (segments p -> q, each (K, 2), thickened by
+    half_width, with round ends): a tube segment seen from the side."""
+    d = q - p
+    angle = np.arctan2(d[:, 1], d[:, 0])[:, None]
+    arc = np.linspace(0.5 * np.pi, 1.5 * np.pi, n_arc + 1)[None, :]
+    start = p[:, None, :] + half_width * np.stack([np.cos(angle + arc), np.sin(angle + arc)], axis=-1)
+    end = q[:, None, :] + half_width * np.stack([np.cos(angle + arc + np.pi), np.sin(angle + arc + np.pi)], axis=-1)
+    return np.concatenate([start, end], axis=1)
+
+
+def plot_snapshot(x, eccentric, path=None, title=None, ax=None, diameter=None, frame=None, unit=None):
+    """A closed rod seen as a tube along its symmetry axis (``view_frame``): the centreline x
+    (N, 3) thickened to the rod's ``diameter`` (default: 2x the stripe's mean distance from the
+    centreline), shaded by depth (lighter = nearer the viewer) and drawn far to near, so that at
+    each crossing the strand on top covers the one below; the stripe (the eccentric line, (N, 3),
+    paired node by node with x) is drawn where it faces the viewer. Equal aspect; axes in
+    ``unit`` (e.g. 'mm') along the view's in-plane axes e1, e2.
+
+    ax: a 2D axis to draw into (e.g. from :func:`plot_snapshots`); frame: a (3, 3) view frame
+    (default ``view_frame(x)``). Returns the figure; with ``path`` it is saved and closed.
     """
+    from matplotlib.collections import PolyCollection
+
     x = _points("x", x)
     e = _points("eccentric", eccentric)
+    if e.shape != x.shape:
+        raise ValueError(f"eccentric must pair with x node by node: shapes {e.shape} and {x.shape}")
+    if diameter is None:
+        diameter = 2.0 * float(np.mean(np.linalg.norm(e - x, axis=1)))
+    frame = view_frame(x) if frame is None else np.asarray(frame, dtype=float)
     if ax is None:
-        fig = plt.figure(figsize=(5, 5))
-        ax = fig.add_subplot(projection="3d")
+        fig, ax = plt.subplots(figsize=(5, 5))
     else:
-        if not hasattr(ax, "set_zlim"):
-            raise ValueError("ax must be a 3D axis (projection='3d')")
         fig = ax.figure
-    loop = lambda a: np.vstack([a, a[:1]])  # noqa: E731
-    ax.plot(*loop(x).T, "-", color="#1f3b73", lw=4, solid_capstyle="round", label="centreline")
-    ax.plot(*loop(e).T, "-", color="#ff9f1c", lw=1.2, label="stripe")
-    both = np.vstack([x, e])
-    lo, hi = both.min(axis=0), both.max(axis=0)
-    span = np.maximum(hi - lo, 0.05 * max(float(np.max(hi - lo)), 1e-300))
-    centre = 0.5 * (lo + hi)
-    pad = 0.05 * span.max()
-    for set_lim, k in ((ax.set_xlim, 0), (ax.set_ylim, 1), (ax.set_zlim, 2)):
-        set_lim(centre[k] - 0.5 * span[k] - pad, centre[k] + 0.5 * span[k] + pad)
-    ax.set_box_aspect(tuple(span + 2 * pad))
-    ax.set_xlabel("x")
-    ax.set_ylabel("y")
-    ax.set_zlabel("z")
+    centre = x.mean(axis=0)
+    xv, ev = (x - centre) @ frame.T, (e - centre) @ frame.T  # (N, 3): in-plane, in-plane, depth
+    xn, en = np.roll(xv, -1, axis=0), np.roll(ev, -1, axis=0)
+    r = 0.5 * diameter
+    depth = 0.5 * (xv[:, 2] + xn[:, 2])
+    stripe_depth = 0.5 * (ev[:, 2] + en[:, 2])
+    tubes = _capsules(xv[:, :2], xn[:, :2], r)
+    stripes = _capsules(ev[:, :2], en[:, :2], 0.12 * r, n_arc=4)
+    lo, hi = depth.min(), depth.max()
+    shade = plt.get_cmap("Blues")(0.85 - 0.45 * (depth - lo) / max(hi - lo, 1e-300))  # near: lighter
+    # Painter's order: every tube piece and every visible stripe piece by its own depth. A
+    # stripe on the near side of its strand is up to r nearer than the strand's centre, so it
+    # shows over its own tube but not through a strand crossing above it (>= D nearer).
+    visible = stripe_depth > depth
+    keys = np.concatenate([depth, stripe_depth[visible]])
+    shapes = list(tubes) + list(stripes[visible])
+    colours = list(shade) + [(1.0, 0.62, 0.11, 1.0)] * int(visible.sum())
+    order = np.argsort(keys, kind="stable")
+    outline = PolyCollection(list(_capsules(xv[:, :2], xn[:, :2], 1.12 * r)), facecolors="#0b1e3f",
+                             edgecolors="none")
+    ax.add_collection(outline)  # the silhouette, under everything
+    ax.add_collection(PolyCollection([shapes[i] for i in order], facecolors=[colours[i] for i in order],
+                                     edgecolors="none"))
+    span = float(np.max(np.abs(xv[:, :2]))) + 1.3 * r
+    ax.set_xlim(-span, span)
+    ax.set_ylim(-span, span)
+    ax.set_aspect("equal")
+    suffix = f" ({unit})" if unit else ""
+    ax.set_xlabel("e1" + suffix)
+    ax.set_ylabel("e2" + suffix)
+    ax.tick_params(labelsize=7)
     if title:
-        ax.set_title(title)
+        ax.set_title(title, fontsize=9)
     if path is not None:
         fig.tight_layout()
         fig.savefig(path, dpi=120)
@@ -338,9 +402,9 @@ def plot_snapshot(x, eccentric, path=None, title=None, ax=None):
     return fig
 
 
-def plot_snapshots(snapshots, path=None, ncols=3):
-    """Grid of 3D views: snapshots is a list of (x, eccentric, title), each drawn by
-    :func:`plot_snapshot`; ``ncols`` columns."""
+def plot_snapshots(snapshots, path=None, ncols=3, diameter=None, unit=None):
+    """Grid of tube views (:func:`plot_snapshot`): snapshots is a list of (x, eccentric, title),
+    ``ncols`` columns. All are seen along the first one's symmetry axis, so that shapes compare."""
     snapshots = list(snapshots)
     if not snapshots:
         raise ValueError("snapshots: nothing to plot")
@@ -352,24 +416,30 @@ def plot_snapshots(snapshots, path=None, ncols=3):
         raise ValueError(f"ncols must be an integer >= 1, got {ncols!r}")
     ncols = min(int(ncols), len(snapshots))
     nrows = math.ceil(len(snapshots) / ncols)
-    fig = plt.figure(figsize=(4 * ncols, 4 * nrows))
+    fig, axes = plt.subplots(nrows, ncols, figsize=(3.6 * ncols, 3.7 * nrows), squeeze=False)
+    frame = None
     for i, snap in enumerate(snapshots):
         try:
             x, e, t = snap
         except (TypeError, ValueError):
             plt.close(fig)
             raise ValueError(f"snapshots[{i}] must be (x, eccentric, title)") from None
-        ax = fig.add_subplot(nrows, ncols, i + 1, projection="3d")
-        plot_snapshot(x, e, title=t, ax=ax)
+        if frame is None:
+            frame = view_frame(x)
+        plot_snapshot(x, e, title=t, ax=axes.flat[i], diameter=diameter, frame=frame, unit=unit)
+    for ax in list(axes.flat)[len(snapshots):]:
+        ax.set_visible(False)
     return _finish(fig, path)
 
 
 # ---------------------------------------------------------------------------- critical angles
 def plot_critical_vs_ratio(ratios, phi_plus, phi_minus, michell_plus=None, michell_minus=None,
-                           path=None, title=None):
+                           path=None, title=None, searched=None):
     """Critical twist angles / pi against the slenderness D/L: phi_plus (> 0 side) and phi_minus
     (< 0 side) in radians, one per ratio (NaN where none was found); optional Michell estimates
-    (radians) as horizontal dashed lines of the same colours."""
+    (radians) as horizontal dashed lines of the same colours. searched: the range searched
+    (radians, e.g. 16 pi): a ratio without a critical twist is then marked at +-searched by an
+    open triangle, "no buckling within +-searched", instead of being left out."""
     r = np.asarray(ratios, dtype=float)
     pp = np.asarray(phi_plus, dtype=float)
     pm = np.asarray(phi_minus, dtype=float)
@@ -378,9 +448,16 @@ def plot_critical_vs_ratio(ratios, phi_plus, phi_minus, michell_plus=None, miche
             f"ratios, phi_plus, phi_minus must be 1-D of equal length, got {r.shape}, {pp.shape}, {pm.shape}"
         )
     order = np.argsort(r)
-    fig, ax = plt.subplots(figsize=(6, 4.5))
+    fig, ax = plt.subplots(figsize=(8.5, 4.5))
     ax.plot(r[order], pp[order] / math.pi, "o-", color="C0", ms=5, lw=1, label="phi+ (critical, > 0)")
     ax.plot(r[order], pm[order] / math.pi, "s-", color="C3", ms=5, lw=1, label="phi- (critical, < 0)")
+    if searched is not None:
+        bound = abs(float(searched)) / math.pi
+        for values, sign, colour, marker in ((pp, 1.0, "C0", "^"), (pm, -1.0, "C3", "v")):
+            none = ~np.isfinite(values)
+            if np.any(none):
+                ax.plot(r[none], np.full(int(none.sum()), sign * bound), marker, color=colour, ms=8, mfc="none",
+                        ls="none", label=f"no buckling within {'+' if sign > 0 else '-'}{bound:g} pi")
     if michell_plus is not None:
         ax.axhline(float(michell_plus) / math.pi, color="C0", ls="--", lw=1,
                    label=f"Michell estimate + ({float(michell_plus) / math.pi:.3f} pi)")
@@ -388,9 +465,9 @@ def plot_critical_vs_ratio(ratios, phi_plus, phi_minus, michell_plus=None, miche
         ax.axhline(float(michell_minus) / math.pi, color="C3", ls="--", lw=1,
                    label=f"Michell estimate - ({float(michell_minus) / math.pi:.3f} pi)")
     ax.axhline(0.0, color="k", lw=0.5)
-    ax.set_xlabel("D / L")
-    ax.set_ylabel("critical twist phi* / pi")
-    ax.legend(fontsize=8, loc="best")
+    ax.set_xlabel("slenderness D / L (-)")
+    ax.set_ylabel("critical twist phi* / pi (rad / pi)")
+    ax.legend(**_OUTSIDE)
     ax.grid(True, alpha=0.3)
     ax.set_title(title or "Critical twist against slenderness")
     return _finish(fig, path)

@@ -19,7 +19,7 @@ import numpy as np
 
 from .topology import linking_number
 
-__all__ = ["step_record", "vertex_profiles", "ROW_KEYS"]
+__all__ = ["step_record", "vertex_profiles", "ROW_KEYS", "ROW_UNITS"]
 
 # Columns of a continuation table (branch.csv) before the eigenvalue columns lambda_0 ...
 ROW_KEYS = (
@@ -28,6 +28,21 @@ ROW_KEYS = (
     "symmetry_order", "n_peaks", "kappa_max_L", "tau_mean_L", "tau_spread_L", "radius_of_gyration",
     "min_distance_over_D", "grad_norm", "iterations",
 )
+
+
+# Units of the columns: lengths in the unit of the scene's D and L (the CLI: mm), energies in
+# E x length^3 (with E in MPa = N/mm^2 and lengths in mm: N mm = mJ); eigenvalues and the
+# gradient norm in the solvers' scaled units (energy B/l, lengths l: the mean edge length).
+ROW_UNITS = {
+    "branch": "name", "phi": "rad", "phi_over_pi": "rad/pi", "energy": "E length^3 (N mm with MPa, mm)",
+    "E_stretch": "E length^3", "E_bend": "E length^3", "E_twist": "E length^3", "E_contact": "E length^3",
+    "Wr": "turns", "Tw": "turns", "Lk_frames": "turns", "Lk_gauss": "turns", "Lk_expected": "turns",
+    "n_negative": "count", "stable": "bool", "contact_count": "segment pairs", "symmetry_order": "1",
+    "n_peaks": "count", "kappa_max_L": "1 (curvature x L)", "tau_mean_L": "rad (twist density x L)",
+    "tau_spread_L": "rad", "radius_of_gyration": "length", "min_distance_over_D": "1", "grad_norm":
+    "B/l per l (scaled)", "iterations": "count", "direction": "plus | minus",
+    "lambda_j": "B/l (scaled Hessian eigenvalue, zero modes removed)",
+}
 
 
 def _min_nonlocal_distance(x, D):

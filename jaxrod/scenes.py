@@ -21,6 +21,7 @@ by two long rays along the clamp axis (the standard closure for a rod held at bo
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, replace
 
 import jax
@@ -29,6 +30,7 @@ import numpy as np
 
 from . import energy as E
 from .geometry import (
+    closest_approach,
     edges,
     material_directors,
     node_directors,
@@ -506,8 +508,17 @@ def closed_curve(points, material, N=None, length=None, Lk0=None, name="closed c
     if not np.all(np.isfinite(pts)):
         raise ValueError("points must be finite")
     N = check_int_at_least("N", pts.shape[0] if N is None else N, 4)
+    given = float(np.sum(np.linalg.norm(np.roll(pts, -1, axis=0) - pts, axis=0 if pts.shape[0] < 2 else 1)))
+    if pts.shape[0] < 3 or not given > 0.0:
+        raise ValueError(f"points must describe a closed curve of positive length (got {pts.shape[0]} point(s) "
+                         f"of total length {given:.3g})")
     x = resample_closed(pts, N)
     perimeter = float(np.sum(np.linalg.norm(np.roll(x, -1, axis=0) - x, axis=1)))
+    gap = closest_approach(x, closed=True)
+    if gap <= 1e-9 * perimeter:
+        # Its writhe, and so the holonomy's branch and Lk0, is undefined; a rod cannot lie there.
+        raise ValueError(f"points: the curve (resampled to N = {N}) passes through itself "
+                         f"(two segments {gap:.2g} apart)")
     if length is not None:
         length = check_positive("length", length)
         x = (x - x.mean(axis=0)) * (length / perimeter)
@@ -533,6 +544,23 @@ def closed_curve(points, material, N=None, length=None, Lk0=None, name="closed c
 IDEAL_TREFOIL_ROPELENGTH = 16.372
 
 DEFAULT_CONTACT_STIFFNESS = 100.0
+# Fewest nodes of a trefoil: three crossings need a few edges each to be resolved at all.
+MIN_TREFOIL_NODES = 24
+# A knot with L/D below this multiple of its ideal ropelength is "nearly tight" (a warning).
+NEARLY_TIGHT = 1.25
+
+
+def check_knot_resolution(N, D, L, minimum):
+    """N as an int, or ValueError naming N: at least ``minimum`` and at least L/D, so that no edge
+    is longer than the diameter (self-contact is resolved on segments: with longer edges
+    strands fall between the quadrature points and the relaxation fails or passes them
+    through each other)."""
+    N = check_int_at_least("N", N, minimum)
+    need = math.ceil(L / D - 1e-9)
+    if N < need:
+        raise ValueError(f"N = {N} gives edges of {L / N / D:.2f} D: self-contact needs edges no longer than the "
+                         f"diameter, N >= L/D = {need}")
+    return N
 
 
 def trefoil_points(n, chirality="right"):
@@ -559,6 +587,14 @@ def trefoil(D, L, N, E=1.0, nu=0.5, chirality="right", contact_stiffness=DEFAULT
             f"L/D = {L / D:.3f} is below the ideal trefoil's ropelength {IDEAL_TREFOIL_ROPELENGTH}: "
             "no trefoil of this rod can exist (increase L or decrease D)"
         )
+    N = check_int_at_least("N", N, MIN_TREFOIL_NODES)
+    if contact_stiffness is not None:
+        N = check_knot_resolution(N, D, L, minimum=MIN_TREFOIL_NODES)
+    if L / D < NEARLY_TIGHT * IDEAL_TREFOIL_ROPELENGTH:
+        warnings.warn(
+            f"L/D = {L / D:.2f} is within {100 * (NEARLY_TIGHT - 1):.0f}% of the ideal trefoil's "
+            f"{IDEAL_TREFOIL_ROPELENGTH}: the knot is nearly tight, and its equilibria depend on the "
+            "contact stiffness", stacklevel=2)
     mat = Material.from_engineering(E, nu, D)
     return closed_curve(trefoil_points(max(4 * N, 400), chirality), mat, N=N, length=L,
                         name=f"{chirality}-handed trefoil", contact_stiffness=contact_stiffness)
@@ -571,6 +607,11 @@ def torus_knot(p, q, D, L, N, E=1.0, nu=0.5, radii=(2.0, 1.0), contact_stiffness
     q = check_int_at_least("q", q, 1)
     if math.gcd(p, q) != 1:
         raise ValueError(f"p and q must be coprime for a knot, got p={p}, q={q}")
+    D = check_positive("D", D)
+    L = check_positive("L", L)
+    N = check_int_at_least("N", N, 4)
+    if contact_stiffness is not None:
+        N = check_knot_resolution(N, D, L, minimum=4)
     R, r = radii
     t = TWO_PI * np.arange(max(4 * N, 400)) / max(4 * N, 400)
     pts = np.stack([(R + r * np.cos(q * t)) * np.cos(p * t), (R + r * np.cos(q * t)) * np.sin(p * t), r * np.sin(q * t)], axis=1)

@@ -5,7 +5,8 @@ recorded as it is made, resumable, with the figures of the seed paper.
 
 * ``run.json``       the scene and continuation parameters (a resumed run must match them);
 * ``branch.csv``     one row per accepted step (``jaxrod.records.ROW_KEYS``, ``direction``,
-  ``lambda_0``...), appended and flushed at every step;
+  ``lambda_0``...), appended and flushed at every step; ``branch_units.json`` the unit of each
+  column (``jaxrod.records.ROW_UNITS``);
 * ``steps/<direction>_<NNNN>.npz`` the state (q, phi, branch) and its profiles
   (s/L, kappa L, tau L, centreline, eccentric line) at every step;
 * ``critical.json``  the instabilities met so far (rewritten whenever one is found) and which
@@ -39,9 +40,9 @@ from .continuation import CONTACT_NEGATIVE_TOL, PathState, follow_twist
 from .stability import DEFAULT_NEGATIVE_TOL
 from .equilibrium import relax
 from .validation import check_finite, check_positive
-from .records import ROW_KEYS, step_record
+from .records import ROW_KEYS, ROW_UNITS, step_record
 
-__all__ = ["twist_study", "StudyResult", "read_table", "figures", "study_summary"]
+__all__ = ["twist_study", "StudyResult", "read_table", "figures", "study_summary", "check_study_folder"]
 
 
 @dataclass(frozen=True)
@@ -134,12 +135,36 @@ def _write_json(path, obj):
     os.replace(tmp, path)  # never a half-written file
 
 
+def _study_parameters(scene, phi_min, phi_max, step, tol, k, max_switches):
+    """What a resumed study must share with the interrupted one (run.json), as JSON would read it."""
+    return json.loads(json.dumps({"scene": _scene_parameters(scene), "phi_min": phi_min, "phi_max": phi_max,
+                                  "step": step, "tol": tol, "k": k, "max_switches": max_switches}))
+
+
+def check_study_folder(out, scene, phi_min, phi_max, step=0.5 * math.pi, tol=2e-4 * math.pi, k=8, max_switches=3):
+    """Raise ValueError naming ``out`` if it holds a study (run.json) with other parameters than
+    these, which a ``twist_study`` with resume=True would refuse: checked before any work."""
+    run_path = os.path.join(out, "run.json")
+    if not os.path.exists(run_path):
+        return
+    try:
+        with open(run_path) as f:
+            old = json.load(f)
+    except (OSError, ValueError):
+        old = None
+    if old != _study_parameters(scene, float(phi_min), float(phi_max), float(step), float(tol), k, max_switches):
+        raise ValueError(f"out: {out} holds a run with other parameters (see its run.json): use another "
+                         "folder, or start over there (resume=False; the CLI's --fresh)")
+
+
 def twist_study(scene, phi_min, phi_max, step=0.5 * math.pi, out=None, tol=2e-4 * math.pi, k=8,
-                progress=None, resume=True, max_switches=3, parallel=True):
+                progress=None, resume=True, max_switches=3, parallel=True, on_point=None):
     """Follow the knot's stable states from phi = 0 up to phi_max and down to phi_min (relaxed at
     phi = 0 first), switching branches at each instability (see ``follow_twist``). Records every
     step (``step_record``); with ``out`` writes the files described in the module docstring as it
-    goes and resumes an interrupted run. Returns a ``StudyResult``.
+    goes and resumes an interrupted run (see the module docstring). progress(str): progress
+    lines; on_point(direction, BranchPoint): after every step recorded ('plus' or 'minus'; from
+    two threads when ``parallel``). Returns a ``StudyResult``.
 
     parallel: follow the two directions at once, in two threads (JAX releases the GIL while it
     computes, so on two cores the study takes about as long as its longer side: README's trefoil
@@ -153,18 +178,15 @@ def twist_study(scene, phi_min, phi_max, step=0.5 * math.pi, out=None, tol=2e-4 
     step = check_positive("step", step)
     tol = check_positive("tol", tol)
     say = progress or (lambda s: None)
-    params = {"scene": _scene_parameters(scene), "phi_min": phi_min, "phi_max": phi_max, "step": step,
-              "tol": tol, "k": k, "max_switches": max_switches}
+    params = _study_parameters(scene, phi_min, phi_max, step, tol, k, max_switches)
     csv_path = crit_path = None
     critical = {"instabilities": [], "finished": []}
     if out:
+        if resume:
+            check_study_folder(out, scene, phi_min, phi_max, step, tol, k, max_switches)
         os.makedirs(os.path.join(out, "steps"), exist_ok=True)
         run_path, csv_path, crit_path = (os.path.join(out, n) for n in ("run.json", "branch.csv", "critical.json"))
         if os.path.exists(run_path) and resume:
-            with open(run_path) as f:
-                old = json.load(f)
-            if old != json.loads(json.dumps(params)):
-                raise ValueError(f"{out} holds a run with other parameters (see run.json): use another --out folder")
             if os.path.exists(crit_path):
                 with open(crit_path) as f:
                     critical = json.load(f)
@@ -175,6 +197,8 @@ def twist_study(scene, phi_min, phi_max, step=0.5 * math.pi, out=None, tol=2e-4 
                     os.remove(stale)
             _write_json(run_path, params)
     header = list(ROW_KEYS) + ["direction"] + [f"lambda_{j}" for j in range(k)]
+    if out:
+        _write_json(os.path.join(out, "branch_units.json"), ROW_UNITS)
 
     lock = threading.Lock()  # one writer at a time (files, rows, critical)
 
@@ -216,10 +240,12 @@ def twist_study(scene, phi_min, phi_max, step=0.5 * math.pi, out=None, tol=2e-4 
             say(f"{direction}: resuming on {state.arrays['branch']} at phi = "
                 f"{float(state.arrays['prev_phi']) / math.pi:+.5f} pi ({state.arrays['phase']}, step {counter})")
 
-        def on_point(point):
+        def on_point_saved(point):
             nonlocal counter
             save_point(direction, counter, point)
             counter += 1
+            if on_point is not None:
+                on_point(direction, point)
 
         def on_instability(inst):
             # On file at once (critical.json and the mode file), before the new branch's first
@@ -242,7 +268,7 @@ def twist_study(scene, phi_min, phi_max, step=0.5 * math.pi, out=None, tol=2e-4 
 
         path = follow_twist(scene, 0.0, target, step=step, start=start if state is None else None, tol=tol,
                             k=k, negative_tol=critical["negative_tol"], max_switches=max_switches,
-                            on_point=on_point, progress=say, on_instability=on_instability, on_state=on_state,
+                            on_point=on_point_saved, progress=say, on_instability=on_instability, on_state=on_state,
                             resume=state)
         with lock:
             critical["finished"].append(direction)
@@ -444,16 +470,23 @@ def study_summary(result):
     return s
 
 
-def figures(out, title=""):
+def figures(out, title="", length_unit=None):
     """Draw the study's figures from the files in ``out``: bifurcation.png, linking.png,
-    profiles.png, snapshots.png. Returns the list of files written."""
+    profiles.png, snapshots.png (the knot as a tube of the rod's diameter, seen along its
+    symmetry axis; axes in ``length_unit``, e.g. 'mm'). Returns the list of files written."""
     from . import plotting
+
+    diameter = None
+    try:
+        with open(os.path.join(out, "run.json")) as f:
+            diameter = json.load(f)["scene"]["D"]
+    except (OSError, ValueError, KeyError, TypeError):
+        pass
 
     table = read_table(os.path.join(out, "branch.csv"))
     with open(os.path.join(out, "critical.json")) as f:
         critical = json.load(f)
-    marks = [{"phi": c["phi"], "label": f"phi* = {c['phi'] / math.pi:+.3f} pi ({c['from_branch']})"}
-             for c in critical["instabilities"]]
+    marks = [{"phi": c["phi"], "label": f"end of {c['from_branch']}"} for c in critical["instabilities"]]
     written = []
     p = os.path.join(out, "bifurcation.png")
     plotting.plot_bifurcation(table, marks, p, title=title or None)
@@ -489,6 +522,6 @@ def figures(out, title=""):
         plotting.plot_profiles(s_over_L, profiles, labels, p, title=title or None)
         written.append(p)
         p = os.path.join(out, "snapshots.png")
-        plotting.plot_snapshots(snaps, p, ncols=3)
+        plotting.plot_snapshots(snaps, p, ncols=3, diameter=diameter, unit=length_unit)
         written.append(p)
     return written

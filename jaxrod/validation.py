@@ -26,8 +26,13 @@ def check_positive(name, value):
 
 
 def check_int_at_least(name, value, minimum):
-    """Raise ValueError naming ``name`` unless ``value`` is an integer >= minimum."""
-    if isinstance(value, bool) or int(value) != value:
+    """Raise ValueError naming ``name`` unless ``value`` is an integer >= minimum (an int, or a
+    float or numpy number with an integer value; not a bool, a string or None)."""
+    try:
+        whole = not isinstance(value, (bool, str, bytes)) and int(value) == value
+    except (TypeError, ValueError, OverflowError):  # None, nan, inf, objects
+        whole = False
+    if not whole:
         raise ValueError(f"{name} must be an integer, got {value!r}")
     if int(value) < minimum:
         raise ValueError(f"{name} must be at least {minimum}, got {value!r}")

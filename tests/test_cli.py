@@ -28,25 +28,12 @@ def test_michell_json_N128(tmp_path):
     assert "phi =" in r.stderr  # progress
     for name in ("michell.json", "scan.csv", "eigenvalues.png", "critical_mode.png"):
         assert (tmp_path / name).stat().st_size > 0
+    import matplotlib.image
 
-
-@pytest.mark.parametrize(
-    "args, name",
-    [
-        (["--N", "3"], "N"),
-        (["--nu", "nan"], "nu"),
-        (["--nu", "0.7"], "nu"),
-        (["--nu", "-1"], "nu"),
-        (["--slenderness", "-0.1"], "slenderness"),
-        (["--N", "abc"], "--N"),
-    ],
-)
-def test_bad_input_exits_nonzero_with_one_line(args, name):
-    r = run("michell", *args, timeout=120)
-    assert r.returncode != 0
-    lines = [l for l in r.stderr.strip().splitlines() if l]
-    assert len(lines) == 1, r.stderr
-    assert name in lines[0] and lines[0].startswith("jaxrod: error:")
+    for name in ("eigenvalues.png", "critical_mode.png"):
+        image = matplotlib.image.imread(tmp_path / name)
+        assert image.ndim == 3 and min(image.shape[:2]) > 300 and image[..., :3].std() > 0.05, name
+    assert "compiling" in r.stderr or "compiled code cached" in r.stderr  # the line before the compile
 
 
 # ---------------------------------------------------------------------------- jaxrod analyze
@@ -152,10 +139,8 @@ def test_analyze_bad_input_exits_2_with_one_line(tmp_path, capsys):
     assert main(["analyze", str(text), str(ecc)]) == 2
     assert "'one' is not a number" in _one_line_error(capsys)
     assert main(["analyze", str(centre), str(ecc), "--smoothing-modes", "500"]) == 2
-    assert "smoothing_modes" in _one_line_error(capsys)
-    with pytest.raises(SystemExit) as info:  # argparse: not an integer
-        main(["analyze", str(centre), str(ecc), "--n-samples", "many"])
-    assert info.value.code == 2
+    assert "--smoothing-modes" in _one_line_error(capsys)
+    assert main(["analyze", str(centre), str(ecc), "--n-samples", "many"]) == 2  # argparse: not an integer
     assert "--n-samples" in _one_line_error(capsys)
 
 
@@ -164,7 +149,7 @@ from jaxrod.cli import main  # noqa: E402
 def test_trefoil_study_json_files_and_resume(tmp_path, capsys):
     out = tmp_path / "tref"
     args = ["trefoil", "--N", "61", "--phi-min", "-1pi", "--phi-max", "1pi", "--step", "0.5pi",
-            "--out", str(out), "--json", "--quiet"]
+            "--out", str(out), "--vtk", "--json", "--quiet"]
     assert main(args) == 0
     summary = json.loads(capsys.readouterr().out)
     for key in ("phi_plus", "phi_minus", "seconds", "tightening_side", "steps", "N", "D", "L"):
@@ -172,9 +157,17 @@ def test_trefoil_study_json_files_and_resume(tmp_path, capsys):
     # Nothing buckles within one half-turn either way; both sides were covered.
     assert summary["phi_plus"] is None and summary["phi_minus"] is None
     assert summary["steps"] == 6
-    for name in ("branch.csv", "critical.json", "run.json", "summary.json", "bifurcation.png",
-                 "linking.png", "profiles.png", "snapshots.png"):
+    for name in ("branch.csv", "critical.json", "run.json", "summary.json"):
         assert (out / name).stat().st_size > 0, name
+    # Every figure opens as an image with something drawn on it.
+    import matplotlib.image
+
+    for name in ("bifurcation.png", "linking.png", "profiles.png", "snapshots.png"):
+        image = matplotlib.image.imread(out / name)
+        assert image.ndim == 3 and min(image.shape[:2]) > 300 and image[..., :3].std() > 0.05, name
+    # One VTK file per step (ParaView), each with the centreline and the stripe.
+    vtk = sorted(os.listdir(out / "vtk"))
+    assert len(vtk) == 6 and "LINES 2 " in (out / "vtk" / vtk[0]).read_text()
     header = (out / "branch.csv").read_text().splitlines()[0].split(",")
     for column in ("phi", "E_bend", "E_twist", "E_contact", "Wr", "Tw", "Lk_frames", "Lk_gauss", "n_negative",
                    "stable", "contact_count", "symmetry_order", "lambda_0"):
@@ -185,22 +178,6 @@ def test_trefoil_study_json_files_and_resume(tmp_path, capsys):
     assert main(args[:-1]) == 0
     text = capsys.readouterr()
     assert "phi_plus" in text.out and "already finished" in text.err
-
-
-@pytest.mark.parametrize(
-    "args, name",
-    [
-        (["--D", "-1"], "D"),
-        (["--L", "100"], "ropelength"),
-        (["--N", "3"], "N"),
-        (["--phi-min", "1pi"], "phi_min"),
-        (["--nu", "nan"], "nu"),
-    ],
-)
-def test_trefoil_bad_input_exits_2_with_one_line(tmp_path, capsys, args, name):
-    assert main(["trefoil", "--out", str(tmp_path / "x"), "--quiet"] + args) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("jaxrod: error:") and name in err[0]
 
 
 @pytest.mark.parametrize(
@@ -229,3 +206,44 @@ def test_failed_computation_is_one_line_with_advice(monkeypatch, capsys, tmp_pat
     assert main(["trefoil", "--out", str(tmp_path / "t")]) == code
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("jaxrod: ") and words in err[0], err
+
+
+def test_progress_bar_on_a_terminal_shows_twist_steps_and_eta(monkeypatch):
+    # On a terminal the CLI shows a tqdm bar (twist reached, elapsed < remaining, steps) with the
+    # progress lines written above it; off a terminal (CI, logs, pipes) only the lines.
+    import io
+    import types
+
+    import jaxrod.cli as cli
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    screen = Terminal()
+    monkeypatch.setattr(sys, "stderr", screen)
+    bar = cli._Progress(types.SimpleNamespace(quiet=False), 4.0, "trefoil")
+    bar.say("relaxing the knot at phi = 0")
+    bar.update(1.5, steps=3, branch="symmetric+")
+    bar.close()
+    text = screen.getvalue()
+    assert "relaxing the knot at phi = 0" in text
+    assert "phi 1.50/4.00 pi" in text and "<" in text and "steps=3" in text
+    piped = io.StringIO()
+    monkeypatch.setattr(sys, "stderr", piped)
+    bar = cli._Progress(types.SimpleNamespace(quiet=False), 4.0, "trefoil")
+    bar.say("a line")
+    bar.update(1.0, steps=1)
+    bar.close()
+    assert piped.getvalue() == "a line\n"
+
+
+def test_version_and_help(capsys):
+    assert main(["--version"]) == 0
+    assert capsys.readouterr().out.startswith("jaxrod ")
+    for command in ("michell", "trefoil", "analyze"):
+        assert main([command, "--help"]) == 0
+        text = capsys.readouterr().out
+        assert "examples:" in text and f"jaxrod {command}" in text
+        if command != "analyze":  # the angle units, stated where angles are given
+            assert "radians" in text and "pi suffix" in text

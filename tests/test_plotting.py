@@ -118,29 +118,23 @@ def _stripe(x, offset=0.2):
 def test_plot_snapshot(tmp_path):
     x = trefoil_points(60)
     path = tmp_path / "snapshot.png"
-    plotting.plot_snapshot(x, _stripe(x), path=path, title="trefoil")
+    plotting.plot_snapshot(x, _stripe(x), path=path, title="trefoil", unit="mm")
     _check(path)
-    fig = plotting.plot_snapshot(x, _stripe(x))
+    fig = plotting.plot_snapshot(x, _stripe(x), unit="mm")
     ax = fig.axes[0]
-    # equal aspect: the box follows the data ranges
-    box = np.array(ax.get_box_aspect()) if hasattr(ax, "get_box_aspect") else None
-    lims = np.array([ax.get_xlim(), ax.get_ylim(), ax.get_zlim()])
-    spans = lims[:, 1] - lims[:, 0]
-    if box is not None:
-        assert np.allclose(box / box.max(), spans / spans.max(), rtol=1e-6)
+    assert ax.get_aspect() == 1.0 and ax.get_xlim() == ax.get_ylim()  # equal aspect, square view
+    assert ax.get_xlabel() == "e1 (mm)" and ax.get_ylabel() == "e2 (mm)"
+    # A tube piece per edge plus the visible stripe pieces, over a silhouette of one per edge.
+    silhouette, tube = ax.collections
+    assert len(silhouette.get_paths()) == 60 and 60 < len(tube.get_paths()) <= 120
     _returns_figure(fig)
-    # a planar ring still gets a visible (non-zero) z extent
-    t = 2 * np.pi * np.arange(40) / 40
-    ring = np.stack([np.cos(t), np.sin(t), 0 * t], axis=1)
-    fig = plotting.plot_snapshot(ring, 1.1 * ring)
-    zl = fig.axes[0].get_zlim()
-    assert zl[1] - zl[0] > 0
-    _returns_figure(fig)
+    # The view is along the axis of least spread: for the trefoil, its symmetry axis z.
+    frame = plotting.view_frame(x)
+    assert abs(abs(frame[2, 2]) - 1.0) < 1e-9 and np.allclose(frame @ frame.T, np.eye(3), atol=1e-12)
     with pytest.raises(ValueError, match="eccentric must have shape"):
         plotting.plot_snapshot(x, x[:, :2])
-    fig2d, ax2d = plt.subplots()
-    with pytest.raises(ValueError, match="3D axis"):
-        plotting.plot_snapshot(x, x, ax=ax2d)
+    with pytest.raises(ValueError, match="node by node"):
+        plotting.plot_snapshot(x, x[:10])
     plt.close("all")
 
 
@@ -152,6 +146,8 @@ def test_plot_snapshots(tmp_path):
     _check(path)
     fig = plotting.plot_snapshots(snaps[:2])
     assert len(fig.axes) == 2 and fig.axes[1].get_title() == "phi = 1 pi"
+    fig = plotting.plot_snapshots(snaps, ncols=3)  # 2 x 3 grid, the sixth axis hidden
+    assert sum(ax.get_visible() for ax in fig.axes) == 4
     _returns_figure(fig)
     with pytest.raises(ValueError, match="nothing"):
         plotting.plot_snapshots([])
@@ -168,6 +164,11 @@ def test_plot_critical_vs_ratio(tmp_path):
                                     michell_minus=-5.2 * math.pi, path=path)
     _check(path)
     _returns_figure(plotting.plot_critical_vs_ratio(ratios, plus, minus))
+    # A ratio without buckling in the searched range is marked at the range's edge, not dropped.
+    fig = plotting.plot_critical_vs_ratio(ratios, plus, minus, searched=16 * math.pi)
+    labels = fig.axes[0].get_legend_handles_labels()[1]
+    assert "no buckling within +16 pi" in labels
+    _returns_figure(fig)
     with pytest.raises(ValueError, match="equal length"):
         plotting.plot_critical_vs_ratio(ratios, plus[:2], minus)
 
