@@ -149,25 +149,34 @@ def report():
               "-8 pi; experiment ~10 pi and ~-8 pi (+-2 pi)."]
     with open(os.path.join(RESULTS, "trefoil_critical.md"), "w") as f:
         f.write("\n".join(lines) + "\n")
-    ratio = [r for r in rows if (r["study"] == "ratio" or (r["study"] == "convergence" and int(r["N"]) == SWEEP_N))
-             and float(r["contact_stiffness"]) == 100.0 and r["phi_star_over_pi"]
-             and float(r["L"]) / int(r["N"]) <= float(r["D"])]
+    swept = [r for r in rows if (r["study"] == "ratio" or (r["study"] == "convergence" and int(r["N"]) == SWEEP_N))
+             and float(r["contact_stiffness"]) == 100.0 and float(r["L"]) / int(r["N"]) <= float(r["D"])]
+    ratio = [r for r in swept if r["phi_star_over_pi"]]
+    # Ratios where the whole span was followed without an instability ("phi_stop"): marked at the
+    # span's edge, "no buckling within 16 pi", rather than dropped.
+    unbuckled = [r for r in swept if not r["phi_star_over_pi"] and r["kind"] == "phi_stop"]
     if ratio:
-        fig, ax = plt.subplots(figsize=(6, 4))
+        fig, ax = plt.subplots(figsize=(8, 4))
         for direction, marker, label in (("minus", "o", "tightening |phi*| (phi < 0)"), ("plus", "s", "opening phi* (phi > 0)")):
             pts = sorted((float(r["D_over_L"]), abs(float(r["phi_star_over_pi"]))) for r in ratio if r["direction"] == direction)
             if pts:
                 ax.plot(*zip(*pts), marker + "-", label=label)
+        for direction, colour, nudge in (("minus", "C0", 0.9985), ("plus", "C1", 1.0015)):  # side by side
+            none = sorted(nudge * float(r["D_over_L"]) for r in unbuckled if r["direction"] == direction)
+            if none:
+                side = "tightening" if direction == "minus" else "opening"
+                ax.plot(none, [16.0] * len(none), "^", color=colour, ms=9, mfc="none",
+                        label=f"{side}: no buckling within 16 pi")
         ax.axhline(2 * MICHELL / PI, color="C0", ls="--", lw=1, label="2 x Michell (10.39 pi)")
         ax.axhline(MICHELL / PI, color="C1", ls="--", lw=1, label="Michell (5.20 pi)")
         ax.errorbar([8 / 292], [11.6], fmt="C0x", ms=8, label="paper simulation 11.6 pi / 8 pi")
         ax.errorbar([8 / 292], [8.0], fmt="C1x", ms=8)
         ax.errorbar([8 / 292 * 1.03], [10.0], yerr=2.0, fmt="C0^", mfc="none", label="paper experiment (+-2 pi)")
         ax.errorbar([8 / 292 * 1.03], [8.0], yerr=2.0, fmt="C1^", mfc="none")
-        ax.set_xlabel("D / L")
-        ax.set_ylabel("|critical twist| / pi")
+        ax.set_xlabel("slenderness D / L (-)")
+        ax.set_ylabel("|critical twist| / pi (rad / pi)")
         ax.set_title(f"Twisted trefoil, nu = 0.5, N = max({SWEEP_N}, L/D)")
-        ax.legend(fontsize=7)
+        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
         fig.tight_layout()
         fig.savefig(os.path.join(RESULTS, "trefoil_critical_vs_ratio.png"), dpi=130)
         plt.close(fig)
