@@ -337,11 +337,14 @@ def _arclength_parameters(curve, T, n, closed):
 
 
 # ---------------------------------------------------------------------------- pairing
-def _pair(x, d3, curve, T, closed, n_dense):
+def _pair(x, d3, curve, T, closed, n_dense, expected=None, reach=None):
     """Point of the eccentric ``curve`` paired with each node x (N,3) of unit tangent d3 (N,3):
     the crossing of the normal plane nearest to the node (Newton-refined on the curve), or the
-    nearest point of the curve if the plane is not crossed. Returns (points (N,3), params (N,),
-    crossed (N,) bool)."""
+    nearest point of the curve if the plane is not crossed. With ``expected`` ((N,) parameters
+    on the curve) and ``reach`` (a distance): among the crossings within reach, the one whose
+    parameter is nearest the expected one (continuity along the line, where strands touch and
+    another strand's line crosses the plane as near as the node's own). Returns (points (N,3),
+    params (N,), crossed (N,) bool)."""
     tf = np.linspace(0.0, T, n_dense + 1)
     pf = curve(tf)
     out_t = np.empty(x.shape[0])
@@ -357,6 +360,14 @@ def _pair(x, d3, curve, T, closed, n_dense):
         dist = np.where(crosses, np.linalg.norm(q - xs[:, None, :], axis=-1), np.inf)
         j = np.argmin(dist, axis=1)
         rows = np.arange(xs.shape[0])
+        if expected is not None:
+            t_all = tf[None, :-1] + alpha * (tf[None, 1:] - tf[None, :-1])
+            gap = t_all - expected[lo: lo + chunk, None]
+            if closed:
+                gap = (gap + 0.5 * T) % T - 0.5 * T
+            score = np.where(dist <= reach, np.abs(gap), np.inf)
+            best = np.argmin(score, axis=1)
+            j = np.where(np.isfinite(score[rows, best]), best, j)
         found = np.isfinite(dist[rows, j])
         t = tf[j] + alpha[rows, j] * (tf[j + 1] - tf[j])
         a, b = tf[j], tf[j + 1]
@@ -473,6 +484,15 @@ def analyze(centreline, eccentric, closed=True, n_samples=None, smoothing_modes=
     # 4: pairing and the frame.
     n_dense = max(8 * e_pts.shape[0], 4 * n)
     ecc, e_t, crossed = _pair(x, d3, e_curve, e_T, closed, n_dense)
+    offset = np.linalg.norm(ecc - x, axis=-1)
+    jumps = _pairing_jumps(e_t, e_T, closed) & crossed
+    if np.any(jumps) and np.sum(crossed) >= 4:
+        # Where strands touch, a node's normal plane may meet another strand's line as near as
+        # its own: pair again by continuity, each node with the crossing nearest the parameter
+        # interpolated from the nodes whose pairing advanced smoothly.
+        expected = _expected_parameters(e_t, crossed, e_T, closed)
+        ecc, e_t, crossed = _pair(x, d3, e_curve, e_T, closed, n_dense, expected=expected,
+                                  reach=2.0 * float(np.median(offset)))
     w = ecc - x
     w = w - np.sum(w * d3, axis=-1, keepdims=True) * d3
     r = np.linalg.norm(w, axis=-1)
@@ -552,6 +572,42 @@ _OPEN_GAP = 5.0
 _ECCENTRIC_LENGTH_RANGE = (0.8, 2.0)
 # A paired point further than this multiple of the median offset belongs to another strand.
 _FAR_PAIRING = 2.0
+
+
+def _expected_parameters(e_t, crossed, e_T, closed):
+    """(N,) parameters on the eccentric line expected at each node from continuity: the paired
+    parameters follow a straight trend in the node index (one period per loop for a closed line,
+    in the direction most pairs run) up to the line's speed variations (a few per cent of its
+    length); nodes further than e_T/8 from the trend were paired with another piece of the line
+    (another strand's, which lies a good fraction of the length away) and are ignored; the
+    others are interpolated linearly."""
+    n = e_t.shape[0]
+    i = np.arange(n)
+    step = np.diff(np.concatenate([e_t, e_t[:1]]) if closed else e_t)
+    if closed:
+        step = (step + 0.5 * e_T) % e_T - 0.5 * e_T
+    slope = float(np.median(step[np.abs(step) < 0.25 * e_T]))  # parameter per node, with its sense
+    if closed:
+        slope = np.sign(slope) * e_T / n  # exactly one period per loop
+    base = e_t - slope * i
+    if closed:  # circular median of the offsets: the angle of the mean direction, then refined
+        angle = 2.0 * np.pi * base / e_T
+        centre = np.angle(np.mean(np.exp(1j * angle[crossed])))
+        dev = (angle - centre + np.pi) % (2.0 * np.pi) - np.pi
+        centre += float(np.median(dev[crossed]))
+        dev = ((angle - centre + np.pi) % (2.0 * np.pi) - np.pi) * e_T / (2.0 * np.pi)
+    else:
+        dev = base - float(np.median(base[crossed]))
+    good = crossed & (np.abs(dev) < 0.125 * e_T)
+    idx = np.flatnonzero(good)
+    if idx.size < 2:
+        return e_t
+    if not closed:
+        return np.interp(i, idx, e_t[idx])
+    # The offsets from the trend, unwrapped along the good nodes, interpolated around the loop.
+    offsets = np.unwrap(2.0 * np.pi * base[idx] / e_T) * e_T / (2.0 * np.pi)
+    periodic = np.interp(i, idx, offsets, period=n)
+    return (periodic + slope * i) % e_T
 
 
 def _pairing_jumps(e_t, e_T, closed):

@@ -94,6 +94,11 @@ def test_analyze_json_and_files(tmp_path, capsys):
     assert res["length"] > 0
     for name in ("profiles.csv", "summary.json", "profiles.png"):
         assert (out / name).stat().st_size > 0
+    import matplotlib.image
+
+    image = matplotlib.image.imread(out / "profiles.png")
+    assert image.ndim == 3 and min(image.shape[:2]) > 300 and image[..., :3].std() > 0.05
+    assert res["warnings"] == []  # clean synthetic data: nothing to warn about
     assert json.loads((out / "summary.json").read_text())["Lk_gauss"] == res["Lk_gauss"]
     lines = (out / "profiles.csv").read_text().splitlines()
     assert lines[0] == "s,kappa1,kappa2,tau,kappa" and len(lines) == 201

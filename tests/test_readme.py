@@ -30,11 +30,12 @@ def test_readme_python_blocks_run(tmp_path, monkeypatch, capsys):
     assert abs(state.Lk - 6.0) < 1e-8 and abs(res.Lk_frames - 6.0) < 0.05
 
 
-def test_analyze_on_a_twisted_knot_state_is_right_or_warns(tmp_path, monkeypatch):
+def test_analyze_on_a_twisted_knot_state_is_right():
     # Issue 8, defect 4: on jaxrod's own twisted trefoil (strands in contact, the line at D/2 on
     # the surface) analyze paired some nodes with another strand's line and returned tau L from
-    # -33 to +34 where the truth is a uniform 5.93, without a word. It must now be right or say
-    # why not. (The state at 2 pi of a follow_twist like the README's, N = 61.)
+    # -33 to +34 where the truth is a uniform 5.93, without a word. Such nodes are now detected
+    # (the pairing jumps along the line) and paired again by continuity: the profile is right,
+    # and nothing is left to warn about. (The trefoil relaxed at 2 pi, N = 61.)
     import math
     import warnings
 
@@ -50,6 +51,7 @@ def test_analyze_on_a_twisted_knot_state_is_right_or_warns(tmp_path, monkeypatch
     with warnings.catch_warnings(record=True):
         warnings.simplefilter("always")
         res = analyze(arrays["x"], arrays["eccentric"])
-    tau_L = res.tau * res.length
-    uniform = np.ptp(tau_L) < 0.2 * abs(np.mean(arrays["tau_L"]))
-    assert uniform or res.warnings, (np.ptp(tau_L), res.warnings)
+    tau_L, truth = res.tau * res.length, arrays["tau_L"]  # truth: the simulation's own profile
+    assert res.warnings == ()
+    assert abs(res.Lk_frames - 4.0) < 1e-3 and abs(res.Lk_exact - 4.0) < 1e-9
+    assert np.max(np.abs(tau_L - np.mean(truth))) < 0.05 * abs(np.mean(truth))  # uniform, as simulated
