@@ -38,6 +38,7 @@ from .continuation import (  # noqa: E402
     BranchPoint, ContinuationOptions, CriticalPoint, Instability, NoCrossingError, PathStop, TwistPath,
     critical_twist, follow_twist,
 )
+from .dynamics import DynamicsResult, damped_dynamics  # noqa: E402
 from . import analysis, contact, plotting, topology  # noqa: E402
 
 __version__ = "0.1.0"
@@ -84,4 +85,6 @@ __all__ = [
     "plotting",
     "trefoil",
     "torus_knot",
+    "damped_dynamics",
+    "DynamicsResult",
 ]

@@ -12,7 +12,7 @@ def _python_blocks():
 
 
 def test_readme_has_python_blocks():
-    assert len(_python_blocks()) >= 2
+    assert len(_python_blocks()) >= 3
 
 
 def test_readme_python_blocks_run(tmp_path, monkeypatch, capsys):
@@ -28,6 +28,8 @@ def test_readme_python_blocks_run(tmp_path, monkeypatch, capsys):
     assert abs(end.phi / math.pi - 6.60) < 0.01 and namespace["path"].points[-1].branch == "buckled+"
     res, state = namespace["res"], namespace["state"]
     assert abs(state.Lk - 6.0) < 1e-8 and abs(res.Lk_frames - 6.0) < 0.05
+    run = namespace["run"]  # the paper's method: buckles, after phi*
+    assert run.stop == "transition" and run.transition_phi > 5.85 * math.pi
 
 
 def test_analyze_on_a_twisted_knot_state_is_right():
