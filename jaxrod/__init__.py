@@ -28,6 +28,7 @@ from .scenes import (  # noqa: E402
     michell_critical_twist,
     michell_ring,
     ring,
+    knot,
     torus_knot,
     trefoil,
 )
@@ -85,6 +86,7 @@ __all__ = [
     "plotting",
     "trefoil",
     "torus_knot",
+    "knot",
     "damped_dynamics",
     "DynamicsResult",
 ]

@@ -60,6 +60,9 @@ __all__ = [
     "michell_critical_twist",
     "clamped_critical_twist",
     "trefoil",
+    "knot",
+    "knot_points",
+    "IDEAL_ROPELENGTH",
     "trefoil_points",
     "torus_knot",
     "IDEAL_TREFOIL_ROPELENGTH",
@@ -580,24 +583,64 @@ def trefoil(D, L, N, E=1.0, nu=0.5, chirality="right", contact_stiffness=DEFAULT
     Refuses a knot shorter than the ideal trefoil (L/D < 16.372), which cannot exist.
     The initial curve is the standard parametrisation scaled to length L (not yet relaxed).
     """
+    points = trefoil_points(max(4 * int(N) if isinstance(N, (int, np.integer)) else 400, 400), chirality)
+    return _knot_scene("3_1", points, D, L, N, E, nu, contact_stiffness, f"{chirality}-handed trefoil")
+
+
+# Ropelength L/D of the ideal (tightest) knots: the trefoil 16.372 (Baranska, Przybyl, Pieranski
+# 2008); the figure-eight 21.04, the cinquefoil 23.55 and the three-twist knot 24.68 (Ashton,
+# Cantarella, Piatek, Rawdon, "Knot tightening by constrained gradient descent", Experimental
+# Mathematics 20 (2011), to the digits quoted here). A shorter rod cannot be tied in that knot.
+IDEAL_ROPELENGTH = {"3_1": IDEAL_TREFOIL_ROPELENGTH, "4_1": 21.04, "5_1": 23.55, "5_2": 24.68}
+_KNOT_NAMES = {"3_1": "trefoil", "4_1": "figure-eight knot", "5_1": "cinquefoil", "5_2": "three-twist knot"}
+
+
+def knot_points(name, n):
+    """(n, 3) points of a published parametrisation of the knot ``name`` (t = 2 pi k / n):
+    3_1 the trefoil (sin t + 2 sin 2t, cos t - 2 cos 2t, sin 3t); 4_1 the figure-eight knot
+    ((2 + cos 2t) cos 3t, (2 + cos 2t) sin 3t, sin 4t); 5_1 the cinquefoil, torus knot T(2, 5)
+    ((2 + cos 5t) cos 2t, (2 + cos 5t) sin 2t, sin 5t); 5_2 the three-twist knot as the Lissajous
+    knot (cos(3t + 0.7), cos(2t + 0.2), cos 7t) (Bogle, Hearst, Jones, Stoilov 1994)."""
+    if name not in IDEAL_ROPELENGTH:
+        raise ValueError(f"knot must be one of {', '.join(IDEAL_ROPELENGTH)}, got {name!r}")
+    t = TWO_PI * np.arange(n) / n
+    if name == "3_1":
+        return trefoil_points(n)
+    if name == "4_1":
+        return np.stack([(2 + np.cos(2 * t)) * np.cos(3 * t), (2 + np.cos(2 * t)) * np.sin(3 * t), np.sin(4 * t)], axis=1)
+    if name == "5_1":
+        return np.stack([(2 + np.cos(5 * t)) * np.cos(2 * t), (2 + np.cos(5 * t)) * np.sin(2 * t), np.sin(5 * t)], axis=1)
+    return np.stack([np.cos(3 * t + 0.7), np.cos(2 * t + 0.2), np.cos(7 * t)], axis=1)
+
+
+def knot(name, D, L, N, E=1.0, nu=0.5, contact_stiffness=DEFAULT_CONTACT_STIFFNESS):
+    """A closed rod tied in the knot ``name`` ('3_1', '4_1', '5_1', '5_2'; see ``knot_points``)
+    of diameter D and length L with N nodes. Refuses L/D below the knot's ideal ropelength
+    (``IDEAL_ROPELENGTH``), N below 24 or (with contact) below L/D; warns when L/D is within 25%
+    of the ideal. The curve is the parametrisation scaled to length L, not yet relaxed."""
+    if name not in IDEAL_ROPELENGTH:
+        raise ValueError(f"knot must be one of {', '.join(IDEAL_ROPELENGTH)}, got {name!r}")
+    return _knot_scene(name, knot_points(name, 800), D, L, N, E, nu, contact_stiffness, _KNOT_NAMES[name])
+
+
+def _knot_scene(name, points, D, L, N, E, nu, contact_stiffness, title):
     D = check_positive("D", D)
     L = check_positive("L", L)
-    if L / D < IDEAL_TREFOIL_ROPELENGTH:
+    ideal = IDEAL_ROPELENGTH[name]
+    if L / D < ideal:
         raise ValueError(
-            f"L/D = {L / D:.3f} is below the ideal trefoil's ropelength {IDEAL_TREFOIL_ROPELENGTH}: "
-            "no trefoil of this rod can exist (increase L or decrease D)"
+            f"L/D = {L / D:.3f} is below the ideal {_KNOT_NAMES[name]}'s ropelength {ideal}: "
+            f"no {_KNOT_NAMES[name]} of this rod can exist (increase L or decrease D)"
         )
     N = check_int_at_least("N", N, MIN_TREFOIL_NODES)
     if contact_stiffness is not None:
         N = check_knot_resolution(N, D, L, minimum=MIN_TREFOIL_NODES)
-    if L / D < NEARLY_TIGHT * IDEAL_TREFOIL_ROPELENGTH:
+    if L / D < NEARLY_TIGHT * ideal:
         warnings.warn(
-            f"L/D = {L / D:.2f} is within {100 * (NEARLY_TIGHT - 1):.0f}% of the ideal trefoil's "
-            f"{IDEAL_TREFOIL_ROPELENGTH}: the knot is nearly tight, and its equilibria depend on the "
-            "contact stiffness", stacklevel=2)
+            f"L/D = {L / D:.2f} is within {100 * (NEARLY_TIGHT - 1):.0f}% of the ideal {_KNOT_NAMES[name]}'s "
+            f"{ideal}: the knot is nearly tight, and its equilibria depend on the contact stiffness", stacklevel=3)
     mat = Material.from_engineering(E, nu, D)
-    return closed_curve(trefoil_points(max(4 * N, 400), chirality), mat, N=N, length=L,
-                        name=f"{chirality}-handed trefoil", contact_stiffness=contact_stiffness)
+    return closed_curve(points, mat, N=N, length=L, name=title, contact_stiffness=contact_stiffness)
 
 
 def torus_knot(p, q, D, L, N, E=1.0, nu=0.5, radii=(2.0, 1.0), contact_stiffness=DEFAULT_CONTACT_STIFFNESS):
