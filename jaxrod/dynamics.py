@@ -15,8 +15,10 @@ u += dt v, with n standard normal: a Langevin thermostat at temperature T (energ
 stationary distribution is Boltzmann's. The steps run in jitted ``lax.scan`` chunks with the
 neighbourhood (contact candidates, writhe branch) frozen; between chunks, outside jit, the
 exact writhe is computed, the neighbourhood rebuilt where stale, and a record kept (t, phi,
-energy, Wr, Tw). The transition is detected as the paper did: the twist of the last record
-before the writhe jumps by more than ``jump`` between two records.
+energy, Wr, Tw). The transition is detected as the paper did, where the writhe jumps: by more
+than ``jump`` within a twist window ``window`` (a slowly ramped knot falls off its branch over
+thousands of steps, many records, but within a small twist); it is reported as the twist at
+the window's start, the last record before the jump.
 """
 from __future__ import annotations
 
@@ -40,7 +42,7 @@ __all__ = ["damped_dynamics", "DynamicsResult", "stable_time_step"]
 class DynamicsResult:
     """A damped-dynamics run. Records (one per chunk, the start included), each (R,): t (scaled
     time), phi (rad), energy, Wr, Tw, Lk. transition_phi: the twist of the last record before the
-    writhe jumped by more than the ``jump`` asked (NaN if it never did); transition_index: that
+    writhe jumped by more than ``jump`` within ``window`` (NaN if it never did); transition_index: that
     record's index (-1); stop: 'transition', 'phi_stop' or 'topology' (the writhe jumped by 1 or
     more within one chunk: a strand passed through another; take a smaller dt); q: the final
     state (physical DOFs); steps: time steps taken; dt; seconds: wall time."""
@@ -111,15 +113,29 @@ def stable_time_step(scene, q, phi=0.0, safety=0.3):
     return safety / math.sqrt(max(lam, 1e-300))
 
 
+def _writhe_jump(phi, wr, jump, window):
+    """Index of the record where the writhe's jump to the newest record starts: the earliest
+    record at most ``window`` in twist before the newest (at least the one before it) whose
+    writhe differs from the newest by more than ``jump``; -1 if there is none."""
+    phi, wr = np.asarray(phi), np.asarray(wr)
+    newest = len(wr) - 1
+    inside = np.flatnonzero(np.abs(phi[newest] - phi[:newest]) <= window)
+    if inside.size == 0:
+        inside = np.array([newest - 1])
+    far = inside[np.abs(wr[newest] - wr[inside]) > jump]
+    return int(far[0]) if far.size else -1
+
+
 def damped_dynamics(scene, phi_start, phi_stop, rate, q0=None, gamma=1.0, temperature=0.0, dt=None, chunk=200,
-                    jump=0.3, seed=0, stop_at_transition=True, progress=None):
+                    jump=0.3, window=0.1 * math.pi, seed=0, stop_at_transition=True, progress=None):
     """Ramp the twist from phi_start to phi_stop at ``rate`` (rad per unit of scaled time) under
     damped, optionally noisy, bead dynamics, and detect the transition as the seed paper did.
 
     scene: any scene; q0: initial state (default scene.q_init; start from a relaxed state);
     gamma: damping rate (> 0); temperature: noise temperature T >= 0 in the scaled energy units
     (0: deterministic); dt: time step (default ``stable_time_step`` at the start); chunk: steps
-    per jitted chunk and between records; jump: writhe change between records that counts as the
+    per jitted chunk and between records; jump, window: a writhe change of more than ``jump``
+    within a twist interval ``window`` (rad; at least one record) is the transition; the
     transition; seed: of the noise; stop_at_transition: stop at the first one (else run to
     phi_stop); progress: optional callable(str), a line every 50 records.
     Returns a ``DynamicsResult``.
@@ -134,6 +150,7 @@ def damped_dynamics(scene, phi_start, phi_stop, rate, q0=None, gamma=1.0, temper
         raise ValueError(f"temperature must be >= 0, got {temperature!r}")
     chunk = check_int_at_least("chunk", chunk, 1)
     jump = check_positive("jump", jump)
+    window = check_positive("window", window)
     say = progress or (lambda s: None)
     q = np.asarray(scene.q_init if q0 is None else q0, dtype=float)
     if q.shape != (scene.n_dof,) or not np.all(np.isfinite(q)):
@@ -176,13 +193,14 @@ def damped_dynamics(scene, phi_start, phi_stop, rate, q0=None, gamma=1.0, temper
         else:
             nbr = type(nbr)(nbr.pairs, nbr.mask, nbr.x_built, nbr.skin, new.wr_ref)
         record(steps * dt, phi, u, nbr)
-        if transition < 0 and abs(records["Wr"][-1] - records["Wr"][-2]) > jump:
-            transition = len(records["Wr"]) - 2
-            say(f"transition: Wr {records['Wr'][-2]:.4f} -> {records['Wr'][-1]:.4f} after phi = "
-                f"{records['phi'][-2] / math.pi:+.5f} pi")
-            if stop_at_transition:
-                stop = "transition"
-                break
+        if transition < 0:
+            transition = _writhe_jump(records["phi"], records["Wr"], jump, window)
+            if transition >= 0:
+                say(f"transition: Wr {records['Wr'][transition]:.4f} -> {records['Wr'][-1]:.4f} after phi = "
+                    f"{records['phi'][transition] / math.pi:+.5f} pi")
+        if transition >= 0 and stop_at_transition:
+            stop = "transition"
+            break
         if k % 50 == 49:
             say(f"phi = {phi / math.pi:+.5f} pi, Wr = {records['Wr'][-1]:.4f}, E = {records['energy'][-1]:.6g}")
     if stop == "topology":
