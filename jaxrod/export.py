@@ -15,16 +15,9 @@ import os
 
 import numpy as np
 
+from .validation import check_points
+
 __all__ = ["write_vtk", "export_study_vtk"]
-
-
-def _points(name, a):
-    a = np.asarray(a, dtype=float)
-    if a.ndim != 2 or a.shape[1] != 3 or a.shape[0] < 2:
-        raise ValueError(f"{name} must have shape (N, 3) with N >= 2, got {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise ValueError(f"{name} must be finite")
-    return a
 
 
 def write_vtk(path, x, eccentric=None, closed=True, point_data=None, title="jaxrod rod state"):
@@ -35,10 +28,10 @@ def write_vtk(path, x, eccentric=None, closed=True, point_data=None, title="jaxr
     NaN), e.g. {'kappa_L': ..., 'tau_L': ...}. A scalar ``line`` (0 centreline, 1 stripe) is
     always written, to colour the two apart. Returns ``path``.
     """
-    x = _points("x", x)
+    x = check_points("x", x, finite=True)
     lines = [x]
     if eccentric is not None:
-        lines.append(_points("eccentric", eccentric))
+        lines.append(check_points("eccentric", eccentric, finite=True))
     n_total = sum(len(p) for p in lines)
     data = {"line": np.concatenate([np.full(len(p), float(i)) for i, p in enumerate(lines)])}
     for name, values in (point_data or {}).items():

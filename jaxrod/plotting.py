@@ -7,6 +7,8 @@ import math
 import matplotlib.pyplot as plt
 import numpy as np
 
+from .validation import check_points
+
 __all__ = [
     "plot_eigenvalue_scan",
     "plot_mode",
@@ -302,18 +304,11 @@ def plot_profiles(s_over_L, profiles, labels, path=None, title=None, ylabel_kapp
 
 
 # ---------------------------------------------------------------------------- 3D snapshots
-def _points(name, a):
-    a = np.asarray(a, dtype=float)
-    if a.ndim != 2 or a.shape[1] != 3 or a.shape[0] < 2:
-        raise ValueError(f"{name} must have shape (N, 3) with N >= 2, got {a.shape}")
-    return a
-
-
 def view_frame(x):
     """(3, 3) rows e1, e2, e3: a view of the closed curve x (N, 3) along its axis of least spread
     (e3; for a trefoil, its three-fold symmetry axis), oriented towards +z, with e1 the global x
     axis projected onto the view plane (so that successive states are seen the same way)."""
-    x = _points("x", x)
+    x = check_points("x", x)
     centred = x - x.mean(axis=0)
     _, vectors = np.linalg.eigh(centred.T @ centred)
     e3 = vectors[:, 0]
@@ -351,8 +346,8 @@ def plot_snapshot(x, eccentric, path=None, title=None, ax=None, diameter=None, f
     """
     from matplotlib.collections import PolyCollection
 
-    x = _points("x", x)
-    e = _points("eccentric", eccentric)
+    x = check_points("x", x)
+    e = check_points("eccentric", eccentric)
     if e.shape != x.shape:
         raise ValueError(f"eccentric must pair with x node by node: shapes {e.shape} and {x.shape}")
     if diameter is None:

@@ -583,8 +583,8 @@ def trefoil(D, L, N, E=1.0, nu=0.5, chirality="right", contact_stiffness=DEFAULT
     Refuses a knot shorter than the ideal trefoil (L/D < 16.372), which cannot exist.
     The initial curve is the standard parametrisation scaled to length L (not yet relaxed).
     """
-    points = trefoil_points(max(4 * int(N) if isinstance(N, (int, np.integer)) else 400, 400), chirality)
-    return _knot_scene("3_1", points, D, L, N, E, nu, contact_stiffness, f"{chirality}-handed trefoil")
+    return _knot_scene("3_1", lambda n: trefoil_points(n, chirality), D, L, N, E, nu, contact_stiffness,
+                       f"{chirality}-handed trefoil")
 
 
 # Ropelength L/D of the ideal (tightest) knots: the trefoil 16.372 (Baranska, Przybyl, Pieranski
@@ -620,10 +620,12 @@ def knot(name, D, L, N, E=1.0, nu=0.5, contact_stiffness=DEFAULT_CONTACT_STIFFNE
     of the ideal. The curve is the parametrisation scaled to length L, not yet relaxed."""
     if name not in IDEAL_ROPELENGTH:
         raise ValueError(f"knot must be one of {', '.join(IDEAL_ROPELENGTH)}, got {name!r}")
-    return _knot_scene(name, knot_points(name, 800), D, L, N, E, nu, contact_stiffness, _KNOT_NAMES[name])
+    return _knot_scene(name, lambda n: knot_points(name, n), D, L, N, E, nu, contact_stiffness, _KNOT_NAMES[name])
 
 
 def _knot_scene(name, points, D, L, N, E, nu, contact_stiffness, title):
+    """The checks every knot shares, then ``closed_curve`` through ``points(n)`` ((n, 3), the
+    parametrisation sampled at n = max(4 N, 400) points, finer than the rod)."""
     D = check_positive("D", D)
     L = check_positive("L", L)
     ideal = IDEAL_ROPELENGTH[name]
@@ -640,7 +642,7 @@ def _knot_scene(name, points, D, L, N, E, nu, contact_stiffness, title):
             f"L/D = {L / D:.2f} is within {100 * (NEARLY_TIGHT - 1):.0f}% of the ideal {_KNOT_NAMES[name]}'s "
             f"{ideal}: the knot is nearly tight, and its equilibria depend on the contact stiffness", stacklevel=3)
     mat = Material.from_engineering(E, nu, D)
-    return closed_curve(points, mat, N=N, length=L, name=title, contact_stiffness=contact_stiffness)
+    return closed_curve(points(max(4 * N, 400)), mat, N=N, length=L, name=title, contact_stiffness=contact_stiffness)
 
 
 def torus_knot(p, q, D, L, N, E=1.0, nu=0.5, radii=(2.0, 1.0), contact_stiffness=DEFAULT_CONTACT_STIFFNESS):

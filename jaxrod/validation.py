@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["check_finite", "check_positive", "check_int_at_least", "check_poisson_ratio"]
+__all__ = ["check_finite", "check_positive", "check_int_at_least", "check_poisson_ratio", "check_points"]
 
 
 def check_finite(name, value):
@@ -46,3 +46,16 @@ def check_poisson_ratio(name, value):
     if not (-1.0 < nu <= 0.5):
         raise ValueError(f"{name} must lie in (-1, 0.5], got {value!r}")
     return nu
+
+
+def check_points(name, points, finite=False):
+    """``points`` as a float array of shape (N, 3) with N >= 2, else ValueError naming ``name``;
+    with ``finite``, also refuse NaN and infinities."""
+    import numpy as np
+
+    a = np.asarray(points, dtype=float)
+    if a.ndim != 2 or a.shape[1] != 3 or a.shape[0] < 2:
+        raise ValueError(f"{name} must have shape (N, 3) with N >= 2, got {a.shape}")
+    if finite and not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} must be finite")
+    return a
