@@ -34,7 +34,7 @@ from .scenes import (  # noqa: E402
 )
 from .solvers import LBFGS, ConvergenceError, DampedNewton, Newton, Solution, StopReason, minimise  # noqa: E402
 from .stability import Stability, critical_twist_derivative, eigenvalue_phi_derivative, stability  # noqa: E402
-from .equilibrium import Equilibrium, TopologyChangeError, relax, solve_equilibrium  # noqa: E402
+from .equilibrium import Equilibrium, TopologyChangeError, relax, relax_to_minimum, solve_equilibrium  # noqa: E402
 from .continuation import (  # noqa: E402
     BranchPoint, ContinuationOptions, CriticalPoint, Instability, NoCrossingError, PathStop, TwistPath,
     critical_twist, follow_twist,
@@ -69,6 +69,7 @@ __all__ = [
     "Equilibrium",
     "solve_equilibrium",
     "relax",
+    "relax_to_minimum",
     "TopologyChangeError",
     "DampedNewton",
     "CriticalPoint",

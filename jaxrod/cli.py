@@ -1,4 +1,5 @@
-"""Command line: ``jaxrod michell ...``, ``jaxrod trefoil ...``, ``jaxrod analyze CENTRELINE ECCENTRIC ...``.
+"""Command line: ``jaxrod michell ...``, ``jaxrod trefoil ...``, ``jaxrod knot ...``, ``jaxrod atlas ...``,
+``jaxrod analyze CENTRELINE ECCENTRIC ...``.
 
 Progress goes to stderr; results to stdout (``--json``: one JSON object); figures and data
 (PNG, CSV, JSON) into ``--out DIR``. Bad input exits with status 2, a computation that fails
@@ -69,6 +70,38 @@ examples:
   jaxrod trefoil --N 61 --phi-min -0.5pi --phi-max 7.5pi --out results/quick
 """
 
+_KNOT_HELP = f"""\
+The twist study of the trefoil command for another knot: the figure-eight knot 4_1, the
+cinquefoil 5_1 (torus knot T(2,5)), the three-twist knot 5_2 (or the trefoil 3_1), each from a
+published parametrisation and refused below its ideal ropelength L/D; or any closed curve read
+from a file (--curve: CSV with an x,y,z header or three columns, or .npy of shape (M, 3); it is
+resampled to N nodes and scaled to length L; its linking number at zero twist is the integer
+nearest its writhe). Lengths in mm, E in MPa. {_ANGLES}
+
+Writes the same files as the trefoil command, and resumes the same way.
+
+examples:
+  jaxrod knot 4_1 --D 8 --L 292 --N 121 --phi-min -12pi --phi-max 12pi --out results/figure_eight
+  jaxrod knot --curve my_knot.csv --D 8 --L 400 --N 161 --out results/my_knot
+"""
+
+_ATLAS_HELP = f"""\
+The twisted-knot atlas: for each knot (--knots) and slenderness D/L (--ratios), the critical
+twists phi*+ (phi > 0) and phi*- (phi < 0) at which the stable branch of the knot relaxed at zero
+twist ends (a bifurcation or a fold), each side followed up to +-span. Cases are independent:
+they run one after the other, over a local Dask cluster (--workers K, K processes) or on a
+running Dask scheduler (--scheduler tcp://HOST:PORT), with the same numbers either way.
+Several --N values give a convergence study. {_ANGLES}
+
+Writes into --out as it goes: atlas.csv (a row per finished case; an interrupted run skips the
+cases already there when given again), atlas.json (settings), atlas.md (table, convergence in
+N) and atlas.png (phi*/pi against D/L per knot, with the Michell lines).
+
+examples:
+  jaxrod atlas --knots 3_1,4_1,5_1,5_2 --ratios 0.01,0.015,0.02,0.0274,0.03,0.035 --N 101 --out results/atlas
+  jaxrod atlas --knots 4_1 --ratios 0.02 --N 101,151,201 --workers 2 --out results/atlas_convergence
+"""
+
 _ANALYZE_HELP = """\
 Analyse a rod from its centreline and an eccentric line drawn on its surface, as the seed
 paper does with measured knots: frames, curvature kappa(s) and twist tau(s) profiles, writhe,
@@ -99,7 +132,7 @@ def _build_parser():
                 epilog="examples:\n  jaxrod trefoil --N 121 --out results/trefoil\n"
                        "  jaxrod michell --N 128 --out results/michell\n  jaxrod trefoil --help")
     p.add_argument("--version", action="version", version=f"jaxrod {_version()}")
-    sub = p.add_subparsers(dest="command", parser_class=_Parser, metavar="{michell,trefoil,analyze}")
+    sub = p.add_subparsers(dest="command", parser_class=_Parser, metavar="{michell,trefoil,knot,atlas,analyze}")
     raw = argparse.RawDescriptionHelpFormatter
     m = sub.add_parser("michell", help="critical twist of Michell's ring, against 2 pi sqrt(3)(1+nu)",
                        description=_MICHELL_HELP, formatter_class=raw)
@@ -129,19 +162,53 @@ def _build_parser():
     a.add_argument("--quiet", action="store_true", help="no progress on stderr")
     t = sub.add_parser("trefoil", help="twisted trefoil knot: both critical twists, branches beyond, figures",
                        description=_TREFOIL_HELP, formatter_class=raw)
+    t.add_argument("--chirality", choices=("right", "left"), default="right", help="knot handedness (default right)")
+    _study_arguments(t, "results/trefoil", "at least 16.372 D")
+    k = sub.add_parser("knot", help="the same twist study for 4_1, 5_1, 5_2 or any closed curve from a file",
+                       description=_KNOT_HELP, formatter_class=raw)
+    k.add_argument("name", nargs="?", choices=("3_1", "4_1", "5_1", "5_2"), help="the knot (or give --curve)")
+    k.add_argument("--curve", default=None, help="closed curve to tie the rod along (.csv or .npy), instead of a name")
+    _study_arguments(k, "results/knot", "above the knot's ideal ropelength times D")
+    at = sub.add_parser("atlas", help="critical twists of several knots over a range of D/L (CSV, figure)",
+                        description=_ATLAS_HELP, formatter_class=raw)
+    at.add_argument("--knots", default="3_1,4_1,5_1,5_2", help="comma-separated knots (default 3_1,4_1,5_1,5_2)")
+    at.add_argument("--ratios", default="0.01,0.015,0.02,0.0274,0.03,0.035",
+                    help="comma-separated slenderness values D/L, at least 6 for an atlas "
+                         "(default 0.01,0.015,0.02,0.0274,0.03,0.035)")
+    at.add_argument("--N", default="101", help="number of nodes, or a comma-separated list (default 101; "
+                                               "each at least 24 and L/D)")
+    at.add_argument("--nu", type=float, default=0.5, help="Poisson ratio in (-1, 0.5] (default 0.5)")
+    at.add_argument("--contact-stiffness", type=float, default=100.0,
+                    help="contact penalty kappa_c in units of B/D^3 (default 100)")
+    at.add_argument("--span", type=_angle, default=16.0 * math.pi, help="follow each side up to +-span (default 16pi)")
+    at.add_argument("--step", type=_angle, default=0.5 * math.pi, help="largest continuation step (default 0.5pi)")
+    at.add_argument("--tol", type=_angle, default=1e-3 * math.pi, help="accuracy of the critical twists (default 1e-3pi)")
+    at.add_argument("--workers", type=int, default=1,
+                    help="cases at once on a local Dask cluster of this many processes (default 1: in this process)")
+    at.add_argument("--scheduler", default=None, help="address of a running Dask scheduler (tcp://HOST:PORT)")
+    at.add_argument("--out", default="results/atlas", help="output folder (default results/atlas)")
+    at.add_argument("--fresh", action="store_true", help="start over even if --out holds an interrupted atlas")
+    at.add_argument("--no-figures", action="store_true", help="data only")
+    at.add_argument("--json", action="store_true", help="print the rows as one JSON object")
+    at.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    at.add_argument("--no-cache", action="store_true", help="do not keep compiled code in ~/.cache/jaxrod")
+    return p
+
+
+def _study_arguments(t, default_out, length_rule):
+    """The options that the trefoil and knot twist studies share."""
     t.add_argument("--D", type=float, default=8.0, help="rod diameter (default 8, mm)")
-    t.add_argument("--L", type=float, default=292.0, help="rod length, at least 16.372 D (default 292, mm)")
+    t.add_argument("--L", type=float, default=292.0, help=f"rod length, {length_rule} (default 292, mm)")
     t.add_argument("--N", type=int, default=121, help="number of nodes, at least 24 and L/D (default 121)")
     t.add_argument("--E", type=float, default=0.474, help="Young's modulus (default 0.474, MPa = N/mm^2)")
     t.add_argument("--nu", type=float, default=0.5, help="Poisson ratio in (-1, 0.5], B/C = 1 + nu (default 0.5)")
-    t.add_argument("--chirality", choices=("right", "left"), default="right", help="knot handedness (default right)")
     t.add_argument("--contact-stiffness", type=float, default=None,
                    help="contact penalty kappa_c in units of B/D^3 (default: the scene's, 100)")
     t.add_argument("--phi-min", type=_angle, default=-12.0 * math.pi, help="lowest twist, < 0 (default -12pi)")
     t.add_argument("--phi-max", type=_angle, default=14.0 * math.pi, help="highest twist, > 0 (default 14pi)")
     t.add_argument("--step", type=_angle, default=0.5 * math.pi, help="largest continuation step (default 0.5pi)")
     t.add_argument("--tol", type=_angle, default=2e-4 * math.pi, help="accuracy of the critical twists (default 2e-4pi)")
-    t.add_argument("--out", default="results/trefoil", help="output folder (default results/trefoil)")
+    t.add_argument("--out", default=default_out, help=f"output folder (default {default_out})")
     t.add_argument("--fresh", action="store_true", help="start over even if --out holds an interrupted run")
     t.add_argument("--serial", action="store_true",
                    help="follow the two directions one after the other (default: both at once, two threads)")
@@ -151,7 +218,6 @@ def _build_parser():
     t.add_argument("--json", action="store_true", help="print one JSON summary object")
     t.add_argument("--quiet", action="store_true", help="no progress on stderr")
     t.add_argument("--no-cache", action="store_true", help="do not keep compiled code in ~/.cache/jaxrod")
-    return p
 
 
 def _flag_names(parser, command):
@@ -225,7 +291,8 @@ class _Progress:
     """Progress on stderr: a tqdm bar (on a terminal only) of the twist reached, with the elapsed
     time and an ETA, and the progress lines written above it; nothing with --quiet."""
 
-    def __init__(self, args, total, desc):
+    def __init__(self, args, total, desc, counting=None):
+        """total: the twist to cover (units of pi), or with ``counting`` (e.g. "cases") a count."""
         import threading
 
         self.quiet = bool(args.quiet)
@@ -236,8 +303,10 @@ class _Progress:
 
             self.bar = tqdm(total=round(total, 2), file=sys.stderr, disable=None, desc=desc, leave=False,
                             dynamic_ncols=True,
-                            bar_format="{desc}: {percentage:3.0f}%|{bar}| phi {n:.2f}/{total:.2f} pi "
-                                       "[{elapsed}<{remaining}{postfix}]")
+                            bar_format=("{desc}: {percentage:3.0f}%|{bar}| phi {n:.2f}/{total:.2f} pi "
+                                        "[{elapsed}<{remaining}{postfix}]") if counting is None else
+                            ("{desc}: {percentage:3.0f}%|{bar}| {n:.0f}/{total:.0f} " + counting +
+                             " [{elapsed}<{remaining}{postfix}]"))
             if self.bar.disable:
                 self.bar = None
 
@@ -419,13 +488,17 @@ def _trefoil(args):
 
     matplotlib.use("Agg")
     from .validation import check_finite, check_int_at_least, check_poisson_ratio, check_positive
-    from .scenes import DEFAULT_CONTACT_STIFFNESS, IDEAL_TREFOIL_ROPELENGTH, MIN_TREFOIL_NODES, trefoil
+    from .scenes import DEFAULT_CONTACT_STIFFNESS, IDEAL_ROPELENGTH, MIN_TREFOIL_NODES
     from .study import check_study_folder, figures, study_summary, twist_study
 
     D, L = check_positive("D", args.D), check_positive("L", args.L)
-    if L / D < IDEAL_TREFOIL_ROPELENGTH:
-        raise ValueError(f"--L {args.L:g} / --D {args.D:g} = {L / D:.3f} is below the ideal trefoil's ropelength "
-                         f"{IDEAL_TREFOIL_ROPELENGTH}: no such knot exists (raise --L or lower --D)")
+    knot_name = "3_1" if args.command == "trefoil" else args.name
+    if args.command == "knot" and (knot_name is None) == (args.curve is None):
+        raise ValueError("give a knot (3_1, 4_1, 5_1 or 5_2) or --curve FILE" +
+                         (", not both" if knot_name is not None else ""))
+    if knot_name is not None and L / D < IDEAL_ROPELENGTH[knot_name]:
+        raise ValueError(f"--L {args.L:g} / --D {args.D:g} = {L / D:.3f} is below the ideal {knot_name} knot's ropelength "
+                         f"{IDEAL_ROPELENGTH[knot_name]}: no such knot exists (raise --L or lower --D)")
     check_int_at_least("N", args.N, MIN_TREFOIL_NODES)
     need = math.ceil(L / D - 1e-9)
     if args.N < need:
@@ -444,11 +517,10 @@ def _trefoil(args):
     check_positive("tol", args.tol)
     _output_folder(args.out)
     stiffness = DEFAULT_CONTACT_STIFFNESS if args.contact_stiffness is None else args.contact_stiffness
-    scene = trefoil(args.D, args.L, args.N, E=args.E, nu=args.nu, chirality=args.chirality,
-                    contact_stiffness=stiffness)
+    scene = _study_scene(args, knot_name, stiffness)
     if not args.fresh:  # a folder of another run: refused now, not after the compilation
         check_study_folder(args.out, scene, args.phi_min, args.phi_max, args.step, args.tol)
-    bar = _Progress(args, (args.phi_max - args.phi_min) / math.pi, "trefoil")
+    bar = _Progress(args, (args.phi_max - args.phi_min) / math.pi, args.command)
     say = bar.say
     say(f"{scene.name}: D = {args.D}, L = {args.L}, N = {args.N}, nu = {args.nu}, kappa_c = {stiffness}; "
         f"phi from {args.phi_min / math.pi:+.3f} pi to {args.phi_max / math.pi:+.3f} pi; writing {args.out}/")
@@ -466,8 +538,12 @@ def _trefoil(args):
     finally:
         bar.close()
     summary = study_summary(result)
-    summary.update({"D": args.D, "L": args.L, "N": args.N, "nu": args.nu, "chirality": args.chirality,
-                    "contact_stiffness": stiffness, "out": args.out})
+    summary.update({"D": args.D, "L": args.L, "N": args.N, "nu": args.nu, "contact_stiffness": stiffness,
+                    "out": args.out})
+    if args.command == "trefoil":
+        summary["chirality"] = args.chirality
+    else:
+        summary.update({"knot": knot_name, "curve": args.curve})
     with open(os.path.join(args.out, "summary.json"), "w") as f:
         json.dump(summary, f, indent=2)
     if not args.no_figures:
@@ -491,8 +567,110 @@ def _trefoil(args):
     return 0
 
 
+def _study_scene(args, name, stiffness):
+    """The knot of a trefoil / knot study: a named knot, or the closed curve of --curve."""
+    from .scenes import closed_curve, knot, trefoil
+
+    if args.command == "trefoil":
+        return trefoil(args.D, args.L, args.N, E=args.E, nu=args.nu, chirality=args.chirality,
+                       contact_stiffness=stiffness)
+    if name is not None:
+        return knot(name, args.D, args.L, args.N, E=args.E, nu=args.nu, contact_stiffness=stiffness)
+    from .analysis import load_polyline
+    from .material import Material
+
+    points = load_polyline(args.curve)
+    try:
+        return closed_curve(points, Material.from_engineering(args.E, args.nu, args.D), N=args.N, length=args.L,
+                            name=f"closed curve from {os.path.basename(args.curve)}", contact_stiffness=stiffness)
+    except ValueError as exc:
+        raise ValueError(f"--curve {args.curve}: {exc}") from None
+
+
+def _atlas(args):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from . import atlas
+    from .validation import check_int_at_least
+
+    knots = [k.strip() for k in args.knots.split(",") if k.strip()]
+    unknown = [k for k in knots if k not in atlas.KNOTS]
+    if unknown or not knots:
+        raise ValueError(f"--knots: unknown knot(s) {', '.join(unknown) or '(none given)'}; "
+                         f"choose from {','.join(atlas.KNOTS)}")
+    ratios = _number_list("--ratios", args.ratios, float)
+    ns = _number_list("--N", args.N, int)
+    settings = atlas.AtlasSettings(span=args.span, step=args.step, tol=args.tol, nu=args.nu,
+                                   contact_stiffness=args.contact_stiffness)
+    check_int_at_least("workers", args.workers, 1)
+    _output_folder(args.out)
+    cases = atlas.atlas_cases(knots, ratios, ns, settings)  # every case checked before any work
+    bar = _Progress(args, len(cases), "atlas", counting="cases")
+    say = bar.say
+    say(f"atlas: {len(knots)} knot(s) x {len(set(ratios))} D/L x {len(set(ns))} N x 2 sides = {len(cases)} cases; "
+        f"writing {args.out}/")
+    say(args.compile_notice)
+    t0 = time.perf_counter()
+
+    def on_row(row, done, total):
+        phi = f"{row['phi_star'] / math.pi:+.4f} pi ({row['kind']})" if math.isfinite(row["phi_star"]) else \
+            f"none within {'+' if row['side'] == 'plus' else '-'}{args.span / math.pi:g} pi"
+        say(f"[{done}/{total}] {row['knot']} D/L = {row['D_over_L']:g} N = {row['N']} {row['side']}: phi* = {phi}, "
+            f"{row['seconds']:.1f} s")
+        bar.update(done)
+
+    client = cluster = None
+    try:
+        if args.scheduler is not None or args.workers > 1:
+            try:
+                from distributed import Client, LocalCluster
+            except ImportError:
+                raise ValueError("--workers / --scheduler need Dask: pip install 'dask[distributed]'") from None
+            if args.scheduler is not None:
+                say(f"connecting to the Dask scheduler at {args.scheduler}")
+                try:
+                    client = Client(args.scheduler, timeout="20s")
+                except OSError as exc:
+                    raise ValueError(f"--scheduler {args.scheduler}: cannot connect ({exc})") from None
+            else:
+                say(f"starting a local Dask cluster of {args.workers} worker processes")
+                cluster = LocalCluster(n_workers=args.workers, threads_per_worker=1, dashboard_address=None)
+                client = Client(cluster)
+        rows = atlas.run_atlas(knots, ratios, ns, settings=settings, out=args.out, client=client, fresh=args.fresh,
+                               on_row=on_row)
+    finally:
+        bar.close()
+        if client is not None:
+            client.close()
+        if cluster is not None:
+            cluster.close()
+    say(f"wrote {atlas.report(args.out)}")
+    if not args.no_figures:
+        say(f"wrote {atlas.figures(args.out)}")
+    if args.json:
+        print(json.dumps({"rows": [{k: _json_number(v) if isinstance(v, float) else v for k, v in r.items()}
+                                   for r in rows]}))
+    else:
+        for r in rows:
+            phi = f"{r['phi_star'] / math.pi:+.4f} pi" if math.isfinite(r["phi_star"]) else "none"
+            print(f"{r['knot']:4s} D/L = {r['D_over_L']:<7g} N = {r['N']:<4d} {r['side']:5s} phi* = {phi}")
+        print(f"time {time.perf_counter() - t0:.1f} s; data in {args.out}/")
+    return 0
+
+
+def _number_list(flag, text, kind):
+    try:
+        values = [kind(v) for v in str(text).split(",") if v.strip()]
+    except ValueError:
+        raise ValueError(f"{flag} must be a comma-separated list of numbers, got {text!r}") from None
+    if not values:
+        raise ValueError(f"{flag}: give at least one value")
+    return values
+
+
 # Options whose value is an angle such as -12pi: argparse would read a leading '-' as an option.
-_ANGLE_OPTIONS = ("--phi-min", "--phi-max", "--step", "--tol")
+_ANGLE_OPTIONS = ("--phi-min", "--phi-max", "--step", "--tol", "--span")
 
 
 def _join_angle_values(argv):
@@ -535,8 +713,10 @@ def main(argv=None):
                 return _michell(args)
             if args.command == "analyze":
                 return _analyze(args)
-            if args.command == "trefoil":
+            if args.command in ("trefoil", "knot"):
                 return _trefoil(args)
+            if args.command == "atlas":
+                return _atlas(args)
     except ValueError as exc:
         print(f"jaxrod: error: {_in_flags(str(exc), flags)}", file=sys.stderr)
         return 2
@@ -545,7 +725,8 @@ def main(argv=None):
         print(f"jaxrod: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        hint = f"; the same command resumes from what is in {args.out}/" if args.command == "trefoil" else ""
+        hint = (f"; the same command resumes from what is in {args.out}/"
+                if args.command in ("trefoil", "knot", "atlas") else "")
         print(f"jaxrod: interrupted{hint}", file=sys.stderr)
         return 130
     except Exception as exc:  # noqa: BLE001 -- a failed computation: one line, what to change

@@ -102,6 +102,10 @@ class CriticalPoint:
 # scaled units and change sign from step to step: with self-contact an eigenvalue counts as
 # negative, and enters the branch tangent, only beyond this.
 CONTACT_NEGATIVE_TOL = 1e-6
+# A follow_twist corrector out of steps with a gradient within this factor of gtol has stalled on
+# sliding modes (seen: N = 151 trefoil, |g| ~ 7e-9 against 1e-9, a false branch end at -8.03 pi
+# where the true one is -11.1 pi); Newton finishes it (``_Engine._finish_stalled``).
+STALL_FACTOR = 100.0
 # Damped-Newton iterations a continuation corrector may take between two neighbourhood pauses.
 # From the tangent predictor a step converges in 2-15; one still crawling after 60 is not near
 # its branch (seen: 500 iterations, 9 s, on a trefoil past its fold) and the step is refused.
@@ -283,7 +287,9 @@ class _Engine:
         except TopologyChangeError as exc:
             return _Step(None, refusal=_Refusal(StepFailure.TOPOLOGY, str(exc)))
         except ConvergenceError as exc:
-            return _Step(None, refusal=_Refusal(StepFailure.NOT_CONVERGED, str(exc)))
+            e = self._finish_stalled(exc, phi, prev)
+            if e is None:
+                return _Step(None, refusal=_Refusal(StepFailure.NOT_CONVERGED, str(exc)))
         moved = polyline_distance(e.x, x_pred, self.closed)
         if moved > opts.jump_tol:
             return _Step(e, refusal=_Refusal(StepFailure.JUMP, f"the state moved {moved:.3g} from the predicted shape"))
@@ -303,6 +309,20 @@ class _Engine:
         if n_negative > 0:
             return replace(s, refusal=_Refusal(StepFailure.UNSTABLE, f"{n_negative} negative eigenvalue(s)"))
         return s
+
+    def _finish_stalled(self, exc, phi, prev):
+        """A minimiser that ran out of steps within a factor STALL_FACTOR of gtol has stalled on
+        the near-null sliding modes of a contact knot (a curvature ~1e-8 makes its progress along
+        them crawl), not met a fold (there it runs away from the prediction, or stops far from
+        gtol). Finish it with Newton, which leaves the near-null directions alone; the result is
+        checked like any corrected state (distance, Lk, stability). None if that fails too."""
+        sol = getattr(exc, "solution", None)
+        if not self.contact or sol is None or exc.q is None or not sol.grad_norm < STALL_FACTOR * self.opts.gtol:
+            return None
+        try:
+            return self._newton(phi, exc.q, prev.neighbourhood)
+        except ConvergenceError:
+            return None
 
     def _escape_soft_saddle(self, e, prev, x_pred):
         """From a saddle e, relax after pushes of +-jump_tol/4 along its most negative mode; the
@@ -822,6 +842,12 @@ def follow_twist(
             if e0.neighbourhood is None:
                 e0 = replace(e0, neighbourhood=scene.neighbourhood(e0.q, e0.phi))
         s = engine.analysed(e0)
+        if s.equilibrium.stability.n_negative:
+            st = s.equilibrium.stability
+            raise ValueError(
+                f"the starting state at phi = {e0.phi:.6g} is unstable ({st.n_negative} negative eigenvalue(s), "
+                f"lowest {st.eigenvalues[0]:.3e}): follow_twist follows a stable branch; start from a minimum "
+                "(jaxrod.relax_to_minimum)")
         state = PathState(phase=Phase.FOLLOW, branch=f"{branch}{'+' if direction > 0 else '-'}",
                           prev=s.equilibrium, tangent=s.tangent, h=opts.step)
         state = emit(state, s)

@@ -127,7 +127,7 @@ def _writhe_jump(phi, wr, jump, window):
 
 
 def damped_dynamics(scene, phi_start, phi_stop, rate, q0=None, gamma=1.0, temperature=0.0, dt=None, chunk=200,
-                    jump=0.3, window=0.1 * math.pi, seed=0, stop_at_transition=True, progress=None):
+                    jump=0.3, window=0.1 * math.pi, seed=0, stop_at_transition=True, progress=None, departure=None):
     """Ramp the twist from phi_start to phi_stop at ``rate`` (rad per unit of scaled time) under
     damped, optionally noisy, bead dynamics, and detect the transition as the seed paper did.
 
@@ -136,8 +136,11 @@ def damped_dynamics(scene, phi_start, phi_stop, rate, q0=None, gamma=1.0, temper
     (0: deterministic); dt: time step (default ``stable_time_step`` at the start); chunk: steps
     per jitted chunk and between records; jump, window: a writhe change of more than ``jump``
     within a twist interval ``window`` (rad; at least one record) is the transition; the
-    transition; seed: of the noise; stop_at_transition: stop at the first one (else run to
-    phi_stop); progress: optional callable(str), a line every 50 records.
+    transition; departure: instead, the transition is the last record before the writhe first
+    differs from its starting value by more than ``departure`` (a state that has left its
+    branch, for a knot that falls off slowly); seed: of the noise; stop_at_transition: stop at
+    the first one (else run to phi_stop); progress: optional callable(str), a line every 50
+    records.
     Returns a ``DynamicsResult``.
     """
     t0 = time.perf_counter()
@@ -151,6 +154,8 @@ def damped_dynamics(scene, phi_start, phi_stop, rate, q0=None, gamma=1.0, temper
     chunk = check_int_at_least("chunk", chunk, 1)
     jump = check_positive("jump", jump)
     window = check_positive("window", window)
+    if departure is not None:
+        departure = check_positive("departure", departure)
     say = progress or (lambda s: None)
     q = np.asarray(scene.q_init if q0 is None else q0, dtype=float)
     if q.shape != (scene.n_dof,) or not np.all(np.isfinite(q)):
@@ -194,7 +199,10 @@ def damped_dynamics(scene, phi_start, phi_stop, rate, q0=None, gamma=1.0, temper
             nbr = type(nbr)(nbr.pairs, nbr.mask, nbr.x_built, nbr.skin, new.wr_ref)
         record(steps * dt, phi, u, nbr)
         if transition < 0:
-            transition = _writhe_jump(records["phi"], records["Wr"], jump, window)
+            if departure is None:
+                transition = _writhe_jump(records["phi"], records["Wr"], jump, window)
+            elif abs(records["Wr"][-1] - records["Wr"][0]) > departure:
+                transition = len(records["Wr"]) - 2
             if transition >= 0:
                 say(f"transition: Wr {records['Wr'][transition]:.4f} -> {records['Wr'][-1]:.4f} after phi = "
                     f"{records['phi'][transition] / math.pi:+.5f} pi")

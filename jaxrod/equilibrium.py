@@ -15,7 +15,7 @@ from .neighbourhood import WRITHE_DRIFT_LIMIT, Neighbourhood
 from .solvers import LBFGS, ConvergenceError, DampedNewton, Newton, Solution, StopReason, minimise
 from .stability import DEFAULT_NEGATIVE_TOL, Stability, stability
 
-__all__ = ["Equilibrium", "solve_equilibrium", "relax", "TopologyChangeError", "LeftBranchError", "scaled_energy", "scaled_zero_modes",
+__all__ = ["Equilibrium", "solve_equilibrium", "relax", "relax_to_minimum", "TopologyChangeError", "LeftBranchError", "scaled_energy", "scaled_zero_modes",
            "structured_hessian"]
 
 
@@ -124,13 +124,55 @@ def relax(scene, phi=0.0, q0=None, gtol=1e-9, max_rounds=200, max_displacement=N
         if sol.reason is StopReason.LEFT_REGION or drifted:
             continue
         if not sol.converged:
-            raise ConvergenceError(f"relaxation did not converge: {sol!r}")
+            raise ConvergenceError(f"relaxation did not converge: {sol!r}", solution=sol, q=q)
         sol = Solution(y=sol.y, value=sol.value, grad_norm=sol.grad_norm, iterations=total,
                        converged=True, reason=StopReason.CONVERGED, solver=f"damped_newton({round_ + 1} rounds)",
                        gtol=sol.gtol)
         return equilibrium_from_solution(scene, phi, sol, nbr, k=k, with_stability=with_stability,
                                          negative_tol=negative_tol)
     raise ConvergenceError(f"relaxation needed more than {max_rounds} neighbourhood rebuilds")
+
+
+def relax_to_minimum(scene, phi=0.0, q0=None, gtol=1e-9, negative_tol=None, push=None, max_pushes=4, k=8,
+                     progress=None):
+    """``relax``, then make sure the result is a minimum: a symmetric starting shape (a torus
+    knot drawn with its p-fold symmetry, say) can relax onto a saddle that the minimiser, which
+    keeps the symmetry, never leaves. While the equilibrium has a negative eigenvalue (below
+    -negative_tol; default 1e-6 with contact, where sliding modes sit at ~1e-7, else 1e-10),
+    the state is pushed both ways along the most negative eigenvector (by ``push``, default D/2
+    at the node that moves most) and relaxed again; the lower-energy result with the same
+    writhe branch is kept. Returns a stable ``Equilibrium``; raises ``ConvergenceError`` if
+    ``max_pushes`` pushes leave it unstable."""
+    from .continuation import CONTACT_NEGATIVE_TOL  # noqa: PLC0415 (continuation imports this module)
+
+    has_contact = "contact" in scene.terms
+    if negative_tol is None:
+        negative_tol = CONTACT_NEGATIVE_TOL if has_contact else DEFAULT_NEGATIVE_TOL
+    say = progress or (lambda s: None)
+    e = relax(scene, phi, q0, gtol=gtol, k=k, negative_tol=negative_tol)
+    if push is None:
+        push = 0.5 * float(scene.material.D)
+    for attempt in range(max_pushes):
+        if e.stability.stable:
+            return e
+        mode_q = scene.from_scaled(np.asarray(e.stability.eigenvectors[:, 0]))
+        x_mode = np.asarray(scene.unpack(jnp.asarray(mode_q), 0.0)[0])
+        amp = push / max(float(np.max(np.linalg.norm(x_mode, axis=1))), 1e-300)
+        say(f"relaxed state is a saddle (lowest eigenvalue {e.stability.eigenvalues[0]:.3e}): pushing along it")
+        found = []
+        for sign in (1.0, -1.0):
+            try:
+                found.append(relax(scene, phi, e.q + sign * amp * mode_q, gtol=gtol, k=k, negative_tol=negative_tol,
+                                   previous=e, nbr=e.neighbourhood))
+            except (ConvergenceError, TopologyChangeError) as exc:
+                say(f"  push {'+' if sign > 0 else '-'}: {type(exc).__name__}: {exc}")
+        if not found:
+            break
+        e = min(found, key=lambda f: (not f.stability.stable, f.energy))
+    if e.stability.stable:
+        return e
+    raise ConvergenceError(f"no stable equilibrium found near the relaxed state at phi = {phi:.6g} after "
+                           f"{max_pushes} pushes along the unstable mode: {e.stability!r}")
 
 
 @dataclass(frozen=True)

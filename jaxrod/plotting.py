@@ -466,3 +466,55 @@ def plot_critical_vs_ratio(ratios, phi_plus, phi_minus, michell_plus=None, miche
     ax.grid(True, alpha=0.3)
     ax.set_title(title or "Critical twist against slenderness")
     return _finish(fig, path)
+
+
+_KNOT_TITLES = {"3_1": "trefoil 3_1", "4_1": "figure-eight 4_1", "5_1": "cinquefoil 5_1", "5_2": "three-twist 5_2"}
+
+
+def plot_atlas(rows, michell, span=None, path=None, title=None, tightening=None):
+    """The twisted-knot atlas: a panel per knot of phi*/pi against D/L, phi > 0 side (filled
+    circles) and phi < 0 side (squares), the legend says which side tightens the knot; dashed
+    lines at +-michell and dotted at +-2 michell (Michell's ring estimate and its double, radians);
+    cases that reached +-span without a branch end as open triangles at +-span.
+    rows: dicts with knot, D_over_L, N, side, phi_star (radians, NaN: none); tightening:
+    {(knot, D/L, N): side} (``jaxrod.atlas.tightening_sides``), named in the legend."""
+    tightening = tightening or {}
+    knots = list(dict.fromkeys(r["knot"] for r in rows))
+    if not knots:
+        raise ValueError("rows: no atlas rows to plot")
+    ncols = min(len(knots), 2)
+    nrows = math.ceil(len(knots) / ncols)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(5.2 * ncols + 2.2, 3.6 * nrows), squeeze=False, sharex=True)
+    m = float(michell) / math.pi
+    for ax, knot in zip(axes.flat, knots):
+        for side, marker, colour in (("plus", "o", "C0"), ("minus", "s", "C3")):
+            sel = sorted((r for r in rows if r["knot"] == knot and r["side"] == side), key=lambda r: r["D_over_L"])
+            if not sel:
+                continue
+            ratio = np.array([r["D_over_L"] for r in sel])
+            phi = np.array([r["phi_star"] for r in sel]) / math.pi
+            ok = np.isfinite(phi)
+            said = {tightening.get((r["knot"], r["D_over_L"], r["N"])) for r in sel} - {None}
+            where = "tightening" if said == {side} else "opening" if said and side not in said else "mixed"
+            ax.plot(ratio, phi, marker + "-", color=colour, ms=5, lw=1,  # NaN (no end) breaks the line
+                    label=f"phi{'+' if side == 'plus' else '-'}* ({'> 0' if side == 'plus' else '< 0'}; {where})")
+            if span is not None and np.any(~ok):
+                sign = 1.0 if side == "plus" else -1.0
+                ax.plot(ratio[~ok], np.full(int((~ok).sum()), sign * span / math.pi), "^" if sign > 0 else "v",
+                        color=colour, mfc="none", ms=8, ls="none",
+                        label=f"no branch end within {'+' if sign > 0 else '-'}{span / math.pi:g} pi")
+        for level, ls, label in ((m, "--", f"Michell +-{m:.2f} pi"), (2 * m, ":", f"2 x Michell +-{2 * m:.2f} pi")):
+            ax.axhline(level, color="0.4", ls=ls, lw=0.9, label=label)
+            ax.axhline(-level, color="0.4", ls=ls, lw=0.9)
+        ax.axhline(0.0, color="k", lw=0.5)
+        ax.set_title(_KNOT_TITLES.get(knot, knot), fontsize=10)
+        ax.set_ylabel("phi* / pi (rad / pi)")
+        ax.grid(True, alpha=0.3)
+        ax.legend(**_OUTSIDE)
+    for ax in list(axes.flat)[len(knots):]:
+        ax.set_visible(False)
+    for ax in axes[-1]:
+        ax.set_xlabel("slenderness D / L (-)")
+    if title:
+        fig.suptitle(title, fontsize=11)
+    return _finish(fig, path)

@@ -53,7 +53,13 @@ _REASONS = {0: StopReason.CONVERGED, 1: StopReason.MAX_STEPS, 2: StopReason.NONF
 
 
 class ConvergenceError(RuntimeError):
-    """A solver stopped without meeting its tolerance."""
+    """A solver stopped without meeting its tolerance. ``solution`` / ``q``: where it stopped
+    (its ``Solution`` and the physical DOFs), when the raiser knows them (else None)."""
+
+    def __init__(self, message, solution=None, q=None):
+        super().__init__(message)
+        self.solution = solution
+        self.q = q
 
 
 @dataclass(frozen=True)

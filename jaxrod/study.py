@@ -38,7 +38,7 @@ import numpy as np
 
 from .continuation import CONTACT_NEGATIVE_TOL, PathState, follow_twist
 from .stability import DEFAULT_NEGATIVE_TOL
-from .equilibrium import relax
+from .equilibrium import relax_to_minimum
 from .validation import check_finite, check_positive
 from .records import ROW_KEYS, ROW_UNITS, step_record
 
@@ -232,7 +232,8 @@ def twist_study(scene, phi_min, phi_max, step=0.5 * math.pi, out=None, tol=2e-4 
         todo.append((direction, target, stored.get(direction)))
     if any(state is None for _, _, state in todo):
         say("relaxing the knot at phi = 0")
-        start = relax(scene, 0.0, None, gtol=1e-9, with_stability=False)
+        # A minimum, not a saddle: a symmetric drawing (a torus knot) can relax onto a saddle.
+        start = relax_to_minimum(scene, 0.0, None, gtol=1e-9, progress=say)
 
     def run_direction(direction, target, state):
         counter = 0 if state is None else int(state.arrays["n_points"])

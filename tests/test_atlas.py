@@ -1,0 +1,133 @@
+"""The twisted-knot atlas (issue 9, part B): a sweep of independent studies, serial or on a Dask
+cluster with the same numbers (acceptance 4), resumable, its CSV, table and figure; the knot and
+curve twist studies of the CLI; relaxing to a minimum, not a saddle."""
+import csv
+import math
+import shutil
+
+import numpy as np
+import pytest
+
+import jaxrod as jr
+from jaxrod import atlas
+from jaxrod.cli import main
+
+PI = math.pi
+# Four small studies: the trefoil at D/L = 0.025 and 0.03, N = 40, both sides. Each side ends
+# within the span (opening ~ +6.7 pi, tightening ~ -11.5 pi; the paper's rod, D/L = 0.0274:
+# +6.46 pi and -11.18 pi at N = 121).
+KNOTS, RATIOS, N = ["3_1"], [0.025, 0.03], 40
+SETTINGS = atlas.AtlasSettings(span=14.0 * PI, tol=1e-2 * PI)
+
+
+@pytest.fixture(scope="module")
+def serial(tmp_path_factory):
+    out = tmp_path_factory.mktemp("atlas_serial")
+    seen = []
+    rows = atlas.run_atlas(KNOTS, RATIOS, N, settings=SETTINGS, out=str(out), on_row=lambda r, i, n: seen.append((i, n)))
+    return out, rows, seen
+
+
+def test_serial_sweep_finds_every_branch_end(serial):
+    out, rows, seen = serial
+    assert seen == [(1, 4), (2, 4), (3, 4), (4, 4)]
+    assert [(r["D_over_L"], r["side"]) for r in rows] == [(0.025, "plus"), (0.025, "minus"), (0.03, "plus"),
+                                                          (0.03, "minus")]
+    for r in rows:
+        assert r["kind"] in ("jump", "unstable") and 0 < r["phi_error"] <= SETTINGS.tol
+        phi = r["phi_star"] / PI
+        assert (6.0 < phi < 7.2) if r["side"] == "plus" else (-13.5 < phi < -10.5)  # opening, tightening
+    # The tightening side is phi < 0 (jaxrod's right-handed trefoil), told by the contacts gained.
+    sides = atlas.tightening_sides(rows)
+    assert sides[("3_1", 0.025, N)] == sides[("3_1", 0.03, N)] == "minus"
+    assert atlas.read_atlas(str(out)) == rows  # the CSV holds exactly the returned numbers
+
+
+def test_dask_local_cluster_gives_the_serial_numbers(serial, tmp_path):
+    """Acceptance 4: the same 4-study sweep on a local Dask cluster of 2 worker processes."""
+    distributed = pytest.importorskip("distributed")  # a test dependency: installed by '.[test]'
+    _, rows, _ = serial
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        spread = atlas.run_atlas(KNOTS, RATIOS, N, settings=SETTINGS, out=str(tmp_path), client=client)
+        workers = {w["id"] for w in client.scheduler_info()["workers"].values()}
+    assert len(workers) == 2
+    for a, b in zip(rows, spread, strict=True):
+        assert (a["knot"], a["side"]) == (b["knot"], b["side"])
+        assert a["phi_star"] == b["phi_star"] and a["phi_error"] == b["phi_error"]  # identical, not close
+        assert a["Wr_before"] == b["Wr_before"] and a["n_points"] == b["n_points"]
+
+
+def test_interrupted_sweep_resumes_with_the_missing_cases_only(serial, tmp_path):
+    out, rows, _ = serial
+    shutil.copy(out / "atlas.json", tmp_path / "atlas.json")
+    lines = (out / "atlas.csv").read_text().splitlines()
+    # Killed while writing the third case's row: two whole rows and half of the third.
+    (tmp_path / "atlas.csv").write_text("\n".join(lines[:3]) + "\n" + lines[3][: len(lines[3]) // 2])
+    redone = []
+    again = atlas.run_atlas(KNOTS, RATIOS, N, settings=SETTINGS, out=str(tmp_path),
+                            on_row=lambda r, i, n: redone.append((r["D_over_L"], r["side"], i)))
+    assert redone == [(0.03, "plus", 3), (0.03, "minus", 4)]
+    assert [r["phi_star"] for r in again] == [r["phi_star"] for r in rows]
+    with open(tmp_path / "atlas.csv", newline="") as f:
+        assert len(list(csv.DictReader(f))) == 4
+    with pytest.raises(ValueError, match="other settings"):
+        atlas.run_atlas(KNOTS, RATIOS, N, settings=atlas.AtlasSettings(span=10 * PI, tol=1e-2 * PI), out=str(tmp_path))
+
+
+def test_report_and_figure(serial, tmp_path):
+    out, rows, _ = serial
+    # A second N for one case (as a convergence study adds) and a case without an end.
+    extra = [dict(rows[0], N=60, phi_star=rows[0]["phi_star"] - 0.01 * PI,
+                  phi_star_over_pi=rows[0]["phi_star_over_pi"] - 0.01),
+             dict(rows[1], D_over_L=0.035, phi_star=math.nan, phi_star_over_pi=math.nan, kind="none")]
+    atlas._write_rows(str(tmp_path / "atlas.csv"), rows + extra)
+    shutil.copy(out / "atlas.json", tmp_path / "atlas.json")
+    text = open(atlas.report(str(tmp_path))).read()
+    assert "| 3_1 | 0.025 | 40 | minus |" in text and "| yes |" in text and "none" in text
+    assert "## Convergence in N" in text and "N = 40:" in text and "N = 60:" in text and "-0.0100 pi" in text
+    import matplotlib.image
+
+    image = matplotlib.image.imread(atlas.figures(str(tmp_path)))
+    assert image.ndim == 3 and min(image.shape[:2]) > 300 and image[..., :3].std() > 0.05
+
+
+def test_cli_atlas_writes_csv_table_and_figure(serial, tmp_path, capsys):
+    out, rows, _ = serial
+    shutil.copytree(out, tmp_path / "a")  # everything done: the CLI resumes, computes nothing, draws
+    status = main(["atlas", "--knots", "3_1", "--ratios", "0.025,0.03", "--N", "40", "--span", "14pi",
+                   "--tol", "0.01pi", "--out", str(tmp_path / "a"), "--quiet"])
+    printed = capsys.readouterr().out
+    assert status == 0
+    assert "3_1  D/L = 0.025   N = 40   plus  phi* = +" in printed
+    for name in ("atlas.csv", "atlas.json", "atlas.md", "atlas.png"):
+        assert (tmp_path / "a" / name).stat().st_size > 0
+
+
+def test_relax_to_minimum_leaves_the_saddle_of_a_symmetric_drawing():
+    """The cinquefoil drawn as the symmetric torus knot T(2, 5) relaxes onto a saddle (one
+    negative eigenvalue); relax_to_minimum pushes off it to a stable state of lower energy, and
+    follow_twist refuses to start from the saddle."""
+    scene = jr.knot("5_1", D=8.0, L=292.0, N=61)
+    saddle = jr.relax(scene, 0.0, negative_tol=1e-6)
+    assert saddle.stability.n_negative == 1
+    minimum = jr.relax_to_minimum(scene, 0.0)
+    assert minimum.stability.stable and minimum.energy < saddle.energy
+    assert abs(minimum.Lk - saddle.Lk) < 1e-9  # the same knot, the same linking number
+    with pytest.raises(ValueError, match="unstable"):
+        jr.follow_twist(scene, 0.0, 1.0, start=saddle)
+
+
+def test_cli_knot_from_a_curve_file_equals_the_named_knot(tmp_path, capsys):
+    """Any closed curve from a file: the figure-eight's own points, written to CSV, give the study
+    of `jaxrod knot 4_1` exactly."""
+    points = jr.scenes.knot_points("4_1", 400)  # the points jr.knot samples for N <= 100
+    np.savetxt(tmp_path / "fig8.csv", points, delimiter=",", header="x,y,z", comments="")
+    common = ["--D", "8", "--L", "300", "--N", "40", "--phi-min", "-0.5pi", "--phi-max", "0.5pi", "--quiet",
+              "--no-figures", "--json"]
+    assert main(["knot", "4_1", *common, "--out", str(tmp_path / "named")]) == 0
+    assert main(["knot", "--curve", str(tmp_path / "fig8.csv"), *common, "--out", str(tmp_path / "curve")]) == 0
+    capsys.readouterr()
+    named = (tmp_path / "named" / "branch.csv").read_text()
+    assert named == (tmp_path / "curve" / "branch.csv").read_text()
+    assert len(named.splitlines()) >= 4
