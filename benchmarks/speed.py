@@ -582,10 +582,13 @@ def write_report(csv_path, md_path, png_path):
               for r in errors] + [""]
     L += [f"![speed]({img})", ""]
     # The README's command 1 against the previous release: measured by benchmarks/command1.py.
-    command1 = os.path.join(HERE, "results", "command1.md")
-    if os.path.exists(command1):
-        with open(command1) as f:
-            L += ["#" + f.read().strip(), ""]
+    # And the issue-9 comparisons: damped dynamics against continuation at equal accuracy
+    # (benchmarks/dynamics_accuracy.py) and batched (vmap) against serial runs (benchmarks/batch.py).
+    for name in ("command1.md", "dynamics_accuracy.md", "batch.md"):
+        part = os.path.join(HERE, "results", name)
+        if os.path.exists(part):
+            with open(part) as f:
+                L += ["\n".join("#" + line if line.startswith("#") else line for line in f.read().strip().splitlines()), ""]
     os.makedirs(os.path.dirname(os.path.abspath(md_path)), exist_ok=True)
     with open(md_path, "w") as f:
         f.write("\n".join(L))

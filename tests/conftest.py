@@ -18,7 +18,7 @@ import jaxrod  # noqa: E402,F401  (float64 before any test builds arrays)
 # Longest files first (measured: seconds of test time on 2 cores), so that the two xdist workers,
 # which take whole files in collection order, finish together: alphabetical order left the
 # longest file (sparse stability, ~70 s) to the end, with one worker idle meanwhile.
-_LONGEST_FIRST = ("test_sparse_stability.py", "test_solvers.py", "test_cli.py", "test_michell.py",
+_LONGEST_FIRST = ("test_atlas.py", "test_sparse_stability.py", "test_solvers.py", "test_cli.py", "test_michell.py",
                   "test_resume.py", "test_notebooks.py", "test_energy.py", "test_hessian.py",
                   "test_conventions.py", "test_topology.py", "test_readme.py", "test_stability.py")
 

@@ -119,14 +119,14 @@ def test_relax_to_minimum_leaves_the_saddle_of_a_symmetric_drawing():
 
 
 def test_cli_knot_from_a_curve_file_equals_the_named_knot(tmp_path, capsys):
-    """Any closed curve from a file: the figure-eight's own points, written to CSV, give the study
-    of `jaxrod knot 4_1` exactly."""
-    points = jr.scenes.knot_points("4_1", 400)  # the points jr.knot samples for N <= 100
-    np.savetxt(tmp_path / "fig8.csv", points, delimiter=",", header="x,y,z", comments="")
+    """Any closed curve from a file: the trefoil's own points, written to CSV, give the study of
+    `jaxrod knot 3_1` exactly."""
+    points = jr.scenes.knot_points("3_1", 400)  # the points jr.knot samples for N <= 100
+    np.savetxt(tmp_path / "trefoil.csv", points, delimiter=",", header="x,y,z", comments="")
     common = ["--D", "8", "--L", "300", "--N", "40", "--phi-min", "-0.5pi", "--phi-max", "0.5pi", "--quiet",
               "--no-figures", "--json"]
-    assert main(["knot", "4_1", *common, "--out", str(tmp_path / "named")]) == 0
-    assert main(["knot", "--curve", str(tmp_path / "fig8.csv"), *common, "--out", str(tmp_path / "curve")]) == 0
+    assert main(["knot", "3_1", *common, "--out", str(tmp_path / "named")]) == 0
+    assert main(["knot", "--curve", str(tmp_path / "trefoil.csv"), *common, "--out", str(tmp_path / "curve")]) == 0
     capsys.readouterr()
     named = (tmp_path / "named" / "branch.csv").read_text()
     assert named == (tmp_path / "curve" / "branch.csv").read_text()
