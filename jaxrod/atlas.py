@@ -29,6 +29,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from .atomic import write_json, write_rows
 from .validation import check_finite, check_int_at_least, check_positive
 
 __all__ = ["AtlasCase", "AtlasSettings", "FIELDS", "atlas_cases", "knot_critical_twist", "run_atlas", "read_atlas",
@@ -36,7 +37,10 @@ __all__ = ["AtlasCase", "AtlasSettings", "FIELDS", "atlas_cases", "knot_critical
 
 SIDES = ("plus", "minus")
 FIELDS = ["knot", "D_over_L", "N", "side", "phi_star", "phi_star_over_pi", "phi_error", "kind", "reason",
-          "Wr_start", "Wr_before", "Tw_before", "contact_count_change", "radius_of_gyration_change", "n_points", "seconds"]
+          "critical_eigenvalue", "dlambda_dphi", "lowest_eigenvalue_start", "Wr_start", "Wr_before", "Tw_before",
+          "contact_count_change", "radius_of_gyration_change", "n_points", "seconds"]
+_FLOATS = ("D_over_L", "phi_star", "phi_star_over_pi", "phi_error", "critical_eigenvalue", "dlambda_dphi",
+           "lowest_eigenvalue_start", "Wr_start", "Wr_before", "Tw_before", "radius_of_gyration_change", "seconds")
 KNOTS = ("3_1", "4_1", "5_1", "5_2")
 
 
@@ -133,6 +137,14 @@ def _contact_count(scene, e):
     return int(contact_count(e.x, nbr.pairs, nbr.mask, True, scene.material.D))
 
 
+def _lowest_above_band(e):
+    """The lowest eigenvalue above the near-null band of sliding modes (|lambda| < 1e-6 with
+    contact): how deep a minimum is."""
+    ev = np.asarray(e.stability.eigenvalues)
+    above = ev[ev > e.stability.tol]
+    return float(above[0]) if above.size else math.nan
+
+
 def tightening_sides(rows):
     """{(knot, D/L, N): 'plus' or 'minus'}: the side whose branch packs the strands together, told
     (as in ``twist_study``) by the segment pairs in contact gained along the branch, then by the
@@ -148,9 +160,13 @@ def knot_critical_twist(case, settings=None):
     """The first branch end of ``case`` (an ``AtlasCase`` or its dict) on its side: relax to a
     minimum at phi = 0, follow the stable branch towards +-span. Returns a row (dict, ``FIELDS``):
     phi_star in radians (NaN when the branch reaches +-span), phi_error, kind ('unstable': an
-    eigenvalue crossed zero; 'jump': the branch folded), Wr_start, Wr and Tw at the last stable
-    state, the change along the branch of the segment pairs in contact and of the radius of
-    gyration (``tightening_sides`` compares the two sides), n_points, seconds.
+    eigenvalue crossed zero; 'jump': the branch folded), critical_eigenvalue and dlambda_dphi
+    (the critical eigenvalue at the last stable state and its rate along the branch, the secant
+    where known: how clearly the end is an eigenvalue going to zero), lowest_eigenvalue_start
+    (the relaxed minimum's lowest eigenvalue above the near-null band of sliding modes: how deep
+    it is; dimensionless, as in ``Stability``), Wr_start, Wr and Tw at
+    the last stable state, the change along the branch of the segment pairs in contact and of the
+    radius of gyration (``tightening_sides`` compares the two sides), n_points, seconds.
     Pure in its inputs: the same case gives the same numbers on any worker."""
     from .continuation import follow_twist
     from .equilibrium import relax_to_minimum
@@ -173,14 +189,19 @@ def knot_critical_twist(case, settings=None):
         last = path.instabilities[0].equilibrium
     row = {"knot": case.knot, "D_over_L": case.D_over_L, "N": case.N, "side": case.side,
            "phi_star": math.nan, "phi_star_over_pi": math.nan, "phi_error": math.nan, "kind": "none",
-           "reason": path.reason, "Wr_start": float(start.Wr), "Wr_before": float(last.Wr), "Tw_before": float(last.Tw),
+           "reason": path.reason, "critical_eigenvalue": math.nan, "dlambda_dphi": math.nan,
+           "lowest_eigenvalue_start": _lowest_above_band(start), "Wr_start": float(start.Wr),
+           "Wr_before": float(last.Wr), "Tw_before": float(last.Tw),
            "contact_count_change": _contact_count(scene, last) - _contact_count(scene, start),
            "radius_of_gyration_change": _radius_of_gyration(last.x) - _radius_of_gyration(start.x),
            "n_points": len(path.points)}
     if path.instabilities:
         inst = path.instabilities[0]
         row.update(phi_star=float(inst.phi), phi_star_over_pi=float(inst.phi) / math.pi,
-                   phi_error=float(inst.phi_error), kind=str(inst.kind.value))
+                   phi_error=float(inst.phi_error), kind=str(inst.kind.value),
+                   critical_eigenvalue=float(inst.eigenvalue),
+                   dlambda_dphi=float(inst.dlambda_dphi_secant if math.isfinite(inst.dlambda_dphi_secant)
+                                      else inst.dlambda_dphi))
     row["seconds"] = time.perf_counter() - t0
     return row
 
@@ -203,19 +224,11 @@ def read_atlas(path):
         for r in reader:
             if None in r.values() or len(r) != len(reader.fieldnames):
                 continue  # a row cut short by an interruption
-            for c in ("D_over_L", "phi_star", "phi_star_over_pi", "phi_error", "Wr_start", "Wr_before", "Tw_before",
-                      "radius_of_gyration_change", "seconds"):
+            for c in _FLOATS:
                 r[c] = float(r[c])
             r["N"], r["n_points"], r["contact_count_change"] = int(r["N"]), int(r["n_points"]), int(r["contact_count_change"])
             rows.append(r)
     return rows
-
-
-def _write_json(path, obj):
-    tmp = path + ".tmp"
-    with open(tmp, "w") as f:
-        json.dump(obj, f, indent=2, sort_keys=True)
-    os.replace(tmp, path)
 
 
 def _check_folder(out, settings, fresh):
@@ -232,7 +245,7 @@ def _check_folder(out, settings, fresh):
         if old != settings.as_json():
             raise ValueError(f"out: {out} holds an atlas with other settings (see its atlas.json): use another "
                              "folder, or start over there (fresh=True; the CLI's --fresh)")
-    _write_json(settings_path, settings.as_json())
+    write_json(settings_path, settings.as_json())
 
 
 def _keep_whole_rows(csv_path):
@@ -243,17 +256,8 @@ def _keep_whole_rows(csv_path):
         rows = read_atlas(csv_path)
     except ValueError:
         rows = []
-    _write_rows(csv_path, rows)
+    write_rows(csv_path, FIELDS, rows)
     return rows
-
-
-def _write_rows(csv_path, rows):
-    tmp = csv_path + ".tmp"
-    with open(tmp, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=FIELDS, extrasaction="ignore")
-        w.writeheader()
-        w.writerows(rows)
-    os.replace(tmp, csv_path)
 
 
 def run_atlas(knots=KNOTS, ratios=(0.01, 0.015, 0.02, 0.0274, 0.03, 0.035), N=101, settings=None, out=None,
@@ -309,7 +313,7 @@ def run_atlas(knots=KNOTS, ratios=(0.01, 0.015, 0.02, 0.0274, 0.03, 0.035), N=10
                 future.cancel()
     rows = sorted((r for k, r in done.items() if k in order), key=lambda r: order[_case_of(r).key])
     if csv_path is not None:  # with the cases of earlier sweeps into this folder, in case order
-        _write_rows(csv_path, sorted(done.values(), key=_case_order))
+        write_rows(csv_path, FIELDS, sorted(done.values(), key=_case_order))
     return rows
 
 
@@ -372,15 +376,19 @@ def report(out, rows=None):
     lines = ["# Twisted-knot atlas: critical twists", "",
              "jaxrod sign convention (phi > 0 adds right-handed twist; Lk = Lk0 + phi / 2 pi). Each side followed "
              "from the knot relaxed to a minimum at phi = 0 until its stable branch ends ('unstable': an eigenvalue "
-             "crosses zero; 'jump': the branch folds). The tightening side gains segment pairs in contact along its "
+             "crosses zero; 'jump': the branch folds; the critical eigenvalue at the last stable state, with its rate "
+             "along the branch, says how clearly it was going to zero). The tightening side gains segment pairs in contact along its "
              "branch (then: loses radius of gyration); the other side opens the knot.", "",
-             "| knot | D/L | N | side | phi*/pi | +- (rad) | kind | Wr start | Wr before | Tw before | contacts gained | tightens | time (s) |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| knot | D/L | N | side | phi*/pi | +- (rad) | kind | critical eigenvalue (d/dphi) | lowest at phi = 0 | "
+             "Wr start | Wr before | Tw before | contacts gained | tightens | time (s) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     tight = tightening_sides(rows)
     for r in rows:
         phi = f"{r['phi_star_over_pi']:+.4f}" if math.isfinite(r["phi_star"]) else "none"
         err = f"{r['phi_error']:.1e}" if math.isfinite(r["phi_error"]) else ""
-        lines.append(f"| {r['knot']} | {r['D_over_L']:g} | {r['N']} | {r['side']} | {phi} | {err} | {r['kind']} | "
+        lam = f"{r['critical_eigenvalue']:.2e} ({r['dlambda_dphi']:+.1e})" if math.isfinite(r["critical_eigenvalue"]) else ""
+        lines.append(f"| {r['knot']} | {r['D_over_L']:g} | {r['N']} | {r['side']} | {phi} | {err} | {r['kind']} | {lam} | "
+                     f"{r['lowest_eigenvalue_start']:.2e} | "
                      f"{r['Wr_start']:.4f} | {r['Wr_before']:.4f} | {r['Tw_before']:.4f} | {r['contact_count_change']:+d} | "
                      f"{_yes_no(tight.get((r['knot'], r['D_over_L'], r['N'])), r['side'])} | "
                      f"{r['seconds']:.1f} |")

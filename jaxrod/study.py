@@ -41,6 +41,7 @@ from .stability import DEFAULT_NEGATIVE_TOL
 from .equilibrium import relax_to_minimum
 from .validation import check_finite, check_positive
 from .records import ROW_KEYS, ROW_UNITS, step_record
+from .atomic import savez as _savez, write_json as _write_json, write_rows as _write_rows
 
 __all__ = ["twist_study", "StudyResult", "read_table", "figures", "study_summary", "check_study_folder"]
 
@@ -117,22 +118,6 @@ def _instability_dict(inst, scene, out, direction, index):
         _savez(os.path.join(out, name), mode_scaled=inst.mode, mode_q=mode_q, q=before.q, phi=before.phi)
         d["mode_file"] = name
     return d
-
-
-def _savez(path, **arrays):
-    """np.savez to ``path`` atomically: written under a hidden temporary name in the same
-    folder (outside the ``<direction>_*.npz`` pattern that resume counts), then renamed."""
-    folder, name = os.path.split(path)
-    tmp = os.path.join(folder, ".tmp-" + name)
-    np.savez(tmp, **arrays)
-    os.replace(tmp, path)
-
-
-def _write_json(path, obj):
-    tmp = path + ".tmp"
-    with open(tmp, "w") as f:
-        json.dump(obj, f, indent=2, sort_keys=True)  # key order independent of which side ends first
-    os.replace(tmp, path)  # never a half-written file
 
 
 def _study_parameters(scene, phi_min, phi_max, step, tol, k, max_switches):
@@ -379,15 +364,6 @@ def _files_cover(out, critical, direction, n_points, n_instabilities):
             rows = sum(1 for row in csv.DictReader(f) if row.get("direction") == direction)
     found = sum(1 for c in critical["instabilities"] if c["direction"] == direction)
     return steps and rows >= n_points and found >= n_instabilities
-
-
-def _write_rows(csv_path, header, rows):
-    tmp = csv_path + ".tmp"
-    with open(tmp, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=header, extrasaction="ignore")
-        w.writeheader()
-        w.writerows(rows)
-    os.replace(tmp, csv_path)
 
 
 def _run_all(run_direction, todo, parallel):

@@ -43,14 +43,25 @@ def test_serial_sweep_finds_every_branch_end(serial):
     assert atlas.read_atlas(str(out)) == rows  # the CSV holds exactly the returned numbers
 
 
-def test_dask_local_cluster_gives_the_serial_numbers(serial, tmp_path):
-    """Acceptance 4: the same 4-study sweep on a local Dask cluster of 2 worker processes."""
+def test_dask_local_cluster_gives_the_serial_numbers(serial, tmp_path, capsys):
+    """Acceptance 4: the same 4-study sweep on a local Dask cluster of 2 worker processes; then
+    the CLI, given the cluster's scheduler address, finishes an interrupted sweep on it."""
     distributed = pytest.importorskip("distributed")  # a test dependency: installed by '.[test]'
-    _, rows, _ = serial
+    out, rows, _ = serial
+    (tmp_path / "cli").mkdir()
+    shutil.copy(out / "atlas.json", tmp_path / "cli" / "atlas.json")
+    lines = (out / "atlas.csv").read_text().splitlines()
+    (tmp_path / "cli" / "atlas.csv").write_text("\n".join(lines[:2]) + "\n")  # one case done, three to do
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=None) as cluster, \
             distributed.Client(cluster) as client:
-        spread = atlas.run_atlas(KNOTS, RATIOS, N, settings=SETTINGS, out=str(tmp_path), client=client)
+        spread = atlas.run_atlas(KNOTS, RATIOS, N, settings=SETTINGS, out=str(tmp_path / "api"), client=client)
         workers = {w["id"] for w in client.scheduler_info()["workers"].values()}
+        status = main(["atlas", "--knots", "3_1", "--ratios", "0.025,0.03", "--N", "40", "--span", "14pi",
+                       "--tol", "0.01pi", "--out", str(tmp_path / "cli"), "--scheduler", cluster.scheduler_address,
+                       "--quiet", "--no-figures"])
+    capsys.readouterr()
+    assert status == 0
+    assert [r["phi_star"] for r in atlas.read_atlas(str(tmp_path / "cli"))] == [r["phi_star"] for r in rows]
     assert len(workers) == 2
     for a, b in zip(rows, spread, strict=True):
         assert (a["knot"], a["side"]) == (b["knot"], b["side"])
@@ -81,7 +92,7 @@ def test_report_and_figure(serial, tmp_path):
     extra = [dict(rows[0], N=60, phi_star=rows[0]["phi_star"] - 0.01 * PI,
                   phi_star_over_pi=rows[0]["phi_star_over_pi"] - 0.01),
              dict(rows[1], D_over_L=0.035, phi_star=math.nan, phi_star_over_pi=math.nan, kind="none")]
-    atlas._write_rows(str(tmp_path / "atlas.csv"), rows + extra)
+    atlas.write_rows(str(tmp_path / "atlas.csv"), atlas.FIELDS, rows + extra)
     shutil.copy(out / "atlas.json", tmp_path / "atlas.json")
     text = open(atlas.report(str(tmp_path))).read()
     assert "| 3_1 | 0.025 | 40 | minus |" in text and "| yes |" in text and "none" in text
