@@ -126,7 +126,7 @@ def report():
               "| N | side | continuation (tol 0.05 pi) | slowest ramp run: error, time | measured ratio (lower bound) | "
               "fit overshoot = a rate^b | rate for 0.05 pi | extrapolated dynamics time | ratio at equal accuracy |",
               "|---|---|---|---|---|---|---|---|---|"]
-    fig, ax = plt.subplots(figsize=(7.5, 4.2))
+    fig, ax = plt.subplots(figsize=(11.0, 4.5))
     for (n, side), colour in zip(sorted({(r["N"], r["side"]) for r in rows}), ("C0", "C3", "C1", "C2")):
         dyn = [r for r in rows if (r["N"], r["side"], r["method"]) == (n, side, "dynamics")
                and math.isfinite(float(r["phi_over_pi"]))]
@@ -144,7 +144,7 @@ def report():
         t_cont = float(cont[0]["seconds"])
         lines.append(f"| {n} | {side} | {t_cont:.1f} s | {err[slow]:.3f} pi, {sec[slow]:.0f} s | "
                      f"{sec[slow] / t_cont:.0f}x | a = {math.exp(log_a):.3g}, b = {b:.2f} | {r_star:.2g} | "
-                     f"{t_star:.3g} s ({t_star / 3600:.2g} h) | ~{t_star / t_cont:.0f}x |")
+                     f"{t_star:.2g} s ({t_star / 86400:.0f} days) | ~{t_star / t_cont:.0e}x |")
         ax.loglog(sec, err, "o-", color=colour, label=f"damped dynamics, {side} (N = {n}): ramps {', '.join(r['rate'] for r in dyn)}")
         ax.loglog([t_star], [0.05], "*", color=colour, ms=12, mfc="none", label=f"extrapolated to 0.05 pi ({side})")
         for c in (r for r in rows if (r["N"], r["side"], r["method"]) == (n, side, "continuation")):

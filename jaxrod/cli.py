@@ -126,10 +126,11 @@ def _version():
 
 def _build_parser():
     p = _Parser(prog="jaxrod", description="Equilibria and buckling of twisted elastic rods: Michell's ring, "
-                "the twisted trefoil knot, and the analysis of measured rods. "
+                "the twisted trefoil and other knots, the twisted-knot atlas, and the analysis of measured rods. "
                 "Give a command and --help for its options.",
                 formatter_class=argparse.RawDescriptionHelpFormatter,
                 epilog="examples:\n  jaxrod trefoil --N 121 --out results/trefoil\n"
+                       "  jaxrod atlas --knots 3_1,4_1 --ratios 0.01,0.02,0.03 --N 101 --out results/atlas\n"
                        "  jaxrod michell --N 128 --out results/michell\n  jaxrod trefoil --help")
     p.add_argument("--version", action="version", version=f"jaxrod {_version()}")
     sub = p.add_subparsers(dest="command", parser_class=_Parser, metavar="{michell,trefoil,knot,atlas,analyze}")
