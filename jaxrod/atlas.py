@@ -91,12 +91,17 @@ def _scene(knot, D_over_L, N, settings):
     return make_knot(knot, D_over_L, 1.0, N, nu=settings.nu, contact_stiffness=settings.contact_stiffness)
 
 
-def atlas_cases(knots, ratios, N, settings=None):
+def atlas_cases(knots, ratios, N, settings=None, sides=SIDES):
     """The cases of a sweep, knot by knot, D/L ascending, N ascending, plus before minus; each
     (knot, D/L, N) is checked now (``jaxrod.knot``: a known knot, L/D above its ideal
     ropelength, enough nodes), so that a bad sweep is refused before any work. ``N``: an int or
-    a list (several N: a convergence study). Warnings (nearly tight knots) are given once each."""
+    a list (several N: a convergence study); sides: 'plus' (phi > 0) and/or 'minus'. Warnings
+    (nearly tight knots) are given once each."""
     settings = settings or AtlasSettings()
+    sides = [sides] if isinstance(sides, str) else list(sides)
+    if not sides or any(side not in SIDES for side in sides):
+        raise ValueError(f"sides must be 'plus' and/or 'minus', got {sides!r}")
+    sides = [side for side in SIDES if side in sides]
     knots = [knots] if isinstance(knots, str) else list(knots)
     if not knots:
         raise ValueError("knots: give at least one knot")
@@ -119,7 +124,7 @@ def atlas_cases(knots, ratios, N, settings=None):
                 for w in caught:
                     if n == ns[0]:
                         warnings.warn(f"{knot} at D/L = {ratio:g}: {w.message}", stacklevel=2)
-                cases.extend(AtlasCase(knot, float(ratio), int(n), side) for side in SIDES)
+                cases.extend(AtlasCase(knot, float(ratio), int(n), side) for side in sides)
     return cases
 
 
@@ -261,17 +266,18 @@ def _keep_whole_rows(csv_path):
 
 
 def run_atlas(knots=KNOTS, ratios=(0.01, 0.015, 0.02, 0.0274, 0.03, 0.035), N=101, settings=None, out=None,
-              client=None, fresh=False, on_row=None):
+              client=None, fresh=False, on_row=None, sides=SIDES):
     """Critical twists of every (knot, D/L, N, side) case (``atlas_cases``).
 
     out: folder for atlas.json / atlas.csv (rows appended as cases end; cases already there are
     skipped, so an interrupted sweep resumes); client: a ``dask.distributed.Client`` to spread
     the cases over (None: one after the other in this process); on_row(row, n_done, n_total):
-    called as each case ends (progress). Returns the rows of all the cases, sorted by case.
+    called as each case ends (progress); sides: both by default, or one ('plus' / 'minus').
+    Returns the rows of all the cases, sorted by case.
     A case that fails raises (its message names the case); the cases done before stay on file.
     """
     settings = settings or AtlasSettings()
-    cases = atlas_cases(knots, ratios, N, settings)
+    cases = atlas_cases(knots, ratios, N, settings, sides)
     order = {c.key: i for i, c in enumerate(cases)}
     csv_path = None
     done = {}

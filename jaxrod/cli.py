@@ -178,6 +178,7 @@ def _build_parser():
                          "(default 0.01,0.015,0.02,0.0274,0.03,0.035)")
     at.add_argument("--N", default="101", help="number of nodes, or a comma-separated list (default 101; "
                                                "each at least 24 and L/D)")
+    at.add_argument("--sides", default="plus,minus", help="plus (phi > 0), minus (phi < 0) or both (default)")
     at.add_argument("--nu", type=float, default=0.5, help="Poisson ratio in (-1, 0.5] (default 0.5)")
     at.add_argument("--contact-stiffness", type=float, default=100.0,
                     help="contact penalty kappa_c in units of B/D^3 (default 100)")
@@ -606,10 +607,12 @@ def _atlas(args):
                                    contact_stiffness=args.contact_stiffness)
     check_int_at_least("workers", args.workers, 1)
     _output_folder(args.out)
-    cases = atlas.atlas_cases(knots, ratios, ns, settings)  # every case checked before any work
+    sides = [v.strip() for v in args.sides.split(",") if v.strip()]
+    cases = atlas.atlas_cases(knots, ratios, ns, settings, sides)  # every case checked before any work
     bar = _Progress(args, len(cases), "atlas", counting="cases")
     say = bar.say
-    say(f"atlas: {len(knots)} knot(s) x {len(set(ratios))} D/L x {len(set(ns))} N x 2 sides = {len(cases)} cases; "
+    say(f"atlas: {len(knots)} knot(s) x {len(set(ratios))} D/L x {len(set(ns))} N x {len(sides)} side(s) = "
+        f"{len(cases)} cases; "
         f"writing {args.out}/")
     say(args.compile_notice)
     t0 = time.perf_counter()
@@ -639,7 +642,7 @@ def _atlas(args):
                 cluster = LocalCluster(n_workers=args.workers, threads_per_worker=1, dashboard_address=None)
                 client = Client(cluster)
         rows = atlas.run_atlas(knots, ratios, ns, settings=settings, out=args.out, client=client, fresh=args.fresh,
-                               on_row=on_row)
+                               on_row=on_row, sides=sides)
     finally:
         bar.close()
         if client is not None:

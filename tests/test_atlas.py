@@ -51,7 +51,8 @@ def test_dask_local_cluster_gives_the_serial_numbers(serial, tmp_path, capsys):
     (tmp_path / "cli").mkdir()
     shutil.copy(out / "atlas.json", tmp_path / "cli" / "atlas.json")
     lines = (out / "atlas.csv").read_text().splitlines()
-    (tmp_path / "cli" / "atlas.csv").write_text("\n".join(lines[:2]) + "\n")  # one case done, three to do
+    # Interrupted with three cases done: the opening side at D/L = 0.03 is left to do.
+    (tmp_path / "cli" / "atlas.csv").write_text("\n".join(lines[:3] + lines[4:]) + "\n")
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=None) as cluster, \
             distributed.Client(cluster) as client:
         spread = atlas.run_atlas(KNOTS, RATIOS, N, settings=SETTINGS, out=str(tmp_path / "api"), client=client)
@@ -142,3 +143,17 @@ def test_cli_knot_from_a_curve_file_equals_the_named_knot(tmp_path, capsys):
     named = (tmp_path / "named" / "branch.csv").read_text()
     assert named == (tmp_path / "curve" / "branch.csv").read_text()
     assert len(named.splitlines()) >= 4
+
+
+def test_cases_are_checked_before_any_work():
+    cases = atlas.atlas_cases(["3_1", "4_1"], [0.03, 0.025], [40, 60], sides="minus")
+    assert [(c.knot, c.D_over_L, c.N, c.side) for c in cases][:3] == [("3_1", 0.025, 40, "minus"),
+                                                                     ("3_1", 0.025, 60, "minus"),
+                                                                     ("3_1", 0.03, 40, "minus")]
+    assert len(cases) == 8
+    with pytest.raises(ValueError, match="ratios: 5_2 at D/L = 0.05"):  # L/D = 20 < 24.68: no such knot
+        atlas.atlas_cases(["5_2"], [0.05], 60)
+    with pytest.raises(ValueError, match="^N: 3_1 at D/L = 0.01"):  # edges longer than D
+        atlas.atlas_cases(["3_1"], [0.01], 60)
+    with pytest.raises(ValueError, match="sides"):
+        atlas.atlas_cases(["3_1"], [0.03], 40, sides=("left",))

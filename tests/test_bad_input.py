@@ -89,6 +89,7 @@ CLI_CASES = [
     (["atlas", "--span", "0"], "--span"),
     (["atlas", "--nu", "0.9"], "--nu"),
     (["atlas", "--workers", "0"], "--workers"),
+    (["atlas", "--sides", "up"], "--sides"),
     (["atlas", "--out", "{a_file}"], "--out"),
     (["analyze", "{missing.csv}", "{stripe.csv}"], "missing.csv"),
     (["analyze", "{two_columns.csv}", "{stripe.csv}"], "two_columns.csv"),
