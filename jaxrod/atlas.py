@@ -33,7 +33,7 @@ from .atomic import write_json, write_rows
 from .validation import check_finite, check_int_at_least, check_positive
 
 __all__ = ["AtlasCase", "AtlasSettings", "FIELDS", "atlas_cases", "knot_critical_twist", "run_atlas", "read_atlas",
-           "figures", "report", "tightening_sides"]
+           "figures", "report", "tightening_sides", "convergence_series"]
 
 SIDES = ("plus", "minus")
 FIELDS = ["knot", "D_over_L", "N", "side", "phi_star", "phi_star_over_pi", "phi_error", "kind", "reason",
@@ -355,7 +355,8 @@ def _main_rows(rows):
 def figures(out, rows=None, path=None, nu=None):
     """atlas.png in ``out`` (or ``path``): phi*/pi against D/L per knot, both sides, with the
     Michell lines +-phi_M and +-2 phi_M (phi_M = 2 pi sqrt(3) (1 + nu)), cases that reach the
-    span without an end marked at +-span. Returns the path."""
+    span without an end marked at +-span; beside it atlas_convergence.png (phi* against 1/N^2)
+    where cases ran at several N. Returns the path of atlas.png."""
     from .plotting import plot_atlas
     from .scenes import michell_critical_twist
 
@@ -371,7 +372,22 @@ def figures(out, rows=None, path=None, nu=None):
     path = path or os.path.join(out, "atlas.png")
     plot_atlas(main, michell=michell_critical_twist(nu), span=span, tightening=tightening_sides(main), path=path,
                title=f"Twisted-knot atlas (N = {n})")
+    series = convergence_series(rows)
+    if series:
+        from .plotting import plot_atlas_convergence
+
+        plot_atlas_convergence(series, path=os.path.join(os.path.dirname(path), "atlas_convergence.png"))
     return path
+
+
+def convergence_series(rows):
+    """{(knot, D/L, side): [(N, phi*), ...] ascending in N} for the cases run at several N with an
+    end found at each."""
+    groups = {}
+    for r in rows:
+        if math.isfinite(r["phi_star"]):
+            groups.setdefault((r["knot"], r["D_over_L"], r["side"]), []).append((r["N"], r["phi_star"]))
+    return {k: sorted(v) for k, v in groups.items() if len({n for n, _ in v}) > 1}
 
 
 def report(out, rows=None):

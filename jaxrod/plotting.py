@@ -518,3 +518,25 @@ def plot_atlas(rows, michell, span=None, path=None, title=None, tightening=None)
     if title:
         fig.suptitle(title, fontsize=11)
     return _finish(fig, path)
+
+
+def plot_atlas_convergence(series, path=None, title="Atlas: convergence in N"):
+    """phi*/pi against 10^4/N^2 (second-order convergence is a straight line), one panel per
+    (knot, D/L, side) series: {(knot, D/L, side): [(N, phi* in radians), ...]}."""
+    keys = sorted(series)
+    if not keys:
+        raise ValueError("series: no case ran at several N")
+    fig, axes = plt.subplots(1, len(keys), figsize=(3.2 * len(keys), 3.3), squeeze=False)
+    for ax, key in zip(axes[0], keys):
+        n = np.array([p[0] for p in series[key]], dtype=float)
+        phi = np.array([p[1] for p in series[key]]) / math.pi
+        ax.plot(1e4 / n ** 2, phi, "o-", color="C0" if key[2] == "plus" else "C3")
+        for ni, pi_ in zip(n, phi):
+            ax.annotate(f"N = {ni:.0f}", (1e4 / ni ** 2, pi_), textcoords="offset points", xytext=(4, 4), fontsize=7)
+        ax.set_xlim(left=0.0)
+        ax.set_title(f"{key[0]}, D/L = {key[1]:g}, {key[2]}", fontsize=9)
+        ax.set_xlabel("10^4 / N^2")
+        ax.grid(True, alpha=0.3)
+    axes[0][0].set_ylabel("phi* / pi (rad / pi)")
+    fig.suptitle(title, fontsize=10)
+    return _finish(fig, path)

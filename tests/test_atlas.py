@@ -102,6 +102,8 @@ def test_report_and_figure(serial, tmp_path):
 
     image = matplotlib.image.imread(atlas.figures(str(tmp_path)))
     assert image.ndim == 3 and min(image.shape[:2]) > 300 and image[..., :3].std() > 0.05
+    image = matplotlib.image.imread(tmp_path / "atlas_convergence.png")  # the case at N = 40 and 60
+    assert image.ndim == 3 and min(image.shape[:2]) > 200 and image[..., :3].std() > 0.05
 
 
 def test_cli_atlas_writes_csv_table_and_figure(serial, tmp_path, capsys):
