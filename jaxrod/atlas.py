@@ -30,6 +30,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from .atomic import write_json, write_rows
+from .geometry import radius_of_gyration
 from .validation import check_finite, check_int_at_least, check_positive
 
 __all__ = ["AtlasCase", "AtlasSettings", "FIELDS", "atlas_cases", "knot_critical_twist", "run_atlas", "read_atlas",
@@ -128,11 +129,6 @@ def atlas_cases(knots, ratios, N, settings=None, sides=SIDES):
     return cases
 
 
-def _radius_of_gyration(x):
-    x = np.asarray(x)
-    return float(np.sqrt(np.mean(np.sum((x - x.mean(0)) ** 2, axis=1))))
-
-
 def _contact_count(scene, e):
     from .contact import contact_count
 
@@ -198,7 +194,7 @@ def knot_critical_twist(case, settings=None):
            "lowest_eigenvalue_start": _lowest_above_band(start), "Wr_start": float(start.Wr),
            "Wr_before": float(last.Wr), "Tw_before": float(last.Tw),
            "contact_count_change": _contact_count(scene, last) - _contact_count(scene, start),
-           "radius_of_gyration_change": _radius_of_gyration(last.x) - _radius_of_gyration(start.x),
+           "radius_of_gyration_change": radius_of_gyration(last.x) - radius_of_gyration(start.x),
            "n_points": len(path.points)}
     if path.instabilities:
         inst = path.instabilities[0]

@@ -20,7 +20,7 @@ import numpy as np
 import jax.numpy as jnp
 
 from .equilibrium import (Equilibrium, LeftBranchError, TopologyChangeError, equilibrium_arrays, equilibrium_from_arrays,
-                          relax, solve_equilibrium)
+                          mode_step, relax, solve_equilibrium)
 from .geometry import polyline_distance
 from .validation import check_finite, check_int_at_least, check_positive
 from .solvers import ConvergenceError
@@ -329,14 +329,12 @@ class _Engine:
         analysed _Step of a stable state within jump_tol of the predicted shape x_pred, or None."""
         jump_tol = self.opts.jump_tol
         v = np.asarray(e.stability.eigenvectors[:, 0])
-        mode_q = self.scene.from_scaled(np.asarray(v))
-        x_mode = np.asarray(self.scene.unpack(jnp.asarray(mode_q), 0.0)[0])
-        amp = 0.25 * jump_tol / max(float(np.max(np.linalg.norm(x_mode, axis=1))), 1e-300)
+        step = mode_step(self.scene, v, 0.25 * jump_tol)
         for sgn in (1.0, -1.0):
             try:
                 # Guided: a push along a real buckling mode runs off the predicted shape and is
                 # stopped at its first pause instead of being relaxed to the end.
-                e2 = relax(self.scene, e.phi, e.q + sgn * amp * mode_q, gtol=self.opts.gtol, previous=prev,
+                e2 = relax(self.scene, e.phi, e.q + sgn * step, gtol=self.opts.gtol, previous=prev,
                            with_stability=False, nbr=e.neighbourhood, guide=(x_pred, jump_tol),
                            max_steps=self.opts.corrector_max_steps)
             except (ConvergenceError, TopologyChangeError):
@@ -1087,11 +1085,8 @@ def _switch_branch(engine, prev, dq, phi, mode, lost_eq, perturbation, say):
     scene, closed, jump_tol = engine.scene, engine.closed, engine.opts.jump_tol
     q_pred = prev.q + dq * (phi - prev.phi)
     x_pred = np.asarray(scene.unpack(jnp.asarray(q_pred), phi)[0])
-    mode_q = scene.from_scaled(np.asarray(mode))
-    x_mode = np.asarray(scene.unpack(jnp.asarray(mode_q), 0.0)[0])
-    biggest = float(np.max(np.linalg.norm(x_mode, axis=1)))
-    amp = (jump_tol if perturbation is None else float(perturbation)) / max(biggest, 1e-300)
-    starts = [("+mode", q_pred + amp * mode_q), ("-mode", q_pred - amp * mode_q)]
+    step = mode_step(scene, mode, jump_tol if perturbation is None else float(perturbation))
+    starts = [("+mode", q_pred + step), ("-mode", q_pred - step)]
     # Where the corrector itself goes when left alone (it was stopped early while locating the
     # end, so that state is computed here, once).
     starts.append(("jumped", np.asarray(lost_eq.q) if lost_eq is not None else q_pred))

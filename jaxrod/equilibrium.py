@@ -15,7 +15,7 @@ from .neighbourhood import WRITHE_DRIFT_LIMIT, Neighbourhood
 from .solvers import LBFGS, ConvergenceError, DampedNewton, Newton, Solution, StopReason, minimise
 from .stability import DEFAULT_NEGATIVE_TOL, Stability, stability
 
-__all__ = ["Equilibrium", "solve_equilibrium", "relax", "relax_to_minimum", "TopologyChangeError", "LeftBranchError", "scaled_energy", "scaled_zero_modes",
+__all__ = ["Equilibrium", "solve_equilibrium", "relax", "relax_to_minimum", "mode_step", "TopologyChangeError", "LeftBranchError", "scaled_energy", "scaled_zero_modes",
            "structured_hessian"]
 
 
@@ -133,6 +133,16 @@ def relax(scene, phi=0.0, q0=None, gtol=1e-9, max_rounds=200, max_displacement=N
     raise ConvergenceError(f"relaxation needed more than {max_rounds} neighbourhood rebuilds")
 
 
+def mode_step(scene, scaled_mode, distance):
+    """The DOF step (physical units, (n,)) along an eigenvector ``scaled_mode`` (scaled DOFs)
+    that moves the node moving most by ``distance``: how far a state is pushed off a saddle or a
+    branch end along its critical mode."""
+    mode_q = scene.from_scaled(np.asarray(scaled_mode))
+    x_mode = np.asarray(scene.unpack(jnp.asarray(mode_q), 0.0)[0])
+    amp = distance / max(float(np.max(np.linalg.norm(x_mode, axis=1))), 1e-300)
+    return amp * mode_q
+
+
 def relax_to_minimum(scene, phi=0.0, q0=None, gtol=1e-9, negative_tol=None, push=None, max_pushes=4, k=8,
                      progress=None):
     """``relax``, then make sure the result is a minimum: a symmetric starting shape (a torus
@@ -152,17 +162,15 @@ def relax_to_minimum(scene, phi=0.0, q0=None, gtol=1e-9, negative_tol=None, push
     e = relax(scene, phi, q0, gtol=gtol, k=k, negative_tol=negative_tol)
     if push is None:
         push = 0.5 * float(scene.material.D)
-    for attempt in range(max_pushes):
+    for _ in range(max_pushes):
         if e.stability.stable:
             return e
-        mode_q = scene.from_scaled(np.asarray(e.stability.eigenvectors[:, 0]))
-        x_mode = np.asarray(scene.unpack(jnp.asarray(mode_q), 0.0)[0])
-        amp = push / max(float(np.max(np.linalg.norm(x_mode, axis=1))), 1e-300)
+        step = mode_step(scene, e.stability.eigenvectors[:, 0], push)
         say(f"relaxed state is a saddle (lowest eigenvalue {e.stability.eigenvalues[0]:.3e}): pushing along it")
         found = []
         for sign in (1.0, -1.0):
             try:
-                found.append(relax(scene, phi, e.q + sign * amp * mode_q, gtol=gtol, k=k, negative_tol=negative_tol,
+                found.append(relax(scene, phi, e.q + sign * step, gtol=gtol, k=k, negative_tol=negative_tol,
                                    previous=e, nbr=e.neighbourhood))
             except (ConvergenceError, TopologyChangeError) as exc:
                 say(f"  push {'+' if sign > 0 else '-'}: {type(exc).__name__}: {exc}")

@@ -191,6 +191,13 @@ def voronoi_lengths(rest_lengths, closed):
     return 0.5 * (rest_lengths[:-1] + rest_lengths[1:])
 
 
+def radius_of_gyration(x):
+    """Root-mean-square distance (numpy float) of the nodes x (N, 3) from their centroid."""
+    x = np.asarray(x)
+    r = x - x.mean(axis=0)
+    return float(np.sqrt(np.mean(np.sum(r * r, axis=1))))
+
+
 def resample_closed(points, n):
     """Resample a closed polyline (given as (M,3) points, last not repeating the first) to n
     points equally spaced in arc length along the polyline. Returns a numpy array (n,3)."""

@@ -17,6 +17,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .geometry import radius_of_gyration
 from .topology import linking_number
 
 __all__ = ["step_record", "vertex_profiles", "ROW_KEYS", "ROW_UNITS"]
@@ -125,7 +126,6 @@ def step_record(scene, eq, branch="", n_samples=None):
     terms = eq.energy_terms
     stab = eq.stability
     n_contact = int(n_contact)
-    r = x - x.mean(axis=0)
     row = {
         "branch": branch,
         "phi": float(eq.phi),
@@ -148,7 +148,7 @@ def step_record(scene, eq, branch="", n_samples=None):
         "kappa_max_L": float(np.max(kappa_L)),
         "tau_mean_L": float(np.mean(tau_L)),
         "tau_spread_L": float(np.max(tau_L) - np.min(tau_L)),
-        "radius_of_gyration": float(np.sqrt(np.mean(np.sum(r * r, axis=1)))),
+        "radius_of_gyration": radius_of_gyration(x),
         "min_distance_over_D": _min_nonlocal_distance(x, D) / D if D else math.nan,
         "grad_norm": float(eq.solution.grad_norm),
         "iterations": int(eq.solution.iterations),

@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from jaxrod.analysis import analyze
-from jaxrod.scenes import trefoil_points
 
 TWO_PI = 2 * math.pi
 
