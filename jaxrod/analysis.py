@@ -68,11 +68,25 @@ Pipeline of :func:`analyze`
    is oriented along the centreline first (its orientation flips the sign of Lk). Lk_frames = Wr + Tw.
    Note the paper writes its Gauss integrals with the opposite orientation; the values here follow
    jaxrod's standard convention (a right-handed ribbon has positive Lk).
+8. The joint of a twisted closed rod (closed curves only). A rod whose ends were turned relative to
+   each other by phi before gluing carries a line drawn on its surface that does not close unless
+   phi is a whole number of turns: at the joint its angle about the centreline jumps by -phi
+   (mod 2pi). The frames of step 6 then miss that fractional turn (Wr + Tw is an integer), tau
+   spikes at the joint, and the Gauss linking number of step 7 is not defined. The jump is found
+   as the largest localised excess of the turning angles of step 6 over their smooth trend; a
+   jump of more than 0.01 turn that stands out of the step-to-step variation gives a warning,
+   and Lk_exact, Lk_quadrature are NaN. With ``joint_twist=phi`` the jump is accounted for: the
+   turn it hides, phi - 2pi m (m the integer that leaves the joint step nearest the trend), is
+   added to Tw (so Lk_frames = Wr + Tw = Lk0 + phi/2pi for a simulated state), and tau at the
+   nodes spanning the jump is replaced by the trend (interpolated from the neighbouring nodes)
+   plus whatever twist the joint step has beyond it, spread over those nodes.
 
 Cost: the writhe and linking number are O(N^2) in time and memory (all segment pairs); for
 skeletons of many thousand points pass a smaller ``n_samples`` (a few hundred resolve a knot).
 
-Input files: :func:`load_polyline` (CSV with an x,y,z header or three bare columns; .npy (N,3)).
+Input files: :func:`load_polyline` (CSV with an x,y,z header or three bare columns; .npy (N,3);
+an array of an .npz, e.g. ``x`` and ``eccentric`` of a study's step file ``steps/*.npz``) and
+:func:`load_joint_twist` (the step file's imposed twist ``phi``, for ``joint_twist``).
 Output: :func:`write_profiles_csv`.
 
 Shape descriptors of a closed curve's periodic profile (e.g. ``RodAnalysis.kappa``):
@@ -92,7 +106,8 @@ from scipy.interpolate import CubicSpline, make_lsq_spline  # scipy is a depende
 from .geometry import parallel_transport, signed_angle
 from .topology import gauss_linking_quadrature, linking_number, writhe
 
-__all__ = ["RodAnalysis", "analyze", "count_peaks", "load_polyline", "symmetry_order", "write_profiles_csv"]
+__all__ = ["RodAnalysis", "analyze", "count_peaks", "load_joint_twist", "load_polyline", "symmetry_order",
+           "write_profiles_csv"]
 
 TWO_PI = 2.0 * math.pi
 _MIN_POINTS = 4
@@ -124,11 +139,16 @@ class RodAnalysis:
     Lk_exact: exact Gauss linking number of the centreline and the eccentric line (NaN if open).
     Lk_quadrature: midpoint-rule Gauss linking integral, the paper's estimate (NaN if open).
     Lk_frames: Wr + Tw.
+    joint_jump: closed curves: the jump (turns) of the eccentric line's angle at a place where it
+      does not close onto itself smoothly (the joint of a rod twisted by a non-whole number of
+      turns), 0.0 if none was found; NaN for open curves.
+    joint_twist: the ``joint_twist`` given to :func:`analyze` (radians), or None.
     warnings: what looked wrong with the data (each also issued as a ``UserWarning``): a curve
       closed although its ends are far apart, an eccentric line much shorter or longer than the
       centreline, nodes paired with a far point (another strand's line), nodes whose normal
       plane misses the eccentric line, Lk from the frames disagreeing with the Gauss linking
-      number. Empty when nothing did.
+      number, an eccentric line that does not close at the joint (no ``joint_twist`` given) or
+      whose jump there does not match the ``joint_twist`` given. Empty when nothing did.
     """
 
     s: np.ndarray
@@ -151,6 +171,8 @@ class RodAnalysis:
     Lk_quadrature: float
     Lk_frames: float
     warnings: tuple = ()
+    joint_jump: float = math.nan
+    joint_twist: float | None = None
 
 
 # ---------------------------------------------------------------------------- validation
@@ -418,8 +440,77 @@ def _check_modes(smoothing_modes, n_points, closed):
     return k
 
 
+# ---------------------------------------------------------------------------- the joint
+# A jump of the eccentric line's angle at one place (the joint of a closed rod twisted by a
+# non-whole number of turns) counts when it exceeds this many turns in all and its largest step
+# stands out of the step-to-step variation of the turning angles by this factor (robust scale).
+_JUMP_MIN_TURNS = 0.01
+_JUMP_CONTRAST = 10.0
+# joint_twist given: a jump left over (the line's jump plus the twist accounted for) beyond this
+# many turns means joint_twist does not describe this line.
+_JUMP_MISMATCH_TURNS = 0.05
+# phi / 2pi within this of an integer: a whole number of turns (the line closes).
+_WHOLE_TURN_TOL = 1e-9
+
+
+def _closure_jump(angles, width):
+    """The largest localised jump of the turning angles ``angles`` (n,) of a closed sequence of
+    frames (angle i across node i), over their smooth trend.
+
+    The jump is located at the largest three-point spike |a_i - (a_{i-1} + a_{i+1})/2|. Around it,
+    a window of half-width w (from ``width``, the expected spread of an interpolant's ringing,
+    widened by half at a time until the excess has died out in the window's outer quarter, at most
+    (n - 1)/4); the trend is a quadratic fitted to the steps w to 2w away on either side, and the
+    jump is the sum of the excess over it within the window. Returns (jump (radians), lo, hi: the
+    first and last step (circular indices, lo <= hi) whose excess stands out, peak: the step of
+    largest excess (mod n), significant: the jump exceeds 0.01 turn and its spike stands out of the
+    step-to-step variation by ``_JUMP_CONTRAST``)."""
+    a = np.asarray(angles, dtype=float)
+    n = a.size
+    if n < 9:
+        return 0.0, 0, 0, 0, False
+    spike = np.abs(a - 0.5 * (np.roll(a, 1) + np.roll(a, -1)))
+    scale = 1.4826 * float(np.median(spike))  # robust scale of the smooth (or noisy) variation
+    k = int(np.argmax(spike))
+    top = (n - 1) // 4
+    w = int(min(max(width, 2), top))
+    while True:
+        near = np.arange(k - w, k + w + 1)
+        flanks = np.concatenate([np.arange(k - 2 * w, k - w), np.arange(k + w + 1, k + 2 * w + 1)])
+        trend = np.polyfit(flanks - k, a[flanks % n], 2)
+        excess = a[near % n] - np.polyval(trend, near - k)
+        biggest = float(np.max(np.abs(excess)))
+        level = max(0.5 * _JUMP_CONTRAST * scale, 0.005 * biggest)
+        rim = np.abs(excess[np.abs(near - k) > 0.75 * w])
+        if w >= top or rim.size == 0 or float(np.max(rim)) <= max(level, 0.02 * biggest):
+            break
+        w = min(top, max(w + 1, int(1.5 * w)))
+    jump = float(np.sum(excess))
+    out = np.flatnonzero(np.abs(excess) > level)
+    lo, hi = (int(near[out[0]]), int(near[out[-1]])) if out.size else (k, k)
+    peak = int(near[np.argmax(np.abs(excess))] % n)
+    significant = abs(jump) > TWO_PI * _JUMP_MIN_TURNS and spike[k] > _JUMP_CONTRAST * scale
+    return jump, lo, hi, peak, bool(significant)
+
+
+def _smooth_joint(tau, h, lo, hi, residual):
+    """tau with the spike of a jump across steps lo..hi removed: the nodes lo-1..hi+1 get the
+    straight line between their neighbours plus ``residual`` (radians: the joint step's twist
+    beyond the trend) spread evenly over them; with too few nodes left, ``residual`` is spread
+    over all nodes instead."""
+    n = tau.size
+    tau = np.array(tau)
+    nodes = np.arange(lo - 1, hi + 2)
+    if nodes.size + 4 > n:
+        return tau + residual / (n * h)
+    left, right = tau[(lo - 2) % n], tau[(hi + 2) % n]
+    w = (nodes - lo + 2) / (nodes.size + 1.0)
+    tau[nodes % n] = (1.0 - w) * left + w * right + residual / (nodes.size * h)
+    return tau
+
+
 # ---------------------------------------------------------------------------- analysis
-def analyze(centreline, eccentric, closed=True, n_samples=None, smoothing_modes=None):
+def analyze(centreline, eccentric, closed=True, n_samples=None, smoothing_modes=None, joint_twist=None):
     """Frames, curvature/twist profiles and Wr, Tw, Lk of a rod from two polylines.
 
     Args:
@@ -433,6 +524,13 @@ def analyze(centreline, eccentric, closed=True, n_samples=None, smoothing_modes=
         Fourier modes |k| <= K, of each open curve by a cubic spline with K knot intervals. For
         noisy data; 1 <= K <= (M - 1)//2 (closed) or M - 3 (open), M the fewer of the two point
         counts.
+      joint_twist: None (default) or, for a closed rod whose ends were turned by this angle phi
+        (radians) relative to each other before gluing (a simulated state: a study's step file
+        holds it as ``phi``, see :func:`load_joint_twist`), that angle. Unless phi is a whole
+        number of turns the line drawn on such a rod jumps at the joint by -phi (mod 2 pi); the
+        turn hidden in the jump is then added to Tw and Lk_frames, and the spike of tau at the
+        joint removed (module docstring, step 8). Without it, a line that jumps gives a warning
+        and NaN for Lk_exact and Lk_quadrature (not defined for a line that does not close).
 
     Returns:
       :class:`RodAnalysis` (per-node arrays of length N, see there). The method (interpolation,
@@ -441,11 +539,21 @@ def analyze(centreline, eccentric, closed=True, n_samples=None, smoothing_modes=
 
     Raises:
       ValueError: input not of shape (N, 3), non-finite, fewer than 4 points, bad ``n_samples`` or
-        ``smoothing_modes``, or an eccentric line that lies on the centreline.
+        ``smoothing_modes`` or ``joint_twist`` (also: given for open curves), or an eccentric
+        line that lies on the centreline.
     """
     if not isinstance(closed, (bool, np.bool_)):
         raise ValueError(f"closed must be True or False, got {closed!r}")
     closed = bool(closed)
+    if joint_twist is not None:
+        try:
+            joint_twist = float(joint_twist) if not isinstance(joint_twist, (bool, np.bool_)) else math.nan
+        except (TypeError, ValueError):
+            raise ValueError(f"joint_twist must be a finite number (radians) or None, got {joint_twist!r}") from None
+        if not math.isfinite(joint_twist):
+            raise ValueError(f"joint_twist must be a finite number (radians) or None, got {joint_twist!r}")
+        if not closed:
+            raise ValueError("joint_twist applies to closed rods only (the joint where the ends were glued)")
     c_pts = _clean("centreline", _check_points("centreline", centreline), closed)
     e_pts = _clean("eccentric", _check_points("eccentric", eccentric), closed)
     if n_samples is None:
@@ -536,8 +644,51 @@ def analyze(centreline, eccentric, closed=True, n_samples=None, smoothing_modes=
         Tw_integral = float(np.sum(0.5 * (tau[1:] + tau[:-1])) * h / TWO_PI)
     Tw = float(np.sum(angles) / TWO_PI)
 
-    # 7: linking number of the centreline with the eccentric line.
+    # 8: the joint: does the line close onto itself smoothly?
+    joint_notes = []
+    joint_jump = math.nan
+    line_closes = True
     if closed:
+        # The jump spreads over the interpolant's ringing: a few eccentric points (or everywhere,
+        # for a Fourier fit).
+        width = (n - 1) // 4 if modes is not None else math.ceil(4.5 * n / e_pts.shape[0]) + 2
+        jump, lo, hi, peak, found = _closure_jump(angles, width)
+        joint_jump = jump / TWO_PI if found else 0.0
+        line_closes = not found
+        where = f"at s = {s[peak]:.4g} (node {peak})"
+        if joint_twist is None:
+            if found:
+                joint_notes.append(
+                    f"eccentric: the line does not close onto itself: its angle about the centreline jumps by "
+                    f"{jump / TWO_PI:+.4f} turns {where}, far more than between neighbouring nodes (a rod twisted "
+                    "by a non-whole number of turns before its ends were glued?); Tw and Lk from the frames miss "
+                    "that fractional turn, tau spikes there and the Gauss linking number is not defined (NaN): "
+                    "give the imposed twist as joint_twist= (radians; the CLI's --joint-twist, which a step file's phi "
+                    "supplies)")
+        else:
+            turns = joint_twist / TWO_PI
+            if abs(turns - round(turns)) > _WHOLE_TURN_TOL:
+                line_closes = False
+            hidden = joint_twist - TWO_PI * math.floor((joint_twist + jump) / TWO_PI + 0.5)
+            residual = jump + hidden  # what the joint step still turns beyond the trend
+            if abs(residual) > TWO_PI * _JUMP_MISMATCH_TURNS:
+                seen = f"jumps by {jump / TWO_PI:+.4f} turns {where}" if found else "closes smoothly"
+                joint_notes.append(
+                    f"eccentric: joint_twist = {joint_twist:.6g} rad ({turns:.4g} turns) does not match the line, "
+                    f"which {seen}: a line on a rod twisted by phi jumps by -phi mod 1 turn at the joint, so "
+                    f"{residual / TWO_PI:+.4f} turns are left unexplained; check the value and sign of joint_twist")
+            if hidden != 0.0:
+                Tw += hidden / TWO_PI
+                if found:
+                    tau = _smooth_joint(tau, h, lo, hi, residual)
+                else:  # nowhere to put it but everywhere
+                    tau = tau + hidden / (n * h)
+                Tw_integral = float(np.sum(tau) * h / TWO_PI)
+
+    # 7: linking number of the centreline with the eccentric line.
+    if closed and not line_closes:
+        Lk_exact = Lk_quad = float("nan")  # the Gauss integral of a line that does not close
+    elif closed:
         e_poly = e_pts if modes is None else e_curve(e_T * np.arange(e_pts.shape[0]) / e_pts.shape[0])
         if np.mean(np.sum(e_curve(e_t, 1) * d3, axis=-1)) < 0.0:
             e_poly = e_poly[::-1]  # orient the eccentric line along the centreline
@@ -562,7 +713,10 @@ def analyze(centreline, eccentric, closed=True, n_samples=None, smoothing_modes=
         Lk_exact=Lk_exact,
         Lk_quadrature=Lk_quad,
         Lk_frames=Wr + Tw,
-        warnings=tuple(_data_warnings(c_pts, e_pts, x, r, crossed, closed, Wr + Tw, Lk_exact, L, e_t, e_T)),
+        warnings=tuple(_data_warnings(c_pts, e_pts, x, r, crossed, closed, Wr + Tw, Lk_exact, L, e_t, e_T,
+                                      joint_notes)),
+        joint_jump=joint_jump,
+        joint_twist=joint_twist,
     )
 
 
@@ -629,7 +783,7 @@ def _pairing_jumps(e_t, e_T, closed):
     return nodes
 
 
-def _data_warnings(c_pts, e_pts, x, offset, crossed, closed, lk_frames, lk_exact, L, e_t, e_T):
+def _data_warnings(c_pts, e_pts, x, offset, crossed, closed, lk_frames, lk_exact, L, e_t, e_T, joint_notes=()):
     """Warnings about data that ``analyze`` accepts but whose results are doubtful (issued as
     UserWarning, returned as strings)."""
     found = []
@@ -664,6 +818,7 @@ def _data_warnings(c_pts, e_pts, x, offset, crossed, closed, lk_frames, lk_exact
     if closed and math.isfinite(lk_exact) and abs(lk_frames - lk_exact) > 0.1:
         found.append(f"Lk from the frames ({lk_frames:.3f}) and the Gauss linking number ({lk_exact:.0f}) disagree: "
                      "the eccentric line may not follow the whole rod, or pairs with another strand")
+    found.extend(joint_notes)
     for message in found:
         warnings.warn(message, UserWarning, stacklevel=3)
     return found
@@ -806,17 +961,32 @@ def _read_csv(path):
     return pts
 
 
-def load_polyline(path):
+def _read_npz(path):
+    """The arrays of a .npz file (no pickles), as a dict; ValueError naming the file if unreadable."""
+    import zipfile
+
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            return {name: data[name] for name in data.files}
+    except (ValueError, zipfile.BadZipFile, EOFError) as err:  # OSError (a missing file): the caller's
+        raise ValueError(f"{path}: not a readable .npz archive of numeric arrays ({err})") from None
+
+
+def load_polyline(path, array="x"):
     """Read a polyline (N, 3) from a file.
 
     * ``.csv``: comma-separated. Either a header row naming columns ``x``, ``y``, ``z`` (any order,
       case-insensitive; other columns are ignored) followed by numeric rows, or exactly three
       numeric columns without header. Blank lines and lines starting with ``#`` are skipped.
     * ``.npy``: a numeric array of shape (N, 3) (no pickles).
+    * ``.npz``: the array named ``array`` (default ``"x"``) of the archive, e.g. a study's step
+      file ``steps/<direction>_<NNNN>.npz``, which holds the centreline ``x`` and the eccentric
+      line ``eccentric`` (and the imposed twist ``phi``, see :func:`load_joint_twist`).
+      ``array`` is ignored for the other formats.
 
     Returns a float array (N, 3). Raises ValueError naming the file and the problem: unknown
-    extension, missing x/y/z columns, a non-numeric value, wrong shape, fewer than 4 points,
-    non-finite values.
+    extension, missing x/y/z columns, an .npz without the named array, a non-numeric value, wrong
+    shape, fewer than 4 points, non-finite values.
     """
     path = os.fspath(path)
     ext = os.path.splitext(path)[1].lower()
@@ -829,9 +999,35 @@ def load_polyline(path):
             raise ValueError(f"{path}: not a numeric .npy array ({err})") from None
         if pts.dtype.kind not in "biuf":
             raise ValueError(f"{path}: array of dtype {pts.dtype} is not numeric")
+    elif ext == ".npz":
+        arrays = _read_npz(path)
+        if array not in arrays:
+            held = ", ".join(sorted(arrays)) or "nothing"
+            raise ValueError(f"{path}: no array {array!r} in this .npz (it holds {held}); a study's step file "
+                             "(steps/*.npz) holds the centreline 'x' and the eccentric line 'eccentric'")
+        pts = arrays[array]
+        if pts.dtype.kind not in "biuf":
+            raise ValueError(f"{path}: array {array!r} of dtype {pts.dtype} is not numeric")
+        return _check_points("polyline", pts, source=f"{path} (array {array!r})")
     else:
-        raise ValueError(f"{path}: unknown file extension {ext!r} (expected .csv or .npy)")
+        raise ValueError(f"{path}: unknown file extension {ext!r} (expected .csv, .npy or .npz)")
     return _check_points("polyline", pts, source=path)
+
+
+def load_joint_twist(path):
+    """The imposed twist ``phi`` (radians) stored in a study's step file (``steps/*.npz``), for
+    :func:`analyze`'s ``joint_twist``; None if ``path`` is not an .npz or holds no ``phi``.
+    Raises ValueError (naming the file) for a ``phi`` that is not one finite number."""
+    path = os.fspath(path)
+    if os.path.splitext(path)[1].lower() != ".npz":
+        return None
+    arrays = _read_npz(path)
+    if "phi" not in arrays:
+        return None
+    phi = arrays["phi"]
+    if phi.dtype.kind not in "biuf" or phi.size != 1 or not np.isfinite(phi).all():
+        raise ValueError(f"{path}: array 'phi' must be one finite number (the imposed twist, radians)")
+    return float(phi.reshape(()))
 
 
 def write_profiles_csv(result, path):

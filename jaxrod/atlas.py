@@ -31,6 +31,7 @@ import numpy as np
 
 from .atomic import write_json, write_rows
 from .geometry import radius_of_gyration
+from .locking import holds_output_folder
 from .validation import check_finite, check_int_at_least, check_positive
 
 __all__ = ["AtlasCase", "AtlasSettings", "FIELDS", "atlas_cases", "knot_critical_twist", "run_atlas", "read_atlas",
@@ -147,14 +148,20 @@ def _lowest_above_band(e):
 
 
 def tightening_sides(rows):
-    """{(knot, D/L, N): 'plus' or 'minus'}: the side whose branch packs the strands together, told
-    (as in ``twist_study``) by the segment pairs in contact gained along the branch, then by the
-    radius of gyration lost; only where both sides ran."""
+    """{(knot, D/L, N): 'plus', 'minus' or 'equal'}: the side whose branch packs the strands
+    together, told (as in ``twist_study``, by ``study.tightening_side``) by the segment pairs in
+    contact gained along the branch, then by the radius of gyration lost; 'equal' where the two
+    sides agree within round-off (mirror images); only where both sides ran."""
+    from .study import tightening_side
+
     sides = {}
     for r in rows:
         sides.setdefault((r["knot"], r["D_over_L"], r["N"]), {})[r["side"]] = (
-            r["contact_count_change"], -r["radius_of_gyration_change"])
-    return {k: max(v, key=v.get) for k, v in sides.items() if len(v) == 2}
+            r["contact_count_change"], r["radius_of_gyration_change"])
+    # The rows keep the changes only, so they are judged against the larger change: mirror-image
+    # sides (an achiral knot relaxed to a mirror-symmetric shape) come out 'equal'.
+    return {k: tightening_side(v, scale=max(abs(v["plus"][1]), abs(v["minus"][1])))
+            for k, v in sides.items() if len(v) == 2}
 
 
 def knot_critical_twist(case, settings=None):
@@ -261,6 +268,7 @@ def _keep_whole_rows(csv_path):
     return rows
 
 
+@holds_output_folder
 def run_atlas(knots=KNOTS, ratios=(0.01, 0.015, 0.02, 0.0274, 0.03, 0.035), N=101, settings=None, out=None,
               client=None, fresh=False, on_row=None, sides=SIDES):
     """Critical twists of every (knot, D/L, N, side) case (``atlas_cases``).
@@ -336,7 +344,7 @@ def _checked(fn, case, settings):
 
 # ------------------------------------------------------------------------------------ outputs
 def _yes_no(tight_side, side):
-    return "?" if tight_side is None else "yes" if tight_side == side else "no"
+    return "?" if tight_side is None else "equal" if tight_side == "equal" else "yes" if tight_side == side else "no"
 
 
 def _main_rows(rows):

@@ -9,6 +9,7 @@ on stderr that says what to change (or, for an interrupted study, that it resume
 from __future__ import annotations
 
 import argparse
+import contextlib
 import csv
 import json
 import math
@@ -17,6 +18,10 @@ import sys
 import time
 
 __all__ = ["main"]
+
+# The knot factories' default E (jaxrod.scenes.PAPER_YOUNG_MODULUS; a test checks that they agree),
+# written here so that `jaxrod --help` does not import JAX.
+PAPER_YOUNG_MODULUS = 0.474
 
 # A ring of fewer nodes does not buckle within twice Michell's twist (N = 4 to 6 were seen to
 # scan the whole range in vain).
@@ -75,8 +80,10 @@ The twist study of the trefoil command for another knot: the figure-eight knot 4
 cinquefoil 5_1 (torus knot T(2,5)), the three-twist knot 5_2 (or the trefoil 3_1), each from a
 published parametrisation and refused below its ideal ropelength L/D; or any closed curve read
 from a file (--curve: CSV with an x,y,z header or three columns, or .npy of shape (M, 3); it is
-resampled to N nodes and scaled to length L; its linking number at zero twist is the integer
-nearest its writhe). Lengths in mm, E in MPa. {_ANGLES}
+resampled to N nodes and scaled to length L; its linking number at zero twist, Lk0, is the
+integer nearest its writhe unless --lk0 gives it: that is the untwisted rod only if the curve is
+close to its relaxed shape, and a warning says when the rod relaxed at zero twist still stores
+more than a quarter turn). Lengths in mm, E in MPa. {_ANGLES}
 
 Writes the same files as the trefoil command, and resumes the same way.
 
@@ -106,10 +113,16 @@ _ANALYZE_HELP = """\
 Analyse a rod from its centreline and an eccentric line drawn on its surface, as the seed
 paper does with measured knots: frames, curvature kappa(s) and twist tau(s) profiles, writhe,
 twist and linking number (Lk from Wr + Tw and from the Gauss integral). Files: CSV with an
-x,y,z header (or three bare columns), or .npy arrays of shape (N, 3). Closed curves unless
---open.
+x,y,z header (or three bare columns), .npy arrays of shape (N, 3), or a study's step file
+steps/*.npz alone (its x and eccentric arrays). Closed curves unless --open.
+
+A line drawn on a rod whose ends were turned by phi before gluing does not close unless phi
+is a whole number of turns: it jumps at the joint, the Gauss linking number is then undefined
+(null) and Wr + Tw misses the fractional turn. analyze warns, or, given --joint-twist phi (read
+from a step file's phi), adds that turn to Tw and Lk and removes the joint's spike from tau.
 
 examples:
+  jaxrod analyze results/trefoil/steps/plus_0013.npz
   jaxrod analyze centreline.csv stripe.csv --smoothing-modes 12 --out results/analysis
   jaxrod analyze centreline.npy stripe.npy --open --json
 """
@@ -148,11 +161,16 @@ def _build_parser():
                    help="do not keep compiled code in ~/.cache/jaxrod (later runs then compile again)")
     a = sub.add_parser(
         "analyze",
-        help="frames, curvature/twist profiles and Wr, Tw, Lk of a rod from two polylines (CSV or NPY)",
+        help="frames, curvature/twist profiles and Wr, Tw, Lk of a rod from two polylines (CSV, NPY) or a step file",
         description=_ANALYZE_HELP, formatter_class=raw,
     )
-    a.add_argument("centreline", help="centreline points (.csv or .npy)")
-    a.add_argument("eccentric", help="eccentric-line points (.csv or .npy)")
+    a.add_argument("centreline", help="centreline points (.csv, .npy, or a step file steps/*.npz: its x)")
+    a.add_argument("eccentric", nargs="?", default=None,
+                   help="eccentric-line points (.csv, .npy or .npz: its eccentric array); "
+                        "default: the centreline's step file")
+    a.add_argument("--joint-twist", type=_angle, default=None, metavar="PHI",
+                   help="twist phi imposed at the joint before gluing, e.g. 6.5pi (default: a step file's phi; "
+                        "for other files none)")
     a.add_argument("--open", action="store_true", help="open curves (default: closed loops)")
     a.add_argument("--n-samples", type=int, default=None,
                    help="number of nodes, equally spaced in arc length (default: as many as centreline points)")
@@ -169,12 +187,14 @@ def _build_parser():
                        description=_KNOT_HELP, formatter_class=raw)
     k.add_argument("name", nargs="?", choices=("3_1", "4_1", "5_1", "5_2"), help="the knot (or give --curve)")
     k.add_argument("--curve", default=None, help="closed curve to tie the rod along (.csv or .npy), instead of a name")
+    k.add_argument("--lk0", type=int, default=None,
+                   help="linking number of the untwisted rod (default: the integer nearest the curve's writhe)")
     _study_arguments(k, "results/knot", "above the knot's ideal ropelength times D")
     at = sub.add_parser("atlas", help="critical twists of several knots over a range of D/L (CSV, figure)",
                         description=_ATLAS_HELP, formatter_class=raw)
     at.add_argument("--knots", default="3_1,4_1,5_1,5_2", help="comma-separated knots (default 3_1,4_1,5_1,5_2)")
     at.add_argument("--ratios", default="0.01,0.015,0.02,0.0274,0.03,0.035",
-                    help="comma-separated slenderness values D/L, at least 6 for an atlas "
+                    help="comma-separated slenderness values D/L, one or more "
                          "(default 0.01,0.015,0.02,0.0274,0.03,0.035)")
     at.add_argument("--N", default="101", help="number of nodes, or a comma-separated list (default 101; "
                                                "each at least 24 and L/D)")
@@ -202,7 +222,9 @@ def _study_arguments(t, default_out, length_rule):
     t.add_argument("--D", type=float, default=8.0, help="rod diameter (default 8, mm)")
     t.add_argument("--L", type=float, default=292.0, help=f"rod length, {length_rule} (default 292, mm)")
     t.add_argument("--N", type=int, default=121, help="number of nodes, at least 24 and L/D (default 121)")
-    t.add_argument("--E", type=float, default=0.474, help="Young's modulus (default 0.474, MPa = N/mm^2)")
+    t.add_argument("--E", type=float, default=PAPER_YOUNG_MODULUS,
+                   help=f"Young's modulus (default {PAPER_YOUNG_MODULUS:g}, the seed paper's elastomer, as in the API; "
+                        "MPa = N/mm^2)")
     t.add_argument("--nu", type=float, default=0.5, help="Poisson ratio in (-1, 0.5], B/C = 1 + nu (default 0.5)")
     t.add_argument("--contact-stiffness", type=float, default=None,
                    help="contact penalty kappa_c in units of B/D^3 (default: the scene's, 100)")
@@ -423,7 +445,7 @@ def _analyze(args):
 
     matplotlib.use("Agg")  # files only, no display needed
     from . import plotting
-    from .analysis import analyze, count_peaks, load_polyline, symmetry_order, write_profiles_csv
+    from .analysis import analyze, count_peaks, load_joint_twist, load_polyline, symmetry_order, write_profiles_csv
     from .validation import check_int_at_least
 
     say = (lambda s: None) if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
@@ -433,10 +455,20 @@ def _analyze(args):
         check_int_at_least("smoothing_modes", args.smoothing_modes, 1)
     if args.out:
         _output_folder(args.out)
-    centre = load_polyline(args.centreline)
-    ecc = load_polyline(args.eccentric)
+    eccentric = args.eccentric
+    if eccentric is None:
+        if os.path.splitext(args.centreline)[1].lower() != ".npz":
+            raise ValueError(f"{args.centreline}: give the eccentric line too (a second file); only a study's step "
+                             "file (steps/*.npz) holds both the centreline and the eccentric line")
+        eccentric = args.centreline
+    centre = load_polyline(args.centreline, array="x")
+    ecc = load_polyline(eccentric, array="eccentric")
     closed = not args.open
-    res = analyze(centre, ecc, closed=closed, n_samples=args.n_samples, smoothing_modes=args.smoothing_modes)
+    joint = args.joint_twist
+    if joint is None and closed:  # the twist imposed on the simulated rod whose line this is
+        joint = load_joint_twist(eccentric)
+    res = analyze(centre, ecc, closed=closed, n_samples=args.n_samples, smoothing_modes=args.smoothing_modes,
+                  joint_twist=joint)
     L = res.length
     n = int(res.s.shape[0])
     order = symmetry_order(res.kappa) if closed and n >= 8 else None
@@ -448,6 +480,8 @@ def _analyze(args):
         "Lk_gauss": _json_number(res.Lk_exact),
         "Lk_quadrature": _json_number(res.Lk_quadrature),
         "Tw_integral": res.Tw_integral,
+        "joint_twist": res.joint_twist,
+        "joint_jump": _json_number(res.joint_jump),
         "length": L,
         "symmetry_order": order,
         "n_peaks": peaks,
@@ -457,13 +491,14 @@ def _analyze(args):
         "n_unpaired": int(n - int(res.paired.sum())),
         "warnings": list(res.warnings),
         "centreline": os.path.abspath(args.centreline),
-        "eccentric": os.path.abspath(args.eccentric),
+        "eccentric": os.path.abspath(eccentric),
     }
     if args.out:
         write_profiles_csv(res, os.path.join(args.out, "profiles.csv"))
         with open(os.path.join(args.out, "summary.json"), "w") as f:
             json.dump(result, f, indent=2)
-        lk = "" if not closed else f", Lk = {res.Lk_exact:.0f}"
+        lk = "" if not closed else f", Lk = {res.Lk_exact:.0f}" if math.isfinite(res.Lk_exact) else \
+            f", Lk = {res.Lk_frames:.4f}"
         plotting.plot_profiles(
             res.s / L, [(res.kappa * L, res.tau * L)], [os.path.basename(args.centreline)],
             path=os.path.join(args.out, "profiles.png"),
@@ -473,12 +508,16 @@ def _analyze(args):
     if args.json:
         print(json.dumps(result))
     else:
-        fmt = lambda v: "n/a (open curve)" if v is None or not math.isfinite(v) else f"{v:.10f}"  # noqa: E731
+        undefined = "n/a (open curve)" if not closed else "n/a (the line does not close at the joint)"
+        fmt = lambda v: undefined if v is None or not math.isfinite(v) else f"{v:.10f}"  # noqa: E731
         print(f"Wr            = {res.Wr:.10f}")
         print(f"Tw            = {res.Tw:.10f}   (integral of tau: {res.Tw_integral:.10f})")
         print(f"Lk (frames)   = {res.Lk_frames:.10f}   (Wr + Tw)")
         print(f"Lk (Gauss)    = {fmt(res.Lk_exact)}   (exact polygon linking number)")
         print(f"Lk (quadr.)   = {fmt(res.Lk_quadrature)}   (midpoint Gauss quadrature)")
+        if res.joint_twist is not None:
+            print(f"joint twist   = {res.joint_twist:.10g}   ({res.joint_twist / math.pi:.6g} pi, "
+                  f"line's jump at the joint {res.joint_jump:+.4f} turns)")
         print(f"length        = {L:.10g}   ({n} nodes)")
         if closed:
             print(f"kappa profile : symmetry order {order}, {peaks} peak(s)")
@@ -491,6 +530,7 @@ def _trefoil(args):
     matplotlib.use("Agg")
     from .validation import check_finite, check_int_at_least, check_poisson_ratio, check_positive
     from .scenes import DEFAULT_CONTACT_STIFFNESS, IDEAL_ROPELENGTH, MIN_TREFOIL_NODES
+    from .locking import folder_lock
     from .study import check_study_folder, figures, study_summary, twist_study
 
     D, L = check_positive("D", args.D), check_positive("L", args.L)
@@ -518,13 +558,22 @@ def _trefoil(args):
     check_positive("step", args.step)
     check_positive("tol", args.tol)
     _output_folder(args.out)
+    args.hold(folder_lock(args.out))  # one run per folder, taken before any compilation
     stiffness = DEFAULT_CONTACT_STIFFNESS if args.contact_stiffness is None else args.contact_stiffness
     scene = _study_scene(args, knot_name, stiffness)
+    from .continuation import check_dense_memory
+
+    try:  # a dense Hessian that cannot fit: refused now, not after the compilation (issue 16)
+        check_dense_memory(scene)
+    except ValueError as exc:
+        raise ValueError(str(exc).replace("use N at most", "use --N at most")) from None
     if not args.fresh:  # a folder of another run: refused now, not after the compilation
         check_study_folder(args.out, scene, args.phi_min, args.phi_max, args.step, args.tol)
     bar = _Progress(args, (args.phi_max - args.phi_min) / math.pi, args.command)
     say = bar.say
-    say(f"{scene.name}: D = {args.D}, L = {args.L}, N = {args.N}, nu = {args.nu}, kappa_c = {stiffness}; "
+    lk0 = "given" if getattr(args, "lk0", None) is not None else "the integer nearest the writhe as drawn"
+    say(f"{scene.name}: D = {args.D}, L = {args.L}, N = {args.N}, nu = {args.nu}, kappa_c = {stiffness}, "
+        f"Lk0 = {scene.Lk0:g} ({lk0}); "
         f"phi from {args.phi_min / math.pi:+.3f} pi to {args.phi_max / math.pi:+.3f} pi; writing {args.out}/")
     say(args.compile_notice)
     reached, counts = {"plus": 0.0, "minus": 0.0}, {"steps": 0}
@@ -564,8 +613,10 @@ def _trefoil(args):
             print(f"{key:10s} = " + ("none in range" if v is None else f"{v:+.6f} rad = {v / math.pi:+.5f} pi"))
         total = summary.get("seconds_total")
         resumed = f" ({total:.1f} s with the interrupted runs)" if total and total > summary["seconds"] + 0.05 else ""
-        print(f"tightening side: {summary.get('tightening_side')}; time {summary['seconds']:.1f} s{resumed}; "
-              f"data in {args.out}/")
+        side = summary.get("tightening_side")
+        if side == "equal":
+            side = "neither (the two sides are mirror images within round-off)"
+        print(f"tightening side: {side}; time {summary['seconds']:.1f} s{resumed}; data in {args.out}/")
     return 0
 
 
@@ -577,14 +628,15 @@ def _study_scene(args, name, stiffness):
         return trefoil(args.D, args.L, args.N, E=args.E, nu=args.nu, chirality=args.chirality,
                        contact_stiffness=stiffness)
     if name is not None:
-        return knot(name, args.D, args.L, args.N, E=args.E, nu=args.nu, contact_stiffness=stiffness)
+        return knot(name, args.D, args.L, args.N, E=args.E, nu=args.nu, contact_stiffness=stiffness, Lk0=args.lk0)
     from .analysis import load_polyline
     from .material import Material
 
     points = load_polyline(args.curve)
     try:
         return closed_curve(points, Material.from_engineering(args.E, args.nu, args.D), N=args.N, length=args.L,
-                            name=f"closed curve from {os.path.basename(args.curve)}", contact_stiffness=stiffness)
+                            name=f"closed curve from {os.path.basename(args.curve)}", contact_stiffness=stiffness,
+                            Lk0=args.lk0)
     except ValueError as exc:
         raise ValueError(f"--curve {args.curve}: {exc}") from None
 
@@ -594,6 +646,7 @@ def _atlas(args):
 
     matplotlib.use("Agg")
     from . import atlas
+    from .locking import folder_lock
     from .validation import check_int_at_least
 
     knots = [k.strip() for k in args.knots.split(",") if k.strip()]
@@ -607,6 +660,7 @@ def _atlas(args):
                                    contact_stiffness=args.contact_stiffness)
     check_int_at_least("workers", args.workers, 1)
     _output_folder(args.out)
+    args.hold(folder_lock(args.out))
     sides = [v.strip() for v in args.sides.split(",") if v.strip()]
     cases = atlas.atlas_cases(knots, ratios, ns, settings, sides)  # every case checked before any work
     bar = _Progress(args, len(cases), "atlas", counting="cases")
@@ -693,8 +747,27 @@ def _warn_in_one_line(message, category, filename, lineno, file=None, line=None)
     print(f"jaxrod: warning: {message}", file=sys.stderr, flush=True)
 
 
+def _interrupt(signum, frame):
+    """SIGTERM (a scheduler's or a `kill`'s stop) is handled like Ctrl-C: the study stops at its
+    next saved state, says that the same command resumes, and exits with status 130."""
+    raise KeyboardInterrupt
+
+
 def main(argv=None):
     """Run the command line with ``argv`` (default sys.argv[1:]); returns the exit status."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return _main(argv)
+    previous = signal.signal(signal.SIGTERM, _interrupt)
+    try:
+        return _main(argv)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _main(argv):
     argv = _join_angle_values(list(sys.argv[1:] if argv is None else argv))
     parser = _build_parser()
     try:
@@ -711,8 +784,9 @@ def main(argv=None):
         import jaxrod  # noqa: F401  (float64, BLAS threads)
 
         args.compile_notice = _compile_notice(args, _enable_compilation_cache(args))
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), contextlib.ExitStack() as held:
             warnings.showwarning = _warn_in_one_line  # a warning is one line, not a source quote
+            args.hold = held.enter_context  # the --out folder's lock, until the command ends
             if args.command == "michell":
                 return _michell(args)
             if args.command == "analyze":
@@ -753,5 +827,18 @@ def main(argv=None):
     return 1
 
 
+def console_main():
+    """The ``jaxrod`` command: ``main()``, then the process exit. An interrupted run (130) leaves
+    at once once its threads have stopped and its files are closed, without the interpreter's
+    teardown of XLA, which aborted ("terminate called ...", status 134) in about one interrupted
+    run in four after the study had already stopped cleanly."""
+    status = main()
+    if status == 130:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(status)
+    sys.exit(status)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    console_main()

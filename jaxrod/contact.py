@@ -6,8 +6,9 @@ Energy: a quadrature of the double integral
           integral over both segments of phi(|r(s) - r(s')| / D) ds ds',
     phi(rho) = (1 - rho)^3 for rho < 1, 0 beyond,
 
-so two strands overlapping at full depth store kappa_c * B / D^2 per unit length of overlap per
-unit length of the other strand (kappa_c is the dimensionless stiffness, stated relative to B/D^2).
+so two strands overlapping at full depth store kappa_c * B / D^3 per unit length of overlap per
+unit length of the other strand (kappa_c is the dimensionless stiffness, stated relative to B/D^3,
+the prefactor of the double integral).
 phi, phi' and phi'' all vanish at rho = 1: the energy is C2 everywhere (C-infinity where no pair
 is at the activation distance), unlike a clamped segment-segment distance, which is only C1 and
 makes Hessians jump. Integrating along both segments (Gauss-Legendre points) instead of using one

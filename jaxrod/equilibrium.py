@@ -1,6 +1,8 @@
 """Equilibria of a scene at a given imposed twist, each reported with its stability."""
 from __future__ import annotations
 
+import warnings
+
 import math
 from dataclasses import dataclass, replace
 
@@ -143,6 +145,30 @@ def mode_step(scene, scaled_mode, distance):
     return amp * mode_q
 
 
+# Twist (turns) that a closed rod relaxed at phi = 0 may store before Lk0 is called into question:
+# a loose knot relaxed with the right Lk0 stores a few hundredths (the trefoil: Tw = -0.055).
+TWIST_FREE_TOL = 0.25
+
+
+def warn_if_twisted_at_zero(scene, eq):
+    """Warn when a closed rod relaxed at phi = 0 stores more than a quarter turn of twist: its Lk0
+    (by default the integer nearest the writhe of the curve it was drawn along) is then not the
+    linking number of the twist-free rod, and "phi = 0" is not the untwisted rod. A curve drawn far
+    from its relaxed shape (a 5-point polygon of writhe 0.86, Lk0 = 1, relaxing to an unknot of
+    writhe 0) is the case met. Returns True if it warned."""
+    Lk0 = getattr(scene, "Lk0", None)
+    if Lk0 is None or not abs(float(eq.Tw)) > TWIST_FREE_TOL:
+        return False
+    twist_free = int(round(float(eq.Wr)))
+    warnings.warn(
+        f"the rod relaxed at phi = 0 stores Tw = {float(eq.Tw):+.3f} turns of twist (Wr = {float(eq.Wr):.3f}, "
+        f"Lk0 = {int(round(Lk0))}), more than {TWIST_FREE_TOL} turn: phi = 0 is not the untwisted rod. Lk0 is "
+        f"the integer nearest the writhe of the curve as drawn; the relaxed rod would be twist-free with "
+        f"Lk0 = {twist_free}. Give Lk0 if this is not what you meant (closed_curve(..., Lk0=...), the CLI's --lk0)",
+        stacklevel=3)
+    return True
+
+
 def relax_to_minimum(scene, phi=0.0, q0=None, gtol=1e-9, negative_tol=None, push=None, max_pushes=4, k=8,
                      progress=None):
     """``relax``, then make sure the result is a minimum: a symmetric starting shape (a torus
@@ -160,6 +186,8 @@ def relax_to_minimum(scene, phi=0.0, q0=None, gtol=1e-9, negative_tol=None, push
         negative_tol = CONTACT_NEGATIVE_TOL if has_contact else DEFAULT_NEGATIVE_TOL
     say = progress or (lambda s: None)
     e = relax(scene, phi, q0, gtol=gtol, k=k, negative_tol=negative_tol)
+    if phi == 0.0:
+        warn_if_twisted_at_zero(scene, e)
     if push is None:
         push = 0.5 * float(scene.material.D)
     for _ in range(max_pushes):

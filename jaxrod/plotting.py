@@ -495,7 +495,8 @@ def plot_atlas(rows, michell, span=None, path=None, title=None, tightening=None)
             phi = np.array([r["phi_star"] for r in sel]) / math.pi
             ok = np.isfinite(phi)
             said = {tightening.get((r["knot"], r["D_over_L"], r["N"])) for r in sel} - {None}
-            where = "tightening" if said == {side} else "opening" if said and side not in said else "mixed"
+            where = ("tightening" if said == {side} else "mirror images" if said == {"equal"} else
+                     "opening" if said and side not in said and "equal" not in said else "mixed")
             ax.plot(ratio, phi, marker + "-", color=colour, ms=5, lw=1,  # NaN (no end) breaks the line
                     label=f"phi{'+' if side == 'plus' else '-'}* ({'> 0' if side == 'plus' else '< 0'}; {where})")
             if span is not None and np.any(~ok):

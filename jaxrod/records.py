@@ -7,7 +7,10 @@ instead), plus the centreline and eccentric line for 3D snapshots.
 
 Lk is reported twice, independently: from the frames (Wr + Tw of the discrete rod, exact polygon
 writhe) and from the Gauss linking integral of the centreline with the eccentric line (exact
-polygon linking number), the paper's estimate, which does not use the frame twist at all.
+polygon linking number), the paper's estimate, which does not use the frame twist at all. The
+latter only at whole turns: the rod's ends were turned by phi before gluing, so unless phi is a
+whole number of turns the eccentric line jumps at the joint, does not close, and its Gauss
+integral is not defined (``Lk_gauss`` is NaN there, an empty cell in branch.csv).
 """
 from __future__ import annotations
 
@@ -44,6 +47,10 @@ ROW_UNITS = {
     "B/l per l (scaled)", "iterations": "count", "direction": "plus | minus",
     "lambda_j": "B/l (scaled Hessian eigenvalue, zero modes removed)",
 }
+
+
+# phi / 2pi within this of an integer: a whole number of turns, where the eccentric line closes.
+_WHOLE_TURN_TOL = 1e-9
 
 
 def _min_nonlocal_distance(x, D):
@@ -114,6 +121,9 @@ def step_record(scene, eq, branch="", n_samples=None):
     lowest eigenvalues (zero modes removed); extra holds arrays: ``s_over_L`` (n,),
     ``kappa_L`` (n,), ``tau_L`` (n,) (curvature and twist density times L, the paper's frames),
     ``x`` (N,3) centreline, ``eccentric`` (N,3) the line at D/2 along d1.
+
+    ``Lk_gauss`` (the linking number of ``x`` and ``eccentric``) is NaN unless phi is a whole
+    number of turns (within 1e-9 turn): otherwise the line does not close at the joint.
     """
     from .analysis import count_peaks, symmetry_order
 
@@ -126,6 +136,9 @@ def step_record(scene, eq, branch="", n_samples=None):
     terms = eq.energy_terms
     stab = eq.stability
     n_contact = int(n_contact)
+    turns = float(eq.phi) / (2.0 * math.pi)
+    if abs(turns - round(turns)) > _WHOLE_TURN_TOL:
+        lk_gauss = math.nan  # the line jumps by phi mod 2 pi at the joint: not a closed curve
     row = {
         "branch": branch,
         "phi": float(eq.phi),

@@ -347,7 +347,7 @@ class ClosedRod(Scene):
 
     Lk0 is the linking number of the ribbon at phi = 0; the rod is cut at the joint (vertex 0,
     between edge N-1 and edge 0), twisted by phi and glued, so Lk = Lk0 + phi / (2 pi).
-    contact_stiffness: kappa_c of soft self-contact (relative to B/D^2) when "contact" is a term.
+    contact_stiffness: kappa_c of soft self-contact (in units of B/D^3, the prefactor of the contact integral) when "contact" is a term.
     The contact candidate list is not part of the scene: it lives in a ``Neighbourhood`` passed
     to the energy (``scene.neighbourhood(q)``), rebuilt by the solvers when it goes stale.
     """
@@ -494,14 +494,22 @@ def _check_material(material):
     return material
 
 
+# A drawn curve's writhe this far from the nearest integer leaves Lk0 = round(writhe) in doubt
+# (a warning); the standard trefoil drawing sits at 3.35 and relaxes to 3.05 with Lk0 = 3.
+AMBIGUOUS_WRITHE = 0.4
+
+
 def closed_curve(points, material, N=None, length=None, Lk0=None, name="closed curve", contact_stiffness=None):
     """A closed rod along the closed polyline ``points`` (M,3) (last point not repeating the first).
 
     The curve is resampled to N nodes equally spaced in arc length (default N = M) and scaled to
     total length ``length`` (default: its own). Every edge gets rest length L/N, so the curve
     starts (almost) unstretched. Lk0 defaults to the integer nearest the writhe (the least-twisted
-    closed ribbon). The twist angles start uniform, so the initial twist is spread evenly.
-    contact_stiffness: kappa_c (relative to B/D^2) of soft self-contact, which needs the material's
+    closed ribbon; a warning when the writhe is within 0.1 of a half-integer). That is the
+    twist-free rod only if the curve is close to its relaxed shape: ``relax_to_minimum`` at phi = 0
+    warns when the relaxed rod stores more than a quarter turn of twist; then give Lk0. The twist
+    angles start uniform, so the initial twist is spread evenly.
+    contact_stiffness: kappa_c (in units of B/D^3, the prefactor of the contact integral) of soft self-contact, which needs the material's
     diameter D; None (default) models no contact (for curves whose strands stay far apart).
     """
     _check_material(material)
@@ -529,7 +537,14 @@ def closed_curve(points, material, N=None, length=None, Lk0=None, name="closed c
         length = perimeter
     rest = np.full(N, length / N)
     wr = float(writhe(jnp.asarray(x), closed=True))
-    Lk0 = int(round(wr)) if Lk0 is None else int(Lk0)
+    if Lk0 is None:
+        Lk0 = int(round(wr))
+        if abs(wr - Lk0) > AMBIGUOUS_WRITHE:
+            warnings.warn(f"points: the curve's writhe {wr:.3f} is nearly half-way between two integers: Lk0 = {Lk0} "
+                          f"taken (the nearer one); give Lk0 if the untwisted rod has another linking number",
+                          stacklevel=2)
+    else:
+        Lk0 = check_int_at_least("Lk0", Lk0, -10**6)
     probe = ClosedRod(material=material, rest_lengths=jnp.asarray(rest), q_init=jnp.zeros(4 * N), Lk0=float(Lk0), name=name)
     rho = float(probe.joint_reference_twist(jnp.asarray(x)))
     theta = rho * np.arange(N) / N  # every vertex, the joint included, then carries rho / N
@@ -547,6 +562,10 @@ def closed_curve(points, material, N=None, length=None, Lk0=None, name="closed c
 IDEAL_TREFOIL_ROPELENGTH = 16.372
 
 DEFAULT_CONTACT_STIFFNESS = 100.0
+# Young's modulus of the seed paper's elastomer rod, 0.474 MPa (= N/mm^2, for lengths in mm): the
+# default of every knot factory and of the CLI. It scales energies only; critical twists, shapes
+# and the dimensionless eigenvalues do not depend on it.
+PAPER_YOUNG_MODULUS = 0.474
 # Fewest nodes of a trefoil: three crossings need a few edges each to be resolved at all.
 MIN_TREFOIL_NODES = 24
 # A knot with L/D below this multiple of its ideal ropelength is "nearly tight" (a warning).
@@ -577,8 +596,9 @@ def trefoil_points(n, chirality="right"):
     return np.stack([np.sin(t) + 2 * np.sin(2 * t), np.cos(t) - 2 * np.cos(2 * t), z], axis=1)
 
 
-def trefoil(D, L, N, E=1.0, nu=0.5, chirality="right", contact_stiffness=DEFAULT_CONTACT_STIFFNESS):
-    """A closed trefoil knot of rod diameter D and length L, N nodes, material (E, nu, D).
+def trefoil(D, L, N, E=PAPER_YOUNG_MODULUS, nu=0.5, chirality="right", contact_stiffness=DEFAULT_CONTACT_STIFFNESS):
+    """A closed trefoil knot of rod diameter D and length L, N nodes, material (E, nu, D); E in
+    MPa for lengths in mm (default 0.474, the seed paper's elastomer), energies then in N mm.
 
     Refuses a knot shorter than the ideal trefoil (L/D < 16.372), which cannot exist.
     The initial curve is the standard parametrisation scaled to length L (not yet relaxed).
@@ -613,17 +633,18 @@ def knot_points(name, n):
     return np.stack([np.cos(3 * t + 0.7), np.cos(2 * t + 0.2), np.cos(7 * t)], axis=1)
 
 
-def knot(name, D, L, N, E=1.0, nu=0.5, contact_stiffness=DEFAULT_CONTACT_STIFFNESS):
+def knot(name, D, L, N, E=PAPER_YOUNG_MODULUS, nu=0.5, contact_stiffness=DEFAULT_CONTACT_STIFFNESS, Lk0=None):
     """A closed rod tied in the knot ``name`` ('3_1', '4_1', '5_1', '5_2'; see ``knot_points``)
     of diameter D and length L with N nodes. Refuses L/D below the knot's ideal ropelength
     (``IDEAL_ROPELENGTH``), N below 24 or (with contact) below L/D; warns when L/D is within 25%
     of the ideal. The curve is the parametrisation scaled to length L, not yet relaxed."""
     if name not in IDEAL_ROPELENGTH:
         raise ValueError(f"knot must be one of {', '.join(IDEAL_ROPELENGTH)}, got {name!r}")
-    return _knot_scene(name, lambda n: knot_points(name, n), D, L, N, E, nu, contact_stiffness, _KNOT_NAMES[name])
+    return _knot_scene(name, lambda n: knot_points(name, n), D, L, N, E, nu, contact_stiffness, _KNOT_NAMES[name],
+                       Lk0=Lk0)
 
 
-def _knot_scene(name, points, D, L, N, E, nu, contact_stiffness, title):
+def _knot_scene(name, points, D, L, N, E, nu, contact_stiffness, title, Lk0=None):
     """The checks every knot shares, then ``closed_curve`` through ``points(n)`` ((n, 3), the
     parametrisation sampled at n = max(4 N, 400) points, finer than the rod)."""
     D = check_positive("D", D)
@@ -642,10 +663,11 @@ def _knot_scene(name, points, D, L, N, E, nu, contact_stiffness, title):
             f"L/D = {L / D:.2f} is within {100 * (NEARLY_TIGHT - 1):.0f}% of the ideal {_KNOT_NAMES[name]}'s "
             f"{ideal}: the knot is nearly tight, and its equilibria depend on the contact stiffness", stacklevel=3)
     mat = Material.from_engineering(E, nu, D)
-    return closed_curve(points(max(4 * N, 400)), mat, N=N, length=L, name=title, contact_stiffness=contact_stiffness)
+    return closed_curve(points(max(4 * N, 400)), mat, N=N, length=L, name=title, contact_stiffness=contact_stiffness,
+                        Lk0=Lk0)
 
 
-def torus_knot(p, q, D, L, N, E=1.0, nu=0.5, radii=(2.0, 1.0), contact_stiffness=DEFAULT_CONTACT_STIFFNESS):
+def torus_knot(p, q, D, L, N, E=PAPER_YOUNG_MODULUS, nu=0.5, radii=(2.0, 1.0), contact_stiffness=DEFAULT_CONTACT_STIFFNESS):
     """The (p, q) torus knot ((R + r cos qt) cos pt, (R + r cos qt) sin pt, r sin qt), scaled to
     length L, as a closed rod of diameter D with N nodes. p and q must be coprime integers."""
     p = check_int_at_least("p", p, 1)

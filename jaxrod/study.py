@@ -36,11 +36,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .continuation import CONTACT_NEGATIVE_TOL, PathState, follow_twist
+from .continuation import CONTACT_NEGATIVE_TOL, PathState, check_dense_memory, follow_twist
 from .stability import DEFAULT_NEGATIVE_TOL
 from .equilibrium import relax_to_minimum
 from .validation import check_finite, check_positive
 from .records import ROW_KEYS, ROW_UNITS, step_record
+from .locking import holds_output_folder
 from .atomic import savez as _savez, write_json as _write_json, write_rows as _write_rows
 
 __all__ = ["twist_study", "StudyResult", "read_table", "figures", "study_summary", "check_study_folder"]
@@ -142,6 +143,7 @@ def check_study_folder(out, scene, phi_min, phi_max, step=0.5 * math.pi, tol=2e-
                          "folder, or start over there (resume=False; the CLI's --fresh)")
 
 
+@holds_output_folder
 def twist_study(scene, phi_min, phi_max, step=0.5 * math.pi, out=None, tol=2e-4 * math.pi, k=8,
                 progress=None, resume=True, max_switches=3, parallel=True, on_point=None):
     """Follow the knot's stable states from phi = 0 up to phi_max and down to phi_min (relaxed at
@@ -162,6 +164,7 @@ def twist_study(scene, phi_min, phi_max, step=0.5 * math.pi, out=None, tol=2e-4 
         raise ValueError(f"phi_min must be < 0 < phi_max, got phi_min = {phi_min!r}, phi_max = {phi_max!r}")
     step = check_positive("step", step)
     tol = check_positive("tol", tol)
+    check_dense_memory(scene)  # the dense Hessian must fit: refused before anything is compiled
     say = progress or (lambda s: None)
     params = _study_parameters(scene, phi_min, phi_max, step, tol, k, max_switches)
     csv_path = crit_path = None
@@ -186,6 +189,14 @@ def twist_study(scene, phi_min, phi_max, step=0.5 * math.pi, out=None, tol=2e-4 
         _write_json(os.path.join(out, "branch_units.json"), ROW_UNITS)
 
     lock = threading.Lock()  # one writer at a time (files, rows, critical)
+    # Set when the main thread is interrupted (Ctrl-C, SIGTERM): each direction's thread stops at
+    # its next saved state instead of being torn down inside XLA when the process exits (which
+    # aborted the process: "terminate called ...", status 134).
+    cancel = threading.Event()
+
+    def stop_if_cancelled():
+        if cancel.is_set():
+            raise _Cancelled()
 
     def save_point(direction, counter, point):
         e = point.equilibrium
@@ -200,7 +211,8 @@ def twist_study(scene, phi_min, phi_max, step=0.5 * math.pi, out=None, tol=2e-4 
                 w = csv.DictWriter(f, fieldnames=header, extrasaction="ignore")
                 if new:
                     w.writeheader()
-                w.writerow(row)
+                # An undefined value (Lk_gauss between whole turns) is an empty cell, not "nan".
+                w.writerow({key: "" if isinstance(v, float) and math.isnan(v) else v for key, v in row.items()})
             _savez(os.path.join(out, "steps", f"{direction}_{counter:04d}.npz"), q=e.q, phi=e.phi,
                    branch=point.branch, **extra)
 
@@ -228,6 +240,7 @@ def twist_study(scene, phi_min, phi_max, step=0.5 * math.pi, out=None, tol=2e-4 
 
         def on_point_saved(point):
             nonlocal counter
+            stop_if_cancelled()
             save_point(direction, counter, point)
             counter += 1
             if on_point is not None:
@@ -251,6 +264,7 @@ def twist_study(scene, phi_min, phi_max, step=0.5 * math.pi, out=None, tol=2e-4 
                     _savez(os.path.join(out, f"state_{direction}.npz"), **path_state.to_arrays())
                     _write_json(os.path.join(out, "time.json"),
                                 {"seconds_total": seconds_before + time.perf_counter() - t0})
+            stop_if_cancelled()  # after the state is on file: a resumed run goes on from it
 
         path = follow_twist(scene, 0.0, target, step=step, start=start if state is None else None, tol=tol,
                             k=k, negative_tol=critical["negative_tol"], max_switches=max_switches,
@@ -263,7 +277,7 @@ def twist_study(scene, phi_min, phi_max, step=0.5 * math.pi, out=None, tol=2e-4 
             if out:
                 _write_json(crit_path, critical)
 
-    _run_all(run_direction, todo, parallel)
+    _run_all(run_direction, todo, parallel, cancel)
     # Canonical order (plus before minus, each in the order of its steps; instabilities likewise),
     # whichever direction finished first: a parallel run writes the same files as a serial one.
     order = {"plus": 0, "minus": 1}
@@ -366,27 +380,50 @@ def _files_cover(out, critical, direction, n_points, n_instabilities):
     return steps and rows >= n_points and found >= n_instabilities
 
 
-def _run_all(run_direction, todo, parallel):
-    """run_direction(*task) for each task, in daemon threads when ``parallel`` and there are two
-    (so that Ctrl-C still stops the process); the first exception raised in a thread is raised here."""
+class _Cancelled(Exception):
+    """Raised inside a direction's thread at a saved state once the main thread was interrupted."""
+
+
+def _run_all(run_direction, todo, parallel, cancel):
+    """run_direction(*task) for each task, in threads when ``parallel`` and there are two; the
+    first exception raised in a thread is raised here. The main thread only waits (in short waits,
+    so that Ctrl-C and SIGTERM reach it); when it is interrupted it sets ``cancel``, waits until
+    every thread has stopped at its next saved state, and then re-raises the interrupt: no thread
+    is left inside XLA while the interpreter shuts down."""
     if not parallel or len(todo) < 2:
         for task in todo:
             run_direction(*task)
         return
     errors = []
+    # Each thread says when it has ended through an Event: the main thread waits on those, never
+    # in Thread.join, because a join interrupted by Ctrl-C marks the running thread as stopped
+    # (CPython 3.11's bpo-45274 handling), after which nothing waits for it any more.
+    done = [threading.Event() for _ in todo]
 
-    def target(task):
+    def target(task, finished):
         try:
             run_direction(*task)
+        except _Cancelled:
+            pass
         except BaseException as exc:  # noqa: BLE001 -- handed to the main thread
             errors.append(exc)
+        finally:
+            finished.set()
 
-    threads = [threading.Thread(target=target, args=(task,), daemon=True) for task in todo]
+    threads = [threading.Thread(target=target, args=(task, finished), daemon=True)
+               for task, finished in zip(todo, done)]
     for t in threads:
         t.start()
-    for t in threads:
-        while t.is_alive():
-            t.join(0.2)
+    try:
+        for finished in done:
+            while not finished.wait(0.2):
+                pass
+    except BaseException:
+        cancel.set()
+        for finished in done:
+            while not finished.wait(0.2):
+                pass
+        raise
     if errors:
         raise errors[0]
 
@@ -424,14 +461,37 @@ def _summarise(critical, table=None):
             trend[direction] = {"contact_count": float(cc[i] - cc[i0]), "radius_of_gyration": float(rg[i] - rg[i0]),
                                 "phi_last_symmetric": float(phi[i])}
     if len(trend) == 2:
-        # Tightening packs the strands together: more segment pairs in contact (and a radius of
-        # gyration that shrinks, or grows less); opening pulls them apart.
-        key = lambda d: (trend[d]["contact_count"], trend[d]["radius_of_gyration"])  # noqa: E731
-        tight = max(trend, key=key)
-        critical["tightening_side"] = "phi>0" if tight == "plus" else "phi<0"
+        tight = tightening_side({d: (t["contact_count"], t["radius_of_gyration"]) for d, t in trend.items()},
+                                scale=float(rg[np.argmax(at0)]))
         critical["symmetric_branch_change"] = trend
+        if tight == "equal":
+            # Mirror-image sides (an achiral knot relaxed to a mirror-symmetric shape): neither
+            # side tightens more, and a label decided by round-off would mean nothing.
+            critical["tightening_side"] = "equal"
+            critical["phi_tightening"] = critical["phi_opening"] = None
+            return
+        critical["tightening_side"] = "phi>0" if tight == "plus" else "phi<0"
         critical["phi_tightening"] = critical["phi_plus" if tight == "plus" else "phi_minus"]
         critical["phi_opening"] = critical["phi_minus" if tight == "plus" else "phi_plus"]
+
+
+# Two sides whose radius-of-gyration changes differ by less than this fraction of the radius of
+# gyration (with equal contact counts) are the same within the solver's accuracy (gtol 1e-9 in
+# scaled units moves it by ~1e-8 relative): seen 2e-8 mm on the mirror-symmetric figure-eight.
+SIDES_EQUAL_RTOL = 1e-6
+
+
+def tightening_side(changes, scale, rtol=SIDES_EQUAL_RTOL):
+    """Which side tightens: ``changes`` {'plus': (contact pairs gained, radius of gyration
+    change), 'minus': (...)} along each side's symmetric branch; ``scale`` a length to judge the
+    radius-of-gyration difference by (the radius of gyration itself). Tightening packs the strands
+    together: more segment pairs in contact, then a radius of gyration that shrinks (or grows
+    less); opening pulls them apart. Returns 'plus', 'minus', or 'equal' when the contact counts
+    agree and the radii differ by at most rtol * scale (mirror images: no side is the tighter)."""
+    (cc_plus, rg_plus), (cc_minus, rg_minus) = changes["plus"], changes["minus"]
+    if cc_plus == cc_minus and abs(rg_plus - rg_minus) <= rtol * abs(scale):
+        return "equal"
+    return "plus" if (cc_plus, -rg_plus) > (cc_minus, -rg_minus) else "minus"
 
 
 def study_summary(result):

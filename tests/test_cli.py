@@ -177,6 +177,13 @@ def test_trefoil_study_json_files_and_resume(tmp_path, capsys):
     for column in ("phi", "E_bend", "E_twist", "E_contact", "Wr", "Tw", "Lk_frames", "Lk_gauss", "n_negative",
                    "stable", "contact_count", "symmetry_order", "lambda_0"):
         assert column in header
+    # Issue 16, defect 6: the Gauss linking number of the drawn line exists only at whole turns
+    # (the line jumps at the joint otherwise): an empty cell there, not a rounded integer.
+    import csv
+
+    with open(out / "branch.csv", newline="") as f:
+        cells = {float(r["phi"]): r["Lk_gauss"] for r in csv.DictReader(f)}
+    assert cells[0.0] == "3.0" and all(cells[p] == "" for p in cells if p != 0.0), cells
     crit = json.loads((out / "critical.json").read_text())
     assert crit["phi_plus"] is None and sorted(crit["finished"]) == ["minus", "plus"]
     # Run again: everything is on file, nothing is recomputed, same answer.

@@ -1,11 +1,16 @@
-"""Notebooks run top to bottom."""
+"""Notebooks run top to bottom, from a working directory outside the repository (issue 16,
+defect 10: trefoil_twist.ipynb read '../benchmarks/results/...' and failed anywhere but in
+notebooks/). The kernel is told which notebook it runs, as Jupyter tells it (JPY_SESSION_NAME)."""
 import pathlib
 
 import nbformat
 import pytest
 from nbclient import NotebookClient
 
-NOTEBOOKS = sorted((pathlib.Path(__file__).parent.parent / "notebooks").glob("*.ipynb"))
+from jaxrod.paths import benchmark_results
+
+REPO = pathlib.Path(__file__).resolve().parent.parent
+NOTEBOOKS = sorted((REPO / "notebooks").glob("*.ipynb"))
 
 
 def test_there_are_notebooks():
@@ -13,6 +18,20 @@ def test_there_are_notebooks():
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
-def test_notebook_runs(path):
+def test_notebook_runs(path, tmp_path, monkeypatch):
+    monkeypatch.setenv("JPY_SESSION_NAME", str(path))
     nb = nbformat.read(path, as_version=4)
-    NotebookClient(nb, timeout=900, kernel_name="python3", resources={"metadata": {"path": str(path.parent)}}).execute()
+    NotebookClient(nb, timeout=900, kernel_name="python3", resources={"metadata": {"path": str(tmp_path)}}).execute()
+
+
+def test_benchmark_results_are_found_from_the_notebook_or_the_working_directory(tmp_path, monkeypatch):
+    target = REPO / "benchmarks" / "results" / "trefoil_critical.csv"
+    monkeypatch.delenv("JPY_SESSION_NAME", raising=False)
+    monkeypatch.chdir(REPO / "docs")  # a folder inside the repository: found above it
+    assert benchmark_results("trefoil_critical.csv") == target
+    monkeypatch.chdir(tmp_path)  # outside: from the notebook's own folder
+    assert benchmark_results("trefoil_critical.csv", notebook=REPO / "notebooks" / "x.ipynb") == target
+    monkeypatch.setenv("JPY_SESSION_NAME", str(REPO / "notebooks" / "trefoil_twist.ipynb"))
+    assert benchmark_results("trefoil_critical.csv") == target
+    with pytest.raises(FileNotFoundError, match="benchmarks/results/no_such.csv not found in or above"):
+        benchmark_results("no_such.csv")
