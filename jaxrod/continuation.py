@@ -27,7 +27,8 @@ from .solvers import ConvergenceError
 from .sparse_branch import solve_equilibrium_sparse, sparse_branch_analysis
 from .stability import DEFAULT_NEGATIVE_TOL, branch_analysis
 
-__all__ = ["ContinuationOptions", "Task", "PathStop", "StepFailure", "BranchEnd", "CriticalPoint", "critical_twist", "NoCrossingError", "BranchPoint", "Instability", "TwistPath", "follow_twist", "PathState", "Phase"]
+__all__ = ["check_dense_memory", "dense_memory_bytes", "available_memory_bytes", "default_negative_tol",
+           "ContinuationOptions", "Task", "PathStop", "StepFailure", "BranchEnd", "CriticalPoint", "critical_twist", "NoCrossingError", "BranchPoint", "Instability", "TwistPath", "follow_twist", "PathState", "Phase"]
 
 
 class StepFailure(enum.Enum):
@@ -168,7 +169,7 @@ class ContinuationOptions:
         defaults = {
             "step": span / 40.0 if critical else 0.25 * math.pi,
             "tol": 1e-6 * math.pi if critical else 2e-4 * math.pi,
-            "negative_tol": CONTACT_NEGATIVE_TOL if contact else DEFAULT_NEGATIVE_TOL,
+            "negative_tol": CONTACT_NEGATIVE_TOL if contact else default_negative_tol(scene),
             "gtol": CONTACT_GTOL if (contact and critical) else 1e-9,
             "jump_tol": _jump_tolerance(scene),
             "k": 8,
@@ -180,6 +181,24 @@ class ContinuationOptions:
         for key in ("k", "corrector_max_steps"):
             values[key] = check_int_at_least(key, values[key], 1)
         return ContinuationOptions(**values)
+
+
+# Without contact, an eigenvalue counts as negative below -NEGATIVE_TOL_FRACTION times the bending
+# scale (2 pi l / L)^4 of the rod (l the edge length, L the rod's length; in the scaled units the
+# softest ring modes sit at 7.2 (2 pi / N)^4: 7.0e-10 at N = 2000, ~1e-12 at N = 10000), and never
+# below DEFAULT_NEGATIVE_TOL. A fixed 1e-10 is far above those eigenvalues for N >~ 2000: the count
+# changed a whole pi after the crossing (a ring of N = 2000 reported 6.27 pi for 5.20 pi) or all k
+# eigenpairs computed were "near zero" (N >= 5800: "index 8 outside the 8 eigenpairs computed").
+# Rods of N <= 628 nodes keep 1e-10.
+NEGATIVE_TOL_FRACTION = 1e-2
+
+
+def default_negative_tol(scene):
+    """The continuations' negative tolerance for a scene without contact: DEFAULT_NEGATIVE_TOL,
+    or NEGATIVE_TOL_FRACTION (2 pi l / L)^4 where that is smaller (long rods, whose softest modes
+    go like N^-4 in the scaled units)."""
+    ratio = 2.0 * math.pi * float(scene.length_scale) / float(scene.length)
+    return min(DEFAULT_NEGATIVE_TOL, NEGATIVE_TOL_FRACTION * ratio**4)
 
 
 @dataclass(frozen=True)
@@ -351,6 +370,88 @@ class _Engine:
 # path is fast enough, and compiled already for most small scenes.
 _SPARSE_MIN_DOF = 1000
 
+# Memory of the dense path, in bytes: DENSE_HESSIAN_COPIES * 8 n^2 + DENSE_BYTES_PER_DOF * n for n
+# DOFs. The largest buffer is the compiled damped-Newton loop of ``relax`` (jaxrod.solvers: the
+# Hessian, its symmetrised and shifted copies, an identity, the Cholesky factors of the shift
+# search), allocated by XLA in one piece: its temporary buffer (``memory_analysis``) measured
+# 6.78, 6.59, 6.48 n^2 doubles for the trefoil at N = 121, 242, 484 (n = 4N), i.e. 6.37 n^2 + 241 n
+# doubles; that fit gives 81.55e9 bytes at N = 10000, where the allocation that failed (issue 16)
+# was 81.66e9. The analysis (projected Hessian: 5 n^2 temporary + n^2 out; then LAPACK's copy)
+# needs less; ``polyline_distance`` (~10 N^2 doubles) much less.
+DENSE_HESSIAN_COPIES = 6.4
+DENSE_BYTES_PER_DOF = 8 * 256
+# The interpreter, the JAX/XLA runtime and the compiled code, besides the arrays.
+PROCESS_BASE_BYTES = 1.0e9
+
+
+def dense_memory_bytes(n_dof):
+    """Bytes the dense linear algebra of a scene of ``n_dof`` DOFs needs at its peak (the
+    damped-Newton corrector's n x n buffers; see DENSE_HESSIAN_COPIES)."""
+    n = float(n_dof)
+    return 8.0 * DENSE_HESSIAN_COPIES * n * n + DENSE_BYTES_PER_DOF * n
+
+
+def available_memory_bytes():
+    """Memory this process may still use, in bytes: MemAvailable of /proc/meminfo (Linux), else
+    the physical memory (os.sysconf); a cgroup (container) limit, where lower, wins. None if
+    unknown."""
+    import os
+
+    found = None
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    found = float(line.split()[1]) * 1024.0
+                    break
+    except OSError:
+        pass
+    if found is None:
+        try:
+            found = float(os.sysconf("SC_PHYS_PAGES")) * float(os.sysconf("SC_PAGE_SIZE"))
+        except (ValueError, OSError, AttributeError):
+            pass
+    cgroups = (("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),  # v2, then v1
+               ("/sys/fs/cgroup/memory/memory.limit_in_bytes", "/sys/fs/cgroup/memory/memory.usage_in_bytes"))
+    for path, used_path in cgroups:
+        try:
+            with open(path) as f:
+                limit = f.read().strip()
+            if limit == "max" or float(limit) >= 2.0**60:
+                continue
+            with open(used_path) as f:
+                left = float(limit) - float(f.read().strip())
+            found = left if found is None else min(found, left)
+        except (OSError, ValueError):
+            continue
+    return found
+
+
+def check_dense_memory(scene, available=None):
+    """Refuse (ValueError naming N, before anything is compiled) a scene whose dense Hessian does
+    not fit in memory: ``dense_memory_bytes(scene.n_dof)`` plus PROCESS_BASE_BYTES against
+    ``available`` bytes (default ``available_memory_bytes()``; nothing is checked when unknown).
+    The message names the largest N that fits. scene: a scene, or any object with ``n_dof`` and
+    ``n_nodes`` (to check before a long scene build). Returns the estimate in bytes."""
+    need = dense_memory_bytes(scene.n_dof)
+    avail = available_memory_bytes() if available is None else float(available)
+    if avail is None or need + PROCESS_BASE_BYTES <= avail:
+        return need
+    n_nodes = int(scene.n_nodes)
+    per_node = scene.n_dof / n_nodes
+    # Largest n with 8 c n^2 + b n <= avail - base, then the nodes it allows.
+    a, b, c = 8.0 * DENSE_HESSIAN_COPIES, float(DENSE_BYTES_PER_DOF), -(avail - PROCESS_BASE_BYTES)
+    n_max = (-b + math.sqrt(max(b * b - 4.0 * a * c, 0.0))) / (2.0 * a) if c < 0.0 else 0.0
+    n_nodes_max = int(math.floor(n_max / per_node))
+    while n_nodes_max > 0 and dense_memory_bytes(math.ceil(per_node * n_nodes_max)) + PROCESS_BASE_BYTES > avail:
+        n_nodes_max -= 1
+    gb = lambda v: f"{v / 1e9:.0f} GB" if v >= 10e9 else f"{v / 1e9:.1f} GB"  # noqa: E731
+    advice = f"use N at most {n_nodes_max}" if n_nodes_max > 0 else "no N fits"
+    raise ValueError(
+        f"N {n_nodes} needs about {gb(need)} of memory for the dense Hessian ({scene.n_dof} DOFs: the Newton "
+        f"corrector holds ~{DENSE_HESSIAN_COPIES:g} copies of the {scene.n_dof} x {scene.n_dof} matrix); this machine "
+        f"has {gb(avail)} available: {advice}")
+
 
 def _use_sparse(scene, linear_algebra):
     """Whether ``critical_twist`` uses the block path (see its ``linear_algebra``)."""
@@ -361,6 +462,21 @@ def _use_sparse(scene, linear_algebra):
     if linear_algebra == "auto":
         return "contact" not in scene.terms and scene.n_dof >= _SPARSE_MIN_DOF
     return linear_algebra == "sparse"
+
+
+# Eigenpairs computed beyond the tracked index or the negative count (the sparse path computes
+# only k of them): room for a degenerate pair crossing and the mode above it.
+K_MARGIN = 4
+
+
+def _grown_engine(engine, needed):
+    """``engine`` itself if its k eigenpairs reach index ``needed`` + K_MARGIN - 1 (needed: the
+    tracked index or the negative count), else a copy with k = needed + K_MARGIN (sparse path
+    only: the dense one computes LOWEST_COUNT eigenpairs whatever k)."""
+    k = needed + K_MARGIN
+    if not engine.sparse or k <= engine.opts.k or engine.opts.k >= engine.scene.n_dof:
+        return engine
+    return replace(engine, opts=replace(engine.opts, k=min(k, int(engine.scene.n_dof))))
 
 
 def critical_twist(
@@ -398,7 +514,9 @@ def critical_twist(
     Newton, inertia, eigenpairs and tangent of ``jaxrod.sparse_branch``: O(n) per step; not with
     contact) or "auto" (sparse for scenes without contact with n_dof >= 1000, else dense). With
     "sparse" the stability's eigenvectors are the k lowest only, so the crossing mode must be
-    among them (k > the negative count). Returns a ``CriticalPoint``; raises
+    among them: k grows (to the negative count or the tracked index plus K_MARGIN) where needed.
+    The dense path refuses a scene whose n x n Hessian does not fit in memory
+    (``check_dense_memory``, before anything is compiled). Returns a ``CriticalPoint``; raises
     ``NoCrossingError`` if the count never changes before phi_stop.
     """
     t0 = time.perf_counter()
@@ -415,7 +533,10 @@ def critical_twist(
     say = progress or (lambda s: None)
     stepped = on_step or (lambda phi, n_negative: None)
     sparse = _use_sparse(scene, linear_algebra)
+    if not sparse:
+        check_dense_memory(scene)
     engine = _Engine(scene, Task.CRITICAL_TWIST, opts, sparse)
+    k_scan = k  # eigenvalues kept per scan entry (the engine may compute more)
 
     if contact:
         relaxed = relax(scene, phi_start, q0, with_stability=False, gtol=gtol)
@@ -426,14 +547,19 @@ def critical_twist(
     else:
         relaxed = solve_equilibrium(scene, phi_start, q0, method="auto", with_stability=False, gtol=gtol)
     start = engine.analysed(relaxed)
-    count0 = int(start.equilibrium.stability.n_negative)
-    # The eigenvalue that crosses next: the lowest one clearly above zero (near-zero modes skipped).
-    ev0 = start.equilibrium.stability.eigenvalues
-    index = int(np.sum(ev0 < negative_tol)) if ev0.size else 0
+    while True:
+        count0 = int(start.equilibrium.stability.n_negative)
+        # The eigenvalue that crosses next: the lowest one clearly above zero (near-zero modes skipped).
+        ev0 = start.equilibrium.stability.eigenvalues
+        index = int(np.sum(ev0 < negative_tol)) if ev0.size else 0
+        grown = _grown_engine(engine, max(index, count0))
+        if grown is engine:
+            break
+        engine, start = grown, grown.analysed(relaxed)
     if index != 0:
         start = engine.analysed(relaxed, index)
     prev, dq, lam_t, dlam_t = start.equilibrium, start.tangent, start.eigenvalue, start.dlambda_dphi
-    scan = [(prev.phi, count0, prev.stability.eigenvalues.copy())]
+    scan = [(prev.phi, count0, prev.stability.eigenvalues[:k_scan].copy())]
     say(f"phi = {prev.phi / math.pi:+.4f} pi: {count0} negative, lowest {prev.stability.eigenvalues[0]:.3e}")
 
     # Scan with a tangent predictor until the count changes.
@@ -459,8 +585,13 @@ def critical_twist(
             say(f"corrector failed at phi = {phi_next / math.pi:+.4f} pi: step halved to {h:.3e}")
             continue
         cur = s.equilibrium
+        grown = _grown_engine(engine, int(cur.stability.n_negative))
+        if grown is not engine:  # the crossing mode must be among the eigenpairs computed at cur
+            engine = grown
+            s = engine.analysed(cur, index, guess=cur.stability.eigenvalues[0])
+            cur = s.equilibrium
         stepped(cur.phi, int(cur.stability.n_negative))
-        scan.append((cur.phi, cur.stability.n_negative, cur.stability.eigenvalues.copy()))
+        scan.append((cur.phi, cur.stability.n_negative, cur.stability.eigenvalues[:k_scan].copy()))
         say(
             f"phi = {cur.phi / math.pi:+.4f} pi: {cur.stability.n_negative} negative, "
             f"lowest {cur.stability.eigenvalues[:3]}"
@@ -496,6 +627,14 @@ def critical_twist(
         # change (the sign tests below rely on it).
         lo, evals = before, 3
         _, f_lo, d_lo, v_lo, dq_lo = engine.analyse(lo, ref=v_hi, guess=lo.stability.eigenvalues[0])
+    if np.sign(f_lo) == np.sign(f_hi):
+        # No sign change of the crossing eigenvalue in the bracket: a refinement would converge
+        # on a bracket end and report it as phi* (seen: 6.27 pi for 5.20 pi, N = 2000 ring with
+        # a fixed negative_tol = 1e-10 far above its eigenvalues).
+        raise ConvergenceError(
+            f"critical twist: the crossing eigenvalue has the same sign ({f_lo:.3e}, {f_hi:.3e}) at both ends "
+            f"of the bracket [{lo.phi:.8g}, {hi.phi:.8g}] where the negative count changed: negative_tol = "
+            f"{negative_tol:.3g} is not small against the eigenvalues")
     evals = max(evals, 2)
     bracket = (lo.phi, hi.phi)
     # First guess: Newton from the stable end if it stays inside the bracket, else secant.
@@ -572,8 +711,10 @@ class BranchPoint:
 class Instability:
     """Where a followed stable branch stops being one.
 
-    phi: estimate (the bracket's midpoint); phi_error: half the bracket; bracket: (last stable
-    twist reached, nearest twist where the branch was lost); kind: 'unstable' (the corrector
+    phi: estimate, inside the bracket (the critical eigenvalue extrapolated from the last stable
+    state, see ``_locate``); phi_error: its distance to the bracket's far end (so the whole
+    bracket lies within phi +- phi_error); bracket: (last stable twist reached, nearest twist
+    where the branch was lost, or where its critical eigenvalue was found negative); kind: 'unstable' (the corrector
     still converged on the branch, which had acquired negative eigenvalues) or 'jump' (the
     minimiser left the branch: a fold, or a subcritical bifurcation whose unstable branch it
     cannot stay on); multiplicity: how many eigenvalues go soft together (2 for a symmetric
@@ -657,7 +798,10 @@ class PathState:
     (a study keeps as many rows and instabilities on file); lost_*: the nearest twist where the
     branch was lost, the refusal there and its state, and from which twist it was tried;
     failures / successes / probe_held: the end locator's memory (see ``_end_trial``);
-    stop / reason: why the run stopped (phase DONE).
+    stop / reason: why the run stopped (phase DONE); critical_modes: (n, m) eigenvectors (scaled
+    DOFs) of the eigenvalues below -negative_tol where the branch was lost unstable (None
+    otherwise): while the end is located, a state whose eigenvalue along them is negative, even
+    inside the near-zero band, is past the end (``_past_zero``).
     """
 
     phase: Phase
@@ -678,6 +822,7 @@ class PathState:
     probe_held: bool = False
     stop: PathStop | None = None
     reason: str = ""
+    critical_modes: np.ndarray | None = field(default=None, repr=False)
 
     def to_arrays(self):
         """The state as a dict of numpy arrays (for ``np.savez``)."""
@@ -690,6 +835,8 @@ class PathState:
         if self.lost_refusal is not None:
             out["lost_failure"] = np.asarray(self.lost_refusal.failure.value)
             out["lost_detail"] = np.asarray(self.lost_refusal.detail)
+        if self.critical_modes is not None:
+            out["critical_modes"] = np.asarray(self.critical_modes)
         for name in ("prev", "older", "lost_equilibrium"):
             e = getattr(self, name)
             if e is not None:
@@ -735,6 +882,7 @@ class _StoredPathState:
             n_instabilities=int(a["n_instabilities"]), lost_phi=float(a["lost_phi"]), lost_from=float(a["lost_from"]),
             lost_refusal=refusal, lost_equilibrium=lost, failures=int(a["failures"]), successes=int(a["successes"]),
             probe_held=bool(a["probe_held"]), stop=PathStop(stop) if stop else None, reason=str(a["reason"]),
+            critical_modes=np.asarray(a["critical_modes"]) if "critical_modes" in a else None,
         )
 
 
@@ -792,10 +940,12 @@ def follow_twist(
     place of phi_start / q0 / start / branch (the same scene, phi_stop and tolerances must be
     given). The run is deterministic, so a resumed run reports exactly the points and
     instabilities that the uninterrupted one reports after that state. Returns a ``TwistPath``
-    (with the points and instabilities of this call).
+    (with the points and instabilities of this call). A scene whose dense n x n Hessian does not
+    fit in memory is refused at once (``check_dense_memory``: ValueError naming N).
     """
     t0 = time.perf_counter()
     phi_stop = check_finite("phi_stop", 8.0 * math.pi if phi_stop is None else phi_stop)
+    check_dense_memory(scene)  # follow_twist is dense: refuse before anything is compiled
     opts = (options or ContinuationOptions()).updated(step=step, tol=tol, negative_tol=negative_tol, gtol=gtol,
                                                       jump_tol=jump_tol, k=k)
     points, instabilities = [], []
@@ -898,8 +1048,41 @@ class _Follower:
         # there to tol, aiming each trial with a model of the critical eigenvalue (a few solves
         # where bisection needs ~log2(step/tol) ~ 11).
         self.say(f"[{state.branch}] lost at phi = {phi_next / math.pi:+.5f} pi ({s.refusal}); locating the end")
+        critical = self._critical_modes(s, None)
+        lam = _past_zero(critical, prev)
+        if lam is not None and state.older is not None and _past_zero(critical, state.older) is None:
+            # The last accepted state already has the critical eigenvalue below zero (inside the
+            # near-zero band, so the stability test let it pass): the end lies between the state
+            # before it and it. Locate it there, from the state before.
+            self.say(f"[{state.branch}] phi = {prev.phi / math.pi:+.5f} pi is past the end already (critical "
+                     f"eigenvalue {lam:.3e}); locating it from phi = {state.older.phi / math.pi:+.5f} pi")
+            back = self.engine.analysed(state.older)
+            return replace(state, phase=Phase.LOCATE, prev=back.equilibrium, tangent=back.tangent, older=None,
+                           lost_phi=prev.phi, lost_refusal=_Refusal(StepFailure.UNSTABLE, _band_detail(lam)),
+                           lost_equilibrium=prev, lost_from=state.older.phi, failures=0, successes=0,
+                           probe_held=False, critical_modes=critical)
         return replace(state, phase=Phase.LOCATE, lost_phi=phi_next, lost_refusal=s.refusal,
-                       lost_equilibrium=s.equilibrium, lost_from=prev.phi, failures=0, successes=0, probe_held=False)
+                       lost_equilibrium=s.equilibrium, lost_from=prev.phi, failures=0, successes=0, probe_held=False,
+                       critical_modes=critical)
+
+    def _critical_modes(self, s, current):
+        """The critical modes for ``PathState.critical_modes`` after the refused step s: the
+        eigenvectors of its eigenvalues below -negative_tol where it converged unstable, else
+        ``current``."""
+        if s.refusal is None or s.refusal.failure is not StepFailure.UNSTABLE:
+            return current
+        found = _negative_modes(s.equilibrium, self.engine.opts.negative_tol)
+        return current if found is None else found
+
+    def _unless_past_zero(self, state, s):
+        """The accepted step s, or s refused (UNSTABLE) when its critical eigenvalue is already
+        negative (see ``PathState.critical_modes``)."""
+        if not s.ok:
+            return s
+        lam = _past_zero(state.critical_modes, s.equilibrium)
+        if lam is None:
+            return s
+        return replace(s, refusal=_Refusal(StepFailure.UNSTABLE, _band_detail(lam)))
 
     def _locate(self, state):
         tol, prev = self.engine.opts.tol, state.prev
@@ -908,23 +1091,25 @@ class _Follower:
             # the last stable state, so that a predictor too far off is not taken for the end.
             return replace(state, phase=Phase.CONFIRM if abs(state.lost_phi - state.lost_from) > tol else Phase.END)
         trial, probe = _end_trial(state.older, prev, state.lost_phi, state.lost_equilibrium, self.direction, tol,
-                                  self.engine.opts.negative_tol, state.failures, state.probe_held, state.successes)
-        s = self.engine.step(prev, state.tangent, trial)
+                                  self.engine.opts.negative_tol, state.failures, state.probe_held, state.successes,
+                                  state.critical_modes)
+        s = self._unless_past_zero(state, self.engine.step(prev, state.tangent, trial))
         if s.ok:
             return self._accept(state, s, failures=0, successes=state.successes + 1, probe_held=probe)
         self.say(f"[{state.branch}] phi = {trial / math.pi:+.5f} pi refused ({s.refusal})")
         return replace(state, lost_phi=trial, lost_refusal=s.refusal, lost_equilibrium=s.equilibrium,
-                       lost_from=prev.phi, failures=state.failures + 1, successes=0, probe_held=False)
+                       lost_from=prev.phi, failures=state.failures + 1, successes=0, probe_held=False,
+                       critical_modes=self._critical_modes(s, state.critical_modes))
 
     def _confirm(self, state):
-        s = self.engine.step(state.prev, state.tangent, state.lost_phi)
+        s = self._unless_past_zero(state, self.engine.step(state.prev, state.tangent, state.lost_phi))
         if not s.ok:
             return replace(state, phase=Phase.END, lost_refusal=s.refusal, lost_equilibrium=s.equilibrium)
         self.say(f"[{state.branch}] phi = {state.lost_phi / math.pi:+.5f} pi reached from closer by: going on")
         # The step that failed was too long for the predictor, not past the end: go on with half
         # of it (not from 2 tol, which needs ~10 doublings back to ``step``).
         h = max(2.0 * self.engine.opts.tol, 0.5 * abs(state.lost_phi - state.lost_from))
-        return self._accept(state, s, phase=Phase.FOLLOW, h=h)
+        return self._accept(state, s, phase=Phase.FOLLOW, h=h, critical_modes=None)
 
     def _end(self, state):
         engine, prev, direction, lost_phi = self.engine, state.prev, self.direction, state.lost_phi
@@ -953,21 +1138,62 @@ class _Follower:
         state = replace(state, phase=Phase.FOLLOW, branch=new_name, prev=found.equilibrium, tangent=found.tangent,
                         older=None, h=engine.opts.step, switches=state.switches + 1, lost_phi=math.nan,
                         lost_from=math.nan, lost_refusal=None, lost_equilibrium=None, failures=0, successes=0,
-                        probe_held=False)
+                        probe_held=False, critical_modes=None)
         # The new branch's first point, after its instability (a study then has both on file).
         return self.emit(state, found)
 
 
-def _critical_candidates(older, prev, negative_tol, candidates=5):
+# A state's eigenvector belongs to the critical modes when its projection on them has at least
+# this norm (the overlap the end locator uses to match eigenvectors between states).
+_CRITICAL_OVERLAP = 0.5
+
+
+def _negative_modes(e, negative_tol):
+    """(n, m) eigenvectors of the equilibrium e's eigenvalues below -negative_tol (the modes that
+    made it unstable), or None."""
+    if e is None or e.stability is None:
+        return None
+    st = e.stability
+    neg = np.asarray(st.eigenvalues) < -negative_tol
+    if not np.any(neg):
+        return None
+    return np.asarray(st.eigenvectors)[:, neg].copy()
+
+
+def _past_zero(critical_modes, e):
+    """The eigenvalue of the equilibrium e that is negative along ``critical_modes`` ((n, m), or
+    None), or None: e is then past the zero of the critical eigenvalue, though the stability test
+    (lambda < -negative_tol) passed it. The near-zero band is there for the sliding modes of a
+    loose knot (|lambda| ~ 1e-7, changing sign from step to step); the mode that made the branch
+    unstable is not one of them, and where it crosses zero is where the branch ends (issue 16:
+    a critical eigenvalue of slope -1.2e-5 per rad passes -1e-6 only 0.085 rad after zero)."""
+    if critical_modes is None or e is None or e.stability is None:
+        return None
+    st = e.stability
+    lam, vec = np.asarray(st.eigenvalues), np.asarray(st.eigenvectors)
+    for j in np.nonzero(lam < 0.0)[0]:
+        if np.linalg.norm(critical_modes.T @ vec[:, j]) > _CRITICAL_OVERLAP:
+            return float(lam[j])
+    return None
+
+
+def _band_detail(lam):
+    return f"the critical eigenvalue is {lam:.3e} < 0 (inside the near-zero band)"
+
+
+def _critical_candidates(older, prev, negative_tol, candidates=5, critical_modes=None):
     """(lambda_prev, lambda_older, eigenvector) of the lowest eigen-modes of ``prev`` above the
-    near-zero band, each matched in ``older`` by eigenvector overlap (no new spectrum needed)."""
+    near-zero band (or inside it, when along ``critical_modes``: the mode that made the branch
+    unstable, about to cross zero), each matched in ``older`` by eigenvector overlap (no new
+    spectrum needed)."""
     st, so = prev.stability, older.stability
     if st is None or so is None:
         return []
     out = []
     for j in range(min(candidates, len(st.eigenvalues))):
         lam = float(st.eigenvalues[j])
-        if abs(lam) <= negative_tol:
+        if abs(lam) <= negative_tol and (critical_modes is None or np.linalg.norm(
+                critical_modes.T @ np.asarray(st.eigenvectors[:, j])) <= _CRITICAL_OVERLAP):
             continue
         v = np.asarray(st.eigenvectors[:, j])
         ov = np.abs(np.asarray(so.eigenvectors).T @ v)
@@ -975,17 +1201,19 @@ def _critical_candidates(older, prev, negative_tol, candidates=5):
     return out
 
 
-def _end_trial(older, prev, phi_lost, lost_eq, direction, tol, negative_tol, failures, probe_held, successes=0):
+def _end_trial(older, prev, phi_lost, lost_eq, direction, tol, negative_tol, failures, probe_held, successes=0,
+               critical_modes=None):
     """The next twist to try when locating where a branch ends, between the last stable state
     ``prev`` and the nearest twist ``phi_lost`` where the branch was lost. Returns (phi, probe).
 
     Model: near a fold the critical eigenvalue goes like sqrt(phi* - phi), so lambda^2 is linear
     in phi; its secant through ``older`` and ``prev`` (the mode that reaches zero first) gives
     phi*, never beyond it at a transversal crossing (where it lands short). When the lost state
-    is an equilibrium with a negative eigenvalue (a crossing), lambda is interpolated linearly
-    between the two ends instead. The trial aims 0.3 tol short of phi*, or, when the stable end
-    is already there, probes 0.9 tol beyond it (probe = True), so that a good model closes the
-    bracket to tol in two solves. Safeguards: bisection when there is no model, after two
+    is an equilibrium with a negative critical eigenvalue (a crossing), lambda is interpolated
+    linearly between the two ends instead, to its zero (``critical_modes``: the modes that made
+    the branch unstable, whose eigenvalue is a candidate even inside the near-zero band). The
+    trial aims 0.3 tol short of phi*, or, when the stable end is already there, probes 0.9 tol
+    beyond it (probe = True), so that a good model closes the bracket to tol in two solves. Safeguards: bisection when there is no model, after two
     failures or two successes in a row (a model that keeps landing short converges on a point
     that is not the end: the stable end would creep towards it), after a probe that held, or
     when the model lands outside the inner 90% of the bracket."""
@@ -994,17 +1222,16 @@ def _end_trial(older, prev, phi_lost, lost_eq, direction, tol, negative_tol, fai
     if failures >= 2 or successes >= 2 or probe_held or older is None or older.phi == prev.phi:
         return mid, False
     estimates = []
-    for lam, lam_old, v in _critical_candidates(older, prev, negative_tol):
+    for lam, lam_old, v in _critical_candidates(older, prev, negative_tol, critical_modes=critical_modes):
         if lam <= 0.0:
             continue
         if lost_eq is not None and lost_eq.stability is not None:
             ov = np.abs(np.asarray(lost_eq.stability.eigenvectors).T @ v)
             lam_lost = float(lost_eq.stability.eigenvalues[int(np.argmax(ov))])
-            if lam_lost < -negative_tol and ov.max() > 0.5:
-                # The branch is lost where lambda passes -negative_tol (the stability test's
-                # threshold), not where it passes zero: aim there, or the lost end creeps
-                # towards a lambda of -negative_tol and the bracket barely shrinks.
-                estimates.append(prev.phi + (phi_lost - prev.phi) * (lam + negative_tol) / (lam - lam_lost))
+            if lam_lost < 0.0 and ov.max() > _CRITICAL_OVERLAP:
+                # The branch is lost where lambda passes zero: a state whose critical eigenvalue
+                # is negative, even inside the near-zero band, is past the end (``_past_zero``).
+                estimates.append(prev.phi + (phi_lost - prev.phi) * lam / (lam - lam_lost))
                 continue
         slope = (lam**2 - lam_old**2) / (prev.phi - older.phi)  # d(lambda^2)/dphi
         if direction * slope < 0.0 and lam < lam_old:
@@ -1025,20 +1252,23 @@ def _end_trial(older, prev, phi_lost, lost_eq, direction, tol, negative_tol, fai
 
 
 def _locate(phi_stable, phi_lost, lam, dlam, direction):
-    """phi* from the last stable state: the eigenvalue's Newton extrapolation phi - lam/dlam when
-    it is close (it is exact to second order for a crossing, also when a slightly negative
-    eigenvalue hid in the near-zero band; for a fold it lands within the bracket), otherwise the
-    bracket midpoint. The error bound is half the bracket, or 10% of the extrapolation distance
-    when that is larger."""
-    mid, half = 0.5 * (phi_stable + phi_lost), 0.5 * abs(phi_lost - phi_stable)
-    if dlam == 0.0 or not math.isfinite(dlam):
-        return mid, half
-    newton = phi_stable - lam / dlam
-    reach = abs(newton - phi_stable)
-    ahead = direction * (newton - phi_stable)
-    if ahead <= 2.0 * half and reach <= max(40.0 * half, 0.1 * math.pi):
-        return newton, max(half, 0.1 * reach)
-    return mid, half
+    """(phi*, error) for a branch end bracketed by the last stable twist ``phi_stable`` and the
+    nearest twist ``phi_lost`` where the branch was lost: the critical eigenvalue's Newton
+    extrapolation phi_stable - lam/dlam from the stable end where it lands inside the bracket (at
+    a crossing it is exact to second order; at a fold, where lambda goes like a square root, it
+    lands short, inside), otherwise the bracket's midpoint. The end lies in the bracket, so the
+    error bound is the distance from phi* to the bracket's far end (half the bracket at the
+    midpoint). (An extrapolation behind the stable end, from a critical eigenvalue already
+    negative there, used to be taken up to 0.1 pi back: issue 16, phi* 0.085 rad before a bracket
+    of 4e-4 rad. The end locator now keeps such states out of the stable end: ``_past_zero``.)"""
+    a, b = sorted((phi_stable, phi_lost))
+    mid = 0.5 * (a + b)
+    phi = mid
+    if dlam != 0.0 and math.isfinite(dlam) and math.isfinite(lam):
+        newton = phi_stable - lam / dlam
+        if a <= newton <= b:
+            phi = newton
+    return phi, max(phi - a, b - phi)
 
 
 def _next_branch_name(name):

@@ -100,6 +100,10 @@ def eigenvalue_branch_derivative(scene, u, phi, v, du, nbr):
     return jax.jvp(vhv, (u, phi), (du, jnp.ones_like(phi)))[1]
 
 
+# Eigenpairs computed beyond the tracked index when it is not below k.
+_EXTRA_PAIRS = 4
+
+
 def sparse_branch_analysis(scene, q, phi, index, k=8, tol=DEFAULT_NEGATIVE_TOL, cluster_rtol=None, ref=None,
                            pinv_tol=0.0, nbr=None, guess=None):
     """``jaxrod.stability.branch_analysis`` in O(N) (no contact): at an equilibrium q (n,)
@@ -107,9 +111,10 @@ def sparse_branch_analysis(scene, q, phi, index, k=8, tol=DEFAULT_NEGATIVE_TOL, 
     physical DOFs).
 
     n_negative: ``inertia_at_equilibrium`` (the whole spectrum's count below -tol); eigenvalues /
-    eigenvectors (k,) / (n, k): ``lowest_eigenpairs_projected``. The tracked mode is number
-    ``index`` of those k, or with ``ref`` (n,) the one overlapping it most (so it must be among
-    the k lowest). The tangent is the minimum-norm one (``sparse_stability.tangent``); the dense
+    eigenvectors (m,) / (n, m): ``lowest_eigenpairs_projected``, m = k, or index + 4 where the
+    tracked index is not below k. The tracked mode is number
+    ``index`` of those m, or with ``ref`` (n,) the one overlapping it most (so it must be among
+    the m lowest). The tangent is the minimum-norm one (``sparse_stability.tangent``); the dense
     code also leaves the tracked mode's cluster out of it, which changes nothing on a symmetric
     branch (its tangent has no component along the symmetry-breaking critical modes).
     guess: an estimate of the lowest eigenvalue (the previous step's), which saves 8 of the 9
@@ -120,13 +125,18 @@ def sparse_branch_analysis(scene, q, phi, index, k=8, tol=DEFAULT_NEGATIVE_TOL, 
     u = scene.to_scaled(np.asarray(q, dtype=float))
     if nbr is None:
         nbr = scene.neighbourhood(jnp.asarray(q), phi)
+    index = int(index)
+    if index < 0:
+        raise ValueError(f"index must be >= 0, got {index}")
     n_neg = int(ss.inertia_at_equilibrium(scene, u, phi, nbr, tol))
+    # The tracked eigenpair must be among those computed: k, or more when the index needs it.
+    k = int(k) if index < int(k) else min(index + _EXTRA_PAIRS, int(u.shape[0]) - int(scene.n_zero_modes))
     pairs = ss.lowest_eigenpairs_projected(scene, u, phi, nbr, k, guess=guess)
     lam, vec = np.asarray(pairs.values), np.asarray(pairs.vectors)
     if ref is not None and np.any(np.asarray(ref) != 0.0):
         index = int(np.argmax(np.abs(vec.T @ np.asarray(ref))))
-    if not 0 <= index < lam.shape[0]:
-        raise ValueError(f"index {index} outside the {lam.shape[0]} eigenpairs computed (raise k)")
+    if not index < lam.shape[0]:
+        raise ValueError(f"index {index}: the scene has only {lam.shape[0]} eigenpairs")
     du = ss.tangent(scene, u, phi, nbr)
     v = jnp.asarray(vec[:, index])
     dlam = float(eigenvalue_branch_derivative(scene, u, jnp.asarray(phi, u.dtype), v, du, nbr))

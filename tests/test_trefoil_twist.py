@@ -18,6 +18,13 @@ from jaxrod.study import read_table, twist_study
 PI = math.pi
 
 
+def _assert_inside_its_bracket(inst):
+    """Issue 16 (defect 7): phi* lies in its bracket, and phi_error covers the whole bracket."""
+    lo, hi = sorted(inst.bracket)
+    assert lo <= inst.phi <= hi, (inst.phi, inst.bracket)
+    assert inst.phi_error >= max(inst.phi - lo, hi - inst.phi)
+
+
 @pytest.fixture(scope="module")
 def opening():
     scene = jr.trefoil(D=8.0, L=292.0, N=61)
@@ -40,6 +47,7 @@ def test_branch_ends_switches_and_goes_on(opening):
     a, b = inst.bracket
     assert abs(b - a) <= 1e-3 * PI
     assert inst.phi_error <= 1e-3 * PI
+    _assert_inside_its_bracket(inst)
     # The opening side of a loose trefoil at D/L = 0.027 buckles between Michell's ring value
     # (5.20 pi, the loose limit) and 8 pi (the paper's opening value): here 6.60 pi at N = 61.
     assert 6.0 * PI < inst.phi < 7.2 * PI
@@ -168,6 +176,7 @@ def test_follow_twist_locates_michell_like_critical_twist():
     cp = jr.critical_twist(ring, 0.0, 1.5 * analytic, step=analytic / 4)
     assert abs(inst.phi - cp.phi) <= inst.phi_error
     assert abs(inst.phi - cp.phi) < 1e-6 * PI  # the extrapolation is far better than the bracket
+    _assert_inside_its_bracket(inst)
     assert all(p.equilibrium.stable for p in path.points)
 
 
