@@ -1,0 +1,23 @@
+"""Pseudo-arclength continuation with event detection and exact location, for gradient systems.
+
+    prob = BifurcationProblem(energy, u0, p0)          # F = grad_u E(u, p, args), J symmetric
+    br = continuation(prob, PseudoArclength(), ContinuationOptions(ds=-0.1, p_max=2))
+    br.events                                           # folds and branch points, located
+    branches = switch_branches(prob, br.events[0], PseudoArclength(), opts)
+    curve = fold_curve(prob, fold_event, set_mu, mu0, PseudoArclength(), opts_mu)
+
+Modules: problem (F, J, F_p by JAX), linalg (backends), options, results, corrector (tangent,
+bordered Newton, step control), continuation (the entry), events (detection), locate (extended
+systems), switching (reduced equations at branch points), two_parameter (fold curves).
+"""
+from .continuation import continuation
+from .linalg import DenseBackend
+from .options import ContinuationOptions, PseudoArclength
+from .problem import BifurcationProblem
+from .results import Branch, ContinuationError, Event, Point, Result
+from .switching import Emanating, emanating_directions, switch_branches
+from .two_parameter import FoldCurve, fold_curve
+
+__all__ = ["BifurcationProblem", "DenseBackend", "ContinuationOptions", "PseudoArclength", "continuation",
+           "Branch", "Point", "Event", "Result", "ContinuationError", "Emanating", "emanating_directions",
+           "switch_branches", "FoldCurve", "fold_curve"]

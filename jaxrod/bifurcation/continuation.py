@@ -1,0 +1,77 @@
+"""The entry point: ``continuation(problem, algorithm, options)`` -> Branch."""
+from __future__ import annotations
+
+import numpy as np
+
+from .corrector import advance, correct, tangent
+from .events import find_events
+from .results import Branch, ContinuationError, Point, Result
+
+
+def _point(problem, opts, c, t, ds, arclength):
+    spectrum = problem.backend.spectrum
+    vals, vecs, morse = spectrum(c.lin[1], opts.n_eig, problem.n_zero_modes, opts.eig_rtol)
+    if morse + 2 > opts.n_eig:  # keep the eigenpairs that can cross next (the locators start from them)
+        vals, vecs, morse = spectrum(c.lin[1], morse + 2, problem.n_zero_modes, opts.eig_rtol)
+    return Point(c.z[:-1].copy(), float(c.z[-1]), t, vals, vecs, morse, c.iterations, ds, arclength)
+
+
+def continuation(problem, alg, opts, *, observer=None, start=None, throw=True):
+    """Follow the branch of F(u, p) = 0 through (problem.u0, problem.p0) by ``alg`` (PseudoArclength).
+
+    start: optional (u (n,), p, tangent (n+1,)): a predicted point and direction (a branch switch);
+    the first point is then corrected on the hyperplane through it orthogonal to the tangent,
+    otherwise on p = p0, and the path starts towards sign(opts.ds) in p.
+    observer(point) is called after each accepted point. Folds and branch points found between
+    consecutive points are located (``Branch.events``). throw=True raises ContinuationError (with
+    ``.branch``) when the corrector fails or an event is not located to ``opts.event_tol``;
+    throw=False returns the branch with ``result`` and ``message`` saying so.
+    """
+    be, args = problem.backend, problem.args
+
+    def lin(u, p):
+        return problem.linearise(u, p, args)
+
+    if start is None:
+        z_pred = np.append(np.asarray(problem.u0), problem.p0)
+        t0 = np.zeros(problem.n + 1)
+        t0[-1] = np.sign(opts.ds)
+    else:
+        z_pred = np.append(np.asarray(start[0], dtype=float), float(start[1]))
+        t0 = np.asarray(start[2], dtype=float) / np.linalg.norm(start[2])
+    c = correct(be, lin, z_pred, t0, opts.newton_tol, opts.newton_max_iter)
+    if not c.converged:
+        return _finish(Branch([], [], Result.CORRECTOR_FAILED, f"the start did not converge: residual "
+                              f"{c.residual:.3g} after {c.iterations} Newton iterations"), throw)
+    points = [_point(problem, opts, c, tangent(be, c.lin[1], c.lin[2], t0), 0.0, 0.0)]
+    events, ds = [], abs(opts.ds)
+    result, message = Result.MAX_STEPS, f"stopped after max_steps = {opts.max_steps} steps"
+    for _ in range(opts.max_steps):
+        step = advance(alg, be, lin, points[-1].z, points[-1].tangent, ds, opts)
+        if step is None:
+            result = Result.CORRECTOR_FAILED
+            message = (f"the corrector failed at every step size down to ds_min = {opts.ds_min:g} from "
+                       f"p = {points[-1].p:.12g} (point {len(points) - 1})")
+            break
+        ds = step.ds_next
+        points.append(_point(problem, opts, step.correction, step.tangent, step.ds, points[-1].arclength + step.ds))
+        if observer is not None:
+            observer(points[-1])
+        if opts.detect_events:
+            events += find_events(problem, opts, points[-2], points[-1], len(points) - 1)
+        if not opts.p_min <= points[-1].p <= opts.p_max:
+            result, message = Result.BOUNDARY, f"p = {points[-1].p:.12g} left [{opts.p_min:g}, {opts.p_max:g}]"
+            break
+    failed = [e for e in events if not e.converged]
+    if failed and result is not Result.CORRECTOR_FAILED:
+        result = Result.LOCATION_FAILED
+        message = "; ".join(f"{e.kind} near p = {e.p:.6g} not located: residual {e.residual:.3g}, critical "
+                            f"eigenvalue {e.critical_eigenvalue:.3g} > event_tol = {opts.event_tol:g}"
+                            for e in failed)
+    return _finish(Branch(points, events, result, message), throw)
+
+
+def _finish(branch, throw):
+    if throw and branch.result in (Result.CORRECTOR_FAILED, Result.LOCATION_FAILED):
+        raise ContinuationError(f"{branch.result.value}: {branch.message}", branch)
+    return branch

@@ -1,0 +1,167 @@
+"""Exact location of folds and branch points.
+
+Fold: Newton on the minimally augmented system (Govaerts) G(u, p) = (F, sigma) = 0, where sigma
+comes from the bordered solve [[J, b], [b^T, 0]] [w; sigma] = [0; 1]: sigma = 0 exactly when J is
+singular (b not orthogonal to its kernel; sigma ~ -lambda_min when b ~ v). Differentiating the
+bordered system and using the adjoint vector, which for symmetric J is w itself, gives
+dsigma = -w^T dJ w: sigma_u = -E'''[w, w, .], sigma_p = -w^T J_p w, one reverse pass over the
+Hessian-vector product (``problem.wjw_gradient``, exact). The Newton matrix [[J, F_p], [sigma_u^T,
+sigma_p]] is again an (n+1) bordered matrix, regular at a quadratic fold (F_p not in range(J),
+E'''[v, v, v] != 0), so Newton converges quadratically; b is refreshed with w each iteration (the
+root does not depend on b). Moore-Spence (F = 0, J v = 0, <v, v0> = 1 in (u, v, p)) has the same
+root and regularity but 2n+1 unknowns; the minimally augmented form needs only bordered solves with
+J, which a block-tridiagonal backend provides. A p-turn with |v^T F_p| < 1e-3 |F_p| (F_p in
+range(J): the fold system is singular there and converges only linearly) is retried as a branch
+point with the unfolded system below, and reported as one if that converges with beta = 0.
+
+Branch point: there F_p is in range(J), [J, F_p] has rank n-1 and two branches cross, so every
+system containing F(u, p) = 0 with unknowns (u, p) -- Moore-Spence, the fold system above, the
+bordered determinant -- is singular at the point. A regular system needs an unfolding parameter
+beta (Moore 1980): for a simple branch point, Newton on
+    F(u, p) + beta v0 = 0,  sigma(u, p) = 0,  tau = w^T F_p = 0      in (u, p, beta)
+(n+2 equations; beta = 0 at the solution), which is regular when the two branches cross
+transversally (transcritical, or a Z2 pitchfork), with a doubly bordered Newton matrix
+[[J, (F_p, v0)], [(sigma_u, tau_u)^T, ...]] whose derivative rows come from reverse mode through the
+bordered solve (``problem.singular_tests``). It starts from the bracket end with the smaller
+crossing eigenvalue. Fallback, and the method for k > 1 eigenvalues crossing at once (symmetric
+double branch points, where the unfolded system would need 2x2 singularity blocks): the followed
+branch is a smooth curve through the point, parametrised by s = <z - z_a, t_a>, and each crossing
+eigenvalue lambda(s) has a simple root, found by Brent's method on [0, s_b] (bracketed,
+superlinear), each evaluation a corrector run on the hyperplane <z - z_a, t_a> = s plus an
+eigensolve. That corrector is itself singular at the point unless its iterates stay in a symmetric
+subspace (true on a symmetric trivial branch; not near a transcritical crossing, where the unfolded
+system is needed). Roots that coincide (to 1e-9 of the bracket) make one event of multiplicity k,
+split roots (a broken symmetry) separate events.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import brentq
+
+from .corrector import correct
+from .results import Event
+
+
+def _done(res, prev, tol):
+    # one Newton step more once below tol: quadratic convergence takes the root to roundoff,
+    # so the located p does not depend on where the iteration started
+    return res <= tol and (prev <= tol or res <= 1e-3 * tol)
+
+
+def locate_fold(problem, opts, start, morse, step):
+    """Fold near Point ``start`` (Newton on (F, sigma)); morse = (before, after). -> Event."""
+    be, args, n = problem.backend, problem.args, problem.n
+    u, p = np.array(start.u), float(start.p)
+    j0 = int(np.argmin(np.abs(start.eigenvalues)))
+    b, tangent = start.eigenvectors[:, j0], np.asarray(start.tangent)
+    res = np.inf
+    for it in range(opts.locate_max_iter + 1):
+        F, J, Fp = problem.linearise(u, p, args)
+        w, sigma = be.bordered_solve(J, b, b, 0.0, np.zeros(n), 1.0)
+        gu, gp = problem.wjw_gradient(u, p, args, w)
+        res, prev = float(np.sqrt(np.sum(np.asarray(F) ** 2) + float(sigma) ** 2)), res
+        if not np.isfinite(res) or _done(res, prev, opts.newton_tol) or it == opts.locate_max_iter:
+            break
+        du, dp = be.bordered_solve(J, Fp, -gu, -gp, -F, -sigma)
+        u, p = u + np.asarray(du), p + float(dp)
+        b = np.asarray(w) / np.linalg.norm(w)
+    if not np.isfinite(res):  # diverged: reported at the start, not located
+        return Event("fold", start.p, start.u, start.eigenvectors[:, [j0]], start.eigenvalues[[j0]], res, it, 1,
+                     morse[0], morse[1], step, tangent, False)
+    vals, vecs, _ = be.spectrum(J, opts.n_eig + max(morse), problem.n_zero_modes, opts.eig_rtol)
+    k = int(np.argmin(np.abs(vals)))
+    ok = bool(res <= opts.event_tol and abs(vals[k]) <= opts.event_tol)
+    fold = Event("fold", p, u, vecs[:, [k]], vals[[k]], res, it, 1, morse[0], morse[1], step, tangent, ok)
+    # p turning back with F_p orthogonal to the kernel is no fold but a branch point (a pitchfork
+    # seen from its non-symmetric branch), where (F, sigma) is singular; the unfolded system is not
+    Fp = np.asarray(Fp)
+    if ok and abs(vecs[:, k] @ Fp) > 1e-3 * np.linalg.norm(Fp):  # clearly transversal: a fold
+        return fold
+    bp = simple_branch_point(problem, opts, u, p, vecs[:, k], morse, step, tangent)
+    return fold if bp is None else bp
+
+
+class _Failed(Exception):
+    pass
+
+
+def simple_branch_point(problem, opts, u, p, v0, morse, step, tangent):
+    """Newton on the unfolded system (F + beta v0, sigma, tau) = 0 from (u, p). -> Event, or None."""
+    be, args = problem.backend, problem.args
+    u, p, beta, bvec = np.array(u), float(p), 0.0, np.asarray(v0)
+    res = np.inf
+    for it in range(opts.locate_max_iter + 1):
+        (gu, gp), (st, F, J, Fp, w) = problem.singular_tests(u, p, args, bvec)
+        G = np.asarray(F) + beta * v0
+        res, prev = float(np.sqrt(np.sum(G ** 2) + np.sum(np.asarray(st) ** 2))), res
+        if not np.isfinite(res) or _done(res, prev, opts.newton_tol) or it == opts.locate_max_iter:
+            break
+        D = np.array([[gp[0], 0.0], [gp[1], 0.0]])
+        du, dy = be.bordered_solve(J, np.stack([Fp, v0], axis=1), np.asarray(gu).T, D, -G, -np.asarray(st))
+        u, p, beta = u + np.asarray(du), p + float(dy[0]), beta + float(dy[1])
+        bvec = np.asarray(w) / np.linalg.norm(w)
+    res = float(np.sqrt(np.sum(np.asarray(F) ** 2) + np.sum(np.asarray(st) ** 2)))  # beta = 0 too
+    if not np.isfinite(res) or res > opts.event_tol:
+        return None
+    vals, vecs, _ = be.spectrum(J, opts.n_eig + max(morse), problem.n_zero_modes, opts.eig_rtol)
+    k = int(np.argmin(np.abs(vals)))
+    if abs(vals[k]) > opts.event_tol:
+        return None
+    return Event("branch_point", p, u, vecs[:, [k]], vals[[k]], res, it, 1, morse[0], morse[1], step, tangent, True)
+
+
+def locate_branch_points(problem, opts, a, b, step):
+    """Branch point(s) between Points a and b (Morse index differs, no fold). -> [Event]."""
+    be, args = problem.backend, problem.args
+    lo, k = min(a.morse_index, b.morse_index), abs(a.morse_index - b.morse_index)
+    sign = 1 if b.morse_index > a.morse_index else -1
+    za, zb, ta = a.z, b.z, a.tangent
+    sb = float((zb - za) @ ta)
+    cache = {}
+
+    def at(s):  # corrected point on the hyperplane <z - z_a, t_a> = s, with its spectrum
+        if s not in cache:
+            # the chord z_a + (s/s_b)(z_b - z_a) lies on that hyperplane: a second-order predictor
+            c = correct(be, lambda u, p: problem.linearise(u, p, args), za + (s / sb) * (zb - za), ta,
+                        opts.newton_tol, opts.newton_max_iter)
+            if not c.converged:
+                raise _Failed
+            cache[s] = (c, be.spectrum(c.lin[1], lo + k, problem.n_zero_modes, opts.eig_rtol))
+        return cache[s]
+
+    if k == 1:
+        start = a if abs(a.eigenvalues[lo]) <= abs(b.eigenvalues[lo]) else b
+        e = simple_branch_point(problem, opts, start.u, start.p, start.eigenvectors[:, lo],
+                                (a.morse_index, b.morse_index), step, start.tangent)
+        if e is not None:
+            return [e]
+    roots, calls = [], 0
+    try:
+        for j in range(lo, lo + k):
+            f = lambda s: at(s)[1][0][j]  # noqa: E731
+            if f(0.0) * f(sb) >= 0:  # the tracked eigenvalue does not change sign over the bracket
+                raise _Failed
+            s, info = brentq(f, 0.0, sb, xtol=1e-15 * abs(sb), rtol=1e-15, maxiter=100, full_output=True)
+            roots.append(s)
+            calls += info.function_calls
+    except _Failed:  # a corrector failure, or no sign change
+        return [Event("branch_point", a.p, a.u, a.eigenvectors[:, lo:lo + k], a.eigenvalues[lo:lo + k], np.inf,
+                      calls, k, a.morse_index, b.morse_index, step, ta, False)]
+    # group coincident roots (a symmetric, multiple crossing) into one event each
+    order = np.argsort(roots)
+    groups, events, before = [], [], a.morse_index
+    for i in order:
+        if groups and abs(roots[i] - roots[groups[-1][-1]]) <= 1e-9 * abs(sb):
+            groups[-1].append(i)
+        else:
+            groups.append([i])
+    for g in groups:
+        s = float(np.mean([roots[i] for i in g]))
+        c, (vals, vecs, _) = at(s)
+        idx = [lo + i for i in g]
+        crit = vals[idx]
+        ok = bool(c.residual <= opts.event_tol and np.max(np.abs(crit)) <= opts.event_tol)
+        events.append(Event("branch_point", float(c.z[-1]), c.z[:-1], vecs[:, idx], crit, c.residual, calls,
+                            len(g), before, before + sign * len(g), step, ta if s < 0.5 * sb else b.tangent, ok))
+        before += sign * len(g)
+    return events

@@ -1,0 +1,55 @@
+"""Continuation options (one object) and the pseudo-arclength algorithm's own settings."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class ContinuationOptions:
+    """Step, bounds and tolerances of a continuation run.
+
+    ds: first step (its sign picks the initial direction of p); |ds| is then adapted in
+    [ds_min, ds_max] from the corrector's convergence. The run stops when p leaves
+    [p_min, p_max] (that point is kept), after max_steps steps, or when a step below ds_min fails.
+    newton_tol: absolute tolerance on the residual norm; n_eig: eigenpairs kept per point (at least Morse index + 2);
+    eig_rtol: lambda < -eig_rtol * ||J|| counts as negative; event_tol: a located event must have
+    residual and critical eigenvalue below it; locate_max_iter: Newton iterations to locate one.
+    """
+
+    ds: float = 0.05
+    ds_min: float = 1e-8
+    ds_max: float = 0.2
+    p_min: float = -math.inf
+    p_max: float = math.inf
+    max_steps: int = 200
+    newton_tol: float = 1e-12
+    newton_max_iter: int = 10
+    n_eig: int = 4
+    eig_rtol: float = 1e-10
+    detect_events: bool = True
+    event_tol: float = 1e-10
+    locate_max_iter: int = 20
+
+    def __post_init__(self):
+        if not (0 < self.ds_min <= abs(self.ds) <= self.ds_max):
+            raise ValueError(f"need 0 < ds_min <= |ds| <= ds_max, got {self.ds_min}, {self.ds}, {self.ds_max}")
+        if not self.p_min < self.p_max:
+            raise ValueError("need p_min < p_max")
+        if self.max_steps < 1 or self.newton_max_iter < 1 or self.n_eig < 1:
+            raise ValueError("max_steps, newton_max_iter and n_eig must be >= 1")
+
+
+@dataclass(frozen=True)
+class PseudoArclength:
+    """Keller's pseudo-arclength: tangent predictor, Newton on the bordered (n+1) corrector.
+
+    min_cos: a step whose tangent turns by more than acos(min_cos) is refused and retried smaller
+    (it may have jumped to another branch). The step grows by ``grow`` after a corrector that
+    needed at most ``fast_iterations`` iterations, shrinks by ``shrink`` on failure.
+    """
+
+    min_cos: float = 0.9
+    grow: float = 1.5
+    shrink: float = 0.5
+    fast_iterations: int = 3

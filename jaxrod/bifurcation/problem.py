@@ -1,0 +1,61 @@
+"""The problem: a smooth gradient system F(u, p) = grad_u E(u, p, args) = 0.
+
+Shapes: u (n,), p a scalar, F and F_p = dF/dp (n,), J = dF/du (n, n) for the dense backend.
+J is symmetric (a Hessian), which the event tests and the branch switching use.
+"""
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from .linalg import DenseBackend
+
+
+class BifurcationProblem:
+    """F(u, p, args) = 0 as pure JAX functions, with its start (u0, p0) and linear-algebra backend.
+
+    Give ``energy(u, p, args) -> scalar`` (F = grad_u E) or ``residual(u, p, args) -> (n,)`` (the
+    gradient itself; its Jacobian must be symmetric). ``args`` is any pytree of further parameters
+    (a second continuation parameter lives there, see ``fold_curve``). ``n_zero_modes`` eigenvalues
+    of smallest |lambda| (gauge modes) are excluded from the Morse index and the tracked spectrum;
+    the dense corrector and locators still need J regular away from events, i.e. a pinned gauge.
+    """
+
+    def __init__(self, energy=None, u0=None, p0=0.0, args=None, *, residual=None, n_zero_modes=0, backend=None):
+        if (energy is None) == (residual is None):
+            raise ValueError("give exactly one of energy= or residual=")
+        self.energy = energy
+        self.F = residual if residual is not None else jax.grad(energy, argnums=0)
+        self.u0 = jnp.asarray(u0, dtype=jnp.float64).ravel()
+        self.p0 = float(p0)
+        self.args = args
+        self.n_zero_modes = int(n_zero_modes)
+        self.backend = backend if backend is not None else DenseBackend()
+        self.n = int(self.u0.size)
+        # jit per problem: one compile, reused for every point (args traced, so a new mu is no recompile)
+        self.linearise = jax.jit(self._linearise)
+        self.wjw_gradient = jax.jit(self._wjw_gradient)
+        self.singular_tests = jax.jit(jax.jacrev(self._singular_tests, argnums=(0, 1), has_aux=True))
+
+    def hvp(self, u, p, args, w):
+        """J(u, p) w (n,), by a jvp of F: never forms J."""
+        return jax.jvp(lambda x: self.F(x, p, args), (u,), (w,))[1]
+
+    def _linearise(self, u, p, args):
+        """(F (n,), J (n, n), F_p (n,)) at (u, p)."""
+        F, Fp = jax.jvp(lambda q: self.F(u, q, args), (p,), (jnp.ones_like(p),))
+        return F, self.backend.jacobian(lambda x: self.F(x, p, args), u), Fp
+
+    def _wjw_gradient(self, u, p, args, w):
+        """Gradient of w^T J(u, p) w in (u, p): (E'''[w, w, .] (n,), w^T J_p w); exact, by JAX."""
+        return jax.grad(lambda x, q: jnp.dot(w, self.hvp(x, q, args, w)), argnums=(0, 1))(u, p)
+
+    def _singular_tests(self, u, p, args, b):
+        """(sigma, tau) (2,): sigma from [[J, b], [b^T, 0]] [w; sigma] = [0; 1] vanishes iff J is
+        singular; tau = w^T F_p also vanishes at a branch point (F_p orthogonal to the kernel).
+        ``singular_tests`` is its Jacobian ((2, n), (2,)) by reverse mode through the bordered
+        solve (exact), with aux = (value (2,), F, J, F_p, w)."""
+        F, J, Fp = self._linearise(u, p, args)
+        w, sigma = self.backend.bordered_solve(J, b, b, 0.0, jnp.zeros_like(u), 1.0)
+        st = jnp.stack([sigma, jnp.dot(w, Fp)])
+        return st, (st, F, J, Fp, w)

@@ -1,0 +1,157 @@
+"""Branch switching at a located branch point, from the reduced (Lyapunov-Schmidt) equations.
+
+At (u*, p*) with kernel V (n, d) (d = 1 simple, 2 double), write u = u* + dp * s + V xi + w with
+s = du/dp of the parent branch and w in range(J). For a gradient system the reduced equations are
+the gradient of a reduced energy g(xi, dp) = dp/2 xi^T B xi + T(xi) + ..., where
+    B = V^T (dJ/dp along the parent) V          (jvp of the Hessian-vector product),
+    T = T3(xi) = E'''[h, h, h]/6,  h = V xi     (if not negligible: transcritical-like), else
+    T = T4(xi) = E''''[h]^4/24 - b^T J^+ b/8,   b = P E'''[h, h, .]  (the range correction),
+all by nested jvps of F. T is homogeneous of degree m = order + 1 (order k = 2 or 3: the degree
+of the reduced equations). A branch xi = r eta (|eta| = 1) needs grad T(eta) = kappa B eta, i.e.
+det[B eta, grad T(eta)] = 0, then kappa = m T(eta) / eta^T B eta and dp = -kappa r^(k-1)
+(d = 1: pitchfork dp = -kappa r^2 or transcritical dp = -kappa r). For d = 2 the coefficients of T
+are fitted from 5 samples (exact for a quartic) and the directions are the roots in the angle of
+eta, bracketed on a grid and refined by Brent: for the D4-symmetric quartic, the axes and the
+diagonals. If every direction solves it (an O(2) circle of solutions, with a zero mode along it)
+the kernel basis vectors are returned, marked ``isolated=False``. d > 2 is not done.
+The Morse index of each emanating branch is predicted from the reduced Hessian
+r^(k-1) (Hess T(eta) - kappa B) plus the negative eigenvalues outside the kernel.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from math import factorial
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from scipy.optimize import brentq
+
+from .continuation import continuation
+
+
+@dataclass
+class Emanating:
+    """A branch out of a branch point: u ~ u* + r vector + r^2 curvature + dp parent_slope,
+    p = p* + dp, dp = -kappa r^(order-1), for r > 0 and r < 0. eta (d,) unit kernel coordinates;
+    vector = V eta, curvature = -J^+ P E'''[vector, vector, .]/2 (n,) (without it the predictor
+    can sit where the transverse stiffness vanishes, and Newton jumps to another branch);
+    predicted_morse = (for r > 0, for r < 0)."""
+
+    eta: np.ndarray
+    vector: np.ndarray
+    kappa: float
+    order: int
+    parent_slope: np.ndarray
+    predicted_morse: tuple
+    curvature: np.ndarray
+    isolated: bool = True
+
+
+def _dpoly(c, xi, di, dj):
+    """d^(di+dj)/dxi1^di dxi2^dj of sum_i c_i xi1^(m-i) xi2^i."""
+    m, total = len(c) - 1, 0.0
+    for i, ci in enumerate(c):
+        e1, e2 = m - i, i
+        if e1 >= di and e2 >= dj:
+            falling = factorial(e1) / factorial(e1 - di) * factorial(e2) / factorial(e2 - dj)
+            total += ci * falling * xi[0] ** (e1 - di) * xi[1] ** (e2 - dj)
+    return total
+
+
+def emanating_directions(problem, event, *, cubic_tol=1e-8):
+    """Emanating branches (list of Emanating) at a branch-point Event, from its reduced equations."""
+    be, args = problem.backend, problem.args
+    u, p, V = jnp.asarray(event.u), jnp.asarray(event.p), np.asarray(event.v)
+    n, d = V.shape
+    if d > 2:
+        raise NotImplementedError(f"branch switching with a {d}-dimensional kernel")
+    F, J, Fp = problem.linearise(u, p, args)
+    Zd = np.zeros((d, d))
+    # parent slope du/dp: -J^+ F_p on range(J) (regular bordered solve) plus the kernel part of the
+    # parent tangent at the bracket (zero by symmetry when the parent is the symmetric branch)
+    y, _ = be.bordered_solve(J, V, V, Zd, -Fp, np.zeros(d))
+    t = np.asarray(event.tangent)
+    slope = np.asarray(y) + V @ (V.T @ t[:-1]) / t[-1]
+    dJ = [jax.jvp(lambda x, q: problem.hvp(x, q, args, jnp.asarray(V[:, i])), (u, p),
+                  (jnp.asarray(slope), jnp.ones_like(p)))[1] for i in range(d)]
+    B = V.T @ np.stack([np.asarray(g) for g in dJ], axis=1)
+    B = 0.5 * (B + B.T)
+
+    def terms(xi):  # (T3, T4, J^+ P E'''[h, h, .]) at kernel coordinates xi
+        h = jnp.asarray(V @ xi)
+        f = lambda x: problem.F(x, p, args)  # noqa: E731
+        d1 = lambda x: jax.jvp(f, (x,), (h,))[1]  # noqa: E731
+        d2 = lambda x: jax.jvp(d1, (x,), (h,))[1]  # noqa: E731
+        f2, f3 = np.asarray(d2(u)), np.asarray(jax.jvp(d2, (u,), (h,))[1])
+        b = f2 - V @ (V.T @ f2)
+        x, _ = be.bordered_solve(J, V, V, Zd, b, np.zeros(d))
+        return float(h @ f2) / 6, float(h @ f3) / 24 - float(b @ np.asarray(x)) / 8, np.asarray(x)
+
+    m0 = min(event.morse_before, event.morse_after)
+    if d == 1:
+        samples = np.array([[1.0]])
+    else:
+        th = np.arange(5) * np.pi / 5
+        samples = np.stack([np.cos(th), np.sin(th)], axis=1)
+    T = np.array([terms(xi)[:2] for xi in samples])  # (samples, 2)
+    k = 2 if np.max(np.abs(T[:, 0])) > cubic_tol * np.max(np.abs(T)) else 3
+    m = k + 1
+    if d == 1:
+        c = T[0, k - 2]
+        kappa = m * c / B[0, 0]
+        h = m * (m - 2) * c  # reduced Hessian / r^(k-1)
+        morse = (m0 + int(h < 0), m0 + int(h * (-1) ** (k - 1) < 0))
+        return [Emanating(np.array([1.0]), V[:, 0], kappa, k, slope, morse, -0.5 * terms(np.array([1.0]))[2])]
+    M = np.stack([samples[:, 0] ** (m - i) * samples[:, 1] ** i for i in range(m + 1)], axis=1)
+    c = np.linalg.lstsq(M, T[:, k - 2], rcond=None)[0]
+
+    def grad(eta):
+        return np.array([_dpoly(c, eta, 1, 0), _dpoly(c, eta, 0, 1)])
+
+    def hfun(theta):  # det[B eta, grad T(eta)]: zero on emanating directions
+        eta = np.array([np.cos(theta), np.sin(theta)])
+        g, be_ = grad(eta), B @ eta
+        return be_[0] * g[1] - be_[1] * g[0]
+
+    grid = (np.arange(360) + 0.5) * np.pi / 360
+    hv = np.array([hfun(x) for x in grid])
+    scale = np.max(np.abs(B)) * np.max(np.abs(c)) * m
+    if np.max(np.abs(hv)) <= 1e-10 * scale:  # every direction: a continuous (O(2)) family
+        roots, isolated = [0.0, 0.5 * np.pi], False
+    else:
+        ends = np.append(grid, grid[0] + np.pi)
+        vals = np.append(hv, (-1) ** m * hv[0])
+        roots = [brentq(hfun, ends[i], ends[i + 1], xtol=1e-15) for i in range(360) if vals[i] * vals[i + 1] < 0]
+        isolated = True
+    out = []
+    for theta in roots:
+        eta = np.array([np.cos(theta), np.sin(theta)])
+        kappa = m * _dpoly(c, eta, 0, 0) / float(eta @ B @ eta)
+        H = np.array([[_dpoly(c, eta, 2, 0), _dpoly(c, eta, 1, 1)], [_dpoly(c, eta, 1, 1), _dpoly(c, eta, 0, 2)]])
+        ev = np.linalg.eigvalsh(H - kappa * B)
+        morse = (m0 + int(np.sum(ev < 0)), m0 + int(np.sum(ev * (-1) ** (k - 1) < 0)))
+        out.append(Emanating(eta, V @ eta, kappa, k, slope, morse, -0.5 * terms(eta)[2], isolated))
+    return out
+
+
+def switch_branches(problem, event, alg, opts, *, amplitude=None, directions=None, throw=True):
+    """Continue every emanating branch of a branch-point Event, both signs of r. -> [Branch].
+
+    Each starts from the reduced-equation predictor at |r| = amplitude (default |opts.ds|), moving
+    away from the branch point; ``branch.origin`` holds the Emanating direction and the sign.
+    """
+    dirs = emanating_directions(problem, event) if directions is None else directions
+    r0 = abs(opts.ds) if amplitude is None else float(amplitude)
+    branches = []
+    for e in dirs:
+        for sign in (1, -1):
+            r = sign * r0
+            dp = -e.kappa * r ** (e.order - 1)
+            ddp = -(e.order - 1) * e.kappa * r ** (e.order - 2)  # d(dp)/dr
+            u = np.asarray(event.u) + r * e.vector + r * r * e.curvature + dp * e.parent_slope
+            t = sign * np.append(e.vector + 2 * r * e.curvature + ddp * e.parent_slope, ddp)
+            br = continuation(problem, alg, opts, start=(u, event.p + dp, t), throw=throw)
+            br.origin = {"event": event, "direction": e, "sign": sign}
+            branches.append(br)
+    return branches

@@ -1,0 +1,263 @@
+"""jaxrod.bifurcation on small gradient systems whose folds, branch points and branches are known
+in closed form (issue 17, acceptance 9, first part: each event type on an analytic system)."""
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxrod.bifurcation import (BifurcationProblem, ContinuationError, ContinuationOptions, PseudoArclength, Result,
+                                continuation, emanating_directions, fold_curve, switch_branches)
+
+ALG = PseudoArclength()
+
+
+def bordered_det_sign(prob, point):
+    F, J, Fp = prob.linearise(point.u, point.p, prob.args)
+    t = point.tangent
+    M = jnp.block([[J, Fp[:, None]], [t[None, :-1], jnp.reshape(t[-1], (1, 1))]])
+    return int(np.sign(np.linalg.det(np.asarray(M))))
+
+
+def check_located(e, kind, p, u, tol=1e-12):
+    assert e.kind == kind and e.converged
+    assert abs(e.p - p) <= tol and np.max(np.abs(e.u - np.asarray(u))) <= tol
+    assert e.critical_eigenvalue <= 1e-10 and e.residual <= 1e-10
+
+
+# 1. Fold: E = x^3/3 - p x + y^2/2, branches x = +-sqrt(p), fold at (0, 0), p = 0
+def fold_energy(u, p, mu):
+    x, y = u
+    return x ** 3 / 3 - p * x + mu * x ** 2 / 2 + y ** 2 / 2
+
+
+@pytest.fixture(scope="module")
+def fold_problem():
+    return BifurcationProblem(fold_energy, [1.0, 0.0], 1.0, 0.0)
+
+
+@pytest.mark.parametrize("ds, u0, p0, morse", [(-0.1, [1.0, 0.0], 1.0, (0, 1)), (-0.13, [1.0, 0.0], 1.0, (0, 1)),
+                                               (-0.1, [-1.1, 0.0], 1.21, (1, 0))])
+def test_fold_through_onto_unstable_branch(fold_problem, ds, u0, p0, morse):
+    prob = BifurcationProblem(fold_energy, u0, p0, 0.0) if p0 != 1.0 else fold_problem
+    seen = []
+    br = continuation(prob, ALG, ContinuationOptions(ds=ds, p_min=-1.0, p_max=1.3, n_eig=1), observer=seen.append)
+    assert br.result is Result.BOUNDARY and len(seen) == len(br.points) - 1
+    assert all(q is r for q, r in zip(seen, br.points[1:]))  # the observer saw every accepted point
+    (e,) = br.events
+    check_located(e, "fold", 0.0, [0.0, 0.0])  # p* to 1e-12, whatever ds and start
+    assert (e.morse_before, e.morse_after) == morse and e.iterations <= 6
+    x, y = br.u.T
+    assert np.max(np.abs(x ** 2 - br.p)) <= 1e-10 and np.max(np.abs(y)) <= 1e-12
+    assert np.all(br.morse_index == np.where(x > 0, 0, 1))  # through the fold onto the unstable branch
+    assert x.min() < -1 and x.max() > 0.99  # both branches, p up to the bound
+    # bordered determinant: det J / t_p keeps its sign through a fold
+    signs = [q.bordered_sign for q in br.points]
+    assert len(set(signs)) == 1 and signs == [bordered_det_sign(prob, q) for q in br.points]
+
+
+# 2. Simple branch points: E = x^4/4 - p x^2/2 + (y - p)^2/2 + x^2 y^2/2. Trivial branch (0, p) with
+# lambda = p^2 - p: branch points at p = 0 (index 0 -> 1) and p = 1 (1 -> 0). From p = 0:
+# x^2 = y, p = y + y^2, stable up to p = 2; from p = 1: y = 1, x^2 = p - 1, index 1 up to p = 2,
+# where the two cross (a transcritical, non-symmetric branch point at x = +-1, y = 1).
+def pitchfork_energy(u, p, args):
+    x, y = u
+    return x ** 4 / 4 - p * x ** 2 / 2 + (y - p) ** 2 / 2 + x ** 2 * y ** 2 / 2
+
+
+@pytest.fixture(scope="module")
+def pitchfork():
+    prob = BifurcationProblem(pitchfork_energy, [0.0, -0.5], -0.5)
+    return prob, continuation(prob, ALG, ContinuationOptions(ds=0.1, p_max=1.5))
+
+
+def test_simple_branch_points_on_trivial_branch(pitchfork):
+    prob, br = pitchfork
+    e0, e1 = br.events
+    check_located(e0, "branch_point", 0.0, [0.0, 0.0])
+    check_located(e1, "branch_point", 1.0, [0.0, 1.0])
+    assert (e0.multiplicity, e0.morse_before, e0.morse_after) == (1, 0, 1)
+    assert (e1.multiplicity, e1.morse_before, e1.morse_after) == (1, 1, 0)
+    assert np.all(br.morse_index == ((br.p > 0) & (br.p < 1)))
+    signs = np.array([q.bordered_sign for q in br.points])  # the classic test changes sign at each
+    assert np.count_nonzero(np.diff(signs)) == 2
+    assert list(signs) == [bordered_det_sign(prob, q) for q in br.points]
+    # another step and start: the same points
+    other = continuation(prob, ALG, ContinuationOptions(ds=0.07, p_max=1.5), start=([0.0, -0.37], -0.37, [0, 1, 1]))
+    assert np.allclose([e.p for e in other.events], [0.0, 1.0], rtol=0, atol=1e-12)
+
+
+def test_switch_at_simple_branch_points(pitchfork):
+    prob, br = pitchfork
+    e0, e1 = br.events
+    (d0,) = emanating_directions(prob, e0)
+    assert d0.order == 3 and abs(d0.kappa + 1) <= 1e-10 and d0.predicted_morse == (0, 0)  # p = x^2 + O(x^4)
+    opts = ContinuationOptions(ds=0.05, p_min=-1.0, p_max=3.0)
+    from_zero = switch_branches(prob, e0, ALG, opts)
+    assert len(from_zero) == 2 and {b.origin["sign"] for b in from_zero} == {1, -1}
+    for b in from_zero:
+        x, y = b.u.T
+        assert np.all(np.sign(x) == b.origin["sign"])
+        assert np.max(np.abs(x ** 2 - y)) <= 1e-10 and np.max(np.abs(b.p - y - y ** 2)) <= 1e-10
+        assert np.all(b.morse_index == (b.p > 2))  # stable up to the secondary branch point
+        (e,) = b.events
+        check_located(e, "branch_point", 2.0, [b.origin["sign"], 1.0])  # transcritical: unfolded system
+        assert (e.morse_before, e.morse_after) == (0, 1)
+    (d1,) = emanating_directions(prob, e1)
+    assert d1.predicted_morse == (1, 1)
+    for b in switch_branches(prob, e1, ALG, opts):
+        x, y = b.u.T
+        assert np.max(np.abs(y - 1)) <= 1e-10 and np.max(np.abs(x ** 2 - (b.p - 1))) <= 1e-10
+        assert np.all(b.morse_index == (b.p < 2))
+        check_located(b.events[0], "branch_point", 2.0, [np.sign(x[0]), 1.0])
+    # at the transcritical point p = 2 the reduced equation is quadratic; the other branch is
+    # y = 1, x^2 = p - 1 (index 1 below p = 2). Followed down, it turns back in p at x = 0, p = 1:
+    # no fold (F_p is orthogonal to the kernel) but the branch point of the trivial branch.
+    e2 = from_zero[0].events[0]
+    (d2,) = emanating_directions(prob, e2)
+    assert d2.order == 2 and d2.predicted_morse == (1, 0)
+    down, up = switch_branches(prob, e2, ALG, opts, directions=[d2])
+    for b, morse in ((down, 1), (up, 0)):
+        x, y = b.u.T
+        assert np.max(np.abs(y - 1)) <= 1e-10 and np.max(np.abs(x ** 2 - (b.p - 1))) <= 1e-10
+        assert np.all(b.morse_index[b.p < 1.95] == 1) and np.all(b.morse_index[b.p > 2.05] == 0)
+        assert b.morse_index[0] == morse
+    assert up.p.min() > 2 and not up.events
+    turn = down.events[0]
+    check_located(turn, "branch_point", 1.0, [0.0, 1.0])
+    assert (turn.morse_before, turn.morse_after) == (1, 1) and down.u[:, 0].min() < -1  # on through x = 0
+
+
+# 3. Double branch point, D4 symmetry: E = x^4/4 + y^4/4 + a x^2 y^2/2 - p r/2 + z^2/2 + z r/2,
+# r = x^2 + y^2. z = -r/2 eliminates to (x^4/4 + y^4/4 + (2a-1) x^2 y^2/2)/2 - p r/2: branches on the
+# axes (x^2 = 2p, stable iff a > 1) and the diagonals (x^2 = y^2 = p/a, stable iff a < 1). The z r
+# coupling makes the range correction of the reduced quartic nonzero (-1/8 on the unit circle).
+def d4_energy(u, p, a):
+    x, y, z = u
+    r = x ** 2 + y ** 2
+    return x ** 4 / 4 + y ** 4 / 4 + a * x ** 2 * y ** 2 / 2 - p * r / 2 + z ** 2 / 2 + z * r / 2
+
+
+@pytest.mark.parametrize("a", [3.0, 0.5])
+def test_double_branch_point(a):
+    prob = BifurcationProblem(d4_energy, [0.0, 0.0, 0.0], -0.3, a)
+    br = continuation(prob, ALG, ContinuationOptions(ds=0.1, p_max=0.5))
+    (e,) = br.events
+    check_located(e, "branch_point", 0.0, [0.0, 0.0, 0.0])
+    assert (e.multiplicity, e.morse_before, e.morse_after) == (2, 0, 2) and e.v.shape == (3, 2)
+    assert len({q.bordered_sign for q in br.points}) == 1  # two eigenvalues cross: no sign change
+    dirs = emanating_directions(prob, e)
+    axis_morse, diag_morse = (0, 1) if a > 1 else (1, 0)
+    kinds = []
+    for d in dirs:  # the reduced cubic's solutions: the two axes and the two diagonals
+        w = np.abs(d.vector[:2])
+        assert d.isolated and d.order == 3 and abs(d.vector[2]) <= 1e-12
+        diagonal = abs(w[0] - w[1]) <= 1e-10
+        assert diagonal or min(w) <= 1e-10
+        kinds.append(diagonal)
+        # dp = -kappa r^2: r^2 = x^2 = 2 dp on an axis, r^2 = 2 x^2 = 2 dp / a on a diagonal
+        assert abs(-1 / d.kappa - (2 / a if diagonal else 2.0)) <= 1e-10
+        assert d.predicted_morse == ((diag_morse,) * 2 if diagonal else (axis_morse,) * 2)
+    assert sorted(kinds) == [False, False, True, True]
+    branches = switch_branches(prob, e, ALG, ContinuationOptions(ds=0.05, p_min=-1.0, p_max=0.5), directions=dirs)
+    assert len(branches) == 8
+    for b in branches:
+        x, y, z = b.u.T
+        assert b.result is Result.BOUNDARY and not b.events and b.p.min() > 0
+        assert np.max(np.abs(z + (x ** 2 + y ** 2) / 2)) <= 1e-10
+        if kinds[[id(d) for d in dirs].index(id(b.origin["direction"]))]:
+            assert np.max(np.abs(x ** 2 - b.p / a)) <= 1e-10 and np.max(np.abs(x ** 2 - y ** 2)) <= 1e-10
+            assert np.all(b.morse_index == diag_morse)
+        else:
+            assert np.max(np.abs(x ** 2 + y ** 2 - 2 * b.p)) <= 1e-10 and np.max(np.abs(x * y)) <= 1e-10
+            assert np.all(b.morse_index == axis_morse)
+
+
+def test_o2_circle_of_solutions_is_flagged():
+    # isotropic quartic: every kernel direction is a branch (a circle, with a rotation zero mode)
+    prob = BifurcationProblem(d4_energy, [0.0, 0.0, 0.0], -0.3, 1.0)
+    (e,) = continuation(prob, ALG, ContinuationOptions(ds=0.1, p_max=0.3)).events
+    assert e.multiplicity == 2
+    dirs = emanating_directions(prob, e)
+    assert len(dirs) == 2 and not any(d.isolated for d in dirs)
+
+
+
+def test_split_pair_inside_one_step_gives_two_simple_branch_points():
+    # a broken D4 symmetry: the pair crosses at p = 0 and p = delta, both inside one step
+    delta = 0.02
+
+    def energy(u, p, delta):
+        x, y, z = u
+        quartic = x ** 4 / 4 + y ** 4 / 4 + 3 * x ** 2 * y ** 2 / 2
+        return quartic - p * x ** 2 / 2 - (p - delta) * y ** 2 / 2 + z ** 2 / 2
+
+    prob = BifurcationProblem(energy, [0.0, 0.0, 0.0], -0.3, delta)
+    e0, e1 = continuation(prob, ALG, ContinuationOptions(ds=0.1, p_max=0.3)).events
+    assert e0.step == e1.step  # the Morse index went 0 -> 2 in one step
+    check_located(e0, "branch_point", 0.0, [0.0, 0.0, 0.0])
+    check_located(e1, "branch_point", delta, [0.0, 0.0, 0.0])
+    assert [(e.multiplicity, e.morse_before, e.morse_after) for e in (e0, e1)] == [(1, 0, 1), (1, 1, 2)]
+    assert abs(e0.v[0, 0]) == 1.0 and abs(e1.v[1, 0]) == 1.0
+
+
+# 4. Imperfect pitchfork: + eps x unfolds the branch point into a fold at x = (eps/2)^(1/3), p = 3 x^2
+def test_imperfect_bifurcation_fold():
+    eps = 1e-3
+
+    def energy(u, p, eps):
+        x, y = u
+        return x ** 4 / 4 - p * x ** 2 / 2 + y ** 2 / 2 + x ** 2 * y ** 2 / 2 + eps * x
+
+    prob = BifurcationProblem(energy, [1.0, 0.0], 1.0, eps)
+    br = continuation(prob, ALG, ContinuationOptions(ds=-0.1, p_max=1.0))
+    (e,) = br.events
+    xf = (eps / 2) ** (1 / 3)
+    check_located(e, "fold", 3 * xf ** 2, [xf, 0.0])
+    assert (e.morse_before, e.morse_after) == (0, 1)
+    x = br.u[:, 0]
+    assert np.max(np.abs(x ** 3 - br.p * x + eps)) <= 1e-10 and np.all(br.morse_index == (x < xf))
+
+
+# 5. Fold curve: E = x^3/3 - p x + mu x^2/2 + y^2/2 folds at x = -mu/2, p* = -mu^2/4
+def test_fold_curve_in_second_parameter():
+    mu0 = 0.3
+    prob = BifurcationProblem(fold_energy, [1.0, 0.0], 1.0, mu0)
+    (fold,) = continuation(prob, ALG, ContinuationOptions(ds=-0.1, p_max=1.2)).events
+    check_located(fold, "fold", -mu0 ** 2 / 4, [-mu0 / 2, 0.0])
+    reached = []
+    for ds in (0.1, -0.1):
+        c = fold_curve(prob, fold, lambda args, mu: mu, mu0, ALG, ContinuationOptions(ds=ds, p_min=-1.0, p_max=1.0))
+        assert c.result is Result.BOUNDARY and len(c.mu) >= 5
+        assert np.max(np.abs(c.p + c.mu ** 2 / 4)) <= 1e-10
+        assert np.max(np.abs(c.u[:, 0] + c.mu / 2)) <= 1e-10
+        assert np.max(np.abs(c.dp_dmu + c.mu / 2)) <= 1e-10  # implicit function theorem
+        assert np.max(c.residual) <= 1e-10 and np.allclose(np.abs(c.v[:, 0]), 1.0)
+        reached.append(c.mu[-1])
+    assert reached[0] >= 1.0 and reached[1] <= -1.0
+
+
+# Failures are reported, not hidden. E = x^2/2 - p x - (2/3)(1 - x)^(3/2) + y^2/2: the branch
+# p = x + sqrt(1 - x) folds at x = 3/4, p = 5/4 and ends at (x, p) = (1, 1) (F not smooth there).
+def ending_energy(u, p, args):
+    x, y = u
+    return x ** 2 / 2 - p * x - (2 / 3) * (1 - x) ** 1.5 + y ** 2 / 2
+
+
+def test_corrector_failure_is_reported():
+    prob = BifurcationProblem(ending_energy, [0.0, 0.0], 1.0)
+    br = continuation(prob, ALG, ContinuationOptions(ds=0.1), throw=False)
+    assert br.result is Result.CORRECTOR_FAILED and "ds_min" in br.message
+    assert br.u[-1, 0] > 0.99 and abs(br.p[-1] - 1) < 0.01  # got to the end of the branch
+    (e,) = br.events
+    check_located(e, "fold", 1.25, [0.75, 0.0])
+    with pytest.raises(ContinuationError, match="corrector failed") as err:
+        continuation(prob, ALG, ContinuationOptions(ds=0.1))
+    assert len(err.value.branch.points) == len(br.points)
+    # a start that Newton cannot converge in one iteration
+    opts = ContinuationOptions(ds=0.1, newton_max_iter=1)
+    bad = BifurcationProblem(fold_energy, [1.1, 0.0], 1.0, 0.0)
+    with pytest.raises(ContinuationError, match="start did not converge"):
+        continuation(bad, ALG, opts)
+    failed = continuation(bad, ALG, opts, throw=False)
+    assert failed.result is Result.CORRECTOR_FAILED and not failed.points
+    with pytest.raises(ValueError):
+        ContinuationOptions(ds=0.0)
