@@ -11,6 +11,7 @@ Hessian evaluations reach 1e-10 rad, where bisection would need ~30.
 from __future__ import annotations
 
 import enum
+import warnings
 import math
 import time
 from dataclasses import dataclass, field, replace
@@ -25,7 +26,7 @@ from .geometry import polyline_distance
 from .validation import check_finite, check_int_at_least, check_positive
 from .solvers import ConvergenceError
 from .sparse_branch import solve_equilibrium_sparse, sparse_branch_analysis
-from .stability import DEFAULT_NEGATIVE_TOL, branch_analysis
+from .stability import DEFAULT_NEGATIVE_TOL, branch_analysis, shape_modes_in_band
 
 __all__ = ["check_dense_memory", "dense_memory_bytes", "available_memory_bytes", "default_negative_tol",
            "ContinuationOptions", "Task", "PathStop", "StepFailure", "BranchEnd", "CriticalPoint", "critical_twist", "NoCrossingError", "BranchPoint", "Instability", "TwistPath", "follow_twist", "PathState", "Phase"]
@@ -950,6 +951,7 @@ def follow_twist(
                                                       jump_tol=jump_tol, k=k)
     points, instabilities = [], []
     say = progress or (lambda s: None)
+    warned = set()  # branches already warned about a shape mode inside the near-zero band
 
     def emit(state, s):
         e = s.equilibrium
@@ -960,6 +962,7 @@ def follow_twist(
         lam = e.stability.eigenvalues
         say(f"[{state.branch}] phi = {e.phi / math.pi:+.5f} pi: E = {e.energy:.6g}, Wr = {e.Wr:.4f}, "
             f"Tw = {e.Tw:.4f}, {e.stability.n_negative} negative, lowest " + " ".join(f"{v:.2e}" for v in lam[:3]))
+        _warn_if_band_hides_shape_modes(scene, state.branch, e, opts, warned)  # opts resolved below, before any step
         return replace(state, n_points=state.n_points + 1)
 
     def record(state, inst):
@@ -1146,6 +1149,24 @@ class _Follower:
 # A state's eigenvector belongs to the critical modes when its projection on them has at least
 # this norm (the overlap the end locator uses to match eigenvectors between states).
 _CRITICAL_OVERLAP = 0.5
+
+
+def _warn_if_band_hides_shape_modes(scene, branch, e, opts, warned):
+    """Warn (once per branch) when a state reported stable has a negative eigenvalue inside the
+    near-zero band whose mode changes the shape instead of sliding material along the knot
+    (``stability.shape_modes_in_band``): the band, there for sliding modes, may hide a real
+    instability, and the branch may have ended before this state."""
+    if branch in warned or not opts.negative_tol > DEFAULT_NEGATIVE_TOL:
+        return
+    hidden = shape_modes_in_band(scene, e, opts.negative_tol)
+    if hidden:
+        warned.add(branch)
+        lam, frac = hidden[0]
+        warnings.warn(
+            f"{branch} at phi = {e.phi / math.pi:+.5f} pi is reported stable, but {len(hidden)} mode(s) that change "
+            f"the shape (not material sliding: sliding fraction {frac:.2f}) have negative eigenvalues inside the "
+            f"near-zero band kept for sliding modes (lowest {lam:.2e} > -{opts.negative_tol:.0e}): the branch may "
+            "have ended before here, unnoticed", stacklevel=4)
 
 
 def _negative_modes(e, negative_tol):

@@ -31,6 +31,9 @@ __all__ = [
     "branch_analysis",
     "critical_twist_derivative",
     "DEFAULT_NEGATIVE_TOL",
+    "sliding_fraction",
+    "shape_modes_in_band",
+    "SLIDING_FRACTION",
 ]
 
 # An eigenvalue counts as negative below -DEFAULT_NEGATIVE_TOL (dimensionless units). Well below
@@ -360,3 +363,65 @@ def critical_twist_derivative(scene, critical, parameter, cluster_rtol=1e-4, pin
     dlam_dphi, _ = _branch_sensitivities(scene, u, eq.phi, v, lam, vec, skip, _zero_tangent(scene), jnp.asarray(1.0),
                                          nbr)
     return -float(dlam_dp) / float(dlam_dphi)
+
+
+# A mode counts as material sliding when less than this fraction of it (squared norm, scaled
+# DOFs) is left once tangential node motions and a rigid motion are fitted to it: measured on the
+# trefoil at N = 61 (0 ... 3 pi), the near-null sliding mode leaves < 1e-3, every shape mode >= 0.37
+# and twist-only modes ~1.
+SLIDING_FRACTION = 0.05
+
+
+def sliding_fraction(scene, q, vectors):
+    """How far each mode is from material sliding along the centreline: (m,) fractions in [0, 1]
+    for the modes ``vectors`` (n, m) in scaled DOFs at the state ``q`` (physical DOFs) of a rod.
+
+    A loose knot's near-null modes move material along its own centreline (strands slipping):
+    node i moves by alpha_i t_i (t_i its tangent), plus a rigid motion a + w x x_i (projected out of
+    the modes, but a slide along a torus knot is mostly a rotation about its axis). The fraction is
+    what is left of the mode once the best such field is subtracted from its node motions,
+    counting its twist-angle part as left over too: ~0 for sliding, O(1) for a mode that changes
+    the shape (a buckling mode) or only the twist. Rods whose nodes are all free (closed and free
+    rods: tangents by central differences, one-sided at open ends); a clamped rod cannot slide."""
+    vec = np.asarray(vectors, dtype=float)
+    if vec.ndim == 1:
+        vec = vec[:, None]
+    n = int(scene.n_nodes)
+    if int(scene.n_free_nodes) != n:
+        raise ValueError("sliding_fraction: the rod must have all its nodes free (a closed or free rod)")
+    x = np.asarray(scene.unpack(jnp.asarray(q), 0.0)[0])
+    closed = bool(getattr(scene, "closed", True))
+    t = np.roll(x, -1, axis=0) - np.roll(x, 1, axis=0)
+    if not closed:
+        t[0], t[-1] = x[1] - x[0], x[-1] - x[-2]
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    xc = x - x.mean(axis=0)
+    perp = np.eye(3)[None] - t[:, :, None] * t[:, None, :]             # (n, 3, 3): off the tangent
+    skew = np.zeros((n, 3, 3))                                            # skew[i] w = x_i x w
+    skew[:, 0, 1], skew[:, 0, 2], skew[:, 1, 2] = -xc[:, 2], xc[:, 1], -xc[:, 0]
+    skew[:, 1, 0], skew[:, 2, 0], skew[:, 2, 1] = xc[:, 2], -xc[:, 1], xc[:, 0]
+    rigid = np.concatenate([perp, np.einsum("nij,njk->nik", perp, skew)], axis=2).reshape(3 * n, 6)
+    out = np.empty(vec.shape[1])
+    for j in range(vec.shape[1]):
+        v = vec[:, j]
+        dx = v[:3 * n].reshape(n, 3)  # node coordinates first, then the twist angles
+        b = np.einsum("nij,nj->ni", perp, dx).reshape(3 * n)
+        coef, *_ = np.linalg.lstsq(rigid, b, rcond=None)
+        moved = float(np.sum(v[:3 * n] ** 2))
+        total = float(np.sum(v ** 2))
+        out[j] = (float(np.sum((b - rigid @ coef) ** 2)) + (total - moved)) / total if total > 0.0 else 0.0
+    return out
+
+
+def shape_modes_in_band(scene, e, negative_tol, strict_tol=DEFAULT_NEGATIVE_TOL):
+    """[(eigenvalue, sliding fraction)] of the equilibrium e's computed modes whose eigenvalue lies
+    in the near-zero band [-negative_tol, -strict_tol) kept for the sliding modes of loose knots,
+    but which do not slide (``sliding_fraction`` above SLIDING_FRACTION): negative eigenvalues of
+    shape-changing modes that the band counts as zero (issue 17: at N = 481 a pair crossing zero
+    at -11.09 pi stayed inside the band down to -12.18 pi). Empty without a band."""
+    lam = np.asarray(e.stability.eigenvalues)
+    band = np.nonzero((lam >= -negative_tol) & (lam < -strict_tol))[0]
+    if band.size == 0 or int(scene.n_free_nodes) != int(scene.n_nodes):
+        return []
+    frac = sliding_fraction(scene, e.q, np.asarray(e.stability.eigenvectors)[:, band])
+    return [(float(lam[i]), float(f)) for i, f in zip(band, frac) if f > SLIDING_FRACTION]

@@ -2,7 +2,6 @@
 (it aborted with 134 and "terminate called ..." while its two threads were inside XLA), and a
 second run into a folder in use is refused in one line (it used to interleave its rows with the
 first run's: 53 duplicate rows), the lock going with the process that held it, even on kill -9."""
-import os
 import signal
 import subprocess
 import sys

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from jaxrod import critical_twist, michell_critical_twist, michell_ring
+from jaxrod.solvers import ConvergenceError
 
 
 def _phi_star(N, nu, slenderness=0.01):
@@ -72,3 +73,14 @@ def test_threshold_insensitive_to_extensibility():
     a = _phi_star(32, 0.5, slenderness=0.01).phi
     b = _phi_star(32, 0.5, slenderness=0.002).phi
     assert abs(a - b) / b < 2e-5
+
+
+def test_refinement_refuses_a_bracket_without_sign_change(series):
+    # Issue 16, defect 3 (in this file to reuse the N = 32 compilation of ``series``).
+    # A negative_tol that is large against the eigenvalues (as 1e-10 was for N = 2000): the
+    # count changes steps after the crossing; the old refinement then converged on a bracket end
+    # and reported it as phi* (N = 2000: 6.27 pi for 5.20 pi, error "1.6e-6").
+    ring = michell_ring(32)
+    analytic = michell_critical_twist(0.5)
+    with pytest.raises(ConvergenceError, match="same sign"):
+        critical_twist(ring, 0.0, 2.0 * analytic, step=analytic / 10.0, negative_tol=5e-3)

@@ -202,3 +202,51 @@ def test_continuation_options_hold_the_contact_aware_defaults():
     a = jr.critical_twist(ring, 0.0, 40.0, options=jr.ContinuationOptions(step=2.0, tol=1e-8))
     b = jr.critical_twist(ring, 0.0, 40.0, step=2.0, tol=1e-8)
     assert a.phi == b.phi and a.multiplicity == b.multiplicity == 2
+
+
+def test_sliding_modes_are_told_from_shape_modes_by_their_shape(opening):
+    # Issue 17: a fixed band (-1e-6, 0) of "zero" eigenvalues for the sliding modes of loose knots
+    # also hides real instabilities. The sliding mode moves material along the knot's own
+    # centreline (plus a rigid motion); a buckling mode changes the shape.
+    from jaxrod.stability import SLIDING_FRACTION, sliding_fraction
+
+    path, _ = opening
+    for point in path.points:
+        e = point.equilibrium
+        if point.branch != "symmetric+" or e.phi > 3 * PI:
+            continue
+        lam = np.asarray(e.stability.eigenvalues)
+        frac = sliding_fraction(point.scene, e.q, e.stability.eigenvectors)
+        assert lam[0] < 1e-4 and frac[0] < 1e-3, (e.phi, lam[:3], frac[:3])  # the near-null sliding mode
+        assert np.all(frac[1:] > 0.3) and SLIDING_FRACTION < 0.3, (e.phi, lam, frac)  # shape and twist modes
+
+
+def test_a_shape_mode_inside_the_near_zero_band_is_flagged(opening):
+    import dataclasses
+    import warnings
+
+    from jaxrod.continuation import CONTACT_NEGATIVE_TOL, ContinuationOptions, Task, _warn_if_band_hides_shape_modes
+    from jaxrod.stability import shape_modes_in_band
+
+    path, _ = opening
+    point = path.points[2]
+    e = point.equilibrium
+    lam = np.asarray(e.stability.eigenvalues).copy()
+
+    def with_eigenvalue(index, value):
+        new = lam.copy()
+        new[index] = value
+        return dataclasses.replace(e, stability=dataclasses.replace(e.stability, eigenvalues=new))
+
+    sliding, shape = with_eigenvalue(0, -5e-8), with_eigenvalue(3, -5e-8)  # mode 3 changes the shape
+    assert shape_modes_in_band(point.scene, sliding, CONTACT_NEGATIVE_TOL) == []
+    hidden = shape_modes_in_band(point.scene, shape, CONTACT_NEGATIVE_TOL)
+    assert len(hidden) == 1 and hidden[0][0] == -5e-8 and hidden[0][1] > 0.3
+    assert shape_modes_in_band(point.scene, with_eigenvalue(3, -2e-6), CONTACT_NEGATIVE_TOL) == []  # counted anyway
+    opts = ContinuationOptions().resolved(point.scene, Task.FOLLOW_TWIST, 1.0)
+    warned = set()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        for state in (sliding, shape, shape):
+            _warn_if_band_hides_shape_modes(point.scene, "symmetric+", state, opts, warned)
+    assert len(caught) == 1 and "reported stable, but 1 mode(s) that change the shape" in str(caught[0].message)
