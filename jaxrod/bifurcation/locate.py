@@ -30,8 +30,9 @@ eigenvalue lambda(s) has a simple root, found by Brent's method on [0, s_b] (bra
 superlinear), each evaluation a corrector run on the hyperplane <z - z_a, t_a> = s plus an
 eigensolve. That corrector is itself singular at the point unless its iterates stay in a symmetric
 subspace (true on a symmetric trivial branch; not near a transcritical crossing, where the unfolded
-system is needed). Roots that coincide (to 1e-9 of the bracket) make one event of multiplicity k,
-split roots (a broken symmetry) separate events.
+system is needed). Roots that coincide (to 1e-9 of the bracket, or to within the eigenvalues' noise:
+all below event_tol at the roots' mean) make one event of multiplicity k, split roots (a broken
+symmetry) separate events.
 """
 from __future__ import annotations
 
@@ -147,11 +148,25 @@ def locate_branch_points(problem, opts, a, b, step):
     except _Failed:  # a corrector failure, or no sign change
         return [Event("branch_point", a.p, a.u, a.eigenvectors[:, lo:lo + k], a.eigenvalues[lo:lo + k], np.inf,
                       calls, k, a.morse_index, b.morse_index, step, ta, False)]
-    # group coincident roots (a symmetric, multiple crossing) into one event each
+    # group coincident roots (a symmetric, multiple crossing) into one event each: equal to 1e-9 of
+    # the bracket, or split only by the noise on the eigenvalues (~ roundoff / |dlambda/ds|), i.e.
+    # every eigenvalue of the group is below event_tol at the mean of its roots. The second case is
+    # a symmetric crossing seen in a non-orthonormal gauge (a pinned rod), where the crossing pair
+    # is not degenerate away from the point, so its roots differ by that noise.
+    def coincident(g):
+        rs = [roots[i] for i in g]
+        if max(rs) - min(rs) <= 1e-9 * abs(sb):
+            return True
+        try:
+            vals = at(float(np.mean(rs)))[1][0]
+        except _Failed:
+            return False
+        return bool(np.max(np.abs(vals[[lo + i for i in g]])) <= opts.event_tol)
+
     order = np.argsort(roots)
     groups, events, before = [], [], a.morse_index
     for i in order:
-        if groups and abs(roots[i] - roots[groups[-1][-1]]) <= 1e-9 * abs(sb):
+        if groups and coincident(groups[-1] + [i]):
             groups[-1].append(i)
         else:
             groups.append([i])

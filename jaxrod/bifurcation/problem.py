@@ -36,10 +36,23 @@ class BifurcationProblem:
         self.linearise = jax.jit(self._linearise)
         self.wjw_gradient = jax.jit(self._wjw_gradient)
         self.singular_tests = jax.jit(jax.jacrev(self._singular_tests, argnums=(0, 1), has_aux=True))
+        self.hvp_derivative = jax.jit(self._hvp_derivative)
+        self.directional_derivatives = jax.jit(self._directional_derivatives)
 
     def hvp(self, u, p, args, w):
         """J(u, p) w (n,), by a jvp of F: never forms J."""
         return jax.jvp(lambda x: self.F(x, p, args), (u,), (w,))[1]
+
+    def _hvp_derivative(self, u, p, args, w, du, dp):
+        """d/ds [J(u + s du, p + s dp) w] at s = 0 (n,): a jvp of the Hessian-vector product."""
+        return jax.jvp(lambda x, q: self.hvp(x, q, args, w), (u, p), (du, dp))[1]
+
+    def _directional_derivatives(self, u, p, args, h):
+        """(E'''[h, h, .] (n,), E''''[h, h, h, .] (n,)) at (u, p): nested jvps of F."""
+        d1 = lambda x: jax.jvp(lambda y: self.F(y, p, args), (x,), (h,))[1]  # noqa: E731
+        d2 = lambda x: jax.jvp(d1, (x,), (h,))[1]  # noqa: E731
+        f2, f3 = jax.jvp(d2, (u,), (h,))
+        return f2, f3
 
     def _linearise(self, u, p, args):
         """(F (n,), J (n, n), F_p (n,)) at (u, p)."""

@@ -22,7 +22,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from math import factorial
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 from scipy.optimize import brentq
@@ -36,7 +35,8 @@ class Emanating:
     p = p* + dp, dp = -kappa r^(order-1), for r > 0 and r < 0. eta (d,) unit kernel coordinates;
     vector = V eta, curvature = -J^+ P E'''[vector, vector, .]/2 (n,) (without it the predictor
     can sit where the transverse stiffness vanishes, and Newton jumps to another branch);
-    predicted_morse = (for r > 0, for r < 0)."""
+    predicted_morse = (for r > 0, for r < 0), without the zero mode along the circle when
+    isolated is False."""
 
     eta: np.ndarray
     vector: np.ndarray
@@ -59,8 +59,15 @@ def _dpoly(c, xi, di, dj):
     return total
 
 
-def emanating_directions(problem, event, *, cubic_tol=1e-8):
-    """Emanating branches (list of Emanating) at a branch-point Event, from its reduced equations."""
+def emanating_directions(problem, event, *, cubic_tol=1e-8, circle_tol=1e-8):
+    """Emanating branches (list of Emanating) at a branch-point Event, from its reduced equations.
+
+    cubic_tol: the cubic term is dropped (a pitchfork) below cubic_tol of its natural size;
+    circle_tol: d = 2, every direction solves (a circle family) when det[B eta, grad T(eta)] stays
+    below circle_tol of its scale |B| |T| m. The quartic of a stiff problem can be a small
+    difference of large terms (a pinned rod ring: E''''/24 and the range correction cancel to
+    1e-5), so its relative precision is ~1e-10, not roundoff.
+    """
     be, args = problem.backend, problem.args
     u, p, V = jnp.asarray(event.u), jnp.asarray(event.p), np.asarray(event.v)
     n, d = V.shape
@@ -73,20 +80,18 @@ def emanating_directions(problem, event, *, cubic_tol=1e-8):
     y, _ = be.bordered_solve(J, V, V, Zd, -Fp, np.zeros(d))
     t = np.asarray(event.tangent)
     slope = np.asarray(y) + V @ (V.T @ t[:-1]) / t[-1]
-    dJ = [jax.jvp(lambda x, q: problem.hvp(x, q, args, jnp.asarray(V[:, i])), (u, p),
-                  (jnp.asarray(slope), jnp.ones_like(p)))[1] for i in range(d)]
+    dJ = [problem.hvp_derivative(u, p, args, jnp.asarray(V[:, i]), jnp.asarray(slope), jnp.ones_like(p))
+          for i in range(d)]
     B = V.T @ np.stack([np.asarray(g) for g in dJ], axis=1)
     B = 0.5 * (B + B.T)
 
-    def terms(xi):  # (T3, T4, J^+ P E'''[h, h, .]) at kernel coordinates xi
+    def terms(xi):  # (T3, T4, J^+ P E'''[h, h, .], |h| |E'''[h, h, .]| / 6) at kernel coordinates xi
         h = jnp.asarray(V @ xi)
-        f = lambda x: problem.F(x, p, args)  # noqa: E731
-        d1 = lambda x: jax.jvp(f, (x,), (h,))[1]  # noqa: E731
-        d2 = lambda x: jax.jvp(d1, (x,), (h,))[1]  # noqa: E731
-        f2, f3 = np.asarray(d2(u)), np.asarray(jax.jvp(d2, (u,), (h,))[1])
+        f2, f3 = (np.asarray(a) for a in problem.directional_derivatives(u, p, args, h))
         b = f2 - V @ (V.T @ f2)
         x, _ = be.bordered_solve(J, V, V, Zd, b, np.zeros(d))
-        return float(h @ f2) / 6, float(h @ f3) / 24 - float(b @ np.asarray(x)) / 8, np.asarray(x)
+        T3, T4 = float(h @ f2) / 6, float(h @ f3) / 24 - float(b @ np.asarray(x)) / 8
+        return T3, T4, np.asarray(x), float(np.linalg.norm(h) * np.linalg.norm(f2)) / 6
 
     m0 = min(event.morse_before, event.morse_after)
     if d == 1:
@@ -94,8 +99,13 @@ def emanating_directions(problem, event, *, cubic_tol=1e-8):
     else:
         th = np.arange(5) * np.pi / 5
         samples = np.stack([np.cos(th), np.sin(th)], axis=1)
-    T = np.array([terms(xi)[:2] for xi in samples])  # (samples, 2)
-    k = 2 if np.max(np.abs(T[:, 0])) > cubic_tol * np.max(np.abs(T)) else 3
+    sampled = [terms(xi) for xi in samples]
+    T = np.array([t[:2] for t in sampled])  # (samples, 2)
+    # the cubic term counts unless it is below cubic_tol of the quartic one and of its own natural
+    # size |h| |E'''[h, h, .]| (a cancellation to roundoff: E'''[h, h, .] orthogonal to the kernel,
+    # as symmetry makes it; the quartic itself may be a small difference, e.g. for a stiff rod)
+    scale3 = max(float(np.max(np.abs(T))), max(t[3] for t in sampled))
+    k = 2 if np.max(np.abs(T[:, 0])) > cubic_tol * scale3 else 3
     m = k + 1
     if d == 1:
         c = T[0, k - 2]
@@ -117,7 +127,7 @@ def emanating_directions(problem, event, *, cubic_tol=1e-8):
     grid = (np.arange(360) + 0.5) * np.pi / 360
     hv = np.array([hfun(x) for x in grid])
     scale = np.max(np.abs(B)) * np.max(np.abs(c)) * m
-    if np.max(np.abs(hv)) <= 1e-10 * scale:  # every direction: a continuous (O(2)) family
+    if np.max(np.abs(hv)) <= circle_tol * scale:  # every direction: a continuous (O(2)) family
         roots, isolated = [0.0, 0.5 * np.pi], False
     else:
         ends = np.append(grid, grid[0] + np.pi)
@@ -130,6 +140,8 @@ def emanating_directions(problem, event, *, cubic_tol=1e-8):
         kappa = m * _dpoly(c, eta, 0, 0) / float(eta @ B @ eta)
         H = np.array([[_dpoly(c, eta, 2, 0), _dpoly(c, eta, 1, 1)], [_dpoly(c, eta, 1, 1), _dpoly(c, eta, 0, 2)]])
         ev = np.linalg.eigvalsh(H - kappa * B)
+        if not isolated:  # the circle's own direction is a zero mode (its sign is noise): not counted
+            ev = ev[np.argsort(np.abs(ev))[1:]]
         morse = (m0 + int(np.sum(ev < 0)), m0 + int(np.sum(ev * (-1) ** (k - 1) < 0)))
         out.append(Emanating(eta, V @ eta, kappa, k, slope, morse, -0.5 * terms(eta)[2], isolated))
     return out

@@ -1,0 +1,176 @@
+"""Rods as bifurcation problems: the scene's scaled energy with its gauge pinned.
+
+A closed rod's Hessian is singular everywhere along its 7 symmetry generators (3 translations, 3
+rotations, the uniform shift of the twist angles), but the continuation's corrector and locators
+need J regular away from events. As on jaxrod's O(N) path (``jaxrod.sparse_stability``), the gauge
+is fixed by pinning 7 DOFs -- 3 coordinates of node 0, 2 of node ~N/3, 1 of node ~2N/3 and the twist
+angle of edge 0, the coordinates chosen by ``gauge_pins`` -- at their values in a reference state.
+The problem's unknowns are the other (free) DOFs, in the scene's scaled units (node coordinates in
+edge lengths, energy in B/l):
+
+    E_pinned(u_free, phi) = scene.scaled_energy(embed(u_free), phi),
+
+so that F = grad E_pinned is the full gradient with the pinned rows dropped. At an equilibrium the
+pinned Hessian is congruent to the Hessian projected off the symmetries (see the module docstring
+of ``jaxrod.sparse_stability``): same inertia, hence the same Morse index, and its eigenvalues cross
+zero at the same parameters (not with the same values away from zero: the metric differs).
+
+Those 7 pins remove exact symmetries, so every solution of the pinned problem is an equilibrium of
+the rod (the gradient along each generator vanishes identically, and the pinned DOFs move the rod
+along the generators): ``full_gradient`` checks it. ``extra_pins`` fixes further DOFs the same way;
+that is a gauge only for a further (exact or numerically exact) symmetry -- e.g. the material
+sliding along a buckled ring, see ``benchmarks/bifurcation_michell.py`` -- and ``full_gradient``
+then measures how exact it is (the force the extra pin holds).
+
+The exact energy (the writhe that fixes the holonomy's branch, contact over all pairs) is O(N^2)
+and J is assembled densely (``DenseBackend``): meant for N up to ~100.
+"""
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..geometry import closest_approach
+from ..sparse_stability import gauge_pins
+from ..topology import writhe
+from .problem import BifurcationProblem
+from .results import Event
+
+__all__ = ["PinnedRod", "pinned_problem", "sliding_slice"]
+
+
+@dataclass(frozen=True, eq=False)
+class PinnedRod:
+    """A rod scene as a ``BifurcationProblem`` in its free DOFs.
+
+    problem: the BifurcationProblem (u = free scaled DOFs, p = phi, args = the scene, a pytree, so
+    ``fold_curve`` can vary a material parameter through ``set_mu``); scene; pins (k,) and free
+    (n - k,) indices into the scene's DOFs q; u_ref (n,) the scaled reference state whose pinned
+    values are held.
+    """
+
+    problem: BifurcationProblem
+    scene: object
+    pins: np.ndarray
+    free: np.ndarray
+    u_ref: np.ndarray
+
+    def embed(self, u_free):
+        """Full scaled DOFs (n,) from the free ones (n - k,): pinned entries from u_ref. Traceable."""
+        return jnp.asarray(self.u_ref).at[jnp.asarray(self.free)].set(u_free)
+
+    def restrict(self, u):
+        """The free entries (n - k,) of full scaled DOFs u (n,) (numpy)."""
+        return np.asarray(u)[self.free]
+
+    def q(self, u_free):
+        """Physical DOFs q (n,) (numpy) of free scaled DOFs."""
+        return np.asarray(self.scene.from_scaled(np.asarray(self.embed(jnp.asarray(u_free)))))
+
+    def nodes(self, u_free):
+        """Node positions x (N, 3) (physical units, numpy)."""
+        return np.asarray(self.scene.positions(self.q(u_free)))
+
+    def full_gradient(self, u_free, phi):
+        """Max-norm of the gradient of the scaled energy over ALL DOFs, pinned ones included:
+        ~ roundoff at an equilibrium of the rod (scaled units)."""
+        g = _scaled_gradient(self.scene, self.embed(jnp.asarray(u_free)), jnp.asarray(phi, dtype=jnp.float64))
+        return float(jnp.max(jnp.abs(g)))
+
+    def writhe(self, u_free):
+        """Exact polygon writhe of the centreline (``jaxrod.topology.writhe``)."""
+        return float(_writhe(jnp.asarray(self.nodes(u_free))))
+
+    def min_distance(self, u_free, exclude=2):
+        """Closest approach between segments more than ``exclude`` apart along the rod (physical
+        units, ``jaxrod.geometry.closest_approach``); self-contact when it reaches the diameter D."""
+        return closest_approach(self.nodes(u_free), closed=True, exclude=exclude)
+
+
+_writhe = jax.jit(functools.partial(writhe, closed=True))
+
+
+@jax.jit
+def _scaled_gradient(scene, u, phi):
+    return jax.grad(scene.scaled_energy)(u, phi)
+
+
+def pinned_problem(scene, q_ref, phi0, *, pins=None, extra_pins=(), backend=None):
+    """The rod ``scene`` as a BifurcationProblem with its gauge pinned at the state ``q_ref``.
+
+    scene: a closed rod without contact (e.g. ``jaxrod.michell_ring``); q_ref (n,): physical DOFs of
+    the reference state (an equilibrium at phi0, or a guess the first corrector converges from);
+    pins: q indices to pin (default ``gauge_pins(scene, u_ref, phi0)``: the 7 gauge DOFs chosen for
+    the best-conditioned gauge at that state); extra_pins: further q indices (see the module
+    docstring); backend: default ``DenseBackend()``. The problem starts at (restrict(u_ref), phi0)
+    with n_zero_modes = 0 (nothing singular is left in the pinned Hessian). Returns a PinnedRod.
+    """
+    u_ref = np.asarray(scene.to_scaled(np.asarray(q_ref, dtype=float)), dtype=float)
+    if pins is None:
+        pins, _ = gauge_pins(scene, jnp.asarray(u_ref), float(phi0))
+    return _build(scene, u_ref, phi0, np.concatenate([np.asarray(pins).ravel(), np.asarray(extra_pins).ravel()]),
+                  backend)
+
+
+def _build(scene, u_ref, phi0, pins, backend):
+    pins = np.unique(np.asarray(pins, dtype=np.int64))
+    free = np.setdiff1d(np.arange(u_ref.size), pins)
+    free_j, ref_j = jnp.asarray(free), jnp.asarray(u_ref)
+
+    def energy(u_free, phi, sc):
+        return sc.scaled_energy(ref_j.at[free_j].set(u_free), phi)
+
+    prob = BifurcationProblem(energy, u_ref[free], phi0, scene, n_zero_modes=0, backend=backend)
+    return PinnedRod(prob, scene, pins, free, u_ref)
+
+
+def sliding_slice(rod, event, *, candidates=None):
+    """Pick one member of the circle of buckled branches at a ring's double branch point.
+
+    At the O(2)-symmetric double branch point of a ring (``event``: multiplicity 2, kernel V
+    (n, 2), on the trivial branch of ``rod``) the emanating solutions form a circle family: the
+    buckled shape slid along its own centreline (material relabelling), which for a uniform rod is
+    a symmetry -- exact in the continuum; of the discrete ring's D_N symmetry, the lowest invariant
+    of the mode-2 amplitude z that is not O(2)-invariant is Re z^(N/2) (N even), so the slide is
+    broken only at that order, i.e. to roundoff for N >= 24. Each buckled solution carries a
+    (numerically) zero eigenvalue, which the pinned Hessian keeps: the corrector's tangent drifts
+    along it and the path stalls. Like the rigid motions it is a gauge, fixed by one more pin: the
+    coordinate k of a free node (default candidates: all free node coordinates) whose row of V is
+    largest, held at its value on the trivial branch (constant there: the circle does not move with
+    phi). The buckled branch kept is the one along V eta with eta orthogonal to V[k] (u_k = u_ref[k]
+    on it to first order).
+
+    Returns (rod8, event8): the PinnedRod with the extra pin and the event as a simple branch point
+    of it (u, v (n-1, 1) = the restricted V eta, normalised, tangent restricted, Morse index after
+    = before + 1: one of the crossing pair is left, by interlacing), so that ``switch_branches`` or
+    a ``continuation`` started at u + r v follows that buckled branch with the slide pinned.
+    Check ``rod8.full_gradient`` along it: the force the extra pin holds, ~roundoff when the
+    sliding symmetry is exact.
+    """
+    V = np.asarray(event.v)
+    if V.shape[1] != 2:
+        raise ValueError(f"need a double branch point (a 2-dimensional kernel), got {V.shape[1]}")
+    n_pos = 3 * int(rod.scene.n_nodes)
+    free = np.asarray(rod.free)
+    cand = np.where(free < n_pos)[0] if candidates is None else np.searchsorted(free, np.asarray(candidates))
+    j = int(cand[np.argmax(np.linalg.norm(V[cand], axis=1))])
+    k = int(free[j])
+    eta = np.array([-V[j, 1], V[j, 0]])
+    eta /= np.linalg.norm(eta)
+    rod8 = _build(rod.scene, np.asarray(rod.u_ref), event.p, np.append(rod.pins, k), rod.problem.backend)
+    keep = np.arange(free.size) != j
+    v = (V @ eta)[keep]
+    v /= np.linalg.norm(v)
+    u = np.asarray(event.u)[keep]
+    _, J, _ = rod8.problem.linearise(jnp.asarray(u), jnp.asarray(event.p), rod8.problem.args)
+    crit = np.array([float(v @ np.asarray(J) @ v)])
+    tangent = np.append(np.asarray(event.tangent)[:-1][keep], np.asarray(event.tangent)[-1])
+    lo = min(event.morse_before, event.morse_after)
+    before, after = (lo, lo + 1) if event.morse_after > event.morse_before else (lo + 1, lo)
+    event8 = Event("branch_point", float(event.p), u, v[:, None], crit, event.residual, event.iterations, 1,
+                         before, after, event.step, tangent, event.converged)
+    return rod8, event8
