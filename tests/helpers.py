@@ -46,3 +46,16 @@ def random_free_state(n=8, seed=0, material=MAT):
     rng = np.random.default_rng(seed)
     q = np.asarray(scene.q_init) + np.concatenate([0.03 * rng.normal(size=3 * n), 0.3 * rng.normal(size=n - 1)])
     return scene, jnp.asarray(q)
+
+
+def analyze_checked(*args, **kwargs):
+    """jaxrod.analysis.analyze, with the warnings it issued checked against the ones it returns."""
+    import warnings
+
+    from jaxrod.analysis import analyze
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = analyze(*args, **kwargs)
+    assert [str(w.message) for w in caught] == list(res.warnings)
+    return res

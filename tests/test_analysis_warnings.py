@@ -2,12 +2,11 @@
 nonsense: a stripe that covers part of the rod, an open curve treated as closed, nodes paired
 with another strand's line. Clean data gives no warning."""
 import math
-import warnings
 
 import numpy as np
 import pytest
 
-from jaxrod.analysis import analyze
+from helpers import analyze_checked
 
 TWO_PI = 2 * math.pi
 
@@ -21,12 +20,7 @@ def _ribbon(turns=3, m=120, offset=0.1):
     return x, stripe
 
 
-def _analyze(*args, **kwargs):
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        res = analyze(*args, **kwargs)
-    assert [str(w.message) for w in caught] == list(res.warnings)
-    return res
+_analyze = analyze_checked  # the warnings it issues are the ones it returns
 
 
 def test_clean_ribbon_gives_no_warning():

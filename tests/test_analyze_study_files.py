@@ -18,7 +18,6 @@ three are on the symmetric branch (phi*_+ ~ 11.6 pi).
 import json
 import math
 import os
-import warnings
 
 import numpy as np
 import pytest
@@ -28,6 +27,7 @@ from jaxrod import analysis
 from jaxrod.analysis import analyze, load_polyline
 from jaxrod.atomic import savez
 from jaxrod.records import step_record
+from helpers import analyze_checked
 
 PI = math.pi
 TURNS = (6.0, 6.5, 7.0)  # phi / pi
@@ -46,13 +46,7 @@ def states():
     return out
 
 
-def _analyze(*args, **kwargs):
-    """analyze, with the warnings it issued checked against the ones it returns."""
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        res = analyze(*args, **kwargs)
-    assert [str(w.message) for w in caught] == list(res.warnings)
-    return res
+_analyze = analyze_checked  # the warnings it issues are the ones it returns
 
 
 def _step_file(folder, states, k, name="plus_0001.npz"):
