@@ -104,7 +104,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline, make_lsq_spline  # scipy is a dependency of jax itself
 
 from .geometry import parallel_transport, signed_angle
-from .topology import gauss_linking_quadrature, linking_number, writhe
+from .topology import gauss_linking_quadrature, is_whole_turns, linking_number, writhe
 
 __all__ = ["RodAnalysis", "analyze", "count_peaks", "load_joint_twist", "load_polyline", "symmetry_order",
            "write_profiles_csv"]
@@ -449,8 +449,6 @@ _JUMP_CONTRAST = 10.0
 # joint_twist given: a jump left over (the line's jump plus the twist accounted for) beyond this
 # many turns means joint_twist does not describe this line.
 _JUMP_MISMATCH_TURNS = 0.05
-# phi / 2pi within this of an integer: a whole number of turns (the line closes).
-_WHOLE_TURN_TOL = 1e-9
 
 
 def _closure_jump(angles, width):
@@ -667,7 +665,7 @@ def analyze(centreline, eccentric, closed=True, n_samples=None, smoothing_modes=
                     "supplies)")
         else:
             turns = joint_twist / TWO_PI
-            if abs(turns - round(turns)) > _WHOLE_TURN_TOL:
+            if not is_whole_turns(joint_twist):
                 line_closes = False
             hidden = joint_twist - TWO_PI * math.floor((joint_twist + jump) / TWO_PI + 0.5)
             residual = jump + hidden  # what the joint step still turns beyond the trend

@@ -25,7 +25,7 @@ from .equilibrium import (Equilibrium, LeftBranchError, TopologyChangeError, equ
 from .geometry import polyline_distance
 from .validation import check_finite, check_int_at_least, check_positive
 from .solvers import ConvergenceError
-from .sparse_branch import solve_equilibrium_sparse, sparse_branch_analysis
+from .sparse_branch import EXTRA_PAIRS, solve_equilibrium_sparse, sparse_branch_analysis
 from .stability import DEFAULT_NEGATIVE_TOL, branch_analysis, shape_modes_in_band
 
 __all__ = ["check_dense_memory", "dense_memory_bytes", "available_memory_bytes", "default_negative_tol",
@@ -465,9 +465,7 @@ def _use_sparse(scene, linear_algebra):
     return linear_algebra == "sparse"
 
 
-# Eigenpairs computed beyond the tracked index or the negative count (the sparse path computes
-# only k of them): room for a degenerate pair crossing and the mode above it.
-K_MARGIN = 4
+K_MARGIN = EXTRA_PAIRS  # eigenpairs beyond the tracked index or the negative count (sparse path)
 
 
 def _grown_engine(engine, needed):

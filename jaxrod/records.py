@@ -21,7 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .geometry import radius_of_gyration
-from .topology import linking_number
+from .topology import is_whole_turns, linking_number
 
 __all__ = ["step_record", "vertex_profiles", "ROW_KEYS", "ROW_UNITS"]
 
@@ -47,10 +47,6 @@ ROW_UNITS = {
     "B/l per l (scaled)", "iterations": "count", "direction": "plus | minus",
     "lambda_j": "B/l (scaled Hessian eigenvalue, zero modes removed)",
 }
-
-
-# phi / 2pi within this of an integer: a whole number of turns, where the eccentric line closes.
-_WHOLE_TURN_TOL = 1e-9
 
 
 def _min_nonlocal_distance(x, D):
@@ -136,8 +132,7 @@ def step_record(scene, eq, branch="", n_samples=None):
     terms = eq.energy_terms
     stab = eq.stability
     n_contact = int(n_contact)
-    turns = float(eq.phi) / (2.0 * math.pi)
-    if abs(turns - round(turns)) > _WHOLE_TURN_TOL:
+    if not is_whole_turns(eq.phi):
         lk_gauss = math.nan  # the line jumps by phi mod 2 pi at the joint: not a closed curve
     row = {
         "branch": branch,

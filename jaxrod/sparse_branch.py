@@ -100,8 +100,9 @@ def eigenvalue_branch_derivative(scene, u, phi, v, du, nbr):
     return jax.jvp(vhv, (u, phi), (du, jnp.ones_like(phi)))[1]
 
 
-# Eigenpairs computed beyond the tracked index when it is not below k.
-_EXTRA_PAIRS = 4
+# Eigenpairs computed beyond the tracked index or the negative count where k does not reach them
+# (room for a degenerate pair crossing and the mode above it); continuation.critical_twist too.
+EXTRA_PAIRS = 4
 
 
 def sparse_branch_analysis(scene, q, phi, index, k=8, tol=DEFAULT_NEGATIVE_TOL, cluster_rtol=None, ref=None,
@@ -130,7 +131,7 @@ def sparse_branch_analysis(scene, q, phi, index, k=8, tol=DEFAULT_NEGATIVE_TOL, 
         raise ValueError(f"index must be >= 0, got {index}")
     n_neg = int(ss.inertia_at_equilibrium(scene, u, phi, nbr, tol))
     # The tracked eigenpair must be among those computed: k, or more when the index needs it.
-    k = int(k) if index < int(k) else min(index + _EXTRA_PAIRS, int(u.shape[0]) - int(scene.n_zero_modes))
+    k = int(k) if index < int(k) else min(index + EXTRA_PAIRS, int(u.shape[0]) - int(scene.n_zero_modes))
     pairs = ss.lowest_eigenpairs_projected(scene, u, phi, nbr, k, guess=guess)
     lam, vec = np.asarray(pairs.values), np.asarray(pairs.vectors)
     if ref is not None and np.any(np.asarray(ref) != 0.0):

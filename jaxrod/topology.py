@@ -25,6 +25,7 @@ The ``*_quadrature`` functions are the plain midpoint-rule
 discretisation of the same integrals; they converge only with resolution and
 are kept for cross-checks against the literature that uses them.
 """
+import math
 from functools import partial
 
 import jax
@@ -40,6 +41,7 @@ __all__ = [
     "gauss_linking_quadrature",
     "writhe_quadrature",
     "eccentric_line",
+    "is_whole_turns",
 ]
 
 _FOUR_PI = 4.0 * np.pi
@@ -343,3 +345,15 @@ def eccentric_line(x, d1, offset):
       (N, 3) array x + offset * d1.
     """
     return jnp.asarray(x) + offset * jnp.asarray(d1)
+
+
+# phi / 2pi within this many turns of an integer counts as a whole number of turns.
+WHOLE_TURN_TOL = 1e-9
+
+
+def is_whole_turns(phi, tol=WHOLE_TURN_TOL):
+    """Whether the imposed twist phi (radians) is a whole number of turns (within ``tol`` turns):
+    only then does a line drawn on the rod before its ends were turned and glued close at the
+    joint, and its Gauss linking number with the centreline exist."""
+    turns = float(phi) / (2.0 * math.pi)
+    return abs(turns - round(turns)) <= tol
