@@ -199,10 +199,9 @@ def _newton_loop(fun, zero_modes, y0, args, gtol, max_steps, max_backtracks, nea
     grad = jax.grad(f)
     hess = _hessian_of(f, hessian, args)
 
-    def newton_step(y):
-        g = grad(y)
+    def newton_step(y, g):
         if direction is not None:  # a structured solve supplied by the caller (e.g. O(N) banded)
-            return direction(y, args, g), g
+            return direction(y, args, g)
         h = hess(y)
         if zero_modes is not None:
             z = orthonormal_columns(zero_modes(y, args))
@@ -215,41 +214,46 @@ def _newton_loop(fun, zero_modes, y0, args, gtol, max_steps, max_backtracks, nea
             weak = jnp.abs(lam) < near_null_tol
             shift = jnp.max(jnp.abs(lam)) + 1.0
             lam = jnp.where(weak, shift, lam)
-            return -vec @ ((vec.T @ g) / lam), g
-        return -jnp.linalg.solve(h, g), g
+            return -vec @ ((vec.T @ g) / lam)
+        return -jnp.linalg.solve(h, g)
 
     def cond(carry):
-        y, it, gnorm, code = carry
+        y, it, gnorm, code, _ = carry
         return (it < max_steps) & (gnorm > gtol) & (code == 0)
 
     def body(carry):
-        y, it, gnorm, _ = carry
-        dy, g = newton_step(y)
+        # g: the gradient at y, carried from the last iteration. The gradient is written once in
+        # the loop (the line search's trial), not once per use: each copy is compiled separately,
+        # and compilation dominates short runs.
+        y, it, _, _, g = carry
+        dy = newton_step(y, g)
         g2 = jnp.sum(g * g)
 
-        # Backtrack on the merit |grad f|^2: accept the first alpha that decreases it.
+        # Backtrack on the merit |grad f|^2: the full step first, then halved until the merit
+        # decreases (at most max_backtracks halvings).
         def ls_cond(c):
-            alpha, k, g2_new = c
-            return (k < max_backtracks) & ~(g2_new < (1.0 - 1e-4 * alpha) * g2)
+            alpha, k, g2_new, _, first = c
+            return first | ((k < max_backtracks) & ~(g2_new < (1.0 - 1e-4 * alpha) * g2))
 
         def ls_body(c):
-            alpha, k, _ = c
-            alpha = 0.5 * alpha
+            alpha, k, _, _, first = c
+            alpha = jnp.where(first, alpha, 0.5 * alpha)
             gn = grad(y + alpha * dy)
-            return alpha, k + 1, jnp.where(jnp.all(jnp.isfinite(gn)), jnp.sum(gn * gn), jnp.inf)
+            return alpha, jnp.where(first, k, k + 1), jnp.where(jnp.all(jnp.isfinite(gn)), jnp.sum(gn * gn), jnp.inf), \
+                gn, False
 
-        g_full = grad(y + dy)
-        g2_full = jnp.where(jnp.all(jnp.isfinite(g_full)), jnp.sum(g_full * g_full), jnp.inf)
-        alpha, k, g2_new = jax.lax.while_loop(ls_cond, ls_body, (1.0, 0, g2_full))
+        alpha, k, g2_new, g_trial, _ = jax.lax.while_loop(ls_cond, ls_body, (1.0, 0, jnp.inf, g, True))
         accepted = g2_new < (1.0 - 1e-4 * alpha) * g2
         y_new = jnp.where(accepted, y + alpha * dy, y)
-        gnorm_new = jnp.max(jnp.abs(grad(y_new)))
+        g_new = jnp.where(accepted, g_trial, g)
+        gnorm_new = jnp.max(jnp.abs(g_new))
         code = jnp.where(~jnp.all(jnp.isfinite(dy)), 2, jnp.where(accepted, 0, 3))
-        return y_new, it + 1, gnorm_new, code
+        return y_new, it + 1, gnorm_new, code, g_new
 
-    gnorm0 = jnp.max(jnp.abs(grad(y0)))
+    g0 = grad(y0)
+    gnorm0 = jnp.max(jnp.abs(g0))
     code0 = jnp.where(jnp.isfinite(gnorm0), 0, 2)
-    y, it, gnorm, code = jax.lax.while_loop(cond, body, (y0, 0, gnorm0, code0))
+    y, it, gnorm, code, _ = jax.lax.while_loop(cond, body, (y0, 0, gnorm0, code0, g0))
     value = f(y)
     code = jnp.where(
         ~(jnp.isfinite(value) & jnp.isfinite(gnorm)),

@@ -15,12 +15,15 @@ os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0")
 import jaxrod  # noqa: E402,F401  (float64 before any test builds arrays)
 
 
-# Longest files first (measured: seconds of test time on 2 cores), so that the two xdist workers,
-# which take whole files in collection order, finish together: alphabetical order left the
-# longest file (sparse stability, ~70 s) to the end, with one worker idle meanwhile.
-_LONGEST_FIRST = ("test_atlas.py", "test_sparse_stability.py", "test_solvers.py", "test_cli.py", "test_michell.py",
-                  "test_resume.py", "test_notebooks.py", "test_energy.py", "test_hessian.py",
-                  "test_conventions.py", "test_topology.py", "test_readme.py", "test_stability.py")
+# Longest files first (measured: seconds of test time per file on 2 cores, --durations=0), so that
+# the two xdist workers, which take whole files in collection order, finish together: alphabetical
+# order left a long file to the end, with the other worker idle meanwhile. Files not listed (short
+# ones, or new ones) come after, alphabetically.
+_LONGEST_FIRST = ("test_atlas.py", "test_sparse_stability.py", "test_notebooks.py", "test_cli.py", "test_energy.py",
+                  "test_michell.py", "test_dynamics.py", "test_conventions.py", "test_solvers.py", "test_readme.py",
+                  "test_resume.py", "test_trefoil_twist.py", "test_hessian.py", "test_topology.py",
+                  "test_bifurcation_rods.py", "test_interrupt_and_lock.py", "test_stability.py", "test_contact.py",
+                  "test_analysis.py", "test_banded.py", "test_knots.py")
 
 
 def pytest_collection_modifyitems(session, config, items):
