@@ -13,7 +13,19 @@ def _point(problem, opts, c, t, ds, arclength):
     vals, vecs, morse = spectrum(c.lin[1], opts.n_eig, problem.n_zero_modes, opts.eig_rtol)
     if morse + 2 > opts.n_eig:  # keep the eigenpairs that can cross next (the locators start from them)
         vals, vecs, morse = spectrum(c.lin[1], morse + 2, problem.n_zero_modes, opts.eig_rtol)
-    return Point(c.z[:-1].copy(), float(c.z[-1]), t, vals, vecs, morse, c.iterations, ds, arclength)
+    u, p = c.z[:-1].copy(), float(c.z[-1])
+    soft = np.zeros(vals.shape, dtype=bool)
+    if problem.soft_modes is not None:
+        # The hook splits the soft direction(s) off within the span of the computed (lowest)
+        # eigenvectors: (values, vectors, soft) with the soft directions' Rayleigh quotients and
+        # the Ritz pairs of J on the rest of the span. All negative eigenvalues lie in that span
+        # (n_eig >= Morse index + 2), so by interlacing the Morse index on the complement of the
+        # soft directions counts the negative Ritz values there.
+        vals, vecs, soft = (np.asarray(a) for a in problem.soft_modes(u, p, vals, vecs))
+        soft = soft.astype(bool)
+        band = opts.eig_rtol * max(float(np.max(np.abs(np.diag(np.asarray(c.lin[1]))))), 1e-300)
+        morse = int(np.sum(vals[~soft] < -band))
+    return Point(u, p, t, vals, vecs, morse, c.iterations, ds, arclength, soft)
 
 
 def continuation(problem, alg, opts, *, observer=None, start=None, throw=True):
@@ -27,10 +39,10 @@ def continuation(problem, alg, opts, *, observer=None, start=None, throw=True):
     ``.branch``) when the corrector fails or an event is not located to ``opts.event_tol``;
     throw=False returns the branch with ``result`` and ``message`` saying so.
     """
-    be, args = problem.backend, problem.args
+    be = problem.backend
 
     def lin(u, p):
-        return problem.linearise(u, p, args)
+        return problem.linearise(u, p, problem.args)  # args may be updated between points
 
     if start is None:
         z_pred = np.append(np.asarray(problem.u0), problem.p0)
@@ -54,6 +66,8 @@ def continuation(problem, alg, opts, *, observer=None, start=None, throw=True):
                        f"p = {points[-1].p:.12g} (point {len(points) - 1})")
             break
         ds = step.ds_next
+        if problem.update_args is not None:  # e.g. a rebuilt contact list: the same F, new args
+            problem.args = problem.update_args(step.correction.z[:-1], float(step.correction.z[-1]), problem.args)
         points.append(_point(problem, opts, step.correction, step.tangent, step.ds, points[-1].arclength + step.ds))
         if observer is not None:
             observer(points[-1])

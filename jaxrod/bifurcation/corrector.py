@@ -64,12 +64,15 @@ class Step:
 def advance(alg, backend, lin, z, t, ds, opts):
     """One accepted step of size <= ds > 0 from (z, t), or None once a step below ds_min failed.
 
-    A step is refused when the corrector fails or the new tangent turns more than
+    A step is refused when the corrector fails, when it moved the point by more than
+    alg.max_correction * ds from the predictor, or when the new tangent turns more than
     acos(alg.min_cos) from t; it is retried with ds * alg.shrink.
     """
     while ds >= opts.ds_min:
-        c = correct(backend, lin, z + ds * t, t, opts.newton_tol, opts.newton_max_iter)
-        if c.converged:
+        z_pred = z + ds * t
+        c = correct(backend, lin, z_pred, t, opts.newton_tol, opts.newton_max_iter)
+        # a corrector that moved far from the predictor may have landed on a nearby branch
+        if c.converged and float(np.linalg.norm(c.z - z_pred)) <= alg.max_correction * ds:
             _, A, a = c.lin
             t_new = tangent(backend, A, a, t)
             if float(t_new @ t) >= alg.min_cos:

@@ -19,9 +19,20 @@ class BifurcationProblem:
     (a second continuation parameter lives there, see ``fold_curve``). ``n_zero_modes`` eigenvalues
     of smallest |lambda| (gauge modes) are excluded from the Morse index and the tracked spectrum;
     the dense corrector and locators still need J regular away from events, i.e. a pinned gauge.
+
+    Two optional hooks, for problems whose args depend on the state (a rod's contact list) or
+    whose spectrum has near-null modes that are not instabilities (a loose knot's sliding):
+    ``update_args(u, p, args) -> args`` is called after every accepted point and must return args
+    that give the same F near (u, p) (e.g. a rebuilt neighbourhood: F unchanged, the cost O(N));
+    ``soft_modes(u, p, values (m,), vectors (n, m)) -> (values, vectors, soft (m,) bool)`` splits
+    soft directions (e.g. material sliding) off within the span of the lowest eigenvectors: they
+    are left out of the Morse index and of the event tests (``Point.soft``). ``jacobian(u, p, args) -> J
+    (n, n)``, traceable, replaces the backend's autodiff J where a structured one is cheaper (a
+    rod's Hessian assembled from its local blocks); it must equal dF/du.
     """
 
-    def __init__(self, energy=None, u0=None, p0=0.0, args=None, *, residual=None, n_zero_modes=0, backend=None):
+    def __init__(self, energy=None, u0=None, p0=0.0, args=None, *, residual=None, n_zero_modes=0, backend=None,
+                 update_args=None, soft_modes=None, jacobian=None):
         if (energy is None) == (residual is None):
             raise ValueError("give exactly one of energy= or residual=")
         self.energy = energy
@@ -32,6 +43,9 @@ class BifurcationProblem:
         self.n_zero_modes = int(n_zero_modes)
         self.backend = backend if backend is not None else DenseBackend()
         self.n = int(self.u0.size)
+        self.update_args = update_args
+        self.soft_modes = soft_modes
+        self.jacobian = jacobian
         # jit per problem: one compile, reused for every point (args traced, so a new mu is no recompile)
         self.linearise = jax.jit(self._linearise)
         self.wjw_gradient = jax.jit(self._wjw_gradient)
@@ -57,6 +71,8 @@ class BifurcationProblem:
     def _linearise(self, u, p, args):
         """(F (n,), J (n, n), F_p (n,)) at (u, p)."""
         F, Fp = jax.jvp(lambda q: self.F(u, q, args), (p,), (jnp.ones_like(p),))
+        if self.jacobian is not None:
+            return F, self.jacobian(u, p, args), Fp
         return F, self.backend.jacobian(lambda x: self.F(x, p, args), u), Fp
 
     def _wjw_gradient(self, u, p, args, w):
@@ -68,7 +84,10 @@ class BifurcationProblem:
         singular; tau = w^T F_p also vanishes at a branch point (F_p orthogonal to the kernel).
         ``singular_tests`` is its Jacobian ((2, n), (2,)) by reverse mode through the bordered
         solve (exact), with aux = (value (2,), F, J, F_p, w)."""
-        F, J, Fp = self._linearise(u, p, args)
+        # J by autodiff here even where a structured ``jacobian`` is given: this function is
+        # differentiated in reverse mode, which a structured assembly (loops) may not support
+        F, Fp = jax.jvp(lambda q: self.F(u, q, args), (p,), (jnp.ones_like(p),))
+        J = self.backend.jacobian(lambda x: self.F(x, p, args), u)
         w, sigma = self.backend.bordered_solve(J, b, b, 0.0, jnp.zeros_like(u), 1.0)
         st = jnp.stack([sigma, jnp.dot(w, Fp)])
         return st, (st, F, J, Fp, w)

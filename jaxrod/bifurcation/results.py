@@ -38,6 +38,7 @@ class Point:
     iterations: int
     ds: float
     arclength: float
+    soft: np.ndarray = None  # (n_eig,) bool: soft modes (``BifurcationProblem.soft_modes``), not in morse_index
 
     @property
     def z(self):

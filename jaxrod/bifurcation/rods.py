@@ -35,12 +35,14 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..geometry import closest_approach
+from ..hessian import scaled_hessian as structured_scaled_hessian
 from ..sparse_stability import gauge_pins
+from ..stability import SLIDING_FRACTION
 from ..topology import writhe
 from .problem import BifurcationProblem
 from .results import Event
 
-__all__ = ["PinnedRod", "pinned_problem", "sliding_slice"]
+__all__ = ["PinnedRod", "pinned_problem", "knot_problem", "split_sliding", "sliding_slice"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -126,6 +128,121 @@ def _build(scene, u_ref, phi0, pins, backend):
 
     prob = BifurcationProblem(energy, u_ref[free], phi0, scene, n_zero_modes=0, backend=backend)
     return PinnedRod(prob, scene, pins, free, u_ref)
+
+
+def knot_problem(scene, q_ref, phi0, *, pins=None, capacity=None, sliding=SLIDING_FRACTION, backend=None):
+    """A knot (a closed rod with soft self-contact) as a BifurcationProblem, at O(N) per energy.
+
+    As ``pinned_problem`` (7 gauge DOFs pinned at the state q_ref (n,), physical DOFs, at phi0),
+    but the energy is evaluated through a ``Neighbourhood`` (contact candidates and the writhe
+    that fixes the holonomy's branch, ``jaxrod.neighbourhood``) carried in the problem's args
+    (scene, nbr): the same value as the exact energy while the state stays inside it, O(N) instead
+    of O(N^2). After every accepted point the neighbourhood is rebuilt if it went stale (the
+    problem's ``update_args``; its capacity, padded to ``capacity`` pairs, is kept so that
+    nothing recompiles).
+
+    Soft modes: a loose knot has near-null modes that move material along its own centreline
+    (strands slipping; ~1e-11 to 1e-7 in scaled units, of either sign, depending on N). They are
+    told apart by their shape, not by a band of eigenvalues: a mode whose ``sliding_fraction``
+    (what is left of it once the best sliding field plus a rigid motion is taken out) is below
+    ``sliding`` (default ``jaxrod.stability.SLIDING_FRACTION``) is a soft mode, left out of the
+    Morse index and of the event tests. A buckling mode changes the shape: its fraction is O(1).
+    Returns a PinnedRod (its problem's args are (scene, nbr)).
+    """
+    q_ref = np.asarray(q_ref, dtype=float)
+    u_ref = np.asarray(scene.to_scaled(q_ref), dtype=float)
+    if pins is None:
+        pins, _ = gauge_pins(scene, jnp.asarray(u_ref), float(phi0))
+    pins = np.unique(np.asarray(pins, dtype=np.int64).ravel())
+    free = np.setdiff1d(np.arange(u_ref.size), pins)
+    free_j, ref_j = jnp.asarray(free), jnp.asarray(u_ref)
+    nbr0 = scene.neighbourhood(q_ref, float(phi0), capacity=capacity)
+    holder = {}
+
+    def energy(u_free, phi, args):
+        sc, nbr = args
+        return sc.scaled_energy(ref_j.at[free_j].set(u_free), phi, nbr)
+
+    def jacobian(u_free, phi, args):  # the structured Hessian (local blocks + contact pairs), pinned rows dropped
+        sc, nbr = args
+        h = structured_scaled_hessian(sc, ref_j.at[free_j].set(u_free), phi, nbr)
+        return h[free_j][:, free_j]
+
+    def update_args(u_free, phi, args):
+        sc, nbr = args
+        q = holder["rod"].q(u_free)
+        x = jnp.asarray(sc.positions(jnp.asarray(q)))
+        if not bool(nbr.stale(x)):
+            wr = float(_writhe(x))
+            if abs(wr - float(nbr.wr_ref)) < 0.25:
+                return args
+        return sc, sc.neighbourhood(q, float(phi), capacity=nbr.capacity)
+
+    def soft_modes(u_free, phi, values, vectors):
+        rod = holder["rod"]
+        return split_sliding(scene, rod.q(u_free), free, u_ref.size, values, vectors, sliding)
+
+    prob = BifurcationProblem(energy, u_ref[free], phi0, (scene, nbr0), n_zero_modes=0, backend=backend,
+                              update_args=update_args, soft_modes=soft_modes, jacobian=jacobian)
+    rod = PinnedRod(prob, scene, pins, free, u_ref)
+    holder["rod"] = rod
+    return rod
+
+
+def _sliding_form(scene, q):
+    """(n_x, n_x) PSD matrix M of the quadratic form v -> sliding fraction numerator restricted to
+    node coordinates: |(I - Q) Perp v_x|^2, Perp taking out the motion along each node's tangent,
+    Q the projector on the (perpendicular parts of the) rigid motions (``sliding_fraction``)."""
+    x = np.asarray(scene.unpack(jnp.asarray(q), 0.0)[0])
+    n = x.shape[0]
+    t = np.roll(x, -1, axis=0) - np.roll(x, 1, axis=0)
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    xc = x - x.mean(axis=0)
+    perp = np.eye(3)[None] - t[:, :, None] * t[:, None, :]
+    skew = np.zeros((n, 3, 3))
+    skew[:, 0, 1], skew[:, 0, 2], skew[:, 1, 2] = -xc[:, 2], xc[:, 1], -xc[:, 0]
+    skew[:, 1, 0], skew[:, 2, 0], skew[:, 2, 1] = xc[:, 2], -xc[:, 1], xc[:, 0]
+    rigid = np.concatenate([perp, np.einsum("nij,njk->nik", perp, skew)], axis=2).reshape(3 * n, 6)
+    P = np.zeros((3 * n, 3 * n))
+    for i in range(n):
+        P[3 * i:3 * i + 3, 3 * i:3 * i + 3] = perp[i]
+    qr, _ = np.linalg.qr(rigid)
+    A = P - qr @ (qr.T @ P)
+    return A.T @ A
+
+
+def split_sliding(scene, q, free, n_full, values, vectors, threshold=SLIDING_FRACTION):
+    """Split the material-sliding direction off the span of the lowest eigenvectors of a knot.
+
+    values (m,), vectors (n_free, m): the lowest eigenpairs of the pinned Hessian; q: the state.
+    The sliding fraction (``jaxrod.stability.sliding_fraction``: 0 for a pure slide of the material
+    along the centreline, O(1) for a change of shape) is a quadratic form; its minimiser s within
+    the span is the slide, whatever the mixing of nearly degenerate eigenvectors (near a fold the
+    critical mode and the slide are both near zero and their eigenvectors mix). If its fraction is
+    below ``threshold`` it is returned as the one soft direction, with its Rayleigh quotient, and
+    the rest of the span as Ritz pairs of the Hessian (ascending). Returns (values, vectors, soft).
+    """
+    V = np.asarray(vectors, dtype=float)
+    lam = np.asarray(values, dtype=float)
+    n_x = 3 * int(scene.n_nodes)
+    full = np.zeros((n_full, V.shape[1]))
+    full[np.asarray(free)] = V
+    M = _sliding_form(scene, q)
+    fx, ft = full[:n_x], full[n_x:]
+    G = fx.T @ M @ fx + ft.T @ ft  # (m, m): the fraction's numerator on the span (V orthonormal)
+    g, C = np.linalg.eigh(0.5 * (G + G.T))
+    if g[0] >= threshold:
+        return lam, V, np.zeros(lam.shape, dtype=bool)
+    c, rest = C[:, 0], C[:, 1:]
+    K = rest.T @ (lam[:, None] * rest)
+    ritz, R = np.linalg.eigh(0.5 * (K + K.T))
+    W = V @ (rest @ R)
+    vals = np.concatenate([[float(c @ (lam * c))], ritz])
+    vecs = np.concatenate([(V @ c)[:, None], W], axis=1)
+    order = np.argsort(vals, kind="stable")
+    soft = np.zeros(vals.shape, dtype=bool)
+    soft[0] = True
+    return vals[order], vecs[:, order], soft[order]
 
 
 def sliding_slice(rod, event, *, candidates=None):
