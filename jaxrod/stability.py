@@ -32,6 +32,7 @@ __all__ = [
     "critical_twist_derivative",
     "DEFAULT_NEGATIVE_TOL",
     "sliding_fraction",
+    "sliding_fields",
     "shape_modes_in_band",
     "SLIDING_FRACTION",
 ]
@@ -372,20 +373,11 @@ def critical_twist_derivative(scene, critical, parameter, cluster_rtol=1e-4, pin
 SLIDING_FRACTION = 0.05
 
 
-def sliding_fraction(scene, q, vectors):
-    """How far each mode is from material sliding along the centreline: (m,) fractions in [0, 1]
-    for the modes ``vectors`` (n, m) in scaled DOFs at the state ``q`` (physical DOFs) of a rod.
-
-    A loose knot's near-null modes move material along its own centreline (strands slipping):
-    node i moves by alpha_i t_i (t_i its tangent), plus a rigid motion a + w x x_i (projected out of
-    the modes, but a slide along a torus knot is mostly a rotation about its axis). The fraction is
-    what is left of the mode once the best such field is subtracted from its node motions,
-    counting its twist-angle part as left over too: ~0 for sliding, O(1) for a mode that changes
-    the shape (a buckling mode) or only the twist. Rods whose nodes are all free (closed and free
-    rods: tangents by central differences, one-sided at open ends); a clamped rod cannot slide."""
-    vec = np.asarray(vectors, dtype=float)
-    if vec.ndim == 1:
-        vec = vec[:, None]
+def sliding_fields(scene, q):
+    """(perp (n, 3, 3), rigid (3n, 6)) at the state q of a rod whose nodes are all free: perp[i]
+    takes out the motion along node i's tangent (central differences, one-sided at open ends) and
+    rigid holds the 6 rigid motions with that part taken out. A field of node motions slides
+    (``sliding_fraction``) when its perp part is a combination of rigid's columns."""
     n = int(scene.n_nodes)
     if int(scene.n_free_nodes) != n:
         raise ValueError("sliding_fraction: the rod must have all its nodes free (a closed or free rod)")
@@ -401,6 +393,25 @@ def sliding_fraction(scene, q, vectors):
     skew[:, 0, 1], skew[:, 0, 2], skew[:, 1, 2] = -xc[:, 2], xc[:, 1], -xc[:, 0]
     skew[:, 1, 0], skew[:, 2, 0], skew[:, 2, 1] = xc[:, 2], -xc[:, 1], xc[:, 0]
     rigid = np.concatenate([perp, np.einsum("nij,njk->nik", perp, skew)], axis=2).reshape(3 * n, 6)
+    return perp, rigid
+
+
+def sliding_fraction(scene, q, vectors):
+    """How far each mode is from material sliding along the centreline: (m,) fractions in [0, 1]
+    for the modes ``vectors`` (n, m) in scaled DOFs at the state ``q`` (physical DOFs) of a rod.
+
+    A loose knot's near-null modes move material along its own centreline (strands slipping):
+    node i moves by alpha_i t_i (t_i its tangent), plus a rigid motion a + w x x_i (projected out of
+    the modes, but a slide along a torus knot is mostly a rotation about its axis). The fraction is
+    what is left of the mode once the best such field is subtracted from its node motions,
+    counting its twist-angle part as left over too: ~0 for sliding, O(1) for a mode that changes
+    the shape (a buckling mode) or only the twist. Rods whose nodes are all free (closed and free
+    rods: tangents by central differences, one-sided at open ends); a clamped rod cannot slide."""
+    vec = np.asarray(vectors, dtype=float)
+    if vec.ndim == 1:
+        vec = vec[:, None]
+    n = int(scene.n_nodes)
+    perp, rigid = sliding_fields(scene, q)
     out = np.empty(vec.shape[1])
     for j in range(vec.shape[1]):
         v = vec[:, j]

@@ -37,7 +37,7 @@ import numpy as np
 from ..geometry import closest_approach
 from ..hessian import scaled_hessian as structured_scaled_hessian
 from ..sparse_stability import gauge_pins
-from ..stability import SLIDING_FRACTION
+from ..stability import SLIDING_FRACTION, sliding_fields
 from ..topology import writhe
 from .problem import BifurcationProblem
 from .results import Event
@@ -193,16 +193,8 @@ def _sliding_form(scene, q):
     """(n_x, n_x) PSD matrix M of the quadratic form v -> sliding fraction numerator restricted to
     node coordinates: |(I - Q) Perp v_x|^2, Perp taking out the motion along each node's tangent,
     Q the projector on the (perpendicular parts of the) rigid motions (``sliding_fraction``)."""
-    x = np.asarray(scene.unpack(jnp.asarray(q), 0.0)[0])
-    n = x.shape[0]
-    t = np.roll(x, -1, axis=0) - np.roll(x, 1, axis=0)
-    t /= np.linalg.norm(t, axis=1, keepdims=True)
-    xc = x - x.mean(axis=0)
-    perp = np.eye(3)[None] - t[:, :, None] * t[:, None, :]
-    skew = np.zeros((n, 3, 3))
-    skew[:, 0, 1], skew[:, 0, 2], skew[:, 1, 2] = -xc[:, 2], xc[:, 1], -xc[:, 0]
-    skew[:, 1, 0], skew[:, 2, 0], skew[:, 2, 1] = xc[:, 2], -xc[:, 1], xc[:, 0]
-    rigid = np.concatenate([perp, np.einsum("nij,njk->nik", perp, skew)], axis=2).reshape(3 * n, 6)
+    perp, rigid = sliding_fields(scene, q)
+    n = perp.shape[0]
     P = np.zeros((3 * n, 3 * n))
     for i in range(n):
         P[3 * i:3 * i + 3, 3 * i:3 * i + 3] = perp[i]
