@@ -23,6 +23,7 @@ def _point(problem, opts, c, t, ds, arclength):
         # soft directions counts the negative Ritz values there.
         vals, vecs, soft = (np.asarray(a) for a in problem.soft_modes(u, p, vals, vecs))
         soft = soft.astype(bool)
+        # the negative band relative to max |J_ii| (<= ||J||_2: no wider than the backend's band)
         band = opts.eig_rtol * max(float(np.max(np.abs(np.diag(np.asarray(c.lin[1]))))), 1e-300)
         morse = int(np.sum(vals[~soft] < -band))
     return Point(u, p, t, vals, vecs, morse, c.iterations, ds, arclength, soft)

@@ -189,20 +189,6 @@ def knot_problem(scene, q_ref, phi0, *, pins=None, capacity=None, sliding=SLIDIN
     return rod
 
 
-def _sliding_form(scene, q):
-    """(n_x, n_x) PSD matrix M of the quadratic form v -> sliding fraction numerator restricted to
-    node coordinates: |(I - Q) Perp v_x|^2, Perp taking out the motion along each node's tangent,
-    Q the projector on the (perpendicular parts of the) rigid motions (``sliding_fraction``)."""
-    perp, rigid = sliding_fields(scene, q)
-    n = perp.shape[0]
-    P = np.zeros((3 * n, 3 * n))
-    for i in range(n):
-        P[3 * i:3 * i + 3, 3 * i:3 * i + 3] = perp[i]
-    qr, _ = np.linalg.qr(rigid)
-    A = P - qr @ (qr.T @ P)
-    return A.T @ A
-
-
 def split_sliding(scene, q, free, n_full, values, vectors, threshold=SLIDING_FRACTION):
     """Split the material-sliding direction off the span of the lowest eigenvectors of a knot.
 
@@ -216,12 +202,16 @@ def split_sliding(scene, q, free, n_full, values, vectors, threshold=SLIDING_FRA
     """
     V = np.asarray(vectors, dtype=float)
     lam = np.asarray(values, dtype=float)
-    n_x = 3 * int(scene.n_nodes)
+    n = int(scene.n_nodes)
     full = np.zeros((n_full, V.shape[1]))
     full[np.asarray(free)] = V
-    M = _sliding_form(scene, q)
-    fx, ft = full[:n_x], full[n_x:]
-    G = fx.T @ M @ fx + ft.T @ ft  # (m, m): the fraction's numerator on the span (V orthonormal)
+    perp, rigid = sliding_fields(scene, q)
+    # the part of each vector's node motion that is no slide: off the tangents, rigid motions out
+    B = np.einsum("nij,njm->nim", perp, full[:3 * n].reshape(n, 3, -1)).reshape(3 * n, -1)
+    basis, _ = np.linalg.qr(rigid)
+    B -= basis @ (basis.T @ B)
+    ft = full[3 * n:]
+    G = B.T @ B + ft.T @ ft  # (m, m): the fraction's numerator on the span (V orthonormal)
     g, C = np.linalg.eigh(0.5 * (G + G.T))
     if g[0] >= threshold:
         return lam, V, np.zeros(lam.shape, dtype=bool)
