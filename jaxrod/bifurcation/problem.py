@@ -11,6 +11,17 @@ import jax.numpy as jnp
 from .linalg import DenseBackend
 
 
+def _jit_in_u_p(fn):
+    """jit(fn) called with u and p as float64 arrays (u (n,), p ()): a Python float p would be
+    traced weakly typed and a jnp one strongly, two programs compiled for one function."""
+    compiled = jax.jit(fn)
+
+    def call(u, p, *rest):
+        return compiled(jnp.asarray(u, dtype=jnp.float64), jnp.asarray(p, dtype=jnp.float64), *rest)
+
+    return call
+
+
 class BifurcationProblem:
     """F(u, p, args) = 0 as pure JAX functions, with its start (u0, p0) and linear-algebra backend.
 
@@ -47,11 +58,11 @@ class BifurcationProblem:
         self.soft_modes = soft_modes
         self.jacobian = jacobian
         # jit per problem: one compile, reused for every point (args traced, so a new mu is no recompile)
-        self.linearise = jax.jit(self._linearise)
-        self.wjw_gradient = jax.jit(self._wjw_gradient)
-        self.singular_tests = jax.jit(jax.jacrev(self._singular_tests, argnums=(0, 1), has_aux=True))
-        self.hvp_derivative = jax.jit(self._hvp_derivative)
-        self.directional_derivatives = jax.jit(self._directional_derivatives)
+        self.linearise = _jit_in_u_p(self._linearise)
+        self.wjw_gradient = _jit_in_u_p(self._wjw_gradient)
+        self.singular_tests = _jit_in_u_p(jax.jacrev(self._singular_tests, argnums=(0, 1), has_aux=True))
+        self.hvp_derivative = _jit_in_u_p(self._hvp_derivative)
+        self.directional_derivatives = _jit_in_u_p(self._directional_derivatives)
 
     def hvp(self, u, p, args, w):
         """J(u, p) w (n,), by a jvp of F: never forms J."""
