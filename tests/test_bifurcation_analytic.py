@@ -261,3 +261,50 @@ def test_corrector_failure_is_reported():
     assert failed.result is Result.CORRECTOR_FAILED and not failed.points
     with pytest.raises(ValueError):
         ContinuationOptions(ds=0.0)
+
+
+# Soft folds: E = x^2/2 + (1 - cos y) + k y^2/2 - p y, with y marked soft by the hook (a stand-in for
+# a loose knot's sliding: a washboard the path can turn back on without any branch end). On the
+# branch x = 0, sin y + k y = p; folds where cos y = -k.
+WASHBOARD_K = 0.1
+
+
+def washboard_energy(u, p, args):
+    x, y = u
+    return x ** 2 / 2 + (1 - jnp.cos(y)) + WASHBOARD_K * y ** 2 / 2 - p * y
+
+
+def y_is_soft(u, p, values, vectors):
+    return values, vectors, np.abs(np.asarray(vectors)[1]) > 0.9
+
+
+@pytest.mark.parametrize("soft_folds", ["slide", "follow"])
+def test_soft_fold_is_no_branch_end_and_is_slid_across(soft_folds):
+    from scipy.optimize import brentq
+
+    prob = BifurcationProblem(washboard_energy, [0.0, 0.0], 0.0, None, soft_modes=y_is_soft)
+    opts = ContinuationOptions(ds=0.05, ds_max=0.1, p_max=1.5, max_steps=120, soft_folds=soft_folds)
+    br = continuation(prob, ALG, opts)
+    y_fold = np.arccos(-WASHBOARD_K)
+    p_fold = np.sin(y_fold) + WASHBOARD_K * y_fold
+    soft = br.events_of("soft_fold")
+    assert not br.events_of("fold") and not br.events_of("branch_point")
+    assert len(soft) >= 1
+    check_located(soft[0], "soft_fold", p_fold, [0.0, y_fold])
+    assert (soft[0].morse_before, soft[0].morse_after) == (0, 0)
+    if soft_folds == "follow":  # the path turns back in p on the unstable side of the washboard
+        assert not br.slides
+        i = soft[0].step
+        assert br.points[i].p < p_fold and br.points[i].u[1] > y_fold
+        return
+    # slid: relaxed at p_fold + slide_dp into the next well of the washboard, then on to p_max
+    (slide,) = br.slides
+    p1 = p_fold + opts.slide_dp
+    y_next = brentq(lambda y: np.sin(y) + WASHBOARD_K * y - p1, 2 * np.pi, 2.5 * np.pi)
+    assert abs(slide.p - p1) <= 1e-14 and abs(slide.u[1] - y_next) <= 1e-10 and abs(slide.u[0]) <= 1e-12
+    assert slide.energy_drop > 0 and abs(slide.distance - (y_next - y_fold)) <= 1e-8
+    after = br.points[slide.step:]
+    assert after[0].p == pytest.approx(p1, abs=1e-12) and all(q.morse_index == 0 for q in after)
+    assert np.all(np.diff([q.p for q in after]) > 0) and br.result is Result.BOUNDARY
+    # every point is an equilibrium of the washboard branch
+    assert all(abs(np.sin(q.u[1]) + WASHBOARD_K * q.u[1] - q.p) <= 1e-10 for q in br.points)

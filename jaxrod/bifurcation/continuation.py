@@ -5,7 +5,7 @@ import numpy as np
 
 from .corrector import advance, correct, tangent
 from .events import find_events
-from .results import Branch, ContinuationError, Point, Result
+from .results import Branch, ContinuationError, Point, Result, Slide
 
 
 def _point(problem, opts, c, t, ds, arclength):
@@ -57,7 +57,7 @@ def continuation(problem, alg, opts, *, observer=None, start=None, throw=True):
         return _finish(Branch([], [], Result.CORRECTOR_FAILED, f"the start did not converge: residual "
                               f"{c.residual:.3g} after {c.iterations} Newton iterations"), throw)
     points = [_point(problem, opts, c, tangent(be, c.lin[1], c.lin[2], t0), 0.0, 0.0)]
-    events, ds = [], abs(opts.ds)
+    events, slides, ds = [], [], abs(opts.ds)
     result, message = Result.MAX_STEPS, f"stopped after max_steps = {opts.max_steps} steps"
     for _ in range(opts.max_steps):
         step = advance(alg, be, lin, points[-1].z, points[-1].tangent, ds, opts)
@@ -73,7 +73,26 @@ def continuation(problem, alg, opts, *, observer=None, start=None, throw=True):
         if observer is not None:
             observer(points[-1])
         if opts.detect_events:
-            events += find_events(problem, opts, points[-2], points[-1], len(points) - 1)
+            found = find_events(problem, opts, points[-2], points[-1], len(points) - 1)
+            events += found
+            soft = next((e for e in found if e.kind == "soft_fold" and e.converged), None)
+            if soft is not None and opts.soft_folds == "slide":
+                points.pop()  # past the soft fold: on the sliding saddles, not kept
+                direction = 1.0 if points[-1].tangent[-1] > 0 else -1.0
+                slid = _slide(problem, opts, soft, direction, len(points))
+                if slid is None:
+                    result = Result.CORRECTOR_FAILED
+                    message = f"no minimum found past the soft fold at p = {soft.p:.12g} (slide_dp = {opts.slide_dp:g})"
+                    break
+                slide, c = slid
+                t0 = np.zeros(problem.n + 1)
+                t0[-1] = direction
+                jump = float(np.linalg.norm(c.z - points[-1].z))
+                points.append(_point(problem, opts, c, tangent(be, c.lin[1], c.lin[2], t0), jump,
+                                     points[-1].arclength + jump))
+                slides.append(slide)
+                if observer is not None:
+                    observer(points[-1])
         if not opts.p_min <= points[-1].p <= opts.p_max:
             result, message = Result.BOUNDARY, f"p = {points[-1].p:.12g} left [{opts.p_min:g}, {opts.p_max:g}]"
             break
@@ -83,7 +102,48 @@ def continuation(problem, alg, opts, *, observer=None, start=None, throw=True):
         message = "; ".join(f"{e.kind} near p = {e.p:.6g} not located: residual {e.residual:.3g}, critical "
                             f"eigenvalue {e.critical_eigenvalue:.3g} > event_tol = {opts.event_tol:g}"
                             for e in failed)
-    return _finish(Branch(points, events, result, message), throw)
+    return _finish(Branch(points, events, result, message, slides=slides), throw)
+
+
+def _slide(problem, opts, fold, direction, step):
+    """Relax past a soft fold: minimise E(., p1) at p1 = fold.p + direction * slide_dp from the fold
+    kicked by slide_kick downhill along its soft mode (DampedNewton with steps capped at 10
+    slide_kick, so that it follows the valley instead of jumping over wells; the problem's structured
+    Hessian if it has one; args refreshed by ``update_args`` and the relaxation repeated while they
+    change), to 1e-9, then correct it on p = p1 to newton_tol. -> (Slide, Correction), or None."""
+    import jax
+    import jax.numpy as jnp
+
+    from ..solvers import DampedNewton, minimise
+
+    if problem.energy is None:
+        raise ValueError("soft_folds='slide' needs the problem's energy (give energy=, or soft_folds='follow')")
+    p1 = jnp.asarray(fold.p + direction * opts.slide_dp, dtype=jnp.float64)
+    solver = DampedNewton(hessian=problem.jacobian_at if problem.jacobian is not None else None,
+                          max_step=10.0 * opts.slide_kick)
+    u0, v = np.asarray(fold.u), np.asarray(fold.v[:, 0])
+    args = problem.args
+    g = np.asarray(jax.grad(problem.energy)(jnp.asarray(u0), p1, args))
+    y = u0 - opts.slide_kick * (1.0 if float(g @ v) > 0 else -1.0) * v  # downhill: past the fold, E falls along v
+    for _ in range(8):
+        sol = minimise(problem.energy_at, y, (p1, args), solver, gtol=1e-9, throw=False)
+        fresh = problem.update_args(sol.y, float(p1), args) if problem.update_args is not None else args
+        if fresh is args:
+            break
+        args, y = fresh, sol.y
+    if not sol.converged:
+        return None
+    problem.args = args
+    t0 = np.zeros(problem.n + 1)
+    t0[-1] = direction
+    c = correct(problem.backend, lambda u, p: problem.linearise(u, p, problem.args), np.append(sol.y, float(p1)), t0,
+                opts.newton_tol, opts.newton_max_iter)
+    if not c.converged:
+        return None
+    e_fold, e_new = (float(problem.energy(jnp.asarray(x), p1, args)) for x in (u0, c.z[:-1]))
+    slide = Slide(fold, float(p1), c.z[:-1].copy(), float(np.linalg.norm(c.z[:-1] - u0)), e_fold - e_new,
+                  sol.iterations, step)
+    return slide, c
 
 
 def _finish(branch, throw):

@@ -1,6 +1,7 @@
 """Event detection between consecutive points of a branch, handed to the locators.
 
-- fold: the p-component of the tangent changes sign (the path turns back in p);
+- fold: the p-component of the tangent changes sign (the path turns back in p); a "soft_fold" if
+  the critical mode is soft (``BifurcationProblem.soft_modes``) and the Morse index is unchanged;
 - branch point: the Morse index changes without a fold. Its size is the multiplicity (2 for the
   double branch points that symmetry produces, where det of the bordered matrix keeps its sign,
   so the Morse count is the test used; ``Point.bordered_sign`` gives the classic one).
@@ -16,9 +17,9 @@ from .locate import locate_branch_points, locate_fold
 def find_events(problem, opts, a, b, step):
     """Located events (list of Event) between Points a and b = points[step - 1], points[step]."""
     if a.tangent[-1] * b.tangent[-1] < 0:
-        # start Newton from the end nearer the fold (smaller |dp/ds|)
-        start = a if abs(a.tangent[-1]) <= abs(b.tangent[-1]) else b
-        return [locate_fold(problem, opts, start, (a.morse_index, b.morse_index), step)]
+        # start Newton from the end nearer the fold (smaller |dp/ds|), the other end as a fallback
+        starts = (a, b) if abs(a.tangent[-1]) <= abs(b.tangent[-1]) else (b, a)
+        return [locate_fold(problem, opts, starts, (a.morse_index, b.morse_index), step)]
     if a.morse_index != b.morse_index:
         return locate_branch_points(problem, opts, a, b, step)
     return []

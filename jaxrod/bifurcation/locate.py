@@ -40,7 +40,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from .corrector import correct
-from .results import Event
+from .results import Event, Point
 
 
 # Newton iterations within which the fold system, started at a bracket end, converges to roundoff
@@ -54,32 +54,36 @@ def _done(res, prev, tol):
     return res <= tol and (prev <= tol or res <= 1e-3 * tol)
 
 
-def locate_fold(problem, opts, start, morse, step):
-    """Fold near Point ``start`` (Newton on (F, sigma)); morse = (before, after). -> Event."""
-    be, args, n = problem.backend, problem.args, problem.n
-    u, p = np.array(start.u), float(start.p)
-    lam = np.abs(start.eigenvalues)
-    if start.soft is not None and not np.all(start.soft):  # start from the smallest shape mode, not a sliding one
-        lam = np.where(start.soft, np.inf, lam)
-    j0 = int(np.argmin(lam))
-    b, tangent = start.eigenvectors[:, j0], np.asarray(start.tangent)
-    res = np.inf
-    for it in range(opts.locate_max_iter + 1):
-        F, J, Fp = problem.linearise(u, p, args)
-        w, sigma = be.bordered_solve(J, b, b, 0.0, np.zeros(n), 1.0)
-        gu, gp = problem.wjw_gradient(u, p, args, w)
-        res, prev = float(np.sqrt(np.sum(np.asarray(F) ** 2) + float(sigma) ** 2)), res
-        if not np.isfinite(res) or _done(res, prev, opts.newton_tol) or it == opts.locate_max_iter:
-            break
-        du, dp = be.bordered_solve(J, Fp, -gu, -gp, -F, -sigma)
-        u, p = u + np.asarray(du), p + float(dp)
-        b = np.asarray(w) / np.linalg.norm(w)
-    if not np.isfinite(res):  # diverged: reported at the start, not located
-        return Event("fold", start.p, start.u, start.eigenvectors[:, [j0]], start.eigenvalues[[j0]], res, it, 1,
-                     morse[0], morse[1], step, tangent, False)
-    vals, vecs, _ = be.spectrum(J, opts.n_eig + max(morse), problem.n_zero_modes, opts.eig_rtol)
-    k = int(np.argmin(np.abs(vals)))
-    ok = bool(res <= opts.event_tol and abs(vals[k]) <= opts.event_tol)
+def locate_fold(problem, opts, starts, morse, step):
+    """Fold near the Points ``starts`` (the bracket's ends, the preferred first; Newton on
+    (F, sigma)); morse = (before, after). -> Event ("fold", or "soft_fold" for a turn along a soft
+    mode with the Morse index unchanged)."""
+    if isinstance(starts, Point):
+        starts = (starts,)
+    result = None
+    for start in starts:
+        result = _fold_from(problem, opts, start, morse, step)
+        if result[0] is None:  # diverged from this end
+            continue
+        u, p, J, Fp, res, it, vals, vecs, k, ok, soft = result
+        # a soft critical mode where the Morse index changed: Newton found the slide's singular
+        # point next to the shape fold (the two nearly coincide); try from the other end
+        if ok and soft and morse[0] != morse[1]:
+            continue
+        break
+    if result is None or result[0] is None:
+        start = starts[0]
+        j0 = int(np.argmin(np.abs(start.eigenvalues)))
+        return Event("fold", start.p, start.u, start.eigenvectors[:, [j0]], start.eigenvalues[[j0]], np.inf,
+                     opts.locate_max_iter, 1, morse[0], morse[1], step, np.asarray(start.tangent), False)
+    u, p, J, Fp, res, it, vals, vecs, k, ok, soft = result
+    tangent = np.asarray(start.tangent)
+    if ok and soft:
+        if morse[0] == morse[1]:
+            # the path turned back along a soft mode (a loose knot's strands sliding: a saddle-node
+            # of the discretisation's tiny sliding landscape): no branch end
+            return Event("soft_fold", p, u, vecs[:, [k]], vals[[k]], res, it, 1, morse[0], morse[1], step, tangent, ok)
+        ok = False  # the shape fold inside this bracket was not resolved from either end
     fold = Event("fold", p, u, vecs[:, [k]], vals[[k]], res, it, 1, morse[0], morse[1], step, tangent, ok)
     # p turning back with F_p orthogonal to the kernel is no fold but a branch point (a pitchfork
     # seen from its non-symmetric branch), where (F, sigma) is singular; the unfolded system is not
@@ -91,6 +95,61 @@ def locate_fold(problem, opts, start, morse, step):
         return fold
     bp = simple_branch_point(problem, opts, u, p, vecs[:, k], morse, step, tangent)
     return fold if bp is None else bp
+
+
+def _fold_from(problem, opts, start, morse, step):
+    """Newton on the fold system from one Point, the border first the smallest shape mode's
+    eigenvector (a shape fold next to a near-null slide), then, if that diverges or stalls (the
+    border orthogonal to the kernel: a fold along the slide), the smallest mode's of all.
+    -> (u, p, J, F_p, residual, iterations, vals, vecs, k, ok, soft), all None if it diverged."""
+    be = problem.backend
+    lam = np.abs(start.eigenvalues)
+    order = [int(np.argmin(lam))]
+    if start.soft is not None and start.soft.any() and not start.soft.all():
+        order.insert(0, int(np.argmin(np.where(start.soft, np.inf, lam))))
+    for j0 in dict.fromkeys(order):
+        u, p, J, Fp, res, it = _fold_newton(problem, opts, start, start.eigenvectors[:, j0])
+        if np.isfinite(res) and res <= opts.event_tol:
+            break
+    if not np.isfinite(res):
+        return (None,) * 11
+    vals, vecs, _ = be.spectrum(J, opts.n_eig + max(morse), problem.n_zero_modes, opts.eig_rtol)
+    k = int(np.argmin(np.abs(vals)))
+    ok = bool(res <= opts.event_tol and abs(vals[k]) <= opts.event_tol)
+    soft = ok and _critical_mode_is_soft(problem, u, p, vals, vecs)
+    return u, p, J, Fp, res, it, vals, vecs, k, ok, soft
+
+
+def _critical_mode_is_soft(problem, u, p, vals, vecs):
+    """Whether the eigen-direction nearest zero at a located fold is a soft one (the problem's
+    ``soft_modes`` hook on the span of the lowest eigenpairs): the soft direction's Rayleigh
+    quotient is nearer zero than every other Ritz value there."""
+    if problem.soft_modes is None:
+        return False
+    values, _, soft = (np.asarray(a) for a in problem.soft_modes(u, p, vals, vecs))
+    soft = soft.astype(bool)
+    if not soft.any() or soft.all():
+        return False
+    return bool(np.min(np.abs(values[soft])) < np.min(np.abs(values[~soft])))
+
+
+def _fold_newton(problem, opts, start, b):
+    """Newton on (F, sigma) from Point ``start`` with the border b (refreshed with w each
+    iteration). -> (u, p, J, F_p, residual, iterations)."""
+    be, args, n = problem.backend, problem.args, problem.n
+    u, p = np.array(start.u), float(start.p)
+    res = np.inf
+    for it in range(opts.locate_max_iter + 1):
+        F, J, Fp = problem.linearise(u, p, args)
+        w, sigma = be.bordered_solve(J, b, b, 0.0, np.zeros(n), 1.0)
+        gu, gp = problem.wjw_gradient(u, p, args, w)
+        res, prev = float(np.sqrt(np.sum(np.asarray(F) ** 2) + float(sigma) ** 2)), res
+        if not np.isfinite(res) or _done(res, prev, opts.newton_tol) or it == opts.locate_max_iter:
+            break
+        du, dp = be.bordered_solve(J, Fp, -gu, -gp, -F, -sigma)
+        u, p = u + np.asarray(du), p + float(dp)
+        b = np.asarray(w) / np.linalg.norm(w)
+    return u, p, J, Fp, res, it
 
 
 class _Failed(Exception):

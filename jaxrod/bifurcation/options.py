@@ -15,6 +15,15 @@ class ContinuationOptions:
     newton_tol: absolute tolerance on the residual norm; n_eig: eigenpairs kept per point (at least Morse index + 2);
     eig_rtol: lambda < -eig_rtol * ||J|| counts as negative; event_tol: a located event must have
     residual and critical eigenvalue below it; locate_max_iter: Newton iterations to locate one.
+
+    soft_folds: what to do where the path turns back in p along a soft mode (an Event
+    "soft_fold", only for problems with a ``soft_modes`` hook; on a loose knot, a saddle-node of the
+    tiny sliding landscape that the discretisation adds to the slide, which is a symmetry of the
+    continuum rod). "slide" (default): relax at p_fold + slide_dp in the direction the path was
+    going, from the fold kicked by slide_kick downhill along its soft mode (steps capped at 10
+    slide_kick), and go on from the minimum reached (a ``Slide`` in ``Branch.slides``), as the
+    physical rod would, its strands slipping by a fraction of an edge; "follow": follow the path back along the sliding saddles.
+    Needs the problem's ``energy``.
     """
 
     ds: float = 0.05
@@ -30,8 +39,15 @@ class ContinuationOptions:
     detect_events: bool = True
     event_tol: float = 1e-10
     locate_max_iter: int = 20
+    soft_folds: str = "slide"
+    slide_dp: float = 1e-3
+    slide_kick: float = 1e-2
 
     def __post_init__(self):
+        if self.soft_folds not in ("slide", "follow"):
+            raise ValueError(f"soft_folds must be 'slide' or 'follow', got {self.soft_folds!r}")
+        if not (self.slide_dp > 0 and self.slide_kick > 0):
+            raise ValueError("slide_dp and slide_kick must be > 0")
         if not (0 < self.ds_min <= abs(self.ds) <= self.ds_max):
             raise ValueError(f"need 0 < ds_min <= |ds| <= ds_max, got {self.ds_min}, {self.ds}, {self.ds_max}")
         if not self.p_min < self.p_max:

@@ -64,6 +64,14 @@ class BifurcationProblem:
         self.hvp_derivative = _jit_in_u_p(self._hvp_derivative)
         self.directional_derivatives = _jit_in_u_p(self._directional_derivatives)
 
+    def energy_at(self, u, p_args):
+        """E(u, p, args) with p_args = (p, args): the form ``jaxrod.solvers.minimise`` takes."""
+        return self.energy(u, p_args[0], p_args[1])
+
+    def jacobian_at(self, u, p_args):
+        """The structured ``jacobian`` hook in ``minimise``'s form (a Hessian of energy_at)."""
+        return self.jacobian(u, p_args[0], p_args[1])
+
     def hvp(self, u, p, args, w):
         """J(u, p) w (n,), by a jvp of F: never forms J."""
         return jax.jvp(lambda x: self.F(x, p, args), (u,), (w,))[1]

@@ -87,15 +87,34 @@ class Event:
 
 
 @dataclass
+class Slide:
+    """A jump across a soft fold (``ContinuationOptions.soft_folds = "slide"``): from the located
+    ``fold`` (an Event of kind "soft_fold") to the minimum ``u`` (n,) reached by relaxing at
+    p = fold.p + direction * slide_dp; distance |u - fold.u|, energy_drop E(fold.u, p) - E(u, p)
+    (>= 0), iterations of the relaxation. The branch goes on from u; ``step`` is the index of the
+    point the slide arrived at."""
+
+    fold: Event
+    p: float
+    u: np.ndarray
+    distance: float
+    energy_drop: float
+    iterations: int
+    step: int
+
+
+@dataclass
 class Branch:
     """Points in path order, located events, how it ended (``result``, ``message``), and
-    ``origin``: how it was started (e.g. the emanating direction after a branch switch)."""
+    ``origin``: how it was started (e.g. the emanating direction after a branch switch);
+    ``slides``: the jumps made across soft folds (``Slide``), in path order."""
 
     points: list
     events: list
     result: Result
     message: str = ""
     origin: dict = field(default_factory=dict)
+    slides: list = field(default_factory=list)
 
     @property
     def p(self):
