@@ -167,8 +167,11 @@ def write_md(summary):
              "| side | symmetric end /pi | buckled end /pi | kind | width /pi | spread over step limits /pi | slides |",
              "|---|---|---|---|---|---|---|"]
     for side, s in summary.items():
-        width = abs(s["symmetric_end_over_pi"] - s["buckled_end_over_pi"]) if s["buckled_end_over_pi"] else float("nan")
         nsl = [len(r["slides"]) for r in s["runs"]]
+        if s["buckled_end_over_pi"] is None:
+            lines.append(f"| {side} | {s['symmetric_end_over_pi']:+.10f} | not found | | | | {nsl} |")
+            continue
+        width = abs(s["symmetric_end_over_pi"] - s["buckled_end_over_pi"])
         lines.append(f"| {side} | {s['symmetric_end_over_pi']:+.10f} | {s['buckled_end_over_pi']:+.10f} | "
                      f"{s['buckled_end_kind']} | {width:.4f} | {s['spread_over_pi']:.1e} | {nsl} |")
     lines += ["", "| side | ds_max | points | seconds | events (kind phi/pi Morse) | slides (phi_fold/pi, distance, energy drop) |",
