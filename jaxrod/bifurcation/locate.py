@@ -83,7 +83,13 @@ def locate_fold(problem, opts, starts, morse, step):
             # the path turned back along a soft mode (a loose knot's strands sliding: a saddle-node
             # of the discretisation's tiny sliding landscape): no branch end
             return Event("soft_fold", p, u, vecs[:, [k]], vals[[k]], res, it, 1, morse[0], morse[1], step, tangent, ok)
-        ok = False  # the shape fold inside this bracket was not resolved from either end
+        # the Morse index changed, so a shape fold lies in this bracket too: find it by its own
+        # eigenvalue along the bracket; unresolved, it is reported as not located
+        ends = sorted(starts, key=lambda q: q.arclength)  # in path order
+        found = len(ends) == 2 and _fold_by_bracket(problem, opts, ends[0], ends[1], morse, step)
+        if not found:
+            return Event("fold", p, u, vecs[:, [k]], vals[[k]], res, it, 1, morse[0], morse[1], step, tangent, False)
+        u, p, J, Fp, res, it, vals, vecs, k, ok, _ = found
     fold = Event("fold", p, u, vecs[:, [k]], vals[[k]], res, it, 1, morse[0], morse[1], step, tangent, ok)
     # p turning back with F_p orthogonal to the kernel is no fold but a branch point (a pitchfork
     # seen from its non-symmetric branch), where (F, sigma) is singular; the unfolded system is not
@@ -133,6 +139,68 @@ def _critical_mode_is_soft(problem, u, p, vals, vecs):
     return bool(np.min(np.abs(values[soft])) < np.min(np.abs(values[~soft])))
 
 
+def _shape_spectrum(problem, opts, J, u, p, m):
+    """The m lowest eigenpairs (values (m,), vectors (n, m)) of J with the soft directions (the
+    problem's ``soft_modes`` hook) split off: the Ritz pairs of the rest of the span, ascending.
+    Without the hook, the m lowest eigenpairs."""
+    if problem.soft_modes is None:
+        vals, vecs, _ = problem.backend.spectrum(J, m, problem.n_zero_modes, opts.eig_rtol)
+        return vals, vecs
+    vals, vecs, _ = problem.backend.spectrum(J, m + 2, problem.n_zero_modes, opts.eig_rtol)
+    values, vectors, soft = (np.asarray(a) for a in problem.soft_modes(u, p, vals, vecs))
+    keep = ~soft.astype(bool)
+    return values[keep][:m], vectors[:, keep][:, :m]
+
+
+def _on_bracket(problem, opts, a, b, m):
+    """at(s) -> (Correction, (values, vectors)): the branch between Points a and b corrected on the
+    hyperplane <z - z_a, t_a> = s (0 <= s <= s_b), with its m lowest shape eigenpairs (soft
+    directions split off); and s_b. A smooth parametrisation through branch points and folds alike,
+    as long as the branch turns by less than 90 degrees between a and b. Raises _Failed."""
+    be, args = problem.backend, problem.args
+    za, zb, ta = a.z, b.z, a.tangent
+    sb = float((zb - za) @ ta)
+    cache = {}
+
+    def at(s):
+        if s not in cache:
+            # the chord z_a + (s/s_b)(z_b - z_a) lies on that hyperplane: a second-order predictor
+            c = correct(be, lambda u, p: problem.linearise(u, p, args), za + (s / sb) * (zb - za), ta,
+                        opts.newton_tol, opts.newton_max_iter)
+            if not c.converged:
+                raise _Failed
+            cache[s] = (c, _shape_spectrum(problem, opts, c.lin[1], c.z[:-1], float(c.z[-1]), m))
+        return cache[s]
+
+    return at, sb
+
+
+def _fold_by_bracket(problem, opts, a, b, morse, step):
+    """A shape fold that Newton from the bracket's ends missed (it landed on a soft mode's singular
+    point next to it): the root of the lowest shape eigenvalue along the bracket (Brent, on the
+    hyperplane parametrisation), then Newton on the fold system from there with that mode as the
+    border. -> the located result of ``_fold_from``'s form, or None."""
+    lo = min(morse)
+    try:
+        at, sb = _on_bracket(problem, opts, a, b, lo + 1)
+        f = lambda s: at(s)[1][0][lo]  # noqa: E731
+        if f(0.0) * f(sb) >= 0:
+            return None
+        s = brentq(f, 0.0, sb, xtol=1e-15 * abs(sb), rtol=1e-15, maxiter=100)
+    except (_Failed, ValueError):
+        return None
+    c, (_, vecs) = at(s)
+    near = Point(c.z[:-1], float(c.z[-1]), a.tangent, np.zeros(1), vecs[:, [lo]], 0, 0, 0.0, 0.0)
+    u, p, J, Fp, res, it = _fold_newton(problem, opts, near, vecs[:, lo])
+    if not np.isfinite(res):
+        return None
+    vals, vecs, _ = problem.backend.spectrum(J, opts.n_eig + max(morse), problem.n_zero_modes, opts.eig_rtol)
+    k = int(np.argmin(np.abs(vals)))
+    ok = bool(res <= opts.event_tol and abs(vals[k]) <= opts.event_tol)
+    soft = ok and _critical_mode_is_soft(problem, u, p, vals, vecs)
+    return (u, p, J, Fp, res, it, vals, vecs, k, ok and not soft, False)
+
+
 def _fold_newton(problem, opts, start, b):
     """Newton on (F, sigma) from Point ``start`` with the border b (refreshed with w each
     iteration). -> (u, p, J, F_p, residual, iterations)."""
@@ -176,29 +244,19 @@ def simple_branch_point(problem, opts, u, p, v0, morse, step, tangent):
         return None
     vals, vecs, _ = be.spectrum(J, opts.n_eig + max(morse), problem.n_zero_modes, opts.eig_rtol)
     k = int(np.argmin(np.abs(vals)))
-    if abs(vals[k]) > opts.event_tol:
-        return None
+    if abs(vals[k]) > opts.event_tol or _critical_mode_is_soft(problem, u, p, vals, vecs):
+        return None  # not singular, or singular along a soft mode only (a slide, not a branch point)
     return Event("branch_point", p, u, vecs[:, [k]], vals[[k]], res, it, 1, morse[0], morse[1], step, tangent, True)
 
 
 def locate_branch_points(problem, opts, a, b, step):
     """Branch point(s) between Points a and b (Morse index differs, no fold). -> [Event]."""
-    be, args = problem.backend, problem.args
     lo, k = min(a.morse_index, b.morse_index), abs(a.morse_index - b.morse_index)
     sign = 1 if b.morse_index > a.morse_index else -1
-    za, zb, ta = a.z, b.z, a.tangent
-    sb = float((zb - za) @ ta)
-    cache = {}
-
-    def at(s):  # corrected point on the hyperplane <z - z_a, t_a> = s, with its spectrum
-        if s not in cache:
-            # the chord z_a + (s/s_b)(z_b - z_a) lies on that hyperplane: a second-order predictor
-            c = correct(be, lambda u, p: problem.linearise(u, p, args), za + (s / sb) * (zb - za), ta,
-                        opts.newton_tol, opts.newton_max_iter)
-            if not c.converged:
-                raise _Failed
-            cache[s] = (c, be.spectrum(c.lin[1], lo + k, problem.n_zero_modes, opts.eig_rtol))
-        return cache[s]
+    ta = a.tangent
+    # the crossing eigenvalues are counted among the shape modes (soft directions split off), as
+    # the Morse index is: a slide's eigenvalue must not be taken for the crossing one
+    at, sb = _on_bracket(problem, opts, a, b, lo + k)
 
     if k == 1:
         start = a if abs(a.eigenvalues[lo]) <= abs(b.eigenvalues[lo]) else b
@@ -242,7 +300,7 @@ def locate_branch_points(problem, opts, a, b, step):
             groups.append([i])
     for g in groups:
         s = float(np.mean([roots[i] for i in g]))
-        c, (vals, vecs, _) = at(s)
+        c, (vals, vecs) = at(s)
         idx = [lo + i for i in g]
         crit = vals[idx]
         ok = bool(c.residual <= opts.event_tol and np.max(np.abs(crit)) <= opts.event_tol)
