@@ -111,7 +111,6 @@ def _slide(problem, opts, fold, direction, step):
     slide_kick, so that it follows the valley instead of jumping over wells; the problem's structured
     Hessian if it has one; args refreshed by ``update_args`` and the relaxation repeated while they
     change), to 1e-9, then correct it on p = p1 to newton_tol. -> (Slide, Correction), or None."""
-    import jax
     import jax.numpy as jnp
 
     from ..solvers import DampedNewton, minimise
@@ -123,7 +122,7 @@ def _slide(problem, opts, fold, direction, step):
                           max_step=10.0 * opts.slide_kick)
     u0, v = np.asarray(fold.u), np.asarray(fold.v[:, 0])
     args = problem.args
-    g = np.asarray(jax.grad(problem.energy)(jnp.asarray(u0), p1, args))
+    g = np.asarray(problem.linearise(u0, p1, args)[0])  # the gradient F, compiled already
     y = u0 - opts.slide_kick * (1.0 if float(g @ v) > 0 else -1.0) * v  # downhill: past the fold, E falls along v
     for _ in range(8):
         sol = minimise(problem.energy_at, y, (p1, args), solver, gtol=1e-9, throw=False)
@@ -140,7 +139,7 @@ def _slide(problem, opts, fold, direction, step):
                 opts.newton_tol, opts.newton_max_iter)
     if not c.converged:
         return None
-    e_fold, e_new = (float(problem.energy(jnp.asarray(x), p1, args)) for x in (u0, c.z[:-1]))
+    e_fold, e_new = (float(problem.energy_value(x, p1, args)) for x in (u0, c.z[:-1]))
     slide = Slide(fold, float(p1), c.z[:-1].copy(), float(np.linalg.norm(c.z[:-1] - u0)), e_fold - e_new,
                   sol.iterations, step)
     return slide, c

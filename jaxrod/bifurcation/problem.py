@@ -58,6 +58,7 @@ class BifurcationProblem:
         self.soft_modes = soft_modes
         self.jacobian = jacobian
         # jit per problem: one compile, reused for every point (args traced, so a new mu is no recompile)
+        self.energy_value = _jit_in_u_p(energy) if energy is not None else None
         self.linearise = _jit_in_u_p(self._linearise)
         self.wjw_gradient = _jit_in_u_p(self._wjw_gradient)
         self.singular_tests = _jit_in_u_p(jax.jacrev(self._singular_tests, argnums=(0, 1), has_aux=True))
