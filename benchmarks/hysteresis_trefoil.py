@@ -41,8 +41,11 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 OUT = os.path.join(HERE, "results")
 SIDES = {"plus": 7.0, "minus": -12.0}  # where the buckled branch is started (phi / pi)
 STEP_LIMITS = (0.5, 0.25)
-MAX_STEPS = 200
+MAX_STEPS = 320
 PAST_END = 6  # points followed past the buckled branch's end
+# the corrector's residual: along a slide of eigenvalue ~3e-8 a residual r leaves the point uncertain
+# by r / 3e-8; at 1e-10 that is 3e-3, enough for the path to turn in phi by noise (measured)
+NEWTON_TOL = 1e-12
 
 
 def symmetric_ends():
@@ -116,7 +119,7 @@ def run_with_points(scene, side, e, ds_max):
     points, events, slides, start, br = [], [], [], None, None
     chunk = 25
     while len(points) < MAX_STEPS:
-        opts = ContinuationOptions(ds=0.05 * sign, ds_min=1e-6, ds_max=ds_max, max_steps=chunk, newton_tol=1e-10,
+        opts = ContinuationOptions(ds=0.05 * sign, ds_min=1e-6, ds_max=ds_max, max_steps=chunk, newton_tol=NEWTON_TOL,
                                    eig_rtol=1e-13, n_eig=6, p_min=-13 * PI, p_max=14 * PI)
         br = continuation(rod.problem, PseudoArclength(), opts, start=start, throw=False)
         points += br.points[1:] if points else br.points

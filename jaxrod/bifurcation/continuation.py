@@ -75,7 +75,7 @@ def continuation(problem, alg, opts, *, observer=None, start=None, throw=True):
         if opts.detect_events:
             found = find_events(problem, opts, points[-2], points[-1], len(points) - 1)
             events += found
-            soft = next((e for e in found if e.kind == "soft_fold" and e.converged), None)
+            soft = next((e for e in found if e.kind in ("soft_fold", "soft_turn") and e.converged), None)
             if soft is not None and opts.soft_folds == "slide":
                 points.pop()  # past the soft fold: on the sliding saddles, not kept
                 direction = 1.0 if points[-1].tangent[-1] > 0 else -1.0

@@ -2,6 +2,9 @@
 
 - fold: the p-component of the tangent changes sign (the path turns back in p); a "soft_fold" if
   the critical mode is soft (``BifurcationProblem.soft_modes``) and the Morse index is unchanged;
+  a "soft_turn" if no singular point is found but the path runs along soft directions at both
+  ends (over 90% of the tangent) with the Morse index unchanged: a turn to be slid across, like
+  a soft fold, with nothing located (residual nan);
 - branch point: the Morse index changes without a fold. Its size is the multiplicity (2 for the
   double branch points that symmetry produces, where det of the bordered matrix keeps its sign,
   so the Morse count is the test used; ``Point.bordered_sign`` gives the classic one).

@@ -71,7 +71,22 @@ def locate_fold(problem, opts, starts, morse, step):
         if ok and soft and morse[0] != morse[1]:
             continue
         break
-    if result is None or result[0] is None:
+    ends = sorted(starts, key=lambda q: q.arclength)  # in path order
+    unlocated = result is None or result[0] is None or not result[9]
+    if unlocated and morse[0] == morse[1] and len(ends) == 2 and problem.soft_modes is not None:
+        # not located from either end: a turn along a soft mode that Newton did not converge to?
+        result = _fold_by_bracket(problem, opts, ends[0], ends[1], morse, along_soft=True) or result
+    if (result is None or result[0] is None or not result[9]) and morse[0] == morse[1] and _turns_along_soft(ends):
+        # No eigenvalue vanishes: the path, running along a soft direction (its tangent over 90%
+        # there, measured on the trefoil next to the slides), turned in p without a singular
+        # point to locate. Reported as a "soft_turn", crossed like a soft fold.
+        q = ends[0]
+        j = int(np.argmax(q.soft))
+        return Event("soft_turn", q.p, q.u, q.eigenvectors[:, [j]], q.eigenvalues[[j]], float("nan"), 0, 1,
+                     morse[0], morse[1], step, np.asarray(q.tangent), True)
+    width = abs(ends[-1].p - ends[0].p)
+    if result is None or result[0] is None or (not result[9] and not abs(result[1] - starts[0].p) <= 10 * width + 1e-12):
+        # diverged, or stopped far outside the bracket: reported at the bracket's end, not located
         start = starts[0]
         j0 = int(np.argmin(np.abs(start.eigenvalues)))
         return Event("fold", start.p, start.u, start.eigenvectors[:, [j0]], start.eigenvalues[[j0]], np.inf,
@@ -85,8 +100,7 @@ def locate_fold(problem, opts, starts, morse, step):
             return Event("soft_fold", p, u, vecs[:, [k]], vals[[k]], res, it, 1, morse[0], morse[1], step, tangent, ok)
         # the Morse index changed, so a shape fold lies in this bracket too: find it by its own
         # eigenvalue along the bracket; unresolved, it is reported as not located
-        ends = sorted(starts, key=lambda q: q.arclength)  # in path order
-        found = len(ends) == 2 and _fold_by_bracket(problem, opts, ends[0], ends[1], morse, step)
+        found = len(ends) == 2 and _fold_by_bracket(problem, opts, ends[0], ends[1], morse)
         if not found:
             return Event("fold", p, u, vecs[:, [k]], vals[[k]], res, it, 1, morse[0], morse[1], step, tangent, False)
         u, p, J, Fp, res, it, vals, vecs, k, ok, _ = found
@@ -126,6 +140,17 @@ def _fold_from(problem, opts, start, morse, step):
     return u, p, J, Fp, res, it, vals, vecs, k, ok, soft
 
 
+def _turns_along_soft(ends, share=0.9):
+    """Whether the u-part of the tangent at each end lies mostly (> share) in the soft directions."""
+    for q in ends:
+        if q.soft is None or not q.soft.any():
+            return False
+        t = np.asarray(q.tangent[:-1]) / max(np.linalg.norm(q.tangent[:-1]), 1e-300)
+        if np.linalg.norm(q.eigenvectors[:, q.soft].T @ t) <= share:
+            return False
+    return True
+
+
 def _critical_mode_is_soft(problem, u, p, vals, vecs):
     """Whether the eigen-direction nearest zero at a located fold is a soft one (the problem's
     ``soft_modes`` hook on the span of the lowest eigenpairs): the soft direction's Rayleigh
@@ -141,15 +166,16 @@ def _critical_mode_is_soft(problem, u, p, vals, vecs):
 
 def _shape_spectrum(problem, opts, J, u, p, m):
     """The m lowest eigenpairs (values (m,), vectors (n, m)) of J with the soft directions (the
-    problem's ``soft_modes`` hook) split off: the Ritz pairs of the rest of the span, ascending.
-    Without the hook, the m lowest eigenpairs."""
+    problem's ``soft_modes`` hook) split off: the Ritz pairs of the rest of the span, ascending;
+    and the soft directions' (values (j,), vectors (n, j)), j = 0 without the hook.
+    -> (values, vectors, soft_values, soft_vectors)."""
     if problem.soft_modes is None:
         vals, vecs, _ = problem.backend.spectrum(J, m, problem.n_zero_modes, opts.eig_rtol)
-        return vals, vecs
+        return vals, vecs, vals[:0], vecs[:, :0]
     vals, vecs, _ = problem.backend.spectrum(J, m + 2, problem.n_zero_modes, opts.eig_rtol)
     values, vectors, soft = (np.asarray(a) for a in problem.soft_modes(u, p, vals, vecs))
     keep = ~soft.astype(bool)
-    return values[keep][:m], vectors[:, keep][:, :m]
+    return values[keep][:m], vectors[:, keep][:, :m], values[~keep], vectors[:, ~keep]
 
 
 def _on_bracket(problem, opts, a, b, m):
@@ -175,30 +201,41 @@ def _on_bracket(problem, opts, a, b, m):
     return at, sb
 
 
-def _fold_by_bracket(problem, opts, a, b, morse, step):
-    """A shape fold that Newton from the bracket's ends missed (it landed on a soft mode's singular
-    point next to it): the root of the lowest shape eigenvalue along the bracket (Brent, on the
-    hyperplane parametrisation), then Newton on the fold system from there with that mode as the
-    border. -> the located result of ``_fold_from``'s form, or None."""
+def _fold_by_bracket(problem, opts, a, b, morse, along_soft=False):
+    """A fold that Newton from the bracket's ends missed, found by the root of its critical
+    eigenvalue along the bracket (Brent, on the hyperplane parametrisation), then Newton on the
+    fold system from there with that mode as the border. The critical eigenvalue is the lowest
+    shape one (a shape fold next to a slide's singular point, where Newton landed), or, with
+    along_soft, the soft direction's (a turn along the slide that Newton did not converge to).
+    -> the located result in ``_fold_from``'s form, or None if not found or not of that kind."""
     lo = min(morse)
     try:
         at, sb = _on_bracket(problem, opts, a, b, lo + 1)
-        f = lambda s: at(s)[1][0][lo]  # noqa: E731
+
+        def f(s):
+            values, _, soft_values, _ = at(s)[1]
+            if along_soft and soft_values.size == 0:
+                raise _Failed
+            return soft_values[0] if along_soft else values[lo]
+
         if f(0.0) * f(sb) >= 0:
             return None
         s = brentq(f, 0.0, sb, xtol=1e-15 * abs(sb), rtol=1e-15, maxiter=100)
     except (_Failed, ValueError):
         return None
-    c, (_, vecs) = at(s)
-    near = Point(c.z[:-1], float(c.z[-1]), a.tangent, np.zeros(1), vecs[:, [lo]], 0, 0, 0.0, 0.0)
-    u, p, J, Fp, res, it = _fold_newton(problem, opts, near, vecs[:, lo])
+    c, (_, vecs, _, soft_vecs) = at(s)
+    border = soft_vecs[:, 0] if along_soft else vecs[:, lo]
+    near = Point(c.z[:-1], float(c.z[-1]), a.tangent, np.zeros(1), border[:, None], 0, 0, 0.0, 0.0)
+    u, p, J, Fp, res, it = _fold_newton(problem, opts, near, border)
     if not np.isfinite(res):
         return None
     vals, vecs, _ = problem.backend.spectrum(J, opts.n_eig + max(morse), problem.n_zero_modes, opts.eig_rtol)
     k = int(np.argmin(np.abs(vals)))
     ok = bool(res <= opts.event_tol and abs(vals[k]) <= opts.event_tol)
     soft = ok and _critical_mode_is_soft(problem, u, p, vals, vecs)
-    return (u, p, J, Fp, res, it, vals, vecs, k, ok and not soft, False)
+    if ok and soft != along_soft:
+        return None
+    return (u, p, J, Fp, res, it, vals, vecs, k, ok, soft)
 
 
 def _fold_newton(problem, opts, start, b):
@@ -267,7 +304,7 @@ def locate_branch_points(problem, opts, a, b, step):
     roots, calls = [], 0
     try:
         for j in range(lo, lo + k):
-            f = lambda s: at(s)[1][0][j]  # noqa: E731
+            f = lambda s: at(s)[1][0][j]  # noqa: E731  (the shape eigenvalue j)
             if f(0.0) * f(sb) >= 0:  # the tracked eigenvalue does not change sign over the bracket
                 raise _Failed
             s, info = brentq(f, 0.0, sb, xtol=1e-15 * abs(sb), rtol=1e-15, maxiter=100, full_output=True)
@@ -300,7 +337,7 @@ def locate_branch_points(problem, opts, a, b, step):
             groups.append([i])
     for g in groups:
         s = float(np.mean([roots[i] for i in g]))
-        c, (vals, vecs) = at(s)
+        c, (vals, vecs, _, _) = at(s)
         idx = [lo + i for i in g]
         crit = vals[idx]
         ok = bool(c.residual <= opts.event_tol and np.max(np.abs(crit)) <= opts.event_tol)
