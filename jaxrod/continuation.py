@@ -23,7 +23,7 @@ import jax.numpy as jnp
 from .equilibrium import (Equilibrium, LeftBranchError, TopologyChangeError, equilibrium_arrays, equilibrium_from_arrays,
                           mode_step, relax, solve_equilibrium)
 from .geometry import polyline_distance
-from .validation import check_finite, check_int_at_least, check_positive
+from .validation import check_finite, check_int_at_least, check_positive, refuse_knot
 from .solvers import ConvergenceError
 from .sparse_branch import EXTRA_PAIRS, solve_equilibrium_sparse, sparse_branch_analysis
 from .stability import DEFAULT_NEGATIVE_TOL, branch_analysis, shape_modes_in_band
@@ -516,13 +516,15 @@ def critical_twist(
     among them: k grows (to the negative count or the tracked index plus K_MARGIN) where needed.
     The dense path refuses a scene whose n x n Hessian does not fit in memory
     (``check_dense_memory``, before anything is compiled). Returns a ``CriticalPoint``; raises
-    ``NoCrossingError`` if the count never changes before phi_stop.
+    ``NoCrossingError`` if the count never changes before phi_stop. Refuses knots (closed rods with
+    self-contact: ``jaxrod.validation.refuse_knot`` says why and what to use instead).
     """
     t0 = time.perf_counter()
     phi_start = check_finite("phi_start", phi_start)
     phi_stop = check_finite("phi_stop", 8.0 * math.pi if phi_stop is None else phi_stop)
     if phi_stop == phi_start:
         raise ValueError("phi_stop must differ from phi_start")
+    refuse_knot(scene, "critical_twist")
     opts = (options or ContinuationOptions()).updated(step=step, tol=tol, negative_tol=negative_tol, gtol=gtol, k=k)
     opts = opts.resolved(scene, Task.CRITICAL_TWIST, abs(phi_stop - phi_start))
     tol, negative_tol, gtol, k, max_step = opts.tol, opts.negative_tol, opts.gtol, opts.k, opts.step

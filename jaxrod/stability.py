@@ -19,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .hessian import project_out, scaled_hessian as structured_scaled_hessian
-from .validation import check_finite
+from .validation import check_finite, refuse_knot
 from .solvers import orthonormal_columns
 
 __all__ = [
@@ -340,7 +340,9 @@ def critical_twist_derivative(scene, critical, parameter, cluster_rtol=1e-4, pin
 
     critical: a ``CriticalPoint`` of ``scene``; parameter: a material field name ('B', 'C', 'EA')
     or a callable ``scene -> tangent scene`` giving any direction in the scene's parameters.
+    Refuses knots (``jaxrod.validation.refuse_knot``).
     """
+    refuse_knot(scene, "critical_twist_derivative")
     if isinstance(parameter, str):
         if parameter not in ("B", "C", "EA", "D"):
             raise ValueError(f"parameter must be one of 'B', 'C', 'EA', 'D' or a callable, got {parameter!r}")

@@ -3,7 +3,8 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["check_finite", "check_positive", "check_int_at_least", "check_poisson_ratio", "check_points"]
+__all__ = ["check_finite", "check_positive", "check_int_at_least", "check_poisson_ratio", "check_points",
+           "refuse_knot"]
 
 
 def check_finite(name, value):
@@ -59,3 +60,22 @@ def check_points(name, points, finite=False):
     if finite and not np.all(np.isfinite(a)):
         raise ValueError(f"{name} must be finite")
     return a
+
+
+def refuse_knot(scene, what):
+    """Raise ValueError for a knot (a closed rod with self-contact) given to ``what``: an analysis by
+    the stable branch's linearisation that gives wrong answers there, without a warning.
+
+    A loose knot has near-null sliding modes (strands slipping, ~1e-11 to 1e-7 in scaled units, of
+    either sign), which a negative count takes for an instability (measured: ``critical_twist`` on
+    the trefoil at N = 61 returned 2.5411 pi, a slide, in place of the fold at 6.60 pi); and a
+    knot's branch end is a fold, where the derivative of the fixed-branch linearisation is the
+    wrong formula (it depended on tol, and disagreed with finite differences of studies)."""
+    from .scenes import ClosedRod
+
+    if isinstance(scene, ClosedRod) and "contact" in scene.terms:
+        raise ValueError(
+            f"{what} does not handle knots (a closed rod with self-contact): their sliding modes are taken "
+            "for instabilities and their branch ends are folds. Locate a knot's branch ends with "
+            "follow_twist / twist_study, or exactly with jaxrod.bifurcation.rods.knot_problem and "
+            "jaxrod.bifurcation.continuation (folds of the extended system)")

@@ -132,6 +132,11 @@ _S = np.linspace(0, 2 * PI, 60, endpoint=False)
 FIGURE_EIGHT_IN_A_PLANE = np.stack([np.sin(_S), np.sin(_S) * np.cos(_S), 0 * _S], axis=1)  # crosses itself
 
 
+def _knot():
+    # the trefoil of issue 17's report: critical_twist returned a sliding mode at 2.5411 pi there
+    return jr.trefoil(D=8.0, L=292.0, N=61)
+
+
 def _ring():
     return jr.ring(16, MAT)
 
@@ -167,6 +172,10 @@ API_CASES = [
     ("method", lambda: jr.solve_equilibrium(_ring(), method="bfgs"), ValueError, "method"),
     ("phi_stop = phi_start", lambda: jr.critical_twist(_ring(), 1.0, 1.0), ValueError, "phi_stop"),
     ("critical tol<0", lambda: jr.critical_twist(_ring(), 0.0, 10.0, tol=-1.0), ValueError, "tol"),
+    ("critical_twist on a knot", lambda: jr.critical_twist(_knot(), 0.0, 7.5 * math.pi), ValueError,
+     "critical_twist does not handle knots"),
+    ("critical_twist_derivative on a knot", lambda: jr.critical_twist_derivative(_knot(), None, "C"), ValueError,
+     "critical_twist_derivative does not handle knots"),
     ("follow step=0", lambda: jr.follow_twist(_ring(), 0.0, 1.0, step=0.0), ValueError, "step"),
     ("options k=0", lambda: jr.ContinuationOptions(k=0).resolved(_ring(), "follow_twist", 1.0), ValueError, "k"),
     ("study phi_min>0", lambda: twist_study(_ring(), 1.0, 2.0), ValueError, "phi_min"),
