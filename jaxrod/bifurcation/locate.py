@@ -36,6 +36,8 @@ symmetry) separate events.
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from scipy.optimize import brentq
 
@@ -56,27 +58,24 @@ def _done(res, prev, tol):
 
 def locate_fold(problem, opts, starts, morse, step):
     """Fold near the Points ``starts`` (the bracket's ends, the preferred first; Newton on
-    (F, sigma)); morse = (before, after). -> Event ("fold", or "soft_fold" for a turn along a soft
-    mode with the Morse index unchanged)."""
+    (F, sigma)); morse = (before, after). -> Event: "fold", "soft_fold" (a turn along a soft mode,
+    Morse index unchanged), "soft_turn" (a turn along soft directions with nothing to locate), or
+    "branch_point" (a p-turn with F_p orthogonal to the kernel)."""
     if isinstance(starts, Point):
         starts = (starts,)
-    result = None
+    ends = sorted(starts, key=lambda q: q.arclength)  # in path order
+    found, start = None, starts[0]
     for start in starts:
-        result = _fold_from(problem, opts, start, morse, step)
-        if result[0] is None:  # diverged from this end
-            continue
-        u, p, J, Fp, res, it, vals, vecs, k, ok, soft = result
+        found = _fold_from(problem, opts, start, morse)
         # a soft critical mode where the Morse index changed: Newton found the slide's singular
         # point next to the shape fold (the two nearly coincide); try from the other end
-        if ok and soft and morse[0] != morse[1]:
-            continue
-        break
-    ends = sorted(starts, key=lambda q: q.arclength)  # in path order
-    unlocated = result is None or result[0] is None or not result[9]
-    if unlocated and morse[0] == morse[1] and len(ends) == 2 and problem.soft_modes is not None:
+        if found is not None and not (found.ok and found.soft and morse[0] != morse[1]):
+            break
+    same_morse = morse[0] == morse[1]
+    if (found is None or not found.ok) and same_morse and len(ends) == 2 and problem.soft_modes is not None:
         # not located from either end: a turn along a soft mode that Newton did not converge to?
-        result = _fold_by_bracket(problem, opts, ends[0], ends[1], morse, along_soft=True) or result
-    if (result is None or result[0] is None or not result[9]) and morse[0] == morse[1] and _turns_along_soft(ends):
+        found = _fold_by_bracket(problem, opts, ends[0], ends[1], morse, along_soft=True) or found
+    if (found is None or not found.ok) and same_morse and _turns_along_soft(ends):
         # No eigenvalue vanishes: the path, running along a soft direction (its tangent over 90%
         # there, measured on the trefoil next to the slides), turned in p without a singular
         # point to locate. Reported as a "soft_turn", crossed like a soft fold.
@@ -85,59 +84,85 @@ def locate_fold(problem, opts, starts, morse, step):
         return Event("soft_turn", q.p, q.u, q.eigenvectors[:, [j]], q.eigenvalues[[j]], float("nan"), 0, 1,
                      morse[0], morse[1], step, np.asarray(q.tangent), True)
     width = abs(ends[-1].p - ends[0].p)
-    if result is None or result[0] is None or (not result[9] and not abs(result[1] - starts[0].p) <= 10 * width + 1e-12):
+    if found is None or (not found.ok and not abs(found.p - starts[0].p) <= 10 * width + 1e-12):
         # diverged, or stopped far outside the bracket: reported at the bracket's end, not located
-        start = starts[0]
-        j0 = int(np.argmin(np.abs(start.eigenvalues)))
-        return Event("fold", start.p, start.u, start.eigenvectors[:, [j0]], start.eigenvalues[[j0]], np.inf,
-                     opts.locate_max_iter, 1, morse[0], morse[1], step, np.asarray(start.tangent), False)
-    u, p, J, Fp, res, it, vals, vecs, k, ok, soft = result
+        q = starts[0]
+        j0 = int(np.argmin(np.abs(q.eigenvalues)))
+        return Event("fold", q.p, q.u, q.eigenvectors[:, [j0]], q.eigenvalues[[j0]], np.inf, opts.locate_max_iter, 1,
+                     morse[0], morse[1], step, np.asarray(q.tangent), False)
     tangent = np.asarray(start.tangent)
-    if ok and soft:
-        if morse[0] == morse[1]:
+    if found.ok and found.soft:
+        if same_morse:
             # the path turned back along a soft mode (a loose knot's strands sliding: a saddle-node
             # of the discretisation's tiny sliding landscape): no branch end
-            return Event("soft_fold", p, u, vecs[:, [k]], vals[[k]], res, it, 1, morse[0], morse[1], step, tangent, ok)
+            return found.event("soft_fold", morse, step, tangent)
         # the Morse index changed, so a shape fold lies in this bracket too: find it by its own
         # eigenvalue along the bracket; unresolved, it is reported as not located
-        found = len(ends) == 2 and _fold_by_bracket(problem, opts, ends[0], ends[1], morse)
-        if not found:
-            return Event("fold", p, u, vecs[:, [k]], vals[[k]], res, it, 1, morse[0], morse[1], step, tangent, False)
-        u, p, J, Fp, res, it, vals, vecs, k, ok, _ = found
-    fold = Event("fold", p, u, vecs[:, [k]], vals[[k]], res, it, 1, morse[0], morse[1], step, tangent, ok)
+        shape = len(ends) == 2 and _fold_by_bracket(problem, opts, ends[0], ends[1], morse)
+        if not shape:
+            return found._replace(ok=False).event("fold", morse, step, tangent)
+        found = shape
+    fold = found.event("fold", morse, step, tangent)
     # p turning back with F_p orthogonal to the kernel is no fold but a branch point (a pitchfork
-    # seen from its non-symmetric branch), where (F, sigma) is singular; the unfolded system is not
-    Fp = np.asarray(Fp)
+    # seen from its non-symmetric branch), where (F, sigma) is singular; the unfolded system is not.
     # A fold: (F, sigma) is regular there, so Newton converged quadratically (few iterations),
     # or F_p is clearly transversal to the kernel. At a branch point the system is singular and
     # Newton crawls (linear convergence: many iterations), and v^T F_p -> 0.
-    if ok and (it <= FOLD_QUADRATIC_ITERATIONS or abs(vecs[:, k] @ Fp) > 1e-3 * np.linalg.norm(Fp)):
+    v, Fp = found.vectors[:, found.k], np.asarray(found.Fp)
+    if found.ok and (found.iterations <= FOLD_QUADRATIC_ITERATIONS or abs(v @ Fp) > 1e-3 * np.linalg.norm(Fp)):
         return fold
-    bp = simple_branch_point(problem, opts, u, p, vecs[:, k], morse, step, tangent)
+    bp = simple_branch_point(problem, opts, found.u, found.p, v, morse, step, tangent)
     return fold if bp is None else bp
 
 
-def _fold_from(problem, opts, start, morse, step):
+class _FoldTry(NamedTuple):
+    """A run of the fold system: the last iterate (u, p), J and F_p there, its residual and
+    iterations; the spectrum of J there (values, vectors), k the eigenvalue nearest zero; ok:
+    residual and that eigenvalue within event_tol; soft: ok, and the critical mode is soft."""
+
+    u: np.ndarray
+    p: float
+    J: object
+    Fp: object
+    residual: float
+    iterations: int
+    values: np.ndarray
+    vectors: np.ndarray
+    k: int
+    ok: bool
+    soft: bool
+
+    def event(self, kind, morse, step, tangent):
+        k = self.k
+        return Event(kind, self.p, self.u, self.vectors[:, [k]], self.values[[k]], self.residual, self.iterations, 1,
+                     morse[0], morse[1], step, tangent, self.ok)
+
+
+def _classified(problem, opts, morse, u, p, J, Fp, res, it):
+    """The _FoldTry of a fold-system run that ended at (u, p), or None if it diverged."""
+    if not np.isfinite(res):
+        return None
+    vals, vecs, _ = problem.backend.spectrum(J, opts.n_eig + max(morse), problem.n_zero_modes, opts.eig_rtol)
+    k = int(np.argmin(np.abs(vals)))
+    ok = bool(res <= opts.event_tol and abs(vals[k]) <= opts.event_tol)
+    soft = ok and _critical_mode_is_soft(problem, u, p, vals, vecs)
+    return _FoldTry(u, p, J, Fp, res, it, vals, vecs, k, ok, soft)
+
+
+def _fold_from(problem, opts, start, morse):
     """Newton on the fold system from one Point, the border first the smallest shape mode's
     eigenvector (a shape fold next to a near-null slide), then, if that diverges or stalls (the
     border orthogonal to the kernel: a fold along the slide), the smallest mode's of all.
-    -> (u, p, J, F_p, residual, iterations, vals, vecs, k, ok, soft), all None if it diverged."""
-    be = problem.backend
+    -> _FoldTry, or None if it diverged."""
     lam = np.abs(start.eigenvalues)
     order = [int(np.argmin(lam))]
     if start.soft is not None and start.soft.any() and not start.soft.all():
         order.insert(0, int(np.argmin(np.where(start.soft, np.inf, lam))))
     for j0 in dict.fromkeys(order):
-        u, p, J, Fp, res, it = _fold_newton(problem, opts, start, start.eigenvectors[:, j0])
+        u, p, J, Fp, res, it = _fold_newton(problem, opts, start.u, start.p, start.eigenvectors[:, j0])
         if np.isfinite(res) and res <= opts.event_tol:
             break
-    if not np.isfinite(res):
-        return (None,) * 11
-    vals, vecs, _ = be.spectrum(J, opts.n_eig + max(morse), problem.n_zero_modes, opts.eig_rtol)
-    k = int(np.argmin(np.abs(vals)))
-    ok = bool(res <= opts.event_tol and abs(vals[k]) <= opts.event_tol)
-    soft = ok and _critical_mode_is_soft(problem, u, p, vals, vecs)
-    return u, p, J, Fp, res, it, vals, vecs, k, ok, soft
+    return _classified(problem, opts, morse, u, p, J, Fp, res, it)
 
 
 def _turns_along_soft(ends, share=0.9):
@@ -207,7 +232,7 @@ def _fold_by_bracket(problem, opts, a, b, morse, along_soft=False):
     fold system from there with that mode as the border. The critical eigenvalue is the lowest
     shape one (a shape fold next to a slide's singular point, where Newton landed), or, with
     along_soft, the soft direction's (a turn along the slide that Newton did not converge to).
-    -> the located result in ``_fold_from``'s form, or None if not found or not of that kind."""
+    -> _FoldTry, or None if not found or not of that kind."""
     lo = min(morse)
     try:
         at, sb = _on_bracket(problem, opts, a, b, lo + 1)
@@ -225,24 +250,17 @@ def _fold_by_bracket(problem, opts, a, b, morse, along_soft=False):
         return None
     c, (_, vecs, _, soft_vecs) = at(s)
     border = soft_vecs[:, 0] if along_soft else vecs[:, lo]
-    near = Point(c.z[:-1], float(c.z[-1]), a.tangent, np.zeros(1), border[:, None], 0, 0, 0.0, 0.0)
-    u, p, J, Fp, res, it = _fold_newton(problem, opts, near, border)
-    if not np.isfinite(res):
+    found = _classified(problem, opts, morse, *_fold_newton(problem, opts, c.z[:-1], float(c.z[-1]), border))
+    if found is None or (found.ok and found.soft != along_soft):
         return None
-    vals, vecs, _ = problem.backend.spectrum(J, opts.n_eig + max(morse), problem.n_zero_modes, opts.eig_rtol)
-    k = int(np.argmin(np.abs(vals)))
-    ok = bool(res <= opts.event_tol and abs(vals[k]) <= opts.event_tol)
-    soft = ok and _critical_mode_is_soft(problem, u, p, vals, vecs)
-    if ok and soft != along_soft:
-        return None
-    return (u, p, J, Fp, res, it, vals, vecs, k, ok, soft)
+    return found
 
 
-def _fold_newton(problem, opts, start, b):
-    """Newton on (F, sigma) from Point ``start`` with the border b (refreshed with w each
-    iteration). -> (u, p, J, F_p, residual, iterations)."""
+def _fold_newton(problem, opts, u, p, b):
+    """Newton on (F, sigma) from (u, p) with the border b (refreshed with w each iteration).
+    -> (u, p, J, F_p, residual, iterations)."""
     be, args, n = problem.backend, problem.args, problem.n
-    u, p = np.array(start.u), float(start.p)
+    u, p = np.array(u), float(p)
     res = np.inf
     for it in range(opts.locate_max_iter + 1):
         F, J, Fp = problem.linearise(u, p, args)
