@@ -46,7 +46,8 @@ def paths():
     # step limits 1 and 0.25: without the corrector-displacement test (PseudoArclength.max_correction)
     # both landed on a nearby branch next to the fold, where two modes are nearly degenerate
     runs = {}
-    for (start, ds_max, steps) in ((6.0, 1.0, 45), (6.3, 0.25, 40)):
+    # steps: to the fold (23 and 22 points) and 8 past it, down the unstable branch
+    for (start, ds_max, steps) in ((6.0, 1.0, 31), (6.3, 0.25, 30)):
         e = starts[start]
         rod = knot_problem(scene, np.asarray(e.q), e.phi)
         runs[start, ds_max] = (rod, continuation(rod.problem, ALG, _options(ds_max, steps), throw=False))

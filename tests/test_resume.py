@@ -19,6 +19,7 @@ from jaxrod.study import twist_study
 
 PI = math.pi
 RANGE = (-0.5 * PI, 7.5 * PI)  # the opening side's fold at 6.60 pi, a switch, the buckled branch
+STEP = 1.0 * PI  # 7 steps to the fold: the sixth step file is written before the bisection starts
 
 # The subprocess: a study whose hook kills the process (SIGKILL: no cleanup, no finally).
 SCRIPT = textwrap.dedent("""
@@ -52,8 +53,8 @@ SCRIPT = textwrap.dedent("""
             kill()
 
     scene = jr.trefoil(D=8.0, L=292.0, N=61)
-    study.twist_study(scene, %r, %r, step=0.5 * math.pi, tol=1e-3 * math.pi, out=out, progress=progress)
-""" % RANGE)
+    study.twist_study(scene, %r, %r, step=%r, tol=1e-3 * math.pi, out=out, progress=progress)
+""" % (RANGE + (STEP,)))
 
 
 def _run(script, out, moment):
@@ -69,7 +70,7 @@ def _arrays(path):
 def test_sigkill_at_three_moments_resumes_to_the_uninterrupted_files(tmp_path):
     scene = jr.trefoil(D=8.0, L=292.0, N=61)
     whole = tmp_path / "whole"
-    ref = twist_study(scene, *RANGE, step=0.5 * PI, tol=1e-3 * PI, out=str(whole))
+    ref = twist_study(scene, *RANGE, step=STEP, tol=1e-3 * PI, out=str(whole))
     assert ref.critical["phi_plus"] is not None and len(ref.critical["instabilities"]) >= 1
 
     script = tmp_path / "killed_study.py"
@@ -86,7 +87,7 @@ def test_sigkill_at_three_moments_resumes_to_the_uninterrupted_files(tmp_path):
             assert crit["phi_plus"] == ref.critical["phi_plus"]
     # The last resumption runs here, in this process (its code is compiled already).
     said = []
-    twist_study(scene, *RANGE, step=0.5 * PI, tol=1e-3 * PI, out=str(cut), progress=said.append)
+    twist_study(scene, *RANGE, step=STEP, tol=1e-3 * PI, out=str(cut), progress=said.append)
     assert any(m.startswith("plus: resuming on ") for m in said), said
 
     for name in ("branch.csv", "critical.json"):
