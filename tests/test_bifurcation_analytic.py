@@ -5,7 +5,9 @@ import numpy as np
 import pytest
 
 from jaxrod.bifurcation import (BifurcationProblem, ContinuationError, ContinuationOptions, PseudoArclength, Result,
-                                continuation, emanating_directions, fold_curve, switch_branches)
+                                continuation, emanating_directions, fold_at, fold_curve, fold_sensitivity,
+                                switch_branches)
+from jaxrod.bifurcation.locate import FOLD_QUADRATIC_ITERATIONS
 
 ALG = PseudoArclength()
 
@@ -233,6 +235,14 @@ def test_fold_curve_in_second_parameter():
         assert np.max(c.residual) <= 1e-10 and np.allclose(np.abs(c.v[:, 0]), 1.0)
         reached.append(c.mu[-1])
     assert reached[0] >= 1.0 and reached[1] <= -1.0
+    # the fold's sensitivity (one bordered solve at the located fold) and the fold at another mu
+    # (Newton on the fold system at fixed mu): p* = -mu^2/4, dp*/dmu = -mu/2, u* = (-mu/2, 0)
+    set_mu = lambda args, mu: mu  # noqa: E731
+    assert abs(fold_sensitivity(prob, fold, set_mu, mu0) + mu0 / 2) <= 1e-10
+    moved = fold_at(prob, fold, set_mu, mu0, 0.8, ContinuationOptions())
+    assert moved.converged and moved.residual <= 1e-10 and moved.iterations <= FOLD_QUADRATIC_ITERATIONS
+    assert abs(moved.p + 0.8 ** 2 / 4) <= 1e-12 and abs(moved.dp_dmu + 0.4) <= 1e-12
+    assert np.max(np.abs(moved.u - [-0.4, 0.0])) <= 1e-12 and abs(abs(moved.v[0]) - 1.0) <= 1e-12
 
 
 # Failures are reported, not hidden. E = x^2/2 - p x - (2/3)(1 - x)^(3/2) + y^2/2: the branch

@@ -256,10 +256,11 @@ def _fold_by_bracket(problem, opts, a, b, morse, along_soft=False):
     return found
 
 
-def _fold_newton(problem, opts, u, p, b):
-    """Newton on (F, sigma) from (u, p) with the border b (refreshed with w each iteration).
-    -> (u, p, J, F_p, residual, iterations)."""
-    be, args, n = problem.backend, problem.args, problem.n
+def _fold_newton(problem, opts, u, p, b, args=None):
+    """Newton on (F, sigma) from (u, p) with the border b (refreshed with w each iteration), at
+    args (default problem.args). -> (u, p, J, F_p, residual, iterations)."""
+    be, n = problem.backend, problem.n
+    args = problem.args if args is None else args
     u, p = np.array(u), float(p)
     res = np.inf
     for it in range(opts.locate_max_iter + 1):

@@ -27,6 +27,7 @@ and J is assembled densely (``DenseBackend``): meant for N up to ~100.
 """
 from __future__ import annotations
 
+import copy
 import functools
 from dataclasses import dataclass
 from typing import Any, NamedTuple
@@ -43,7 +44,8 @@ from ..topology import writhe
 from .problem import BifurcationProblem
 from .results import Event
 
-__all__ = ["PinnedRod", "RodArgs", "pinned_problem", "knot_problem", "split_sliding", "sliding_slice"]
+__all__ = ["PinnedRod", "RodArgs", "pinned_problem", "knot_problem", "split_sliding", "sliding_slice", "set_poisson_ratio",
+           "set_diameter"]
 
 
 class RodArgs(NamedTuple):
@@ -61,6 +63,32 @@ class RodArgs(NamedTuple):
     u_ref: Any
     free: Any
     nbr: Any = None
+
+
+def _with_material(args, B, C, EA, D):
+    # jax.tree_util rebuilds the material without __init__ (its leaves may be tracers), and a
+    # shallow copy of the frozen scene takes it: nothing else in a scene derives from the material
+    material = jax.tree_util.tree_unflatten(jax.tree_util.tree_structure(args.scene.material), [B, C, EA, D])
+    scene = copy.copy(args.scene)
+    object.__setattr__(scene, "material", material)
+    return args._replace(scene=scene)
+
+
+def set_poisson_ratio(args, nu):
+    """RodArgs with the twist stiffness C = B/(1 + nu), B, EA and D kept. Traceable: a ``set_mu``
+    for ``fold_curve``, ``fold_at`` and ``fold_sensitivity`` (mu = nu)."""
+    m = args.scene.material
+    return _with_material(args, m.B, m.B / (1.0 + nu), m.EA, m.D)
+
+
+def set_diameter(args, D):
+    """RodArgs with the rod's diameter D at fixed Young's modulus, Poisson ratio and length (mu = D):
+    B and C scale as D^4, EA as D^2, and the contact distance is D. Traceable (see
+    ``set_poisson_ratio``). The neighbourhood (contact candidates) is the one in args: valid for
+    a D near the one it was built with."""
+    m = args.scene.material
+    r = D / m.D
+    return _with_material(args, m.B * r ** 4, m.C * r ** 4, m.EA * r ** 2, D)
 
 
 def _embedded(u_free, args):

@@ -9,14 +9,17 @@ densely (a structured backend would need a doubly bordered solve there).
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .corrector import advance, correct, tangent
-from .results import ContinuationError, Result
+from .locate import _fold_newton
+from .results import ContinuationError, Event, Result
 
 
 @dataclass
@@ -33,38 +36,118 @@ class FoldCurve:
     message: str
 
 
-def fold_curve(problem, fold, set_mu, mu0, alg, opts, *, throw=True):
-    """Continue the fold Event ``fold`` of ``problem`` (whose args hold mu = mu0) in mu.
+class FoldPoint(NamedTuple):
+    """A fold located at a given mu: u (n,), p, mu, v (n,) its unit critical vector, its dp*/dmu
+    (IFT), the residual of (F, sigma), the Newton iterations, converged."""
 
-    set_mu(args, mu) -> args must be traceable. opts.ds (signed) is the first step in mu,
-    [opts.p_min, opts.p_max] bounds mu, max_steps and the tolerances apply as for continuation.
-    """
-    be, n, args0 = problem.backend, problem.n, problem.args
+    u: np.ndarray
+    p: float
+    mu: float
+    v: np.ndarray
+    dp_dmu: float
+    residual: float
+    iterations: int
+    converged: bool
 
-    def blocks(u, p, mu, b):
-        args = set_mu(args0, mu)
-        F, J, Fp = problem._linearise(u, p, args)
-        Fmu = jax.jvp(lambda m: problem.F(u, p, set_mu(args0, m)), (mu,), (jnp.ones_like(mu),))[1]
-        w, sigma = be.bordered_solve(J, b, b, 0.0, jnp.zeros(n), 1.0)
-        grads = jax.grad(lambda x, q, m: jnp.dot(w, problem.hvp(x, q, set_mu(args0, m), w)), argnums=(0, 1, 2))
-        gu, gp, gm = grads(u, p, mu)
-        return F, J, Fp, Fmu, sigma, -gu, -gp, -gm, w
 
-    blocks = jax.jit(blocks)
-    border = [np.asarray(fold.v[:, 0])]  # refreshed with w at each point: the root does not depend on it
+@functools.partial(jax.jit, static_argnames=("problem", "set_mu"))
+def _fold_blocks_jit(problem, set_mu, args0, u, p, mu, b):
+    be, n = problem.backend, problem.n
+    args = set_mu(args0, mu)
+    F, J, Fp = problem._linearise(u, p, args)
+    Fmu = jax.jvp(lambda m: problem.F(u, p, set_mu(args0, m)), (mu,), (jnp.ones_like(mu),))[1]
+    w, sigma = be.bordered_solve(J, b, b, 0.0, jnp.zeros(n), 1.0)
+    grads = jax.grad(lambda x, q, m: jnp.dot(w, problem.hvp(x, q, set_mu(args0, m), w)), argnums=(0, 1, 2))
+    gu, gp, gm = grads(u, p, mu)
+    return F, J, Fp, Fmu, sigma, -gu, -gp, -gm, w
+
+
+def _fold_blocks(problem, set_mu):
+    """(u, p, mu, b) -> (F, J, F_p, F_mu, sigma, sigma_u, sigma_p, sigma_mu, w): the minimally
+    augmented fold system (locate.py) and its derivatives, with args = set_mu(args0, mu), args0 the
+    problem's args. Compiled once per (problem, set_mu): args0 is traced, so a problem whose args
+    were updated (a rebuilt neighbourhood) reuses the program."""
+    args0 = problem.args
+    f64 = functools.partial(jnp.asarray, dtype=jnp.float64)
+    return lambda u, p, mu, b: _fold_blocks_jit(problem, set_mu, args0, f64(u), f64(p), f64(mu), f64(b))
+
+
+def _fold_system(problem, blocks, border):
+    """lin(x = (u, p), mu) for the corrector: G = (F, sigma), its Jacobian in x and in mu. ``border``
+    is a one-element list holding the current border b (refreshed by the caller)."""
 
     def lin(x, mu):
         F, J, Fp, Fmu, s, su, sp, sm, _ = blocks(x[:-1], x[-1], mu, border[0])
         A = jnp.block([[J, Fp[:, None]], [su[None, :], jnp.reshape(sp, (1, 1))]])
         return jnp.append(F, s), A, jnp.append(Fmu, sm)
 
+    return lin
+
+
+def _ift_slope(problem, blocks, u, p, mu, b):
+    """(du*/dmu (n,), dp*/dmu, w) at a fold: [[J, F_p], [sigma_u^T, sigma_p]] [du; dp] = -[F_mu; sigma_mu]."""
+    F, J, Fp, Fmu, s, su, sp, sm, w = blocks(u, p, mu, b)
+    du, dp = problem.backend.bordered_solve(J, Fp, su, sp, -Fmu, -sm)
+    return np.asarray(du), float(dp), np.asarray(w) / np.linalg.norm(w)
+
+
+def fold_at(problem, fold, set_mu, mu0, mu, opts, *, predict=True):
+    """The fold ``fold`` (an Event, or a FoldPoint) of ``problem``, located at mu0, moved to mu.
+
+    A point study of the fold at mu: Newton on the fold system (F, sigma) = 0 in (u, p) at fixed
+    mu, as the fold locator runs it (one step more once below opts.newton_tol, so that the root is
+    at roundoff whatever the start), from the first-order prediction (u, p) + (mu - mu0) d(u, p)/dmu
+    of the implicit function theorem (``predict=False``: from the fold's own (u, p), for a point
+    study that owes nothing to the derivative it checks). The prediction matters near a second near-singular mode (the
+    trefoil's tightening fold at N = 121, a shape eigenvalue ~1e-7 next to the critical one): from
+    the unmoved fold, the O(mu - mu0) residual divided by that eigenvalue throws the first step
+    far off; from the prediction the residual is O((mu - mu0)^2). set_mu(args, mu) -> args,
+    traceable, with problem.args at mu0. Returns a FoldPoint with dp*/dmu at mu.
+    """
+    v = np.asarray(fold.v[:, 0] if isinstance(fold, Event) else fold.v)
+    v = v / np.linalg.norm(v)
+    blocks = _fold_blocks(problem, set_mu)
+    du, dp, w = _ift_slope(problem, blocks, fold.u, fold.p, float(mu0), v)
+    delta = float(mu) - float(mu0) if predict else 0.0
+    args = set_mu(problem.args, jnp.asarray(float(mu)))
+    u, p, _, _, res, it = _fold_newton(problem, opts, np.asarray(fold.u) + delta * du, float(fold.p) + delta * dp, w,
+                                       args=args)
+    _, dp, w = _ift_slope(problem, blocks, u, p, float(mu), w)
+    _, dp, w = _ift_slope(problem, blocks, u, p, float(mu), w)  # with w at the root: the critical vector
+    converged = bool(np.isfinite(res) and res <= opts.newton_tol)
+    return FoldPoint(np.asarray(u), float(p), float(mu), w, dp, float(res), int(it), converged)
+
+
+def fold_sensitivity(problem, fold, set_mu, mu0):
+    """dp*/dmu at the located fold ``fold`` (an Event of ``problem``, whose args hold mu = mu0).
+
+    The fold moves with mu along the solution curve of the fold system G(u, p, mu) = (F, sigma) = 0;
+    the implicit function theorem gives its slope from one bordered solve with the fold system's
+    Jacobian (regular at a quadratic fold): the derivative of the located critical twist, not of
+    an eigenvalue on a fixed branch (which is wrong at a fold, where the branch itself turns).
+    set_mu(args, mu) -> args must be traceable (e.g. ``jaxrod.bifurcation.rods.set_poisson_ratio``).
+    """
+    blocks = _fold_blocks(problem, set_mu)
+    _, dp, _ = _ift_slope(problem, blocks, fold.u, fold.p, float(mu0), np.asarray(fold.v[:, 0]))
+    return dp
+
+
+def fold_curve(problem, fold, set_mu, mu0, alg, opts, *, throw=True):
+    """Continue the fold Event ``fold`` of ``problem`` (whose args hold mu = mu0) in mu.
+
+    set_mu(args, mu) -> args must be traceable. opts.ds (signed) is the first step in mu,
+    [opts.p_min, opts.p_max] bounds mu, max_steps and the tolerances apply as for continuation.
+    """
+    be, n = problem.backend, problem.n
+    blocks = _fold_blocks(problem, set_mu)
+    border = [np.asarray(fold.v[:, 0])]  # refreshed with w at each point: the root does not depend on it
+
+    lin = _fold_system(problem, blocks, border)
     rows = []
 
     def record(z, res):
-        F, J, Fp, Fmu, s, su, sp, sm, w = blocks(z[:-2], z[-2], z[-1], border[0])
-        _, dp = be.bordered_solve(J, Fp, su, sp, -Fmu, -sm)
-        border[0] = np.asarray(w) / np.linalg.norm(w)
-        rows.append((z[-1], z[-2], z[:-2], border[0], float(dp), res))
+        _, dp, border[0] = _ift_slope(problem, blocks, z[:-2], z[-2], z[-1], border[0])
+        rows.append((z[-1], z[-2], z[:-2], border[0], dp, res))
 
     t0 = np.zeros(n + 2)
     t0[-1] = np.sign(opts.ds)
