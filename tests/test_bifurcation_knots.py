@@ -13,12 +13,13 @@ branch point locator does not resolve yet (issue 17, closing note).
 """
 import math
 
+import jax
 import numpy as np
 import pytest
 
 import jaxrod as jr
 from jaxrod.bifurcation import ContinuationOptions, PseudoArclength, Result, continuation, fold_at, fold_sensitivity
-from jaxrod.bifurcation.rods import knot_problem, set_diameter, set_poisson_ratio
+from jaxrod.bifurcation.rods import _pinned_energy, knot_problem, set_diameter, set_poisson_ratio
 from jaxrod.stability import sliding_fraction
 
 PI = math.pi
@@ -128,3 +129,23 @@ def test_fold_sensitivity_equals_central_differences_of_the_located_folds(paths)
         assert abs(slope - central) <= 1e-5 * abs(central), (set_mu.__name__, slope, central)
         # the slope at the moved folds brackets the one at the fold (a smooth fold curve)
         assert min(up.dp_dmu, down.dp_dmu) <= slope <= max(up.dp_dmu, down.dp_dmu)
+
+
+def test_neighbourhood_is_rebuilt_when_the_diameter_grows_past_its_skin(paths):
+    """A fold curve in D (``set_diameter``) rebases the args at each point through ``update_args``:
+    the contact candidates, built for the pairs closer than D + skin, stay valid for a larger D
+    only while no node moved more than (skin - (D - D_built)) / 2. Past that the neighbourhood is
+    rebuilt, and the energy through it equals the exact energy (all pairs) at the new D."""
+    rod, _ = paths[1][6.3, 0.25]
+    prob = rod.problem
+    u, p, args = prob.u0, prob.p0, prob.args
+    skin, D = float(args.nbr.skin), float(args.scene.material.D)
+    assert prob.update_args(u, p, args) is args  # nothing moved, nothing grew
+    within = set_diameter(args, D + 0.4 * skin)
+    assert prob.update_args(u, p, within).nbr is args.nbr
+    grown = set_diameter(args, D + 1.2 * skin)
+    rebuilt = prob.update_args(u, p, grown)
+    assert rebuilt.nbr is not args.nbr and rebuilt.nbr.n_candidates >= args.nbr.n_candidates
+    energy = jax.jit(_pinned_energy)
+    exact = float(energy(u, p, grown._replace(nbr=None)))
+    assert abs(float(energy(u, p, rebuilt)) - exact) <= 1e-12 * abs(exact)

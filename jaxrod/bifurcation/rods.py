@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import copy
 import functools
+import weakref
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
@@ -214,17 +215,26 @@ def knot_problem(scene, q_ref, phi0, *, pins=None, capacity=None, sliding=SLIDIN
     pins = np.unique(np.asarray(pins, dtype=np.int64).ravel())
     free = np.setdiff1d(np.arange(u_ref.size), pins)
     nbr0 = scene.neighbourhood(q_ref, float(phi0), capacity=capacity)
+    # the diameter each neighbourhood was built for: its candidates are the pairs closer than
+    # D_built + skin, valid for a diameter D while no node moved more than (skin - (D - D_built)) / 2
+    # (a fold curve in D: ``set_diameter``)
+    built_for = weakref.WeakKeyDictionary({nbr0: float(scene.material.D)})
     holder = {}
 
     def update_args(u_free, phi, args):
         sc, nbr = args.scene, args.nbr
         q = holder["rod"].q(u_free)
         x = jnp.asarray(sc.positions(jnp.asarray(q)))
-        if not bool(nbr.stale(x)):
+        D = float(sc.material.D)
+        grown = max(0.0, D - built_for.get(nbr, D))
+        moved = float(jnp.max(jnp.linalg.norm(x - nbr.x_built, axis=1))) if nbr.capacity else 0.0
+        if nbr.capacity == 0 or moved <= 0.5 * (float(nbr.skin) - grown):
             wr = float(_writhe(x))
             if abs(wr - float(nbr.wr_ref)) < 0.25:
                 return args
-        return args._replace(nbr=sc.neighbourhood(q, float(phi), capacity=nbr.capacity))
+        new = sc.neighbourhood(q, float(phi), capacity=nbr.capacity)
+        built_for[new] = D
+        return args._replace(nbr=new)
 
     def soft_modes(u_free, phi, values, vectors):
         rod = holder["rod"]

@@ -62,14 +62,15 @@ def _fold_blocks_jit(problem, set_mu, args0, u, p, mu, b):
     return F, J, Fp, Fmu, sigma, -gu, -gp, -gm, w
 
 
-def _fold_blocks(problem, set_mu):
+def _fold_blocks(problem, set_mu, base=None):
     """(u, p, mu, b) -> (F, J, F_p, F_mu, sigma, sigma_u, sigma_p, sigma_mu, w): the minimally
     augmented fold system (locate.py) and its derivatives, with args = set_mu(args0, mu), args0 the
-    problem's args. Compiled once per (problem, set_mu): args0 is traced, so a problem whose args
-    were updated (a rebuilt neighbourhood) reuses the program."""
-    args0 = problem.args
+    problem's args, or base[0] at call time when base (a one-element list) is given (args rebased
+    along a fold curve: a rebuilt neighbourhood). Compiled once per (problem, set_mu): args0 is
+    traced, so rebased args of the same shapes reuse the program."""
+    base = [problem.args] if base is None else base
     f64 = functools.partial(jnp.asarray, dtype=jnp.float64)
-    return lambda u, p, mu, b: _fold_blocks_jit(problem, set_mu, args0, f64(u), f64(p), f64(mu), f64(b))
+    return lambda u, p, mu, b: _fold_blocks_jit(problem, set_mu, base[0], f64(u), f64(p), f64(mu), f64(b))
 
 
 def _fold_system(problem, blocks, border):
@@ -132,14 +133,20 @@ def fold_sensitivity(problem, fold, set_mu, mu0):
     return dp
 
 
-def fold_curve(problem, fold, set_mu, mu0, alg, opts, *, throw=True):
+def fold_curve(problem, fold, set_mu, mu0, alg, opts, *, throw=True, observer=None):
     """Continue the fold Event ``fold`` of ``problem`` (whose args hold mu = mu0) in mu.
 
-    set_mu(args, mu) -> args must be traceable. opts.ds (signed) is the first step in mu,
-    [opts.p_min, opts.p_max] bounds mu, max_steps and the tolerances apply as for continuation.
+    set_mu(args, mu) -> args must be traceable, and set mu absolutely (not add to it): the args are
+    rebased along the curve. opts.ds (signed) is the first step in mu, [opts.p_min, opts.p_max]
+    bounds mu, max_steps and the tolerances apply as for continuation. After each accepted point
+    the problem's ``update_args`` hook (if any) is called with the args at that point's mu (a
+    knot's neighbourhood rebuilt when it went stale, or when the diameter grew past its skin),
+    and the curve goes on from those args. observer(i, mu, p, residual), if given, is called
+    after each point (progress).
     """
     be, n = problem.backend, problem.n
-    blocks = _fold_blocks(problem, set_mu)
+    base = [problem.args]
+    blocks = _fold_blocks(problem, set_mu, base)
     border = [np.asarray(fold.v[:, 0])]  # refreshed with w at each point: the root does not depend on it
 
     lin = _fold_system(problem, blocks, border)
@@ -148,6 +155,10 @@ def fold_curve(problem, fold, set_mu, mu0, alg, opts, *, throw=True):
     def record(z, res):
         _, dp, border[0] = _ift_slope(problem, blocks, z[:-2], z[-2], z[-1], border[0])
         rows.append((z[-1], z[-2], z[:-2], border[0], dp, res))
+        if problem.update_args is not None:
+            base[0] = problem.update_args(z[:-2], float(z[-2]), set_mu(base[0], jnp.asarray(float(z[-1]))))
+        if observer is not None:
+            observer(len(rows), float(z[-1]), float(z[-2]), float(res))
 
     t0 = np.zeros(n + 2)
     t0[-1] = np.sign(opts.ds)
