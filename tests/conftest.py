@@ -28,12 +28,12 @@ import jaxrod  # noqa: E402,F401  (float64 before any test builds arrays)
 # the two xdist workers, which take whole files in collection order, finish together: alphabetical
 # order left a long file to the end, with the other worker idle meanwhile. Files not listed (short
 # ones, or new ones) come after, alphabetically.
-_LONGEST_FIRST = ("test_notebooks.py", "test_atlas.py", "test_sparse_stability.py", "test_bifurcation_knots.py",
-                  "test_readme.py", "test_resume.py", "test_trefoil_twist.py", "test_michell.py", "test_dynamics.py",
-                  "test_energy.py", "test_interrupt_and_lock.py", "test_hessian.py", "test_conventions.py",
-                  "test_solvers.py", "test_cli.py", "test_bifurcation_rods.py", "test_topology.py", "test_knots.py",
-                  "test_contact.py", "test_analysis.py", "test_stability.py", "test_bifurcation_analytic.py",
-                  "test_banded.py")
+_LONGEST_FIRST = ("test_atlas.py", "test_bifurcation_knots.py", "test_sparse_stability.py", "test_notebooks.py",
+                  "test_resume.py", "test_readme.py", "test_notebook_damped_dynamics.py", "test_trefoil_twist.py",
+                  "test_michell.py", "test_dynamics.py", "test_energy.py", "test_interrupt_and_lock.py",
+                  "test_hessian.py", "test_conventions.py", "test_solvers.py", "test_cli.py", "test_bifurcation_rods.py",
+                  "test_topology.py", "test_knots.py", "test_contact.py", "test_analysis.py", "test_stability.py",
+                  "test_bifurcation_analytic.py", "test_banded.py")
 
 
 def pytest_collection_modifyitems(session, config, items):
