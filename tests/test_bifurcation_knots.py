@@ -18,7 +18,8 @@ import numpy as np
 import pytest
 
 import jaxrod as jr
-from jaxrod.bifurcation import ContinuationOptions, PseudoArclength, Result, continuation, fold_at, fold_sensitivity
+from jaxrod.bifurcation import ContinuationOptions, PseudoArclength, Result, continuation, fold_at, fold_curve, \
+    fold_sensitivity
 from jaxrod.bifurcation.rods import _pinned_energy, knot_problem, set_diameter, set_poisson_ratio
 from jaxrod.stability import sliding_fraction
 
@@ -149,3 +150,24 @@ def test_neighbourhood_is_rebuilt_when_the_diameter_grows_past_its_skin(paths):
     energy = jax.jit(_pinned_energy)
     exact = float(energy(u, p, grown._replace(nbr=None)))
     assert abs(float(energy(u, p, rebuilt)) - exact) <= 1e-12 * abs(exact)
+
+
+def test_fold_curve_in_nu_follows_the_located_fold(paths):
+    """Item 5 on a knot: the fold followed in nu (``fold_curve``, C = B/(1 + nu)) for a few points from
+    nu = 0.5. Each point is a fold (residual <= 1e-10) that Newton on the fold system, started at
+    the original fold (not from the curve), finds again at that nu, and phi* falls with nu at the
+    IFT slope (benchmarks/fold_curve_nu.py: down to nu = 0, equal to point studies to 4e-14 pi)."""
+    rod, br = paths[1][6.3, 0.25]
+    (fold,) = _folds(br)
+    opts = ContinuationOptions(ds=-0.5, ds_max=2.0, ds_min=1e-5, max_steps=3, newton_tol=1e-10, p_min=0.0, p_max=0.5)
+    curve = fold_curve(rod.problem, fold, set_poisson_ratio, 0.5, ALG, opts)
+    assert len(curve.mu) == 4 and np.all(np.diff(curve.mu) < 0) and np.max(curve.residual) <= 1e-10
+    assert curve.mu[-1] < 0.48  # measured 0.4718: the steps grow (25 points from 0.5 to 0 in the benchmark)
+    for mu, p, slope in zip(curve.mu[1:], curve.p[1:], curve.dp_dmu[1:]):
+        again = fold_at(rod.problem, fold, set_poisson_ratio, 0.5, mu, _options(0.25, 1), predict=False)
+        # the curve's corrector stops once the residual is <= newton_tol (1e-10), which leaves phi* within
+        # ~3e-10 pi of the root (measured); fold_at takes Newton one step further, to roundoff
+        assert again.converged and abs(again.p - p) <= 1e-8 * PI and abs(again.dp_dmu - slope) <= 1e-6 * abs(slope)
+    chords = np.diff(curve.p) / np.diff(curve.mu)
+    mids = 0.5 * (curve.dp_dmu[1:] + curve.dp_dmu[:-1])
+    assert np.max(np.abs(chords - mids) / np.abs(mids)) <= 1e-4  # trapezoidal: phi* nearly linear in nu
