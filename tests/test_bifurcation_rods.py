@@ -18,8 +18,8 @@ import pytest
 
 from jaxrod import critical_twist, michell_critical_twist, michell_ring
 from jaxrod.bifurcation import ContinuationOptions, PseudoArclength, Result, continuation, emanating_directions, \
-    switch_branches
-from jaxrod.bifurcation.rods import pinned_problem, sliding_slice
+    switch_branches, branch_point_curve
+from jaxrod.bifurcation.rods import pinned_problem, set_poisson_ratio, sliding_slice
 
 N = 32
 ALG = PseudoArclength()
@@ -103,3 +103,23 @@ def test_buckled_branch_is_subcritical_and_unstable(ring, buckled):
     _, J, _ = rod.problem.linearise(jnp.asarray(u7), jnp.asarray(q.p), rod.problem.args)
     lam = np.linalg.eigvalsh(np.asarray(J))
     assert abs(lam[1]) <= 1e-9 and lam[0] < -1e-5 and lam[2] > 1e-3
+
+
+def test_branch_point_curve_in_nu_equals_critical_twist(ring, buckled):
+    """Acceptance 6, Michell's phi*(nu): the ring's branch point (made simple by the sliding pin)
+    continued in nu over [0, 0.5] (``branch_point_curve``, the unfolded system with nu free, C =
+    B/(1 + nu)) equals ``critical_twist`` at nu = 0, 0.25 and 0.5 to 1e-9 relative (measured
+    2.5e-10 to 3.7e-10: critical_twist's own float64 floor at N = 32, see the ring fixture). Like
+    Michell's 2 pi sqrt(3) (1 + nu), the discrete ring's phi* is proportional to B/C = 1 + nu, so its
+    IFT slope is phi*(0.5)/1.5 all along."""
+    scene, cp, _, _ = ring
+    rod8, ev8, _, _ = buckled
+    opts = ContinuationOptions(ds=-0.5, ds_max=2.0, newton_tol=5e-11, p_min=-0.01, p_max=0.51, max_steps=100)
+    curve = branch_point_curve(rod8.problem, ev8, set_poisson_ratio, 0.5, ALG, opts, at=(0.0, 0.25))
+    assert curve.result is Result.BOUNDARY and curve.mu[-1] < 0.0 and np.max(curve.residual) <= 5e-11
+    for nu in (0.0, 0.25, 0.5):
+        (k,) = np.flatnonzero(curve.mu == nu)
+        ref = cp if nu == 0.5 else critical_twist(michell_ring(N, nu=nu), 0.0, 2 * michell_critical_twist(nu),
+                                                  tol=1e-10 * math.pi, gtol=3e-11)
+        assert abs(curve.p[k] - ref.phi) <= 1e-9 * ref.phi, (nu, curve.p[k], ref.phi)
+    assert np.max(np.abs(curve.dp_dmu - curve.p[0] / 1.5)) <= 1e-8 * curve.p[0]

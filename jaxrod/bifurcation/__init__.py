@@ -7,6 +7,7 @@
     curve = fold_curve(prob, fold_event, set_mu, mu0, PseudoArclength(), opts_mu)
     fold_sensitivity(prob, fold_event, set_mu, mu0)     # dp*/dmu at the fold (implicit function theorem)
     fold_at(prob, fold_event, set_mu, mu0, mu1, opts)       # the fold at another mu (Newton on its system)
+    branch_point_curve(prob, bp_event, set_mu, mu0, PseudoArclength(), opts_mu)   # a simple branch point in mu
 
 Modules: problem (F, J, F_p by JAX), linalg (backends), options, results, corrector (tangent,
 bordered Newton, step control), continuation (the entry), events (detection), locate (extended
@@ -18,8 +19,9 @@ from .options import ContinuationOptions, PseudoArclength
 from .problem import BifurcationProblem
 from .results import Branch, ContinuationError, Event, Point, Result
 from .switching import Emanating, emanating_directions, switch_branches
-from .two_parameter import FoldCurve, FoldPoint, fold_at, fold_curve, fold_sensitivity
+from .two_parameter import FoldCurve, FoldPoint, branch_point_curve, fold_at, fold_curve, fold_sensitivity
 
 __all__ = ["BifurcationProblem", "DenseBackend", "ContinuationOptions", "PseudoArclength", "continuation",
            "Branch", "Point", "Event", "Result", "ContinuationError", "Emanating", "emanating_directions",
-           "switch_branches", "FoldCurve", "fold_curve", "FoldPoint", "fold_at", "fold_sensitivity"]
+           "switch_branches", "FoldCurve", "fold_curve", "FoldPoint", "fold_at", "fold_sensitivity",
+           "branch_point_curve"]

@@ -24,7 +24,7 @@ from .results import ContinuationError, Event, Result
 
 @dataclass
 class FoldCurve:
-    """Fold points along mu: mu, p, dp_dmu (IFT), residual (m,); u, v (m, n); result, message."""
+    """Fold (or branch) points along mu: mu, p, dp_dmu (IFT), residual (m,); u, v (m, n); result, message."""
 
     mu: np.ndarray
     p: np.ndarray
@@ -133,7 +133,7 @@ def fold_sensitivity(problem, fold, set_mu, mu0):
     return dp
 
 
-def fold_curve(problem, fold, set_mu, mu0, alg, opts, *, throw=True, observer=None):
+def fold_curve(problem, fold, set_mu, mu0, alg, opts, *, throw=True, observer=None, at=()):
     """Continue the fold Event ``fold`` of ``problem`` (whose args hold mu = mu0) in mu.
 
     set_mu(args, mu) -> args must be traceable, and set mu absolutely (not add to it): the args are
@@ -142,7 +142,8 @@ def fold_curve(problem, fold, set_mu, mu0, alg, opts, *, throw=True, observer=No
     the problem's ``update_args`` hook (if any) is called with the args at that point's mu (a
     knot's neighbourhood rebuilt when it went stale, or when the diameter grew past its skin),
     and the curve goes on from those args. observer(i, mu, p, residual), if given, is called
-    after each point (progress).
+    after each point (progress). at: values of mu at which the curve also gives a point exactly
+    (corrected on the hyperplane mu = value from the chord of the step that crosses it).
     """
     be, n = problem.backend, problem.n
     base = [problem.args]
@@ -163,9 +164,73 @@ def fold_curve(problem, fold, set_mu, mu0, alg, opts, *, throw=True, observer=No
     t0 = np.zeros(n + 2)
     t0[-1] = np.sign(opts.ds)
     c = correct(be, lin, np.concatenate([fold.u, [fold.p, mu0]]), t0, opts.newton_tol, opts.newton_max_iter)
+    return _follow(be, lin, c, t0, record, rows, opts, alg, throw, "fold", at)
+
+
+@functools.partial(jax.jit, static_argnames=("problem", "set_mu"))
+def _branch_point_blocks_jit(problem, set_mu, args0, u, p, mu, b):
+    def tests(x, q, m):
+        return problem._singular_tests(x, q, set_mu(args0, m), b)
+
+    (gu, gp, gm), (st, F, J, Fp, w) = jax.jacrev(tests, argnums=(0, 1, 2), has_aux=True)(u, p, mu)
+    Fmu = jax.jvp(lambda m: problem.F(u, p, set_mu(args0, m)), (mu,), (jnp.ones_like(mu),))[1]
+    return F, J, Fp, Fmu, st, gu, gp, gm, w
+
+
+def branch_point_curve(problem, event, set_mu, mu0, alg, opts, *, throw=True, observer=None, at=()):
+    """Continue the simple branch point ``event`` of ``problem`` (whose args hold mu = mu0) in mu.
+
+    The branch point is the root of the unfolded system (locate.py, Moore 1980)
+        F(u, p, mu) + beta v0 = 0,  sigma(u, p, mu) = 0,  tau(u, p, mu) = w^T F_p = 0
+    in x = (u, p, beta), v0 the event's critical vector: n+2 equations, regular at a transversal
+    simple branch point (beta = 0 there), so with mu free its solutions form a curve, followed by
+    the pseudo-arclength core as ``fold_curve`` does (x = (u, p, beta), lam = mu; the Jacobian
+    assembled densely, derivatives of sigma and tau by reverse mode through the bordered solve).
+    A symmetric double branch point (a ring's O(2) pair) must first be made simple by a gauge pin
+    (``jaxrod.bifurcation.rods.sliding_slice``). At each point dp*/dmu comes from the implicit
+    function theorem (one solve with the system's Jacobian). Returns a FoldCurve (v: the unit
+    kernel vector w; beta, ~roundoff on the curve, is not kept). Arguments as ``fold_curve``.
+    """
+    be, n = problem.backend, problem.n
+    base = [problem.args]
+    v0 = np.asarray(event.v[:, 0]) / np.linalg.norm(event.v[:, 0])
+    border = [v0]
+    f64 = functools.partial(jnp.asarray, dtype=jnp.float64)
+
+    def blocks(x, mu):
+        return _branch_point_blocks_jit(problem, set_mu, base[0], f64(x[:n]), f64(x[n]), f64(mu), f64(border[0]))
+
+    def lin(x, mu):
+        F, J, Fp, Fmu, st, gu, gp, gm, _ = blocks(x, mu)
+        G = jnp.concatenate([F + x[n + 1] * v0, st])
+        A = jnp.block([[J, Fp[:, None], jnp.asarray(v0)[:, None]], [gu, gp[:, None], jnp.zeros((2, 1))]])
+        return G, A, jnp.concatenate([Fmu, gm])
+
+    rows = []
+
+    def record(z, res):
+        _, A, a = lin(z[:-1], z[-1])
+        dx = np.linalg.solve(np.asarray(A), -np.asarray(a))
+        w = np.asarray(blocks(z[:-1], z[-1])[-1])
+        border[0] = w / np.linalg.norm(w)
+        rows.append((z[-1], z[n], z[:n], border[0], float(dx[n]), res))
+        if problem.update_args is not None:
+            base[0] = problem.update_args(z[:n], float(z[n]), set_mu(base[0], jnp.asarray(float(z[-1]))))
+        if observer is not None:
+            observer(len(rows), float(z[-1]), float(z[n]), float(res))
+
+    t0 = np.zeros(n + 3)
+    t0[-1] = np.sign(opts.ds)
+    z0 = np.concatenate([np.asarray(event.u), [float(event.p), 0.0, float(mu0)]])
+    c = correct(be, lin, z0, t0, opts.newton_tol, opts.newton_max_iter)
+    return _follow(be, lin, c, t0, record, rows, opts, alg, throw, "branch point", at)
+
+
+def _follow(be, lin, c, t0, record, rows, opts, alg, throw, what, at=()):
+    """The pseudo-arclength loop of a two-parameter curve from its first correction c."""
     result, message = Result.MAX_STEPS, f"stopped after max_steps = {opts.max_steps} steps"
     if not c.converged:
-        result, message = Result.CORRECTOR_FAILED, f"the fold did not converge at mu0: residual {c.residual:.3g}"
+        result, message = Result.CORRECTOR_FAILED, f"the {what} did not converge at mu0: residual {c.residual:.3g}"
     else:
         record(c.z, c.residual)
         z, t, ds = c.z, tangent(be, c.lin[1], c.lin[2], t0), abs(opts.ds)
@@ -173,8 +238,16 @@ def fold_curve(problem, fold, set_mu, mu0, alg, opts, *, throw=True, observer=No
             step = advance(alg, be, lin, z, t, ds, opts)
             if step is None:
                 result = Result.CORRECTOR_FAILED
-                message = f"the fold-curve corrector failed down to ds_min = {opts.ds_min:g} at mu = {z[-1]:.12g}"
+                message = f"the {what}-curve corrector failed down to ds_min = {opts.ds_min:g} at mu = {z[-1]:.12g}"
                 break
+            for target in [m for m in at if min(z[-1], step.z[-1]) < m < max(z[-1], step.z[-1])]:
+                # a point exactly at this mu: corrected from the chord on the hyperplane mu = target
+                s_frac = (target - z[-1]) / (step.z[-1] - z[-1])
+                e_mu = np.zeros_like(z)
+                e_mu[-1] = 1.0
+                exact = correct(be, lin, z + s_frac * (step.z - z), e_mu, opts.newton_tol, opts.newton_max_iter)
+                if exact.converged:
+                    record(exact.z, exact.residual)
             z, t, ds = step.z, step.tangent, step.ds_next
             record(z, step.correction.residual)
             if not opts.p_min <= z[-1] <= opts.p_max:
