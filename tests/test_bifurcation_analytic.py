@@ -318,3 +318,23 @@ def test_soft_fold_is_no_branch_end_and_is_slid_across(soft_folds):
     assert np.all(np.diff([q.p for q in after]) > 0) and br.result is Result.BOUNDARY
     # every point is an equilibrium of the washboard branch
     assert all(abs(np.sin(q.u[1]) + WASHBOARD_K * q.u[1] - q.p) <= 1e-10 for q in br.points)
+
+
+# Two pitchforks 1e-4 apart on the trivial branch u = 0 of E = (1 - p) x^2/2 + (1 + 1e-4 - p) y^2/2 +
+# (x^4 + y^4)/4: one step of 0.1 crosses both (Morse 0 -> 2).
+def near_pair_energy(u, p, args):
+    x, y = u
+    return 0.5 * (1 - p) * x ** 2 + 0.5 * (1 + 1e-4 - p) * y ** 2 + 0.25 * (x ** 4 + y ** 4)
+
+
+def test_spectrum_watching_step_control_separates_nearly_coincident_branch_points():
+    prob = BifurcationProblem(near_pair_energy, [0.0, 0.0], 0.45)
+    coarse = continuation(prob, ALG, ContinuationOptions(ds=0.1, ds_max=0.1, p_max=1.5))
+    assert any(abs(b.morse_index - a.morse_index) == 2 for a, b in zip(coarse.points, coarse.points[1:]))
+    fine = continuation(prob, ALG, ContinuationOptions(ds=0.1, ds_max=0.1, p_max=1.5, resolve_crossings=1e-6))
+    # no step crosses more than one eigenvalue, and each crossing is a simple branch point, located
+    assert all(abs(b.morse_index - a.morse_index) <= 1 for a, b in zip(fine.points, fine.points[1:]))
+    e0, e1 = fine.events
+    check_located(e0, "branch_point", 1.0, [0.0, 0.0])
+    check_located(e1, "branch_point", 1.0 + 1e-4, [0.0, 0.0])
+    assert (e0.multiplicity, e0.morse_before, e0.morse_after, e1.morse_before, e1.morse_after) == (1, 0, 1, 1, 2)

@@ -66,10 +66,14 @@ def continuation(problem, alg, opts, *, observer=None, start=None, throw=True):
             message = (f"the corrector failed at every step size down to ds_min = {opts.ds_min:g} from "
                        f"p = {points[-1].p:.12g} (point {len(points) - 1})")
             break
+        new = _point(problem, opts, step.correction, step.tangent, step.ds, points[-1].arclength + step.ds)
+        if abs(new.morse_index - points[-1].morse_index) > 1 and step.ds / 2 >= opts.resolve_crossings > 0:
+            ds = step.ds / 2  # several eigenvalues crossed within the step: retry smaller, to separate them
+            continue
         ds = step.ds_next
         if problem.update_args is not None:  # e.g. a rebuilt contact list: the same F, new args
             problem.args = problem.update_args(step.correction.z[:-1], float(step.correction.z[-1]), problem.args)
-        points.append(_point(problem, opts, step.correction, step.tangent, step.ds, points[-1].arclength + step.ds))
+        points.append(new)
         if observer is not None:
             observer(points[-1])
         if opts.detect_events:

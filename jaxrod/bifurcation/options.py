@@ -24,6 +24,12 @@ class ContinuationOptions:
     slide_kick), and go on from the minimum reached (a ``Slide`` in ``Branch.slides``), as the
     physical rod would, its strands slipping by a fraction of an edge; "follow": follow the path back along the sliding saddles.
     Needs the problem's ``energy``.
+
+    resolve_crossings: a step control that watches the spectrum (0: off). A step across which the
+    Morse index changes by more than 1 (several eigenvalues crossing zero between two points, e.g.
+    a fold next to a symmetry pair) is refused and retried at half the step, down to this step
+    size, so that nearly coincident events fall into separate brackets; a crossing that is still
+    multiple at that size is a multiple event (a symmetric double branch point), located as one.
     """
 
     ds: float = 0.05
@@ -42,6 +48,7 @@ class ContinuationOptions:
     soft_folds: str = "slide"
     slide_dp: float = 1e-3
     slide_kick: float = 1e-2
+    resolve_crossings: float = 0.0
 
     def __post_init__(self):
         if self.soft_folds not in ("slide", "follow"):
@@ -50,6 +57,8 @@ class ContinuationOptions:
             raise ValueError("slide_dp and slide_kick must be > 0")
         if not (0 < self.ds_min <= abs(self.ds) <= self.ds_max):
             raise ValueError(f"need 0 < ds_min <= |ds| <= ds_max, got {self.ds_min}, {self.ds}, {self.ds_max}")
+        if not (self.resolve_crossings == 0.0 or self.ds_min <= self.resolve_crossings):
+            raise ValueError("resolve_crossings must be 0 (off) or >= ds_min")
         if not self.p_min < self.p_max:
             raise ValueError("need p_min < p_max")
         if self.max_steps < 1 or self.newton_max_iter < 1 or self.n_eig < 1:
