@@ -338,3 +338,19 @@ def test_spectrum_watching_step_control_separates_nearly_coincident_branch_point
     check_located(e0, "branch_point", 1.0, [0.0, 0.0])
     check_located(e1, "branch_point", 1.0 + 1e-4, [0.0, 0.0])
     assert (e0.multiplicity, e0.morse_before, e0.morse_after, e1.morse_before, e1.morse_after) == (1, 0, 1, 1, 2)
+
+
+def test_an_unlocated_event_says_why():
+    # Newton converged (residual and eigenvalue below event_tol) but along a soft mode, with the
+    # Morse index changed: the message must not claim the values exceed event_tol (it did, on the
+    # trefoil at N = 61: "residual 3.12e-14, critical eigenvalue 1.07e-14 > event_tol = 1e-10")
+    from jaxrod.bifurcation.continuation import _not_located
+    from jaxrod.bifurcation.results import Event
+
+    def event(residual, eigenvalue):
+        return Event("fold", 20.7419, np.zeros(2), np.ones((2, 1)), np.array([eigenvalue]), residual, 4, 1, 1, 2, 7,
+                     np.ones(3), False)
+
+    soft = _not_located(event(3.1e-14, 1.1e-14), 1e-10)
+    assert "sliding mode's singular point" in soft and "Morse 1 -> 2" in soft and "> event_tol" not in soft
+    assert _not_located(event(1e-6, 1e-14), 1e-10).endswith("> event_tol = 1e-10")

@@ -103,10 +103,19 @@ def continuation(problem, alg, opts, *, observer=None, start=None, throw=True):
     failed = [e for e in events if not e.converged]
     if failed and result is not Result.CORRECTOR_FAILED:
         result = Result.LOCATION_FAILED
-        message = "; ".join(f"{e.kind} near p = {e.p:.6g} not located: residual {e.residual:.3g}, critical "
-                            f"eigenvalue {e.critical_eigenvalue:.3g} > event_tol = {opts.event_tol:g}"
-                            for e in failed)
+        message = "; ".join(_not_located(e, opts.event_tol) for e in failed)
     return _finish(Branch(points, events, result, message, slides=slides), throw)
+
+
+def _not_located(event, tol):
+    if event.residual <= tol and abs(event.critical_eigenvalue) <= tol:
+        # converged, but to a singular point along a soft mode (a slide) while the Morse index
+        # changed: the shape event in the bracket, next to it, was not resolved
+        return (f"{event.kind} near p = {event.p:.6g} not located: Newton converged to a sliding mode's singular "
+                f"point (residual {event.residual:.3g}), and the shape {event.kind} in the same bracket "
+                f"(Morse {event.morse_before} -> {event.morse_after}) was not resolved")
+    return (f"{event.kind} near p = {event.p:.6g} not located: residual {event.residual:.3g}, critical eigenvalue "
+            f"{event.critical_eigenvalue:.3g} > event_tol = {tol:g}")
 
 
 def _slide(problem, opts, fold, direction, step):
