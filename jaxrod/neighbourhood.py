@@ -57,14 +57,15 @@ class Neighbourhood:
     def n_candidates(self):
         return int(np.sum(np.asarray(self.mask)))
 
-    def stale(self, x):
+    def stale(self, x, grown=0.0):
         """True (a JAX bool) when some node of x (N, 3) has moved more than skin/2 from x_built:
         a pair could then be closer than D without being a candidate. Without contact pairs the
-        list never goes stale."""
+        list never goes stale. grown: how much the diameter has grown since the list was built
+        (a fold curve in D), which uses up that much of the skin."""
         if self.pairs.shape[0] == 0:
             return jnp.asarray(False)
         moved = jnp.max(jnp.linalg.norm(x - self.x_built, axis=1))
-        return moved > 0.5 * self.skin
+        return moved > 0.5 * (self.skin - grown)
 
 
 jax.tree_util.register_pytree_node(

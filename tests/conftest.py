@@ -18,8 +18,11 @@ os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0")
 # reassociated nor contracted): measured on the whole suite, 617 s of test time against 700 s.
 # Appended, so flags a developer sets stay; inherited by the CLI and notebook subprocesses, which
 # then share the compile cache with the tests.
-os.environ["XLA_FLAGS"] = " ".join((os.environ.get("XLA_FLAGS", ""), "--xla_backend_optimization_level=0",
-                                    "--xla_llvm_disable_expensive_passes=true")).strip()
+_flags = os.environ.get("XLA_FLAGS", "").split()
+for _flag in ("--xla_backend_optimization_level=0", "--xla_llvm_disable_expensive_passes=true"):
+    if _flag not in _flags:  # the xdist workers inherit the controller's flags: add each once
+        _flags.append(_flag)
+os.environ["XLA_FLAGS"] = " ".join(_flags)
 
 import jaxrod  # noqa: E402,F401  (float64 before any test builds arrays)
 

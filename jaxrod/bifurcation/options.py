@@ -30,6 +30,7 @@ class ContinuationOptions:
     a fold next to a symmetry pair) is refused and retried at half the step, down to this step
     size, so that nearly coincident events fall into separate brackets; a crossing that is still
     multiple at that size is a multiple event (a symmetric double branch point), located as one.
+    A refused step counts towards max_steps.
     """
 
     ds: float = 0.05

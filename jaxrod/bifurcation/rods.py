@@ -226,9 +226,7 @@ def knot_problem(scene, q_ref, phi0, *, pins=None, capacity=None, sliding=SLIDIN
         q = holder["rod"].q(u_free)
         x = jnp.asarray(sc.positions(jnp.asarray(q)))
         D = float(sc.material.D)
-        grown = max(0.0, D - built_for.get(nbr, D))
-        moved = float(jnp.max(jnp.linalg.norm(x - nbr.x_built, axis=1))) if nbr.capacity else 0.0
-        if nbr.capacity == 0 or moved <= 0.5 * (float(nbr.skin) - grown):
+        if not bool(nbr.stale(x, grown=max(0.0, D - built_for.get(nbr, D)))):
             wr = float(_writhe(x))
             if abs(wr - float(nbr.wr_ref)) < 0.25:
                 return args

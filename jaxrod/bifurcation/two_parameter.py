@@ -200,18 +200,21 @@ def branch_point_curve(problem, event, set_mu, mu0, alg, opts, *, throw=True, ob
     def blocks(x, mu):
         return _branch_point_blocks_jit(problem, set_mu, base[0], f64(x[:n]), f64(x[n]), f64(mu), f64(border[0]))
 
-    def lin(x, mu):
-        F, J, Fp, Fmu, st, gu, gp, gm, _ = blocks(x, mu)
+    def system(x, mu):  # (G, A = dG/dx, a = dG/dmu, w) from one evaluation of the blocks
+        F, J, Fp, Fmu, st, gu, gp, gm, w = blocks(x, mu)
         G = jnp.concatenate([F + x[n + 1] * v0, st])
         A = jnp.block([[J, Fp[:, None], jnp.asarray(v0)[:, None]], [gu, gp[:, None], jnp.zeros((2, 1))]])
-        return G, A, jnp.concatenate([Fmu, gm])
+        return G, A, jnp.concatenate([Fmu, gm]), w
+
+    def lin(x, mu):
+        return system(x, mu)[:3]
 
     rows = []
 
     def record(z, res):
-        _, A, a = lin(z[:-1], z[-1])
+        _, A, a, w = system(z[:-1], z[-1])
         dx = np.linalg.solve(np.asarray(A), -np.asarray(a))
-        w = np.asarray(blocks(z[:-1], z[-1])[-1])
+        w = np.asarray(w)
         border[0] = w / np.linalg.norm(w)
         rows.append((z[-1], z[n], z[:n], border[0], float(dx[n]), res))
         if problem.update_args is not None:
