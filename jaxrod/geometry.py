@@ -11,8 +11,14 @@ Conventions
 * Reference frames are *space-parallel*: u on edge i is u on edge i-1 parallel-transported to
   edge i. Interior reference twist is then zero and all twist lives in the angles theta plus the
   holonomy of the transport, which the boundary conditions handle (see ``jaxrod.boundary``).
+
+The small array functions are jitted: inside a scene's jitted energy they are inlined, and called
+eagerly (building a scene, reporting a state) each is one compiled program per shape instead of
+one per array operation (the test suite compiled ~2000 such one-operation programs).
 """
 from __future__ import annotations
+
+from functools import partial
 
 import jax
 import jax.numpy as jnp
@@ -45,11 +51,13 @@ def safe_norm(v, axis=-1, keepdims=False, eps=1e-300):
     return jnp.where(positive, jnp.sqrt(jnp.where(positive, sq, 1.0)), 0.0)
 
 
+@partial(jax.jit, static_argnames="axis")
 def unit(v, axis=-1):
     """v / |v| along ``axis``."""
     return v / jnp.linalg.norm(v, axis=axis, keepdims=True)
 
 
+@partial(jax.jit, static_argnames="closed")
 def edges(x, closed):
     """Edge vectors. x (N,3) -> (N,3) if closed else (N-1,3)."""
     if closed:
@@ -57,6 +65,7 @@ def edges(x, closed):
     return x[1:] - x[:-1]
 
 
+@jax.jit
 def curvature_binormals(e_prev, e_next):
     """Discrete curvature binormal kb = 2 e_prev x e_next / (|e_prev||e_next| + e_prev.e_next).
 
@@ -70,6 +79,7 @@ def curvature_binormals(e_prev, e_next):
     return 2.0 * cross / denom[..., None]
 
 
+@jax.jit
 def parallel_transport(v, t_from, t_to):
     """Transport vector(s) v from unit tangent t_from to unit tangent t_to.
 
@@ -82,6 +92,7 @@ def parallel_transport(v, t_from, t_to):
     return v * d + jnp.cross(c, v) + c * jnp.sum(c * v, axis=-1, keepdims=True) / (1.0 + d)
 
 
+@jax.jit
 def transport_along(u0, tangents):
     """Space-parallel reference directors: u0 transported edge by edge along ``tangents``.
 
@@ -97,6 +108,7 @@ def transport_along(u0, tangents):
     return jnp.concatenate([u0[None], rest], axis=0)
 
 
+@jax.jit
 def signed_angle(a, b, axis):
     """Signed angle from a to b about ``axis`` (right-hand rule), in (-pi, pi]."""
     return jnp.arctan2(jnp.sum(jnp.cross(a, b) * axis, axis=-1), jnp.sum(a * b, axis=-1))
@@ -111,6 +123,7 @@ _POLES = np.stack(
 )
 
 
+@jax.jit
 def tantrix_holonomy(t):
     """Rotation angle of parallel transport once round the closed tantrix t_0 -> ... -> t_{M-1}
     -> t_0, modulo 2 pi (the value is not reduced: add any multiple of 2 pi).
@@ -131,6 +144,7 @@ def tantrix_holonomy(t):
     return -jnp.sum(2.0 * jnp.arctan2(num, den))
 
 
+@jax.jit
 def perpendicular_unit(t):
     """A unit vector perpendicular to the unit vector t (3,).
 
@@ -145,6 +159,7 @@ def perpendicular_unit(t):
     return w / jnp.linalg.norm(w)
 
 
+@jax.jit
 def material_directors(tangents, u_ref, theta):
     """Material frame per edge from reference directors and twist angles.
 
@@ -157,6 +172,7 @@ def material_directors(tangents, u_ref, theta):
     return d1, d2, tangents
 
 
+@partial(jax.jit, static_argnames="closed")
 def node_directors(x, d1_edges, closed):
     """Director d1 at the nodes: the edge directors transported to the vertex tangent and averaged,
     then projected on the plane normal to the vertex tangent and normalised.
@@ -180,6 +196,7 @@ def node_directors(x, d1_edges, closed):
     return unit(d)
 
 
+@partial(jax.jit, static_argnames="closed")
 def voronoi_lengths(rest_lengths, closed):
     """Length attached to each vertex that carries bending/twist: mean of its two edges.
 

@@ -20,6 +20,7 @@ by two long rays along the clamp axis (the standard closure for a rod held at bo
 """
 from __future__ import annotations
 
+import functools
 import math
 import warnings
 from dataclasses import dataclass, replace
@@ -88,6 +89,12 @@ def _lift(raw, target):
     """raw + 2 pi k with k the integer nearest (target - raw)/(2 pi); k carries no gradient."""
     k = jnp.round(jax.lax.stop_gradient((target - raw) / TWO_PI))
     return raw + TWO_PI * k
+
+
+@functools.partial(jax.jit, static_argnums=(1, 2))
+def _scale_vector_jit(length_scale, n_x, n_dof):
+    """``Scene.dof_scale`` as one compiled program per shape (it is also built outside jit)."""
+    return jnp.concatenate([jnp.full(n_x, 1.0) * length_scale, jnp.ones(n_dof - n_x)])
 
 
 def _pytree(data_fields, meta_fields=()):
@@ -208,7 +215,7 @@ class Scene:
     @property
     def dof_scale(self):
         """Per-DOF scale (n,): free node coordinates in units of edge length, angles in radians."""
-        return self._scale_vector(jnp, self.length_scale)
+        return _scale_vector_jit(self.length_scale, 3 * self.n_free_nodes, self.n_dof)
 
     # ------------------------------------------------------------------ energy
     def energy_terms(self, q, phi, nbr=None, terms=None):

@@ -13,13 +13,18 @@ os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", tempfile.mkdtemp(prefix="jaxr
 os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0")
 
 # Most of the suite's time is XLA compiling several hundred distinct programs, most of which then
-# run for milliseconds. LLVM's backend optimisation level changes how well the machine code is
-# scheduled, not the arithmetic (XLA's fast-math is off, so floating-point operations are neither
-# reassociated nor contracted): measured on the whole suite, 617 s of test time against 700 s.
+# run for milliseconds. These flags change how the machine code is generated and scheduled, not the
+# arithmetic (XLA's fast-math is off, so floating-point operations are neither reassociated nor
+# contracted; at most a reduction's summation order differs, at roundoff):
+# - LLVM's backend optimisation level 0: measured on the whole suite, 617 s of test time against 700 s;
+# - the classic elemental emitters instead of XLA:CPU's MLIR fusion emitters, and the default
+#   instead of the concurrency-optimised scheduler: XLA compile time of test_trefoil_twist.py and
+#   test_solvers.py, run side by side, 27 s against 53 s (wall 55 s against 79 s).
 # Appended, so flags a developer sets stay; inherited by the CLI and notebook subprocesses, which
 # then share the compile cache with the tests.
 _flags = os.environ.get("XLA_FLAGS", "").split()
-for _flag in ("--xla_backend_optimization_level=0", "--xla_llvm_disable_expensive_passes=true"):
+for _flag in ("--xla_backend_optimization_level=0", "--xla_llvm_disable_expensive_passes=true",
+              "--xla_cpu_use_fusion_emitters=false", "--xla_cpu_enable_concurrency_optimized_scheduler=false"):
     if _flag not in _flags:  # the xdist workers inherit the controller's flags: add each once
         _flags.append(_flag)
 os.environ["XLA_FLAGS"] = " ".join(_flags)
@@ -27,16 +32,17 @@ os.environ["XLA_FLAGS"] = " ".join(_flags)
 import jaxrod  # noqa: E402,F401  (float64 before any test builds arrays)
 
 
-# Longest files first (measured: seconds of test time per file on 2 cores, --durations=0), so that
-# the two xdist workers, which take whole files in collection order, finish together: alphabetical
-# order left a long file to the end, with the other worker idle meanwhile. Files not listed (short
-# ones, or new ones) come after, alphabetically.
-_LONGEST_FIRST = ("test_atlas.py", "test_bifurcation_knots.py", "test_sparse_stability.py", "test_notebooks.py",
-                  "test_resume.py", "test_readme.py", "test_notebook_damped_dynamics.py", "test_trefoil_twist.py",
-                  "test_michell.py", "test_dynamics.py", "test_energy.py", "test_interrupt_and_lock.py",
-                  "test_hessian.py", "test_conventions.py", "test_solvers.py", "test_cli.py", "test_bifurcation_rods.py",
-                  "test_topology.py", "test_knots.py", "test_contact.py", "test_analysis.py", "test_stability.py",
-                  "test_bifurcation_analytic.py", "test_banded.py")
+# Longest files first (measured: seconds of busy time per file on 2 cores), so that the two xdist
+# workers, which take whole files in collection order (``--no-loadscope-reorder`` in pyproject.toml:
+# by default xdist reorders files by their number of tests, which ignored this list), finish
+# together. Files not listed (short ones, or new ones) come after, alphabetically.
+_LONGEST_FIRST = ("test_notebooks.py", "test_atlas.py", "test_bifurcation_knots.py", "test_resume.py",
+                  "test_sparse_stability.py", "test_readme.py", "test_notebook_damped_dynamics.py",
+                  "test_interrupt_and_lock.py", "test_dynamics.py", "test_bifurcation_rods.py", "test_trefoil_twist.py",
+                  "test_michell.py", "test_conventions.py", "test_cli.py", "test_energy.py", "test_hessian.py",
+                  "test_knots.py", "test_solvers.py", "test_topology.py", "test_analysis.py", "test_contact.py",
+                  "test_bifurcation_analytic.py", "test_stability.py", "test_properties.py", "test_lk0.py",
+                  "test_banded.py", "test_analyze_study_files.py", "test_plotting.py", "test_bad_input.py")
 
 
 def pytest_collection_modifyitems(session, config, items):

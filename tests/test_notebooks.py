@@ -3,9 +3,7 @@ defect 10: trefoil_twist.ipynb read '../benchmarks/results/...' and failed anywh
 notebooks/). The kernel is told which notebook it runs, as Jupyter tells it (JPY_SESSION_NAME)."""
 import pathlib
 
-import nbformat
 import pytest
-from nbclient import NotebookClient
 
 from jaxrod.paths import benchmark_results
 
@@ -17,6 +15,11 @@ ELSEWHERE = ("damped_dynamics.ipynb",)
 
 
 def run_notebook(path, tmp_path, monkeypatch):
+    # imported here, not at collection: nbformat's schema validation imports jsonschema's format
+    # checkers (seconds), which every xdist worker would pay while collecting
+    import nbformat
+    from nbclient import NotebookClient
+
     monkeypatch.setenv("JPY_SESSION_NAME", str(path))
     nb = nbformat.read(path, as_version=4)
     NotebookClient(nb, timeout=900, kernel_name="python3", resources={"metadata": {"path": str(tmp_path)}}).execute()
