@@ -435,24 +435,38 @@ class ClampedRod(Scene):
         return self.nodes(q)
 
     def exact_writhe(self, x):
-        return self.extended_writhe(x)
+        """The ray-closed writhe (the centreline extended to infinity along the clamp axis at both
+        ends), exact to roundoff: its fractional part from the tantrix holonomy (the writhe of a
+        polygon is -holonomy / 2 pi modulo 1 exactly, and the rays add no tantrix), its integer
+        part from the writhe of the centreline extended by finite rays (``extended_writhe``, whose
+        truncation error, O(L / ray length), only has to stay below 1/2)."""
+        fraction = -tantrix_holonomy(unit(edges(x, False))) / TWO_PI
+        return fraction + jnp.round(self.extended_writhe(x) - fraction)
 
     def holonomy_vertex(self):
         return self.rest_lengths.shape[0] - 2
 
     def extended_writhe(self, x):
-        """Writhe of the centreline extended at both ends by rays along the clamp axis (length
-        100 L, enough to fix the 2 pi branch: the neglected far part is O(1e-2) at most)."""
+        """Writhe of the centreline extended at both ends by rays along the clamp axis of length
+        100 L: the ray-closed writhe to O(L / 100 L) (measured: 1e-6 on a loop of height 0.3 L),
+        used only for the integer part of ``exact_writhe``."""
         a = self.axis
         far = 100.0 * self.length
         ext = jnp.concatenate([(x[0] - far * a)[None], x, (x[-1] + far * a)[None]], axis=0)
         return writhe(ext, closed=False)
 
     def end_angle(self, x, nbr=None):
-        """Angle of the last edge's space-parallel reference director relative to the untwisted
-        end clamp director (the tantrix starts and ends on the clamp axis, so it is closed),
-        lifted to the branch 2 pi (Lk0 - Wr_ext(x))."""
-        raw = -tantrix_holonomy(unit(edges(x, False)))
+        """theta_end - phi: the twist angle of the last edge, measured from its space-parallel
+        reference director, at which its material director is the clamp's director turned by phi.
+
+        Parallel transport along the rod (the tantrix starts and ends on the clamp axis, so it is
+        closed) turns the first director by alpha = -holonomy about the axis; the clamp asks for
+        d1 = R(phi) d_start = R(theta_end + alpha) d_start, so theta_end = phi + holonomy, lifted
+        to the branch 2 pi (Lk0 - Wr(x)): then Tw = Lk0 + phi / 2 pi - Wr exactly. (Before issue 19
+        the sign of the holonomy was the other one: a buckled rod then met its far clamp turned by
+        phi - 4 pi Wr and reported Lk = Lk0 + phi / 2 pi + 2 Wr; straight rods, with Wr = 0, and
+        the onset of buckling, symmetric in the sign of phi, did not show it.)"""
+        raw = tantrix_holonomy(unit(edges(x, False)))
         return _lift(raw, TWO_PI * (self.Lk0 - self._writhe_for_lift(x, nbr)))
 
     def unpack(self, q, phi, nbr=None):
