@@ -95,3 +95,24 @@ def test_exact_writhe_is_the_limit_of_ever_longer_rays(shortened):
     long_rays = [float(writhe(jnp.asarray(ext(far)), closed=False)) for far in (1e2, 1e3, 1e4)]
     errors = np.abs(np.array(long_rays) - wr)
     assert errors[-1] <= 1e-8 and errors[0] > errors[1] > errors[2]  # O(1 / ray length), towards wr
+
+
+def test_past_greenhill_without_slack_lk_stays_phi_over_two_pi():
+    """The issue's first case: clamps one rod length apart, twisted past Greenhill's threshold
+    (4.29 pi here) to 6 pi and 6.5 pi, where the straight rod is unstable and the rod coils
+    slightly (stretching: the ends cannot come closer). Measured Wr = +1.7e-4 and +2.3e-4."""
+    mat = Material.from_ratio(B=1.0, nu=0.5, D=0.01)
+    rod = jr.clamped_rod(N, 1.0, mat)
+    assert 6 * math.pi > jr.clamped_critical_twist(mat.B, mat.C)
+    q0 = np.asarray(rod.q_init).copy()
+    xi = q0[:3 * (N - 4)].reshape(N - 4, 3)
+    s = np.arange(1, N - 3) / (N - 3)
+    xi[:, 0] += 0.01 * np.sin(np.pi * s) ** 2 * np.cos(4 * np.pi * s)  # a right-handed coil to start from
+    xi[:, 1] += 0.01 * np.sin(np.pi * s) ** 2 * np.sin(4 * np.pi * s)
+    q0[:3 * (N - 4)] = xi.ravel()
+    for turns in (3.0, 3.25):
+        e = jr.solve_equilibrium(rod, 2 * math.pi * turns, q0=q0)
+        q0 = np.asarray(e.q)
+        assert e.solution.converged and e.stability.n_negative == 0
+        assert np.max(np.abs(e.x[:, :2])) > 1e-3 and e.Wr > 1e-4  # buckled, right-handed
+        assert abs(e.Lk - turns) <= 1e-10, (turns, e.Wr, e.Tw, e.Lk)
