@@ -583,8 +583,10 @@ def write_report(csv_path, md_path, png_path):
     L += [f"![speed]({img})", ""]
     # The README's command 1 against the previous release: measured by benchmarks/command1.py.
     # And the issue-9 comparisons: damped dynamics against continuation at equal accuracy
-    # (benchmarks/dynamics_accuracy.py) and batched (vmap) against serial runs (benchmarks/batch.py).
-    for name in ("command1.md", "dynamics_accuracy.md", "batch.md"):
+    # (benchmarks/dynamics_accuracy.py) and batched (vmap) against serial runs (benchmarks/batch.py);
+    # command 1 as two CLI processes (benchmarks/cli_start.py) and where its time goes
+    # (benchmarks/cli_startup_breakdown.py).
+    for name in ("command1.md", "cli_start.md", "cli_startup_breakdown.md", "dynamics_accuracy.md", "batch.md"):
         part = os.path.join(HERE, "results", name)
         if os.path.exists(part):
             with open(part) as f:

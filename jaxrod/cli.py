@@ -836,11 +836,29 @@ def _main(argv):
     return 1
 
 
+# XLA:CPU's classic elemental emitters instead of its MLIR fusion emitters: the same arithmetic
+# (fast-math stays off), compiled faster. Command 1 (N = 121, -12 pi ... 14 pi) measured in two
+# processes on an empty cache: 33.0 s against 43.5 s cold, 20.7 s against 21.5 s warm, phi*
+# equal to 2e-10 rad. Only for the command's own process, and only if the user set no such flag.
+_CLI_XLA_FLAGS = ("--xla_cpu_use_fusion_emitters=false",)
+
+
+def _add_cli_xla_flags(environ=os.environ):
+    """Append the CLI's XLA flags to XLA_FLAGS unless the user set them (read by XLA when the CPU
+    backend starts, at the first computation: after ``import jax``, before any array is built)."""
+    flags = environ.get("XLA_FLAGS", "").split()
+    for flag in _CLI_XLA_FLAGS:
+        if not any(f.split("=")[0] == flag.split("=")[0] for f in flags):
+            flags.append(flag)
+    environ["XLA_FLAGS"] = " ".join(flags)
+
+
 def console_main():
     """The ``jaxrod`` command: ``main()``, then the process exit. An interrupted run (130) leaves
     at once once its threads have stopped and its files are closed, without the interpreter's
     teardown of XLA, which aborted ("terminate called ...", status 134) in about one interrupted
     run in four after the study had already stopped cleanly."""
+    _add_cli_xla_flags()
     status = main()
     if status == 130:
         sys.stdout.flush()

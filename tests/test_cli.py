@@ -259,3 +259,26 @@ def test_version_and_help(capsys):
         assert "examples:" in text and f"jaxrod {command}" in text
         if command != "analyze":  # the angle units, stated where angles are given
             assert "radians" in text and "pi suffix" in text
+
+
+def test_cli_xla_flags_are_added_unless_the_user_set_them():
+    """The CLI compiles with XLA:CPU's classic emitters (cold command 1: 33 s against 43.5 s). The
+    flag is appended to the user's XLA_FLAGS, never overrides one the user set, and takes effect
+    because importing jaxrod starts no XLA backend (XLA reads its flags when the first starts)."""
+    import subprocess
+    import sys
+
+    from jaxrod.cli import _add_cli_xla_flags
+
+    env = {"XLA_FLAGS": "--xla_force_host_platform_device_count=2"}
+    _add_cli_xla_flags(env)
+    assert env["XLA_FLAGS"].split() == ["--xla_force_host_platform_device_count=2",
+                                        "--xla_cpu_use_fusion_emitters=false"]
+    mine = {"XLA_FLAGS": "--xla_cpu_use_fusion_emitters=true"}
+    _add_cli_xla_flags(mine)
+    assert mine["XLA_FLAGS"] == "--xla_cpu_use_fusion_emitters=true"
+    empty = {}
+    _add_cli_xla_flags(empty)
+    assert empty["XLA_FLAGS"] == "--xla_cpu_use_fusion_emitters=false"
+    code = "import jaxrod.cli; from jax._src import xla_bridge; print(len(xla_bridge._backends))"
+    assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip() == "0"

@@ -1,0 +1,84 @@
+"""Command 1 as a user runs it: ``jaxrod trefoil ...`` as two CLI processes, the second reusing the
+first's compile cache, with the CLI's XLA flags (the default) and without them (XLA_FLAGS set to
+the fusion emitters' default, which the CLI then leaves alone), side by side on this machine.
+
+    python benchmarks/cli_start.py              # 1 round
+    python benchmarks/cli_start.py --rounds 2
+
+Each round and setting starts from an empty cache (XDG_CACHE_HOME in a fresh temporary folder):
+'cold' is the first process, 'warm' the second. Rounds alternate the settings. Wall times of the
+whole process (interpreter start, import, tracing, cache loads, the study, figures). Writes
+benchmarks/results/cli_start.md and cli_start.json.
+"""
+import os
+
+for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import platform  # noqa: E402
+import shutil  # noqa: E402
+import statistics  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ARGS = ["trefoil", "--D", "8", "--L", "292", "--N", "121", "--phi-min", "-12pi", "--phi-max", "14pi"]
+SETTINGS = {"CLI flags (default)": None, "XLA defaults": "--xla_cpu_use_fusion_emitters=true"}
+
+
+def run(xla_flags, cache, out):
+    env = dict(os.environ, XDG_CACHE_HOME=cache)
+    env.pop("JAX_COMPILATION_CACHE_DIR", None)
+    env.pop("XLA_FLAGS", None)
+    if xla_flags is not None:
+        env["XLA_FLAGS"] = xla_flags
+    jaxrod = os.path.join(os.path.dirname(sys.executable), "jaxrod")
+    t = time.perf_counter()
+    subprocess.run([jaxrod, *ARGS, "--out", out, "--quiet"], env=env, check=True, capture_output=True)
+    seconds = time.perf_counter() - t
+    with open(os.path.join(out, "critical.json")) as f:
+        crit = json.load(f)
+    return seconds, crit["phi_plus"], crit["phi_minus"]
+
+
+def main():
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--rounds", type=int, default=1)
+    opts = parser.parse_args()
+    rows = {name: [] for name in SETTINGS}
+    for _ in range(opts.rounds):
+        for name, flags in SETTINGS.items():
+            tmp = tempfile.mkdtemp(prefix="jaxrod-cli-start-")
+            try:
+                cold = run(flags, os.path.join(tmp, "cache"), os.path.join(tmp, "cold"))
+                warm = run(flags, os.path.join(tmp, "cache"), os.path.join(tmp, "warm"))
+            finally:
+                shutil.rmtree(tmp, ignore_errors=True)
+            rows[name].append({"cold_s": cold[0], "warm_s": warm[0], "phi_plus": warm[1], "phi_minus": warm[2]})
+            print(name, rows[name][-1], flush=True)
+    base, cur = rows["XLA defaults"], rows["CLI flags (default)"]
+    med = lambda rs, k: statistics.median(r[k] for r in rs)  # noqa: E731
+    lines = ["# Command 1 as a user runs it: two CLI processes, the second with the first's compile cache", "",
+             f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, BLAS threads 1, "
+             f"{opts.rounds} round(s), medians; `python benchmarks/cli_start.py`.", "",
+             "| setting | cold (empty cache) | warm (second process) | phi+ (rad) | phi- (rad) |", "|---|---|---|---|---|"]
+    for name, rs in rows.items():
+        lines.append(f"| {name} | {med(rs, 'cold_s'):.1f} s | {med(rs, 'warm_s'):.1f} s | {rs[-1]['phi_plus']:.12f} | "
+                     f"{rs[-1]['phi_minus']:.12f} |")
+    lines += ["", f"Ratio XLA defaults / CLI flags: cold {med(base, 'cold_s') / med(cur, 'cold_s'):.2f}x, "
+              f"warm {med(base, 'warm_s') / med(cur, 'warm_s'):.2f}x. phi* differs by "
+              f"{abs(base[-1]['phi_plus'] - cur[-1]['phi_plus']):.1e} / {abs(base[-1]['phi_minus'] - cur[-1]['phi_minus']):.1e} rad."]
+    os.makedirs(os.path.join(HERE, "results"), exist_ok=True)
+    with open(os.path.join(HERE, "results", "cli_start.md"), "w") as f:
+        f.write("\n".join(lines) + "\n")
+    with open(os.path.join(HERE, "results", "cli_start.json"), "w") as f:
+        json.dump(rows, f, indent=1)
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()

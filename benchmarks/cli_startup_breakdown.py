@@ -1,0 +1,90 @@
+"""Where the time of a warm CLI run goes (issue 18, item 3): command 1 run twice as separate CLI-like
+processes on one compile cache; the second (warm: what a user's second run is) is timed by phase.
+
+    python benchmarks/cli_startup_breakdown.py
+
+Each process: ``import jaxrod`` (timed), then ``jaxrod.cli.main(ARGS)`` with JAX's monitoring
+listeners summing the time spent tracing to jaxprs, lowering to MLIR, compiling, and retrieving
+executables from the persistent cache. The remainder of main() is running the study (the two
+directions in two threads, so phases overlap a little), writing records and figures. The figure
+share is measured by a third process with --no-figures. Writes benchmarks/results/cli_startup_breakdown.md.
+"""
+import os
+
+for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")
+
+import json  # noqa: E402
+import shutil  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ARGS = ["trefoil", "--D", "8", "--L", "292", "--N", "121", "--phi-min", "-12pi", "--phi-max", "14pi", "--quiet"]
+MARK = "@@PHASES "
+
+CHILD = r"""
+import time, sys, json, os
+t0 = time.perf_counter()
+import jaxrod.cli as cli
+t_import = time.perf_counter() - t0
+import jax.monitoring as mon
+sums = {}
+def listen(event, seconds, **kw):
+    sums[event] = sums.get(event, 0.0) + seconds
+mon.register_event_duration_secs_listener(listen)
+cli._add_cli_xla_flags()
+t1 = time.perf_counter()
+code = cli.main(json.loads(sys.argv[1]))
+t_main = time.perf_counter() - t1
+assert code == 0, code
+print(MARK + json.dumps({"import_s": t_import, "main_s": t_main, "events": sums}))
+""".replace("MARK", repr(MARK))
+
+
+def child(args, cache):
+    env = dict(os.environ, XDG_CACHE_HOME=cache)
+    env.pop("JAX_COMPILATION_CACHE_DIR", None)
+    env.pop("XLA_FLAGS", None)
+    out = subprocess.run([sys.executable, "-c", CHILD, json.dumps(args)], env=env, capture_output=True, text=True,
+                         check=True).stdout
+    return json.loads(next(line for line in out.splitlines() if line.startswith(MARK))[len(MARK):])
+
+
+def main():
+    tmp = tempfile.mkdtemp(prefix="jaxrod-breakdown-")
+    try:
+        cache = os.path.join(tmp, "cache")
+        cold = child(ARGS + ["--out", os.path.join(tmp, "a")], cache)
+        warm = child(ARGS + ["--out", os.path.join(tmp, "b")], cache)
+        nofig = child(ARGS + ["--out", os.path.join(tmp, "c"), "--no-figures"], cache)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    names = {"/jax/core/compile/jaxpr_trace_duration": "tracing to jaxprs",
+             "/jax/core/compile/jaxpr_to_mlir_module_duration": "lowering to MLIR",
+             "/jax/core/compile/backend_compile_duration": "XLA compilation",
+             "/jax/compilation_cache/cache_retrieval_time_sec": "loading cached executables"}
+    lines = ["# Command 1, where the time goes (`python benchmarks/cli_startup_breakdown.py`)", "",
+             "Three processes on one compile cache: cold (empty cache), warm (the user's second run), warm "
+             "with --no-figures. Seconds; the phases are sums over all jitted functions (the two study "
+             "directions run in two threads, so the sum of phases can overlap the study).", "",
+             "| phase | cold | warm | warm, --no-figures |", "|---|---|---|---|"]
+    lines.append(f"| import jaxrod (interpreter already up) | {cold['import_s']:.1f} | {warm['import_s']:.1f} | "
+                 f"{nofig['import_s']:.1f} |")
+    for key, label in names.items():
+        lines.append(f"| {label} | " + " | ".join(f"{r['events'].get(key, 0.0):.1f}" for r in (cold, warm, nofig)) + " |")
+    for r in (cold, warm, nofig):
+        r["rest"] = r["main_s"] - sum(r["events"].get(k, 0.0) for k in names)
+    lines.append("| the rest of main(): the study's arithmetic, records, figures | " +
+                 " | ".join(f"{r['rest']:.1f}" for r in (cold, warm, nofig)) + " |")
+    lines.append("| main() in all | " + " | ".join(f"{r['main_s']:.1f}" for r in (cold, warm, nofig)) + " |")
+    lines += ["", f"Figures: {warm['main_s'] - nofig['main_s']:.1f} s of the warm run (warm minus --no-figures)."]
+    os.makedirs(os.path.join(HERE, "results"), exist_ok=True)
+    with open(os.path.join(HERE, "results", "cli_startup_breakdown.md"), "w") as f:
+        f.write("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()
