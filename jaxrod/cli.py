@@ -837,9 +837,10 @@ def _main(argv):
 
 
 # XLA:CPU's classic elemental emitters instead of its MLIR fusion emitters: the same arithmetic
-# (fast-math stays off), compiled faster. Command 1 (N = 121, -12 pi ... 14 pi) measured in two
-# processes on an empty cache: 33.0 s against 43.5 s cold, 20.7 s against 21.5 s warm, phi*
-# equal to 2e-10 rad. Only for the command's own process, and only if the user set no such flag.
+# (fast-math stays off), compiled faster. Command 1 (N = 121, -12 pi ... 14 pi) as two CLI
+# processes on an empty cache (benchmarks/cli_start.py, medians of 2 rounds): 35.8 s against
+# 41.1 s cold, 24.3 s against 25.5 s warm, phi* equal to 2e-10 rad. Only for the command's own
+# process, and only if the user set no such flag.
 _CLI_XLA_FLAGS = ("--xla_cpu_use_fusion_emitters=false",)
 
 

@@ -91,10 +91,14 @@ def _lift(raw, target):
     return raw + TWO_PI * k
 
 
-@functools.partial(jax.jit, static_argnums=(1, 2))
-def _scale_vector_jit(length_scale, n_x, n_dof):
-    """``Scene.dof_scale`` as one compiled program per shape (it is also built outside jit)."""
-    return jnp.concatenate([jnp.full(n_x, 1.0) * length_scale, jnp.ones(n_dof - n_x)])
+def _scale_vector(xp, length_scale, n_x, n_dof):
+    """The per-DOF scale (n_dof,): the n_x node coordinates scaled by length_scale, angles by 1;
+    built with the array module xp (numpy on the host, jax.numpy otherwise)."""
+    return xp.concatenate([xp.full(n_x, 1.0) * length_scale, xp.ones(n_dof - n_x)])
+
+
+# ``Scene.dof_scale`` as one compiled program per shape (it is also built outside jit).
+_scale_vector_jit = jax.jit(functools.partial(_scale_vector, jnp), static_argnums=(1, 2))
 
 
 def _pytree(data_fields, meta_fields=()):
@@ -208,10 +212,6 @@ class Scene:
     def n_free_nodes(self):
         return self.n_nodes
 
-    def _scale_vector(self, xp, length_scale):
-        n_x = 3 * self.n_free_nodes
-        return xp.concatenate([xp.full(n_x, 1.0) * length_scale, xp.ones(self.n_dof - n_x)])
-
     @property
     def dof_scale(self):
         """Per-DOF scale (n,): free node coordinates in units of edge length, angles in radians."""
@@ -269,7 +269,7 @@ class Scene:
             h = float(np.mean(np.asarray(self.rest_lengths)))
         except jax.errors.TracerArrayConversionError:
             return None
-        return self._scale_vector(np, h)
+        return _scale_vector(np, h, 3 * self.n_free_nodes, self.n_dof)
 
     def to_scaled(self, q):
         """Scaled DOFs u = q / dof_scale (numpy in, numpy out: no device dispatch per call)."""
