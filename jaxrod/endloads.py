@@ -1,0 +1,713 @@
+"""Rods under end loads: end shortening, tension and end rotation (issue 19).
+
+Two ways of loading a rod clamped at both ends along one axis (the clamp at s = 0 fixed; the far
+clamp, at s = L, holds its edge along the same axis and its material frame turned by the end
+rotation ``phi``):
+
+* **Displacement control** (``shortened_rod``): the far clamp sits a prescribed distance from
+  the near one, L - shortening along the axis (``EndLoadedRod``; ``with_shortening`` moves it,
+  traceably, so the shortening can be a continuation parameter). The end loads are derivatives
+  of the energy at the equilibrium, exact by autodiff (``end_loads``): the tension
+  T = dE/d(end distance) and the axial end moment M = dE/d(phi).
+* **Force control** (``ForceLoadedRod``): a dead load T pulls the far clamp along the axis
+  (potential -T times the clamp's displacement along the axis); its position is a degree of
+  freedom, either along the axis only (``end="slide"``) or in space (``end="free"``), while the
+  clamp's direction and rotation stay imposed.
+
+Both close the rod for its linking number with rays along the clamp axis (``ClampedRod``'s
+closure): the far clamp moves but its edge stays on the axis direction, so Lk = Wr + Tw =
+Lk0 + phi / 2 pi holds along any path without strand passage.
+
+Analytic reference (``localized_helix``): the localized (homoclinic) helical buckle of a long
+clamped rod under tension T and twisting moment M (Neukirch, van der Heijden and Thompson 2002,
+J. Mech. Phys. Solids 50, eqs. 14-15). With m = M L/B, t = T L^2/B, gamma = C/B, lambda =
+sqrt(t - m^2/4) and s measured from the rod's midpoint, the tangent's angle theta to the axis
+and its azimuth psi obey
+
+    1 - cos theta = (2 lambda^2 / t) sech^2(lambda s / L),    psi' = (m / L) / (1 + cos theta),
+
+from the first integrals B/2 (theta'^2 + psi'^2 sin^2 theta) + T cos theta = T and
+B psi' sin^2 theta + M cos theta = M (twisting moment M3 = M); integrating gives the end shortening
+d L = integral (1 - cos theta) ds = 4 lambda L / t, the largest angle cos theta_max = m^2/(2t) - 1,
+and the end rotation R = m / gamma (twist) + 4 arccos(m / (2 sqrt t)) (2 pi times the ray-closed
+writhe of the loop).
+"""
+from __future__ import annotations
+
+import copy
+import functools
+import math
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .contact import contact_energy  # noqa: F401  (the contact term is the scenes' own)
+from .hessian import scaled_hessian as structured_scaled_hessian
+from .material import Material
+from .scenes import ClampedRod, _pytree, clamped_rod
+from .solvers import DampedNewton, Newton, minimise
+from .validation import check_finite, check_int_at_least, check_positive
+
+__all__ = [
+    "EndLoadedRod",
+    "shortened_rod",
+    "with_shortening",
+    "with_end_offset",
+    "end_loads",
+    "EndLoads",
+    "ForceLoadedRod",
+    "ForceEquilibrium",
+    "localized_helix",
+    "localized_helix_from_shortening",
+    "LocalizedHelix",
+    "localized_helix_curve",
+    "helical_start",
+    "straight_buckling_moment",
+    "tension_twist_threshold",
+]
+
+TWO_PI = 2.0 * math.pi
+
+
+# ---------------------------------------------------------------------- displacement control
+@_pytree(["material", "rest_lengths", "q_init", "x_clamped", "director_start", "Lk0", "end_offset",
+          "contact_stiffness"], ["terms", "name"])
+@dataclass(frozen=True, eq=False)
+class EndLoadedRod(ClampedRod):
+    """A ``ClampedRod`` whose far clamp (nodes N-2, N-1) is displaced by ``end_offset`` (3,) from
+    its place one rod length from the near clamp; its edge keeps the axis direction. A shortening
+    s is ``end_offset = -s * axis``. DOFs as ``ClampedRod``: q = [x[2:N-2].ravel(), theta[1:M-1]].
+    ``contact_stiffness``: kappa_c of soft self-contact when "contact" is a term (as ``ClosedRod``)."""
+
+    end_offset: np.ndarray = None
+    contact_stiffness: float = 0.0
+
+    # Rotating the interior nodes rigidly about the clamp axis, twist angles unchanged, leaves the
+    # energy exactly unchanged: both clamped edges lie on the axis, the twist angles are measured
+    # from space-parallel reference frames (which turn with the rod) and the far clamp's angle
+    # (``end_angle``, the tantrix holonomy) is invariant. One exact zero mode.
+    n_zero_modes = 1
+
+    def zero_modes(self, q, phi):
+        """(n, 1): the rigid rotation of the interior nodes about the clamp axis."""
+        xi, theta = self.interior(q)
+        rot = jnp.cross(self.axis[None, :], xi - self.x_clamped[0][None, :]).ravel()
+        return jnp.concatenate([rot, jnp.zeros_like(theta)])[:, None]
+
+    def nodes(self, q):
+        xi, _ = self.interior(q)
+        c = self.x_clamped
+        return jnp.concatenate([c[:2], xi, c[2:] + self.end_offset[None, :]], axis=0)
+
+    @property
+    def shortening(self):
+        """Distance the far clamp has moved towards the near one along the axis."""
+        return -jnp.dot(self.end_offset, self.axis)
+
+    @property
+    def clamp_length(self):
+        """L: the rest length between the clamps' material points (the midpoints of the clamped
+        end edges), (N - 2) edges; ``length`` counts all N - 1 edges."""
+        return jnp.sum(self.voronoi)
+
+    @property
+    def end_distance(self):
+        """Distance between the clamp points along the axis (L when the shortening is 0)."""
+        return self.clamp_length - self.shortening
+
+
+def with_end_offset(scene, offset):
+    """``scene`` with its far clamp displaced by ``offset`` (3,) from the unshortened position.
+    Traceable (offset may be a tracer): a shallow copy, no validation."""
+    new = copy.copy(scene)
+    object.__setattr__(new, "end_offset", jnp.asarray(offset, dtype=jnp.float64))
+    return new
+
+
+def with_shortening(scene, shortening):
+    """``scene`` with the far clamp ``shortening`` closer to the near one along the axis. Traceable."""
+    return with_end_offset(scene, -shortening * scene.axis)
+
+
+def shortened_rod(N, length, material, shortening=0.0, axis=(0.0, 0.0, 1.0), contact_stiffness=None, Lk0=0.0):
+    """A rod of rest length ``length`` (between the clamps' material points, as ``clamped_rod``)
+    with N nodes, clamped at both ends along ``axis``, the far clamp ``shortening`` closer than one
+    rod length (0 <= shortening < length). q_init: the interior nodes evenly spaced between the
+    clamps on the axis (uniformly compressed, straight) and no twist.
+    contact_stiffness: kappa_c of soft self-contact (needs the material's D); None: no contact."""
+    base = clamped_rod(N, length, material, axis=axis)
+    length = float(length)
+    s = check_finite("shortening", shortening)
+    if not 0.0 <= s < length:
+        raise ValueError(f"shortening must lie in [0, length) = [0, {length:g}), got {shortening!r}")
+    terms = base.terms
+    kc = 0.0
+    if contact_stiffness is not None:
+        if material.D is None:
+            raise ValueError("contact needs the rod diameter: give the material a D")
+        kc = check_positive("contact_stiffness", contact_stiffness)
+        terms = terms + ("contact",)
+    a = np.asarray(base.axis)
+    xc = np.asarray(base.x_clamped)
+    n_free = N - 4
+    q0 = np.asarray(base.q_init).copy()
+    # evenly spaced between the near clamp's node 1 and the far clamp's node N-2
+    start, stop = xc[1], xc[2] - s * a
+    frac = np.arange(1, n_free + 1) / (n_free + 1)
+    q0[:3 * n_free] = (start[None, :] + frac[:, None] * (stop - start)[None, :]).ravel()
+    return EndLoadedRod(material=material, rest_lengths=base.rest_lengths, q_init=jnp.asarray(q0),
+                        x_clamped=base.x_clamped, director_start=base.director_start, Lk0=float(Lk0),
+                        end_offset=jnp.asarray(-s * a), contact_stiffness=kc, terms=terms,
+                        name="end-loaded rod")
+
+
+@dataclass(frozen=True)
+class EndLoads:
+    """End loads at an equilibrium: T the axial tension (> 0 pulls the clamps together), M the
+    axial twisting moment at the far clamp, force (3,) dE/d(far clamp position) (its component
+    along the axis is T; lateral components are the clamp's lateral reaction), M_twist the
+    twisting moment C * (twist per length) along the rod (equal to M at an equilibrium: the
+    twist equation makes every vertex's twist per length equal)."""
+
+    T: float
+    M: float
+    force: np.ndarray
+    M_twist: float
+
+
+@jax.jit
+def _end_loads(scene, q, phi, nbr):
+    e = lambda off, p: scene.__class__.energy(with_end_offset(scene, off), q, p, nbr)  # noqa: E731
+    f, M = jax.grad(e, argnums=(0, 1))(scene.end_offset, phi)
+    tw = scene.vertex_twists(q, phi, nbr)
+    M_twist = scene.material.C * jnp.sum(tw) / jnp.sum(scene.voronoi)
+    return jnp.dot(f, scene.axis), M, f, M_twist
+
+
+def end_loads(scene, q, phi, nbr=None):
+    """The ``EndLoads`` of state q (physical DOFs) at end rotation phi: exact partial derivatives of
+    the energy in the far clamp's position and in phi (at an equilibrium these are the total
+    derivatives of the equilibrium energy, by the envelope theorem)."""
+    T, M, f, Mt = jax.device_get(_end_loads(scene, jnp.asarray(q, dtype=jnp.float64),
+                                            jnp.asarray(phi, dtype=jnp.float64), nbr))
+    return EndLoads(float(T), float(M), np.asarray(f), float(Mt))
+
+
+# ---------------------------------------------------------------------- Newton with a capped step
+@functools.partial(jax.jit, static_argnames=("fun", "hessian", "zero_modes"))
+def _capped_newton_loop(fun, hessian, zero_modes, y0, args, gtol, max_step, max_steps):
+    grad = jax.grad(fun)
+
+    def step(y, g):
+        h = hessian(y, args)
+        if zero_modes is not None:
+            z = zero_modes(y, args)
+            z = z / jnp.maximum(jnp.linalg.norm(z, axis=0, keepdims=True), 1e-300)
+            h = h + (jnp.max(jnp.abs(jnp.diag(h))) + 1.0) * (z @ z.T)
+        dy = -jnp.linalg.solve(h, g)
+        big = jnp.max(jnp.abs(dy))
+        return dy * jnp.minimum(1.0, max_step / jnp.maximum(big, 1e-300))
+
+    def cond(c):
+        y, g, it = c
+        gn = jnp.max(jnp.abs(g))
+        return (it < max_steps) & (gn > gtol) & jnp.isfinite(gn)
+
+    def body(c):
+        y, g, it = c
+        y = y + step(y, g)
+        return y, grad(y, args), it + 1
+
+    y, g, it = jax.lax.while_loop(cond, body, (y0, grad(y0, args), 0))
+    return y, fun(y, args), jnp.max(jnp.abs(g)), it
+
+
+def newton(fun, hessian, y0, args, zero_modes=None, gtol=1e-9, max_step=0.5, max_steps=100, throw=True):
+    """The stationary point of ``fun(y, args)`` nearest y0 (stable or not) by Newton's method with
+    the exact ``hessian(y, args)``, each step's largest component capped at ``max_step`` (scaled
+    units: an edge length), exact symmetry directions ``zero_modes(y, args) -> (n, k)`` lifted out
+    of the solve. No line search on |grad|: on a stiff (nearly inextensible) rod a good Newton step
+    often raises |grad| for one iteration (a second-order stretch), which a merit test refuses,
+    and the iteration then crawls. Returns a ``jaxrod.solvers.Solution``."""
+    from .solvers import ConvergenceError, Solution, StopReason  # noqa: PLC0415
+
+    y, value, gnorm, it = _capped_newton_loop(fun, hessian, zero_modes, jnp.asarray(y0, dtype=jnp.float64), args,
+                                              float(gtol), float(max_step), int(max_steps))
+    gnorm = float(gnorm)
+    ok = bool(np.isfinite(gnorm) and gnorm <= gtol)
+    reason = StopReason.CONVERGED if ok else (StopReason.NONFINITE if not np.isfinite(gnorm) else StopReason.MAX_STEPS)
+    sol = Solution(y=np.asarray(y), value=float(value), grad_norm=gnorm, iterations=int(it), converged=ok,
+                   reason=reason, solver="capped_newton", gtol=float(gtol))
+    if throw and not ok:
+        raise ConvergenceError(f"capped Newton did not converge: {sol!r}", solution=sol)
+    return sol
+
+
+def solve(scene, phi, q0, gtol=1e-9, max_step=0.5, max_steps=200, k=8, throw=True):
+    """Equilibrium (``jaxrod.Equilibrium``, with its stability) of an ``EndLoadedRod`` at end
+    rotation phi nearest q0 (physical DOFs), by ``newton`` on the scaled energy (the axial
+    rotation lifted out). Without contact only (the exact writhe fixes the twist's branch)."""
+    from .equilibrium import equilibrium_from_solution, scaled_energy, scaled_zero_modes, structured_hessian  # noqa
+
+    phi = check_finite("phi", phi)
+    nbr = scene.neighbourhood(np.asarray(q0, dtype=float), phi)
+    sol = newton(scaled_energy, structured_hessian, scene.to_scaled(np.asarray(q0, dtype=float)),
+                 (scene, jnp.asarray(phi), nbr), zero_modes=scaled_zero_modes, gtol=gtol, max_step=max_step,
+                 max_steps=max_steps, throw=throw)
+    q = scene.from_scaled(np.asarray(sol.y))
+    nbr = scene.neighbourhood(q, phi)
+    return equilibrium_from_solution(scene, phi, sol, nbr, k=k)
+
+
+# ---------------------------------------------------------------------- force control
+_BASES = {"slide": 1, "free": 3}
+
+
+def _offset_basis(scene, end):
+    """(k, 3) directions in which the loaded end may move: the axis, or the three axes of space."""
+    if end == "slide":
+        return jnp.asarray(scene.axis)[None, :]
+    return jnp.eye(3)
+
+
+def _force_split(scene, u):
+    n = scene.n_dof
+    return u[:n], u[n:]
+
+
+def force_energy(u, args):
+    """Scaled energy of the force-loaded rod: u = [scaled rod DOFs (n,), end offset coordinates
+    (k,) in units of the edge length]; args = (scene, phi, T, nbr, basis (k, 3)). The potential of
+    the dead load is -T * (end offset . axis)."""
+    scene, phi, T, nbr, basis = args
+    ur, w = _force_split(scene, u)
+    off = (w * scene.length_scale) @ basis
+    rod = with_end_offset(scene, off)
+    return rod.scaled_energy(ur, phi, nbr) - T * jnp.dot(off, scene.axis) / scene.energy_scale
+
+
+_force_grad = jax.grad(force_energy)
+
+
+def force_hessian(u, args):
+    """Exact Hessian of ``force_energy``: the rod block by the structured assembly
+    (``jaxrod.hessian``) at the current end position, the k end rows and columns by k
+    Hessian-vector products."""
+    scene, phi, T, nbr, basis = args
+    ur, w = _force_split(scene, u)
+    n, k = ur.shape[0], w.shape[0]
+    rod = with_end_offset(scene, (w * scene.length_scale) @ basis)
+    h_rr = structured_scaled_hessian(rod, ur, phi, nbr)
+    e_w = jnp.concatenate([jnp.zeros((k, n)), jnp.eye(k)], axis=1)
+    cols = jax.vmap(lambda e: jax.jvp(lambda uu: _force_grad(uu, args), (u,), (e,))[1])(e_w)  # (k, n + k)
+    h = jnp.zeros((n + k, n + k), dtype=u.dtype).at[:n, :n].set(h_rr).at[n:, :].set(cols).at[:, n:].set(cols.T)
+    return 0.5 * (h + h.T)
+
+
+@jax.jit
+def _force_hessian_jit(u, args):
+    return force_hessian(u, args)
+
+
+@jax.jit
+def _force_diagnostics(u, args):
+    scene, phi, T, nbr, basis = args
+    ur, w = _force_split(scene, u)
+    off = (w * scene.length_scale) @ basis
+    rod = with_end_offset(scene, off)
+    q = ur * rod.dof_scale
+    x = rod.nodes(q)
+    M = jax.grad(lambda p: rod.energy(q, p, nbr))(phi)
+    tw = rod.twist(q, phi, nbr)
+    return q, x, off, M, tw, rod.energy(q, phi, nbr)
+
+
+@dataclass(frozen=True)
+class ForceEquilibrium:
+    """An equilibrium of a ``ForceLoadedRod``: u (scaled DOFs, the end's included), q (physical rod
+    DOFs), x (N, 3) nodes, end_offset (3,), extension (end offset along the axis: negative when the
+    ends come closer), T, phi, M (axial moment dE/dphi), Wr, Tw, Lk, energy (rod only),
+    grad_norm, converged, iterations, eigenvalues (lowest, scaled), morse (negative count)."""
+
+    u: np.ndarray
+    q: np.ndarray
+    x: np.ndarray
+    end_offset: np.ndarray
+    extension: float
+    T: float
+    phi: float
+    M: float
+    Wr: float
+    Tw: float
+    Lk: float
+    energy: float
+    grad_norm: float
+    converged: bool
+    iterations: int
+    eigenvalues: np.ndarray
+    morse: int
+
+
+class ForceLoadedRod:
+    """A rod clamped at its near end, with a dead load T pulling its far clamp along the axis and
+    the far clamp's material frame turned by phi. ``end``: "slide" (the far clamp moves along the
+    axis only) or "free" (it moves in space; its edge stays along the axis). ``rod``: an
+    ``EndLoadedRod`` (``shortened_rod(..., shortening=0)``) giving material, N and contact.
+
+    The unknowns are u = [rod's scaled DOFs, end offset in edge lengths (1 or 3)]; T and phi are
+    parameters (``problem`` gives the BifurcationProblem in either)."""
+
+    def __init__(self, rod, end="slide"):
+        if end not in _BASES:
+            raise ValueError(f"end must be 'slide' or 'free', got {end!r}")
+        if not isinstance(rod, EndLoadedRod):
+            raise TypeError("rod must be an EndLoadedRod (jaxrod.endloads.shortened_rod)")
+        self.rod = with_end_offset(rod, jnp.zeros(3))
+        self.end = end
+        self.k = _BASES[end]
+        self.basis = _offset_basis(self.rod, end)
+
+    def args(self, phi, T, nbr=None):
+        return (self.rod, jnp.asarray(phi, dtype=jnp.float64), jnp.asarray(T, dtype=jnp.float64), nbr, self.basis)
+
+    def u_from(self, q, offset):
+        """Scaled unknowns from rod DOFs q and the end offset (3,) (its part along the allowed basis)."""
+        w = np.asarray(self.basis) @ np.asarray(offset, dtype=float) / float(self.rod.length_scale)
+        return np.concatenate([np.asarray(self.rod.to_scaled(np.asarray(q, dtype=float))), w])
+
+    def straight(self, T):
+        """The straight state under tension T: uniform stretch T/EA, no end rotation needed."""
+        strain = float(T) / float(self.rod.material.EA)
+        # the clamped end edges are rigid: the N - 3 interior edges carry the stretch
+        ext = strain * float(self.rod.length_scale) * (self.rod.n_nodes - 3)
+        a = np.asarray(self.rod.axis)
+        xc = np.asarray(self.rod.x_clamped)
+        n_free = self.rod.n_nodes - 4
+        q = np.asarray(self.rod.q_init).copy()
+        start, stop = xc[1], xc[2] + ext * a
+        frac = np.arange(1, n_free + 1) / (n_free + 1)
+        q[:3 * n_free] = (start[None, :] + frac[:, None] * (stop - start)[None, :]).ravel()
+        return self.u_from(q, ext * a)
+
+    def solve(self, T, phi, u0, method="newton", gtol=1e-9, max_steps=None, throw=True, k=6):
+        """Equilibrium at (T, phi) from u0: "newton" (nearest stationary point) or "damped" (a
+        minimiser: damped Newton). Returns a ``ForceEquilibrium`` with its stability."""
+        T = check_positive("T", T)
+        phi = check_finite("phi", phi)
+        args = self.args(phi, T)
+        if method == "newton":
+            solver = Newton(hessian=force_hessian)
+        elif method == "damped":
+            solver = DampedNewton(hessian=force_hessian)
+        else:
+            raise ValueError(f"method must be 'newton' or 'damped', got {method!r}")
+        sol = minimise(force_energy, np.asarray(u0, dtype=float), args, solver, gtol, max_steps, throw=throw)
+        return self.equilibrium(sol.y, T, phi, sol=sol, k=k)
+
+    def equilibrium(self, u, T, phi, sol=None, k=6):
+        args = self.args(phi, T)
+        u = jnp.asarray(u, dtype=jnp.float64)
+        q, x, off, M, tw, energy = jax.device_get(_force_diagnostics(u, args))
+        h = np.asarray(_force_hessian_jit(u, args))
+        lam = np.linalg.eigvalsh(h)
+        g = np.asarray(_force_grad_jit(u, args))
+        rod = with_end_offset(self.rod, jnp.asarray(off))
+        wr = float(rod.exact_writhe(jnp.asarray(x)))
+        a = np.asarray(self.rod.axis)
+        tol = 1e-10 * max(float(np.max(np.abs(np.diag(h)))), 1.0)
+        return ForceEquilibrium(
+            u=np.asarray(u), q=np.asarray(q), x=np.asarray(x), end_offset=np.asarray(off),
+            extension=float(np.dot(off, a)), T=float(T), phi=float(phi), M=float(M), Wr=wr, Tw=float(tw),
+            Lk=wr + float(tw), energy=float(energy), grad_norm=float(np.max(np.abs(g))),
+            converged=True if sol is None else bool(sol.converged), iterations=0 if sol is None else sol.iterations,
+            eigenvalues=lam[:k], morse=int(np.sum(lam < -tol)))
+
+    def problem(self, parameter, u0, T, phi):
+        """BifurcationProblem in ``parameter`` ("phi" or "T") at fixed other load, started at u0."""
+        from .bifurcation import BifurcationProblem  # noqa: PLC0415
+
+        if parameter == "phi":
+            return BifurcationProblem(_force_energy_phi, u0, float(phi), (self.rod, jnp.asarray(float(T)), None,
+                                                                          self.basis), jacobian=_force_jacobian_phi)
+        if parameter == "T":
+            return BifurcationProblem(_force_energy_T, u0, float(T), (self.rod, jnp.asarray(float(phi)), None,
+                                                                      self.basis), jacobian=_force_jacobian_T)
+        raise ValueError(f"parameter must be 'phi' or 'T', got {parameter!r}")
+
+
+@jax.jit
+def _force_grad_jit(u, args):
+    return _force_grad(u, args)
+
+
+def _force_energy_phi(u, p, args):
+    scene, T, nbr, basis = args
+    return force_energy(u, (scene, p, T, nbr, basis))
+
+
+def _force_jacobian_phi(u, p, args):
+    scene, T, nbr, basis = args
+    return force_hessian(u, (scene, p, T, nbr, basis))
+
+
+def _force_energy_T(u, p, args):
+    scene, phi, nbr, basis = args
+    return force_energy(u, (scene, phi, p, nbr, basis))
+
+
+def _force_jacobian_T(u, p, args):
+    scene, phi, nbr, basis = args
+    return force_hessian(u, (scene, phi, p, nbr, basis))
+
+
+# ---------------------------------------------------------------------- continuation in the shortening
+def shortening_energy(u, p, args):
+    """Scaled energy of an ``EndLoadedRod`` with p = shortening; args = (scene, phi): a
+    ``BifurcationProblem`` energy (jaxrod.bifurcation)."""
+    scene, phi = args
+    return with_shortening(scene, p).scaled_energy(u, phi)
+
+
+def shortening_jacobian(u, p, args):
+    scene, phi = args
+    return structured_scaled_hessian(with_shortening(scene, p), u, phi, None)
+
+
+def rotation_energy(u, p, args):
+    """Scaled energy with p = end rotation phi; args = (scene,)."""
+    (scene,) = args
+    return scene.scaled_energy(u, p)
+
+
+def rotation_jacobian(u, p, args):
+    (scene,) = args
+    return structured_scaled_hessian(scene, u, p, None)
+
+
+def shortening_problem(scene, q0, phi):
+    """BifurcationProblem with p = shortening (start: scene's shortening), phi fixed; u = scaled q."""
+    from .bifurcation import BifurcationProblem  # noqa: PLC0415
+
+    return BifurcationProblem(shortening_energy, scene.to_scaled(np.asarray(q0, dtype=float)),
+                              float(scene.shortening), (scene, jnp.asarray(float(phi))), jacobian=shortening_jacobian)
+
+
+def rotation_problem(scene, q0, phi0):
+    """BifurcationProblem with p = end rotation phi at the scene's shortening; u = scaled q."""
+    from .bifurcation import BifurcationProblem  # noqa: PLC0415
+
+    return BifurcationProblem(rotation_energy, scene.to_scaled(np.asarray(q0, dtype=float)), float(phi0), (scene,),
+                              jacobian=rotation_jacobian)
+
+
+# ---------------------------------------------------------------------- analytic results
+@dataclass(frozen=True)
+class LocalizedHelix:
+    """The localized helical buckle of NvdHT 2002 for (m, t, gamma): lam = sqrt(t - m^2/4), end
+    rotation R (rad), end shortening d (per length), theta_max, writhe Wr (ray-closed, infinite
+    rod) = (2/pi) arccos(m / (2 sqrt t)), twist Tw = m / (2 pi gamma)."""
+
+    m: float
+    t: float
+    gamma: float
+    lam: float
+    R: float
+    d: float
+    theta_max: float
+    Wr: float
+    Tw: float
+
+
+def localized_helix(m, t, gamma):
+    """NvdHT 2002 eqs. 14-15 for m = ML/B, t = TL^2/B, gamma = C/B (needs m^2 < 4t)."""
+    m, t, gamma = float(m), check_positive("t", t), check_positive("gamma", gamma)
+    if not m * m < 4.0 * t:
+        raise ValueError(f"need m^2 < 4 t (below the straight rod's threshold M = 2 sqrt(BT)), got m = {m}, t = {t}")
+    lam = math.sqrt(t - m * m / 4.0)
+    ac = math.acos(m / (2.0 * math.sqrt(t)))
+    return LocalizedHelix(m=m, t=t, gamma=gamma, lam=lam, R=m / gamma + 4.0 * ac,
+                          d=math.sqrt(16.0 / t * (1.0 - m * m / (4.0 * t))),
+                          theta_max=math.acos(m * m / (2.0 * t) - 1.0), Wr=2.0 * ac / math.pi,
+                          Tw=m / (TWO_PI * gamma))
+
+
+def localized_helix_from_shortening(d, R, gamma):
+    """The (m, t) of every localized helix with end shortening d (per length) and end rotation R
+    (rad) at gamma, from NvdHT eqs. 14-15: with u = d^2 t / 16 in (0, 1), m = 8 sqrt(u(1-u)) / d and
+    R = m / gamma + 4 arcsin(sqrt u), solved for u (all roots). Returns a list of LocalizedHelix."""
+    from scipy.optimize import brentq  # noqa: PLC0415
+
+    d, gamma = check_positive("d", d), check_positive("gamma", gamma)
+    R = check_finite("R", R)
+
+    def f(u):
+        return 8.0 * math.sqrt(u * (1.0 - u)) / (d * gamma) + 4.0 * math.asin(math.sqrt(u)) - R
+
+    grid = np.linspace(1e-12, 1.0 - 1e-12, 4001)
+    vals = np.array([f(u) for u in grid])
+    out = []
+    for i in np.nonzero(np.sign(vals[:-1]) * np.sign(vals[1:]) <= 0)[0]:
+        u = brentq(f, grid[i], grid[i + 1], xtol=1e-15, rtol=1e-15)
+        t = 16.0 * u / d ** 2
+        out.append(localized_helix(8.0 * math.sqrt(u * (1.0 - u)) / d, t, gamma))
+    return out
+
+
+def localized_helix_curve(m, t, s, L=1.0):
+    """The localized helix's tangent angle theta(s), azimuth psi(s) and centreline r(s) (n, 3) at
+    arc lengths s (n,) from the midpoint (ascending), for a rod of length L along z; r(0) is on the
+    z axis' tail line (r -> (0, 0, s - ...) as s -> -inf up to the common lateral offset, which is
+    removed: the tails lie on the z axis). Integrated with DOP853 (rtol 1e-12)."""
+    from scipy.integrate import solve_ivp  # noqa: PLC0415
+
+    s = np.asarray(s, dtype=float)
+    lam = math.sqrt(t - m * m / 4.0)
+    c = 2.0 * lam * lam / t
+
+    def one_minus_cos(x):
+        return c / np.cosh(lam * x / L) ** 2
+
+    def rhs(x, y):
+        om = one_minus_cos(x)
+        ct = 1.0 - om
+        st = math.sqrt(max(om * (2.0 - om), 0.0))
+        psi = y[3]
+        return [st * math.cos(psi), st * math.sin(psi), ct, (m / L) / (2.0 - om)]
+
+    # integrate outwards from the midpoint both ways (psi(0) = 0, r(0) = 0), then shift the tails to the axis
+    far = 40.0 * L / lam  # sech^2 ~ e^-80 there: the tails are straight
+    out = {}
+    for sign in (1.0, -1.0):
+        span = (0.0, sign * max(far, float(np.max(np.abs(s)))))
+        sol = solve_ivp(rhs, span, [0.0, 0.0, 0.0, 0.0], method="DOP853", rtol=1e-12, atol=1e-14, dense_output=True)
+        out[sign] = sol
+    tail = out[1.0].sol(max(far, float(np.max(np.abs(s)))))
+    y = np.empty((s.size, 4))
+    pos = s >= 0
+    if np.any(pos):
+        y[pos] = out[1.0].sol(s[pos]).T
+    if np.any(~pos):
+        y[~pos] = out[-1.0].sol(s[~pos]).T
+    r = y[:, :3].copy()
+    r[:, :2] -= tail[:2]
+    theta = np.arccos(np.clip(1.0 - one_minus_cos(s), -1.0, 1.0))
+    return theta, y[:, 3], r
+
+
+def helical_start(scene, m, t, phi):
+    """A starting state q for ``scene`` (an ``EndLoadedRod``) near the localized helix (m, t): the
+    analytic centreline at the interior nodes' arc lengths (centred on the rod's midpoint, the near
+    clamp's point at the origin of s = -L/2), the twist spread evenly so the far clamp's frame is
+    turned by phi."""
+    L = float(scene.clamp_length)
+    n = scene.n_nodes
+    h = L / (n - 2)
+    s = (np.arange(n) - 0.5) * h - 0.5 * L
+    _, _, r = localized_helix_curve(m, t, s, L)
+    a = np.asarray(scene.axis)
+    xc = np.asarray(scene.x_clamped)
+    # rotate the analytic frame (axis z) onto the scene's axis, its origin on the near clamp's point
+    e3 = a
+    e1 = np.asarray(scene.director_start)
+    e2 = np.cross(e3, e1)
+    origin = 0.5 * (xc[0] + xc[1]) - r[0] @ np.zeros(3)
+    r0 = r - 0.5 * (r[0] + r[1])  # the near clamp's point
+    x = origin + r0[:, :1] * e1 + r0[:, 1:2] * e2 + r0[:, 2:3] * e3
+    n_free = n - 4
+    xi = x[2:n - 2]
+    # twist: theta_end = phi + end angle, spread over the edges
+    probe = np.concatenate([xi.ravel(), np.zeros(n - 3)])
+    x_full = np.asarray(scene.nodes(jnp.asarray(probe)))
+    theta_end = float(phi) + float(scene.end_angle(jnp.asarray(x_full)))
+    m_edges = n - 1
+    theta = theta_end * np.arange(1, m_edges - 1) / (m_edges - 1)
+    return np.concatenate([xi.ravel(), theta])
+
+
+# ---------------------------------------------------------------------- tension and twist: onset
+def tension_twist_threshold(B, T):
+    """The infinite rod's buckling moment under tension T: M = 2 sqrt(B T)."""
+    return 2.0 * math.sqrt(check_positive("B", B) * check_positive("T", T))
+
+
+@functools.partial(jax.jit, static_argnames=("n_low",))
+def _straight_lowest(scene, u, phi, n_low=2):
+    h = structured_scaled_hessian(scene, u, phi, None)
+    return jnp.linalg.eigvalsh(h)[:n_low]
+
+
+def straight_buckling_moment(rod, T, phi_hi=None, tol=1e-10):
+    """The buckling twist of the straight rod ``rod`` (an EndLoadedRod at 0 shortening) under
+    tension T (its ends held at the stretched length (1 + T/EA) L; the straight state's stability
+    is the same under force control, its end motion decoupled from the lateral modes): the phi at
+    which the straight state's lowest eigenvalue crosses zero (a double eigenvalue: the helical
+    mode and its rotation), by bisection then secant. Returns (phi_c, M_c = C phi_c / L)."""
+    T = check_positive("T", T)
+    C = float(rod.material.C)
+    L = float(rod.clamp_length)
+    B = float(rod.material.B)
+    fr = ForceLoadedRod(rod, "slide")
+    u_all = fr.straight(T)
+    ext = float(u_all[-1]) * float(rod.length_scale)
+    scene = with_end_offset(rod, ext * np.asarray(rod.axis))
+    u = jnp.asarray(u_all[:-1])
+
+    def low(phi):
+        return float(_straight_lowest(scene, u, jnp.asarray(float(phi)))[0])
+
+    # bracket: the threshold lies between the infinite rod's 2 sqrt(BT) and above Greenhill's M L/B
+    lo = 0.5 * min(2.0 * math.sqrt(B * T), 8.9868 * B / L) * L / C
+    hi = phi_hi if phi_hi is not None else 1.05 * (2.0 * math.sqrt(B * T) + 8.9868 * B / L) * L / C
+    f_lo, f_hi = low(lo), low(hi)
+    if not (f_lo > 0.0 > f_hi):
+        raise ValueError(f"no buckling twist bracketed in [{lo:.4g}, {hi:.4g}] (lowest eigenvalues {f_lo:.3g}, {f_hi:.3g})")
+    from scipy.optimize import brentq  # noqa: PLC0415
+
+    phi_c = brentq(low, lo, hi, xtol=tol * hi, rtol=1e-14)
+    return phi_c, C * phi_c / L
+
+
+def _clamped_twist_matrix(m, t, n_quad=64):
+    """The 3 x 3 complex matrix whose singularity is the onset of buckling of a straight rod of
+    length 1 (B = 1), clamped at both ends, under tension t and axial moment m. Linearised
+    Kirchhoff equations for the complex tangent deviation v = x' + i y':
+    v'' - i m v' - t v = const, so v = c0 + e^{i a s} (c1 cosh(b s) + c2 sinh(b s) / b) with
+    a = m / 2, b = sqrt(t - m^2/4) (complex past 2 sqrt t; the basis is smooth through b = 0);
+    clamped ends: v(0) = v(1) = 0 and integral_0^1 v ds = 0 (the ends stay on the axis)."""
+    a = 0.5 * m
+    b = np.sqrt(complex(t - 0.25 * m * m))
+    b = b if abs(b) > 1e-12 else 1e-12
+
+    def f(s):
+        s = np.asarray(s, dtype=float)
+        e = np.exp(1j * a * s)
+        return np.stack([np.ones_like(s, dtype=complex), e * np.cosh(b * s), e * np.sinh(b * s) / b], axis=-1)
+
+    x, w = np.polynomial.legendre.leggauss(n_quad)
+    integral = 0.5 * np.sum(w[:, None] * f(0.5 * (x + 1.0)), axis=0)
+    return np.stack([f(0.0), f(1.0), integral], axis=0)
+
+
+def clamped_tension_twist_threshold(B, T, L, n_scan=400):
+    """The buckling moment M_c of a straight rod of length L clamped at both ends under tension T
+    (continuum, inextensible): the smallest m = M L / B at which ``_clamped_twist_matrix`` is
+    singular, found by scanning its smallest singular value and refining the first zero. Tends to
+    Greenhill's 8.9868 B / L as T -> 0 and to 2 sqrt(B T) as L sqrt(T / B) -> infinity."""
+    from scipy.optimize import minimize_scalar  # noqa: PLC0415
+
+    B, T, L = check_positive("B", B), check_positive("T", T), check_positive("L", L)
+    t = T * L * L / B
+    sig = lambda m: float(np.linalg.svd(_clamped_twist_matrix(m, t), compute_uv=False)[-1])  # noqa: E731
+    hi = 2.0 * math.sqrt(t) + 12.0
+    grid = np.linspace(0.05 * hi, hi, n_scan)
+    vals = np.array([sig(m) for m in grid])
+    scale = np.max(vals)
+    for i in range(1, n_scan - 1):
+        if vals[i] <= vals[i - 1] and vals[i] <= vals[i + 1]:
+            res = minimize_scalar(sig, bounds=(grid[i - 1], grid[i + 1]), method="bounded",
+                                  options={"xatol": 1e-13 * hi})
+            if res.fun < 1e-8 * scale:
+                return res.x * B / L
+    raise ValueError(f"no buckling moment found below m = {hi:.4g} (t = {t:.4g})")
