@@ -1,0 +1,330 @@
+"""Accuracy asked for, not N: critical twists converged in the resolution, with an error estimate.
+
+The discrete rod's critical twists converge as phi*(N) = phi*_inf + c h^p + ..., h = L/N, with
+p = 2 (Michell's ring: ``tests/test_michell.py``; the trefoil: 6.6011 / 6.4653 / 6.4302 pi at
+N = 61 / 121 / 241, differences in the ratio 3.87, p = 1.96). At N = 121 the trefoil's branch
+ends are still 0.04 pi and 0.1 pi from their limits, hundreds of times the bracket a single
+study reports. So a converged answer needs a sequence of N and an extrapolation:
+
+    richardson(Ns, values)                  -> Extrapolation (value, error, order, ...)
+    converged_critical_twists(scene, 0.01 * pi)   -> {side: SideConvergence}
+
+``richardson`` measures the order from the three finest levels (the exact fit of
+v = v_inf + c h^p through them), extrapolates with it, and estimates the error of the
+extrapolated value a posteriori from how far the estimate moved when the finest level was added,
+treated as one more convergent sequence: ``1.25 |R_K - R_{K-1}| / (r^p - 1)``, R_{K-1} being the
+estimate made without the finest level (with three levels: Richardson on the two coarser ones with
+the theoretical order 2; with more: the same three-level fit one level coarser), r the last
+refinement ratio and 1.25 Roache's factor of safety for three or more grids. This assumes only that
+the extrapolants converge at least as fast as the values themselves (their leading error is of
+higher order). On Michell's ring (levels 16, 31, 61, 121) it gave 5.5e-3 pi and 1.0e-3 pi where
+the true errors were 2.7e-3 pi and 1.6e-4 pi. It is never zero by construction (three levels fit
+exactly, so the fit's own residual says nothing). Two levels only give an extrapolation with the
+order assumed, flagged as such, with Roache's factor 3 on the difference (the grid convergence
+index for two grids). Where the
+levels do not converge monotonically (the differences change sign) or the measured order is
+outside (0.5, 4), the sequence is not in its asymptotic range: ``asymptotic`` is False and the
+error is the last difference itself, which the refinement loop then keeps reducing.
+
+``converged_critical_twists`` runs N_0, 2 N_0 - 1, 4 N_0 - 3, ... (so every node of a level is a
+node of the next, 61, 121, 241, 481 by default for the trefoil), each level started from the
+previous one's solution resampled: the state a little before the previous level's branch end
+(by the last change in phi*, at least pi/4), relaxed at the finer N, followed to its own end
+(``follow_twist``, the bracket to tol = accuracy / 20). It stops when the error estimate is below
+the accuracy asked for, or at N_max (then ``reached`` is False and the study says so).
+"""
+from __future__ import annotations
+
+import math
+import threading
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .validation import check_finite, check_int_at_least, check_positive
+
+__all__ = ["Extrapolation", "richardson", "Level", "SideConvergence", "converged_critical_twists", "refine_scene",
+           "THEORETICAL_ORDER"]
+
+# The discrete elastic rod's energies are second-order accurate in the edge length (Michell's
+# ring: tests/test_michell.py measures 2.00).
+THEORETICAL_ORDER = 2.0
+# Roache's factors of safety on the grid convergence index: 3 with two grids (the order assumed),
+# 1.25 with three or more (the order measured).
+TWO_LEVEL_SAFETY = 3.0
+THREE_LEVEL_SAFETY = 1.25
+ORDER_RANGE = (0.5, 4.0)
+
+
+@dataclass(frozen=True)
+class Extrapolation:
+    """value: the extrapolated limit N -> infinity; error: its estimated discretisation error
+    (see the module docstring); order: the order p used (measured from the three finest levels,
+    or THEORETICAL_ORDER with two); order_measured: whether p was measured; asymptotic: the
+    levels converge monotonically with a plausible order; N, values: the levels used."""
+
+    value: float
+    error: float
+    order: float
+    order_measured: bool
+    asymptotic: bool
+    N: tuple
+    values: tuple
+
+    def as_json(self):
+        return {"value": self.value, "error": self.error, "order": self.order, "order_measured": self.order_measured,
+                "asymptotic": self.asymptotic, "N": list(self.N), "values": list(self.values)}
+
+
+def _extrapolate(h_coarse, h_fine, v_coarse, v_fine, p):
+    """Two-level Richardson: v_fine + (v_fine - v_coarse) / ((h_coarse / h_fine)^p - 1)."""
+    return v_fine + (v_fine - v_coarse) / ((h_coarse / h_fine) ** p - 1.0)
+
+
+def _measured_order(h, v):
+    """The p of v = v_inf + c h^p through three points (h decreasing), or None when the
+    differences change sign (no monotone convergence). Solved by bisection on p in
+    ORDER_RANGE widened to (0.05, 12); None when no root there."""
+    d1, d2 = v[0] - v[1], v[1] - v[2]
+    if d1 == 0.0 or d2 == 0.0 or (d1 > 0) != (d2 > 0):
+        return None
+    target = d1 / d2
+
+    def g(p):
+        return (h[0] ** p - h[1] ** p) / (h[1] ** p - h[2] ** p) - target
+
+    lo, hi = 0.05, 12.0
+    if g(lo) * g(hi) > 0:
+        return None
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if g(lo) * g(mid) <= 0:
+            hi = mid
+        else:
+            lo = mid
+    return 0.5 * (lo + hi)
+
+
+def _three_level(h, v):
+    """(R, p) from the three levels h (3,), v (3,): the order measured and the finest pair
+    extrapolated with it; (None, None) without monotone convergence."""
+    p = _measured_order(h, v)
+    if p is None:
+        return None, None
+    return _extrapolate(h[1], h[2], v[1], v[2], p), p
+
+
+def richardson(N, values):
+    """Extrapolate ``values`` (one per resolution) to N -> infinity. N: increasing node counts
+    (h = 1/N, the rod's length fixed), at least 2. Returns an ``Extrapolation``."""
+    N = [check_int_at_least("N", n, 2) for n in N]
+    values = [check_finite("values", float(v)) for v in values]
+    if len(N) != len(values) or len(N) < 2:
+        raise ValueError(f"richardson needs at least 2 levels, one value each (got N={N}, values={values})")
+    if any(b <= a for a, b in zip(N, N[1:])):
+        raise ValueError(f"N must increase, got {N}")
+    h = [1.0 / n for n in N]
+    if len(N) == 2:
+        value = _extrapolate(h[0], h[1], values[0], values[1], THEORETICAL_ORDER)
+        return Extrapolation(value, TWO_LEVEL_SAFETY * abs(value - values[1]), THEORETICAL_ORDER, False, True,
+                             tuple(N), tuple(values))
+    value, p = _three_level(h[-3:], values[-3:])
+    if value is None or not ORDER_RANGE[0] < p < ORDER_RANGE[1]:
+        # not in the asymptotic range: the finest value is the answer, its last change the error
+        return Extrapolation(values[-1], abs(values[-1] - values[-2]), math.nan if p is None else p, p is not None,
+                             False, tuple(N), tuple(values))
+    if len(N) == 3:
+        previous = _extrapolate(h[0], h[1], values[0], values[1], THEORETICAL_ORDER)
+    else:
+        previous, _ = _three_level(h[-4:-1], values[-4:-1])
+        if previous is None:
+            previous = values[-2]
+    ratio = h[-2] / h[-1]
+    error = THREE_LEVEL_SAFETY * abs(value - previous) / (ratio ** p - 1.0)
+    return Extrapolation(value, error, p, True, True, tuple(N), tuple(values))
+
+
+# ---------------------------------------------------------------------- the refinement study
+@dataclass(frozen=True)
+class Level:
+    """One resolution of a side: N, phi_star (rad) and its bracket error phi_error, kind
+    ('jump' or 'unstable', from ``follow_twist``), phi_start (where this level's continuation
+    began), seconds, and the states on its branch (phi, q) kept to start the next level."""
+
+    N: int
+    phi_star: float
+    phi_error: float
+    kind: str
+    phi_start: float
+    seconds: float
+    states: tuple = field(default=(), repr=False)
+
+    def as_json(self):
+        return {"N": self.N, "phi_star": self.phi_star, "phi_star_over_pi": self.phi_star / math.pi,
+                "phi_error": self.phi_error, "kind": self.kind, "phi_start": self.phi_start, "seconds": self.seconds}
+
+
+@dataclass(frozen=True)
+class SideConvergence:
+    """One side ('plus': phi > 0, 'minus'): its levels, the extrapolation over them (None with a
+    single level), reached (error <= accuracy), and a reason in words."""
+
+    side: str
+    levels: tuple
+    extrapolation: Extrapolation | None
+    accuracy: float
+    reached: bool
+    reason: str
+
+    @property
+    def phi_star(self):
+        """The best estimate: the extrapolated value (the finest level's with one level)."""
+        return self.extrapolation.value if self.extrapolation is not None else self.levels[-1].phi_star
+
+    @property
+    def error(self):
+        return self.extrapolation.error if self.extrapolation is not None else math.inf
+
+    def as_json(self):
+        return {"side": self.side, "phi_star": self.phi_star, "phi_star_over_pi": self.phi_star / math.pi,
+                "error": self.error, "error_over_pi": self.error / math.pi, "accuracy": self.accuracy,
+                "reached": self.reached, "reason": self.reason,
+                "extrapolation": None if self.extrapolation is None else self.extrapolation.as_json(),
+                "levels": [lv.as_json() for lv in self.levels]}
+
+
+def refine_scene(scene, x, N):
+    """The closed rod ``scene`` at another resolution N, along the centreline x (M, 3) resampled:
+    same material, length, Lk0, name and contact. x: a state of ``scene`` (so the new rod starts
+    at that shape). Closed rods only."""
+    from .scenes import closed_curve
+
+    if not getattr(scene, "closed", False):
+        raise ValueError(f"refine_scene: closed rods only (got a {type(scene).__name__})")
+    contact = scene.contact_stiffness if "contact" in scene.terms else None
+    return closed_curve(np.asarray(x), scene.material, N=N, length=float(scene.length), Lk0=int(round(scene.Lk0)),
+                        name=scene.name, contact_stiffness=contact)
+
+
+def _level(scene, side, phi_start, start, span, step, tol, say):
+    """Follow ``scene``'s stable branch from ``start`` (an Equilibrium at phi_start) towards
+    side * span; its first end as a Level."""
+    from .continuation import follow_twist
+
+    t0 = time.perf_counter()
+    sign = 1.0 if side == "plus" else -1.0
+    path = follow_twist(scene, phi_start, sign * span, step=step, start=start, tol=tol, switch=False)
+    states = tuple((p.equilibrium.phi, np.asarray(p.equilibrium.q)) for p in path.points)
+    if not path.instabilities:
+        return None, path.reason, states
+    inst = path.instabilities[0]
+    level = Level(int(scene.n_nodes), float(inst.phi), float(inst.phi_error), str(inst.kind.value),
+                  float(phi_start), time.perf_counter() - t0, states)
+    say(f"{side}: N = {level.N}: phi* = {level.phi_star / math.pi:+.6f} pi +- {level.phi_error / math.pi:.1e} pi "
+        f"({level.kind}), {level.seconds:.1f} s")
+    return level, path.reason, states
+
+
+def _side(scene, side, accuracy, N_levels, span, step, tol, say, cancel):
+    from .equilibrium import relax_to_minimum
+
+    levels = []
+    start = relax_to_minimum(scene, 0.0)
+    current, phi_start = scene, 0.0
+    ext = None
+    for k, N in enumerate(N_levels):
+        if cancel is not None and cancel.is_set():
+            break
+        if k > 0:
+            prev = levels[-1]
+            margin = max(0.25 * math.pi, abs(prev.phi_star - levels[-2].phi_star) if k > 1 else math.pi)
+            target = prev.phi_star - math.copysign(margin, prev.phi_star)
+            # the previous level's stable state nearest below the target (in |phi|), resampled
+            below = [(phi, q) for phi, q in prev.states if abs(phi) <= abs(target)]
+            phi_start, q = below[-1] if below else prev.states[0]
+            x = current.positions(q)
+            current = refine_scene(current, x, N)
+            try:
+                start = relax_to_minimum(current, phi_start)
+            except Exception as exc:  # a resampled start that does not relax: from phi = 0 instead
+                say(f"{side}: N = {N}: resampled start at {phi_start / math.pi:+.3f} pi failed ({exc}); from 0")
+                phi_start, start = 0.0, relax_to_minimum(current, 0.0)
+        level, reason, _ = _level(current, side, phi_start, start, span, step, tol, say)
+        if level is None:
+            return SideConvergence(side, tuple(levels), ext, accuracy, False,
+                                   f"no branch end within {span / math.pi:g} pi at N = {N}: {reason}")
+        levels.append(level)
+        if len(levels) >= 2:
+            ext = richardson([lv.N for lv in levels], [lv.phi_star for lv in levels])
+            say(f"{side}: extrapolated phi* = {ext.value / math.pi:+.6f} pi +- {ext.error / math.pi:.1e} pi "
+                f"(order {ext.order:.2f}{'' if ext.order_measured else ' assumed'})")
+            if len(levels) >= 3 and ext.asymptotic and ext.order_measured and ext.error <= accuracy:
+                return SideConvergence(side, tuple(levels), ext, accuracy, True,
+                                       f"error estimate {ext.error / math.pi:.1e} pi <= {accuracy / math.pi:.1e} pi "
+                                       f"at N = {levels[-1].N}")
+    why = "cancelled" if (cancel is not None and cancel.is_set()) else f"N_max = {N_levels[-1]} reached"
+    err = "no estimate" if ext is None else f"error estimate {ext.error / math.pi:.1e} pi"
+    return SideConvergence(side, tuple(levels), ext, accuracy, False,
+                           f"{why} before the accuracy asked for ({err} > {accuracy / math.pi:.1e} pi)")
+
+
+def resolution_levels(N_start, N_max):
+    """N_start, 2 N_start - 1, 4 N_start - 3, ... up to N_max (every node kept at the next level)."""
+    out = [N_start]
+    while 2 * out[-1] - 1 <= N_max:
+        out.append(2 * out[-1] - 1)
+    return out
+
+
+def converged_critical_twists(scene, accuracy, sides=("plus", "minus"), N_max=481, span=16 * math.pi,
+                              step=0.5 * math.pi, progress=None, parallel=True, levels=None):
+    """The first branch end on each side of the closed rod ``scene`` (the coarsest level, e.g.
+    ``trefoil(D, L, 61)``), refined in N until its extrapolated value's error estimate is below
+    ``accuracy`` (radians). Each level is followed from a state resampled from the previous one,
+    its end bracketed to accuracy / 20. Returns {side: SideConvergence}. parallel: the sides in
+    two threads (the compiled code is shared). N_max: the finest level allowed (the dense
+    linear algebra grows as N^3: 481 takes minutes a side). levels: the node counts to use instead
+    (increasing, the first the scene's own, at least three; N_max is then ignored)."""
+    accuracy = check_positive("accuracy", accuracy)
+    check_positive("span", span)
+    check_positive("step", step)
+    for side in sides:
+        if side not in ("plus", "minus"):
+            raise ValueError(f"sides: 'plus' or 'minus', got {side!r}")
+    if not getattr(scene, "closed", False):
+        raise ValueError("converged_critical_twists: closed rods (rings, knots) only")
+    N0 = int(scene.n_nodes)
+    if levels is None:
+        N_max = check_int_at_least("N_max", N_max, 4 * N0 - 3)  # three levels at least: the order is measured
+        levels = resolution_levels(N0, N_max)
+    else:
+        levels = [check_int_at_least("levels", n, 4) for n in levels]
+        if len(levels) < 3 or levels[0] != N0 or any(b <= a for a, b in zip(levels, levels[1:])):
+            raise ValueError(f"levels must increase from the scene's N = {N0}, at least three of them, got {levels}")
+    tol = accuracy / 20.0
+    say = progress or (lambda s: None)
+    say(f"{scene.name}: levels N = {', '.join(map(str, levels))} at most, until the error estimate is "
+        f"<= {accuracy / math.pi:g} pi (each end bracketed to {tol / math.pi:.1e} pi)")
+    results, errors = {}, {}
+    cancel = threading.Event()
+
+    def run(side):
+        try:
+            results[side] = _side(scene, side, accuracy, levels, span, step, tol, say, cancel)
+        except BaseException as exc:  # noqa: BLE001 (re-raised in the caller's thread)
+            errors[side] = exc
+            cancel.set()
+
+    if parallel and len(sides) > 1:
+        threads = [threading.Thread(target=run, args=(s,), daemon=True) for s in sides]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+    else:
+        for s in sides:
+            run(s)
+    if errors:
+        raise next(iter(errors.values()))
+    return {s: results[s] for s in sides}
