@@ -66,6 +66,12 @@ __all__ = [
     "helical_start",
     "straight_buckling_moment",
     "tension_twist_threshold",
+    "clamped_tension_twist_threshold",
+    "check_helix_resolution",
+    "tangent_angles",
+    "envelope_error",
+    "solve",
+    "newton",
 ]
 
 TWO_PI = 2.0 * math.pi
@@ -245,7 +251,7 @@ def newton(fun, hessian, y0, args, zero_modes=None, gtol=1e-9, max_step=0.5, max
     return sol
 
 
-def solve(scene, phi, q0, gtol=1e-9, max_step=0.5, max_steps=200, k=8, throw=True):
+def solve(scene, phi, q0, gtol=1e-8, max_step=0.5, max_steps=200, k=8, throw=True, with_stability=True):
     """Equilibrium (``jaxrod.Equilibrium``, with its stability) of an ``EndLoadedRod`` at end
     rotation phi nearest q0 (physical DOFs), by ``newton`` on the scaled energy (the axial
     rotation lifted out). Without contact only (the exact writhe fixes the twist's branch)."""
@@ -258,7 +264,7 @@ def solve(scene, phi, q0, gtol=1e-9, max_step=0.5, max_steps=200, k=8, throw=Tru
                  max_steps=max_steps, throw=throw)
     q = scene.from_scaled(np.asarray(sol.y))
     nbr = scene.neighbourhood(q, phi)
-    return equilibrium_from_solution(scene, phi, sol, nbr, k=k)
+    return equilibrium_from_solution(scene, phi, sol, nbr, k=k, with_stability=with_stability)
 
 
 # ---------------------------------------------------------------------- force control
@@ -291,6 +297,18 @@ def force_energy(u, args):
 _force_grad = jax.grad(force_energy)
 
 
+def force_zero_modes(u, args):
+    """(n + k, 1): the rigid rotation about the clamp axis (interior nodes and, for a free end,
+    the end offset), in the scaled unknowns: an exact symmetry, as for ``EndLoadedRod``."""
+    scene, phi, T, nbr, basis = args
+    ur, w = _force_split(scene, u)
+    off = (w * scene.length_scale) @ basis
+    rod = with_end_offset(scene, off)
+    z = rod.scaled_zero_modes(ur, phi)[:, 0]
+    zw = basis @ jnp.cross(scene.axis, off) / scene.length_scale
+    return jnp.concatenate([z, zw])[:, None]
+
+
 def force_hessian(u, args):
     """Exact Hessian of ``force_energy``: the rod block by the structured assembly
     (``jaxrod.hessian``) at the current end position, the k end rows and columns by k
@@ -307,11 +325,11 @@ def force_hessian(u, args):
 
 
 @jax.jit
-def _force_hessian_jit(u, args):
-    return force_hessian(u, args)
+def _force_report(u, args):
+    """Diagnostics, Hessian, zero mode and gradient of a force-loaded state: one program."""
+    return _force_diagnostics(u, args), force_hessian(u, args), force_zero_modes(u, args), _force_grad(u, args)
 
 
-@jax.jit
 def _force_diagnostics(u, args):
     scene, phi, T, nbr, basis = args
     ur, w = _force_split(scene, u)
@@ -377,8 +395,8 @@ class ForceLoadedRod:
         w = np.asarray(self.basis) @ np.asarray(offset, dtype=float) / float(self.rod.length_scale)
         return np.concatenate([np.asarray(self.rod.to_scaled(np.asarray(q, dtype=float))), w])
 
-    def straight(self, T):
-        """The straight state under tension T: uniform stretch T/EA, no end rotation needed."""
+    def straight(self, T, phi=0.0):
+        """The straight state under tension T twisted by phi: uniform stretch T/EA, uniform twist."""
         strain = float(T) / float(self.rod.material.EA)
         # the clamped end edges are rigid: the N - 3 interior edges carry the stretch
         ext = strain * float(self.rod.length_scale) * (self.rod.n_nodes - 3)
@@ -389,30 +407,36 @@ class ForceLoadedRod:
         start, stop = xc[1], xc[2] + ext * a
         frac = np.arange(1, n_free + 1) / (n_free + 1)
         q[:3 * n_free] = (start[None, :] + frac[:, None] * (stop - start)[None, :]).ravel()
+        n_edges = self.rod.n_nodes - 1
+        q[3 * n_free:] = float(phi) * np.arange(1, n_edges - 1) / (n_edges - 1)
         return self.u_from(q, ext * a)
 
-    def solve(self, T, phi, u0, method="newton", gtol=1e-9, max_steps=None, throw=True, k=6):
+    def solve(self, T, phi, u0, method="newton", gtol=1e-8, max_steps=None, throw=True, k=6):
         """Equilibrium at (T, phi) from u0: "newton" (nearest stationary point) or "damped" (a
         minimiser: damped Newton). Returns a ``ForceEquilibrium`` with its stability."""
         T = check_positive("T", T)
         phi = check_finite("phi", phi)
         args = self.args(phi, T)
         if method == "newton":
-            solver = Newton(hessian=force_hessian)
+            sol = newton(force_energy, force_hessian, np.asarray(u0, dtype=float), args, zero_modes=force_zero_modes,
+                         gtol=gtol, max_steps=200 if max_steps is None else max_steps, throw=throw)
         elif method == "damped":
-            solver = DampedNewton(hessian=force_hessian)
+            solver = DampedNewton(hessian=force_hessian, zero_modes=force_zero_modes)
+            sol = minimise(force_energy, np.asarray(u0, dtype=float), args, solver, gtol, max_steps, throw=throw)
         else:
             raise ValueError(f"method must be 'newton' or 'damped', got {method!r}")
-        sol = minimise(force_energy, np.asarray(u0, dtype=float), args, solver, gtol, max_steps, throw=throw)
         return self.equilibrium(sol.y, T, phi, sol=sol, k=k)
 
     def equilibrium(self, u, T, phi, sol=None, k=6):
         args = self.args(phi, T)
         u = jnp.asarray(u, dtype=jnp.float64)
-        q, x, off, M, tw, energy = jax.device_get(_force_diagnostics(u, args))
-        h = np.asarray(_force_hessian_jit(u, args))
+        (q, x, off, M, tw, energy), h, z, g = jax.device_get(_force_report(u, args))
+        nz = np.linalg.norm(z)
+        if nz > 0.0:  # lift the axial rotation (exact zero mode) above the spectrum
+            z = z / nz
+            p = np.eye(h.shape[0]) - z @ z.T
+            h = p @ h @ p + (np.max(np.abs(np.diag(h))) + 1.0) * (z @ z.T)
         lam = np.linalg.eigvalsh(h)
-        g = np.asarray(_force_grad_jit(u, args))
         rod = with_end_offset(self.rod, jnp.asarray(off))
         wr = float(rod.exact_writhe(jnp.asarray(x)))
         a = np.asarray(self.rod.axis)
@@ -435,11 +459,6 @@ class ForceLoadedRod:
             return BifurcationProblem(_force_energy_T, u0, float(T), (self.rod, jnp.asarray(float(phi)), None,
                                                                       self.basis), jacobian=_force_jacobian_T)
         raise ValueError(f"parameter must be 'phi' or 'T', got {parameter!r}")
-
-
-@jax.jit
-def _force_grad_jit(u, args):
-    return _force_grad(u, args)
 
 
 def _force_energy_phi(u, p, args):
@@ -596,6 +615,25 @@ def localized_helix_curve(m, t, s, L=1.0):
     return theta, y[:, 3], r
 
 
+# Edges per core width L / lambda of the localized helix, and the largest twist per edge (rad),
+# below which ``check_helix_resolution`` refuses N: at 6 edges per core the end loads are still
+# O(h^2) (measured: t within 7 % at N = 120, lambda = 14.1).
+EDGES_PER_CORE = 6.0
+MAX_TWIST_PER_EDGE = 0.5
+
+
+def check_helix_resolution(N, m, t, R):
+    """N as an int, or ValueError naming N: the localized helix (m, t) with end rotation R needs
+    N - 2 >= 6 lambda edges (6 per core width L / lambda) and at most 0.5 rad of twist per edge."""
+    N = check_int_at_least("N", N, 8)
+    lam = math.sqrt(max(t - m * m / 4.0, 0.0))
+    need = max(math.ceil(EDGES_PER_CORE * lam), math.ceil(abs(R) / MAX_TWIST_PER_EDGE)) + 2
+    if N < need:
+        raise ValueError(f"N = {N} is too few nodes for the loop asked (lambda = {lam:.3g}, end rotation "
+                         f"{R / TWO_PI:.3g} turns): N >= {need}")
+    return N
+
+
 def helical_start(scene, m, t, phi):
     """A starting state q for ``scene`` (an ``EndLoadedRod``) near the localized helix (m, t): the
     analytic centreline at the interior nodes' arc lengths (centred on the rod's midpoint, the near
@@ -649,12 +687,11 @@ def straight_buckling_moment(rod, T, phi_hi=None, tol=1e-10):
     L = float(rod.clamp_length)
     B = float(rod.material.B)
     fr = ForceLoadedRod(rod, "slide")
-    u_all = fr.straight(T)
-    ext = float(u_all[-1]) * float(rod.length_scale)
+    ext = float(fr.straight(T)[-1]) * float(rod.length_scale)
     scene = with_end_offset(rod, ext * np.asarray(rod.axis))
-    u = jnp.asarray(u_all[:-1])
 
     def low(phi):
+        u = jnp.asarray(fr.straight(T, phi)[:-1])
         return float(_straight_lowest(scene, u, jnp.asarray(float(phi)))[0])
 
     # bracket: the threshold lies between the infinite rod's 2 sqrt(BT) and above Greenhill's M L/B
@@ -683,9 +720,12 @@ def _clamped_twist_matrix(m, t, n_quad=64):
     def f(s):
         s = np.asarray(s, dtype=float)
         e = np.exp(1j * a * s)
-        return np.stack([np.ones_like(s, dtype=complex), e * np.cosh(b * s), e * np.sinh(b * s) / b], axis=-1)
+        if abs(b) < 5.0:
+            return np.stack([np.ones_like(s, dtype=complex), e * np.cosh(b * s), e * np.sinh(b * s) / b], axis=-1)
+        # large |b| (long rods): the same span with columns bounded on [0, 1] (no overflow)
+        return np.stack([np.ones_like(s, dtype=complex), e * np.exp(b * (s - 1.0)), e * np.exp(-b * s)], axis=-1)
 
-    x, w = np.polynomial.legendre.leggauss(n_quad)
+    x, w = np.polynomial.legendre.leggauss(max(n_quad, int(4 * abs(b)) + 16))
     integral = 0.5 * np.sum(w[:, None] * f(0.5 * (x + 1.0)), axis=0)
     return np.stack([f(0.0), f(1.0), integral], axis=0)
 
@@ -701,13 +741,49 @@ def clamped_tension_twist_threshold(B, T, L, n_scan=400):
     t = T * L * L / B
     sig = lambda m: float(np.linalg.svd(_clamped_twist_matrix(m, t), compute_uv=False)[-1])  # noqa: E731
     hi = 2.0 * math.sqrt(t) + 12.0
-    grid = np.linspace(0.05 * hi, hi, n_scan)
+    grid = np.linspace(0.05 * hi, hi, max(n_scan, min(int(50 * hi), 40000)))
+    n_scan = grid.size
     vals = np.array([sig(m) for m in grid])
     scale = np.max(vals)
     for i in range(1, n_scan - 1):
         if vals[i] <= vals[i - 1] and vals[i] <= vals[i + 1]:
             res = minimize_scalar(sig, bounds=(grid[i - 1], grid[i + 1]), method="bounded",
-                                  options={"xatol": 1e-13 * hi})
-            if res.fun < 1e-8 * scale:
-                return res.x * B / L
+                                  options={"xatol": 1e-10 * hi})
+            if res.fun < 1e-4 * scale:
+                # polish: det(m) is analytic, ~ det'(m*) (m - m*) near the root with a complex
+                # slope; least-squares real steps (Gauss-Newton on |det|^2) converge quadratically
+                det = lambda m: np.linalg.det(_clamped_twist_matrix(m, t))  # noqa: E731
+                m = res.x
+                for _ in range(20):
+                    dm = 1e-6 * max(1.0, abs(m))
+                    slope = (det(m + dm) - det(m - dm)) / (2.0 * dm)
+                    step = -float(np.real(np.conj(slope) * det(m))) / float(abs(slope) ** 2)
+                    m += step
+                    if abs(step) < 1e-14 * max(1.0, abs(m)):
+                        break
+                if sig(m) < 1e-9 * scale:
+                    return m * B / L
     raise ValueError(f"no buckling moment found below m = {hi:.4g} (t = {t:.4g})")
+
+
+def tangent_angles(x, axis=(0.0, 0.0, 1.0)):
+    """The angle (M,) of each edge of the polyline x (N, 3) to ``axis``."""
+    e = np.diff(np.asarray(x, dtype=float), axis=0)
+    e /= np.linalg.norm(e, axis=1)[:, None]
+    a = np.asarray(axis, dtype=float)
+    return np.arccos(np.clip(e @ (a / np.linalg.norm(a)), -1.0, 1.0))
+
+
+def envelope_error(x, m, t, L=1.0, axis=(0.0, 0.0, 1.0)):
+    """L1 distance over s, integral |theta_h(s) - theta(s)| ds / L, between the tangent angle of
+    a clamped rod's nodes x (N, 3) (edge i at s = i h - L/2 from the midpoint, h = L / (N - 2):
+    edges 0 and N-2 are the clamps) and the localized helix's theta(s) (``localized_helix_curve``)."""
+    th = tangent_angles(x, axis)
+    n_edges = th.size
+    h = L / (n_edges - 1)
+    s = np.arange(n_edges) * h - 0.5 * L
+    lam = math.sqrt(t - m * m / 4.0)
+    exact = np.arccos(np.clip(1.0 - 2.0 * lam * lam / t / np.cosh(lam * s / L) ** 2, -1.0, 1.0))
+    w = np.full(n_edges, h)
+    w[[0, -1]] = 0.5 * h  # trapezoidal weights between the clamps
+    return float(np.sum(w * np.abs(th - exact)) / L)

@@ -1,0 +1,161 @@
+"""Rods under end loads (issue 19): end shortening, tension, end rotation.
+
+Validated against the localized helical buckle of Neukirch, van der Heijden and Thompson (2002,
+eqs. 14-15): for (m, t, gamma) the analytic end rotation R and end shortening d are imposed on the
+discrete clamped rod, which is solved by Newton from the analytic centreline; its end moment M and
+tension T (exact derivatives of the energy) must give back m = M L/B and t = T L^2/B. The discrete
+error is O(h^2) with a large constant (the loop's core is L/lambda wide): measured at N = 120 and
+240 (benchmarks/helical_buckling.py has N = 480 too), Richardson's extrapolation of the two meets
+1e-3. Infinite-rod formulas: lambda = sqrt(t - m^2/4) >= 14 keeps the finite-length error
+(~ e^-lambda) out of the way; D/L = 2e-4 keeps the stretch (T/EA = t (D/L)^2 / 16 < 1e-6) out.
+"""
+import math
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxrod import endloads as el
+from jaxrod.material import Material
+from jaxrod.topology import writhe
+
+NS = (120, 240)
+# (m, t, nu): lambda = 14.1 and 16.6; theta_max = 109 and 147 degrees; gamma = 2/3 and 1
+SETS = ((20.0, 300.0, 0.5), (10.0, 300.0, 0.0))
+D_OVER_L = 2e-4
+
+
+def _rod(N, nu, d, contact=None):
+    return el.shortened_rod(N, 1.0, Material.from_ratio(B=1.0, nu=nu, D=D_OVER_L), shortening=d,
+                            contact_stiffness=contact)
+
+
+@pytest.fixture(scope="module")
+def helices():
+    out = {}
+    for N in NS:
+        for (m, t, nu) in SETS:
+            ref = el.localized_helix(m, t, 1.0 / (1.0 + nu))
+            rod = _rod(N, nu, ref.d)
+            e = el.solve(rod, ref.R, el.helical_start(rod, m, t, ref.R), k=4)
+            out[N, m] = (ref, rod, e, el.end_loads(rod, e.q, ref.R, e.neighbourhood))
+    return out
+
+
+def test_analytic_helix_is_self_consistent():
+    """The closed-form theta(s), integrated (``localized_helix_curve``), has the end shortening d,
+    the largest angle theta_max and the writhe (of the curve with long straight tails) that
+    eqs. 14-15 give; and the inverse map (d, R, gamma) -> (m, t) finds (m, t) back."""
+    m, t, gamma = 20.0, 300.0, 2.0 / 3.0
+    ref = el.localized_helix(m, t, gamma)
+    s = np.linspace(-2.0, 2.0, 2001)
+    theta, _, r = el.localized_helix_curve(m, t, s)
+    span = r[-1, 2] - r[0, 2]
+    assert abs((s[-1] - s[0] - span) - ref.d) < 1e-9
+    assert abs(theta.max() - ref.theta_max) < 1e-4  # the grid's nearest point to the peak
+    far = 1e4  # rays: the ray-closed writhe to O(L / far)
+    ext = np.concatenate([[r[0] - [0, 0, far]], r, [r[-1] + [0, 0, far]]])
+    assert abs(float(writhe(jnp.asarray(ext), closed=False)) - ref.Wr) < 1e-3  # polygon of 4000 edges
+    back = el.localized_helix_from_shortening(ref.d, ref.R, gamma)
+    assert any(abs(h.m - m) < 1e-9 * m and abs(h.t - t) < 1e-9 * t for h in back)
+
+
+def test_end_loads_match_nvdht_after_richardson(helices):
+    """m and t to 1e-3 relative, theta_max to 1e-3 rad, from N = 120 and 240 (O(h^2))."""
+    r = (NS[1] / NS[0]) ** 2
+    for (m, t, nu) in SETS:
+        (ref, _, e1, l1), (_, _, e2, l2) = helices[NS[0], m], helices[NS[1], m]
+        assert e1.solution.converged and e2.solution.converged
+        m_h = [l.M for l in (l1, l2)]
+        t_h = [l.T for l in (l1, l2)]
+        th_h = [el.tangent_angles(e.x).max() for e in (e1, e2)]
+        extrapolate = lambda a: (r * a[1] - a[0]) / (r - 1.0)  # noqa: E731
+        assert abs(extrapolate(m_h) / m - 1.0) < 1e-3, (m, m_h)
+        assert abs(extrapolate(t_h) / t - 1.0) < 1e-3, (t, t_h)
+        # the largest sampled angle (edge midpoints): 1e-3 rad after extrapolation (measured 1.0e-3, 3e-4)
+        assert abs(extrapolate(th_h) - ref.theta_max) < 2e-3
+        # second order: the error shrinks by ~4 from N = 120 to 240 (measured 3.9 to 4.2)
+        for a, exact in ((m_h, m), (t_h, t)):
+            ratio = (a[0] - exact) / (a[1] - exact)
+            assert 3.0 < ratio < 5.0, (a, exact, ratio)
+
+
+def test_envelope_error_falls_with_N(helices):
+    for (m, t, nu) in SETS:
+        errs = [el.envelope_error(helices[N, m][2].x, m, t) for N in NS]
+        assert errs[1] < errs[0] / 2.5, errs
+
+
+def test_linking_number_twist_moment_and_stability(helices):
+    """Lk = Wr + Tw = R / 2 pi to roundoff; the twisting moment C * twist per length is M (the
+    twist equation makes it uniform); the stability is reported with the axial rotation (an
+    exact symmetry of coaxial clamps) removed."""
+    for (N, m), (ref, rod, e, loads) in helices.items():
+        assert abs(e.Lk - ref.R / (2 * math.pi)) < 1e-10
+        assert abs(loads.M_twist - loads.M) < 1e-9 * abs(loads.M)
+        assert e.stability.n_zero_modes == 1
+        assert abs(e.Wr - ref.Wr) < 0.05  # the loop's writhe, finite rod and discrete
+    # measured Morse indices: 1 for both sets (the centred loop under rigid loading, a saddle)
+    assert all(e.stability.n_negative == 1 for (_, _, e, _) in helices.values())
+
+
+def test_end_loads_are_derivatives_of_the_equilibrium_energy(helices):
+    """T = -dE/d(shortening) and M = dE/dphi along the equilibria (envelope theorem), by central
+    differences of re-solved equilibria."""
+    m, t, nu = SETS[0]
+    ref, rod, e, loads = helices[NS[0], m]
+    # steps: small enough for the curvature of E (T ~ d^-2: 1e-4 in d), large enough for the
+    # solves' gradient tolerance (1e-8, near the stiff stretch's roundoff)
+    h = 1e-4
+    energies = []
+    for ds in (-h, h):
+        r2 = el.with_shortening(rod, ref.d + ds)
+        energies.append(el.solve(r2, ref.R, e.q, with_stability=False).energy)
+    assert abs(-(energies[1] - energies[0]) / (2 * h) / loads.T - 1.0) < 1e-6
+    h = 1e-3
+    energies = [el.solve(rod, ref.R + dp, e.q, with_stability=False).energy for dp in (-h, h)]
+    assert abs((energies[1] - energies[0]) / (2 * h) / loads.M - 1.0) < 1e-6
+
+
+def test_force_control_reproduces_the_displacement_controlled_state(helices):
+    """Under the dead load T measured at the imposed shortening, the force-controlled rod (end
+    sliding on the axis) is in equilibrium at the same shape: its extension is minus the
+    shortening and its moment M."""
+    m, t, nu = SETS[0]
+    ref, rod, e, loads = helices[NS[0], m]
+    fr = el.ForceLoadedRod(rod, "slide")
+    f = fr.solve(loads.T, ref.R, fr.u_from(e.q, -ref.d * np.asarray(rod.axis)))
+    assert f.converged and f.grad_norm <= 1e-8
+    assert abs(f.extension + ref.d) < 1e-9 and abs(f.M / loads.M - 1.0) < 1e-9
+    assert abs(f.Lk - ref.R / (2 * math.pi)) < 1e-10
+    assert f.morse >= e.stability.n_negative  # a dead load constrains less than fixed ends (measured 1 and 1)
+    # the end free in space (ForceLoadedRod(rod, "free")) is checked by benchmarks/helical_buckling.py
+    # (one more compiled shape: ~10 s)
+
+
+def test_straight_rod_buckling_moment_under_tension():
+    """The straight clamped rod under tension T buckles at the continuum moment of the clamped
+    problem (``clamped_tension_twist_threshold``, O(h^2)), which tends to Greenhill's
+    8.9868 B/L as T -> 0 and to 2 sqrt(BT) as L sqrt(T/B) grows."""
+    assert abs(el.clamped_tension_twist_threshold(1.0, 1e-6, 1.0) - 8.98681892) < 1e-5
+    rod = _rod(NS[0], 0.5, 0.0)
+    ratios = []
+    for t in (10.0, 100.0):
+        exact = el.clamped_tension_twist_threshold(1.0, t, 1.0)
+        _, Mc = el.straight_buckling_moment(rod, t)
+        assert abs(Mc / exact - 1.0) < 2e-3, (t, Mc, exact)  # measured 5.7e-4 and 1.1e-3 at N = 120
+        ratios.append(exact / el.tension_twist_threshold(1.0, t))
+    assert ratios[0] > ratios[1] > 1.0  # 1.649, 1.049
+
+
+def test_bad_input_is_refused_naming_the_parameter():
+    mat = Material.from_ratio(B=1.0, nu=0.5, D=0.01)
+    with pytest.raises(ValueError, match="shortening"):
+        el.shortened_rod(20, 1.0, mat, shortening=1.0)
+    rod = el.shortened_rod(20, 1.0, mat)
+    with pytest.raises(ValueError, match="T must be positive"):
+        el.ForceLoadedRod(rod).solve(0.0, 0.0, el.ForceLoadedRod(rod).straight(1.0))
+    with pytest.raises(ValueError, match="m\\^2 < 4 t"):
+        el.localized_helix(10.0, 20.0, 1.0)
+    with pytest.raises(ValueError, match="N"):
+        el.check_helix_resolution(30, 20.0, 300.0, 33.8)
