@@ -41,6 +41,7 @@ from .continuation import (  # noqa: E402
 )
 from .dynamics import DynamicsResult, damped_dynamics  # noqa: E402
 from . import contact, topology  # noqa: E402
+from . import endloads  # noqa: E402  (rods under end loads: jaxrod.endloads)
 
 # analysis (scipy.interpolate) and plotting (matplotlib) load on first use, e.g. ``jaxrod.plotting``:
 # together they were 0.6 s of the 2.0 s ``import jaxrod`` (measured with -X importtime), paid by
