@@ -221,7 +221,9 @@ def _study_arguments(t, default_out, length_rule):
     """The options that the trefoil and knot twist studies share."""
     t.add_argument("--D", type=float, default=8.0, help="rod diameter (default 8, mm)")
     t.add_argument("--L", type=float, default=292.0, help=f"rod length, {length_rule} (default 292, mm)")
-    t.add_argument("--N", type=int, default=121, help="number of nodes, at least 24 and L/D (default 121)")
+    t.add_argument("--N", type=int, default=None,
+                   help="number of nodes, at least 24 and L/D (default 121; with --accuracy the coarsest level, "
+                        "default the larger of 61 and L/D)")
     t.add_argument("--E", type=float, default=PAPER_YOUNG_MODULUS,
                    help=f"Young's modulus (default {PAPER_YOUNG_MODULUS:g}, the seed paper's elastomer, as in the API; "
                         "MPa = N/mm^2)")
@@ -232,6 +234,13 @@ def _study_arguments(t, default_out, length_rule):
     t.add_argument("--phi-max", type=_angle, default=14.0 * math.pi, help="highest twist, > 0 (default 14pi)")
     t.add_argument("--step", type=_angle, default=0.5 * math.pi, help="largest continuation step (default 0.5pi)")
     t.add_argument("--tol", type=_angle, default=2e-4 * math.pi, help="accuracy of the critical twists (default 2e-4pi)")
+    t.add_argument("--accuracy", type=_angle, default=None,
+                   help="instead of the twist study: both critical twists converged in N to this accuracy "
+                        "(e.g. 0.01pi): N, 2N-1, 4N-3, ... each started from the previous one, extrapolated "
+                        "(Richardson, order measured) until the error estimate is below it")
+    t.add_argument("--N-max", type=int, default=481,
+                   help="with --accuracy: the finest level allowed (default 481; dense linear algebra, "
+                        "minutes a side there)")
     t.add_argument("--out", default=default_out, help=f"output folder (default {default_out})")
     t.add_argument("--fresh", action="store_true", help="start over even if --out holds an interrupted run")
     t.add_argument("--serial", action="store_true",
@@ -541,8 +550,10 @@ def _trefoil(args):
     if knot_name is not None and L / D < IDEAL_ROPELENGTH[knot_name]:
         raise ValueError(f"--L {args.L:g} / --D {args.D:g} = {L / D:.3f} is below the ideal {knot_name} knot's ropelength "
                          f"{IDEAL_ROPELENGTH[knot_name]}: no such knot exists (raise --L or lower --D)")
-    check_int_at_least("N", args.N, MIN_TREFOIL_NODES)
     need = math.ceil(L / D - 1e-9)
+    if args.N is None:
+        args.N = 121 if args.accuracy is None else max(61, need)
+    check_int_at_least("N", args.N, MIN_TREFOIL_NODES)
     if args.N < need:
         raise ValueError(f"--N {args.N} gives edges of {L / args.N / D:.2f} D: self-contact needs edges no longer "
                          f"than the diameter: raise --N to at least L/D = {need}")
@@ -560,6 +571,13 @@ def _trefoil(args):
     _output_folder(args.out)
     args.hold(folder_lock(args.out))  # one run per folder, taken before any compilation
     stiffness = DEFAULT_CONTACT_STIFFNESS if args.contact_stiffness is None else args.contact_stiffness
+    if args.accuracy is not None:
+        check_positive("accuracy", args.accuracy)
+        if args.N_max < 4 * args.N - 3:
+            raise ValueError(f"--N-max {args.N_max} leaves fewer than three levels from --N {args.N} "
+                             f"(N, 2N-1, 4N-3): give --N-max at least {4 * args.N - 3}")
+        _check_knot_memory(args.N_max)
+        return _accuracy(args, _study_scene(args, knot_name, stiffness), stiffness)
     _check_knot_memory(args.N)
     scene = _study_scene(args, knot_name, stiffness)
     if not args.fresh:  # a folder of another run: refused now, not after the compilation
@@ -613,6 +631,59 @@ def _trefoil(args):
             side = "neither (the two sides are mirror images within round-off)"
         print(f"tightening side: {side}; time {summary['seconds']:.1f} s{resumed}; data in {args.out}/")
     return 0
+
+
+def _accuracy(args, scene, stiffness):
+    """--accuracy: both sides' first branch ends converged in N (jaxrod.convergence), written to
+    --out (levels/ as they are found, convergence.json, convergence.csv, convergence.png)."""
+    import csv
+
+    from .convergence import converged_critical_twists, resolution_levels
+
+    if args.fresh:
+        import shutil
+
+        shutil.rmtree(os.path.join(args.out, "levels"), ignore_errors=True)
+    levels = resolution_levels(args.N, args.N_max)
+    bar = _Progress(args, 0, args.command)
+    say = bar.say
+    say(f"{scene.name}: D = {args.D}, L = {args.L}, nu = {args.nu}, kappa_c = {stiffness}; critical twists to "
+        f"{args.accuracy / math.pi:g} pi, N = {', '.join(map(str, levels))} at most; writing {args.out}/")
+    say(args.compile_notice)
+    t0 = time.perf_counter()
+    try:
+        result = converged_critical_twists(scene, args.accuracy, N_max=args.N_max, span=max(-args.phi_min, args.phi_max),
+                                           step=args.step, progress=say, parallel=not args.serial, out=args.out)
+    finally:
+        bar.close()
+    seconds = time.perf_counter() - t0
+    with open(os.path.join(args.out, "convergence.csv"), "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["side", "N", "phi_star", "phi_star_over_pi", "phi_error", "kind", "seconds"])
+        for side, r in result.items():
+            for lv in r.levels:
+                w.writerow([side, lv.N, repr(lv.phi_star), repr(lv.phi_star / math.pi), repr(lv.phi_error), lv.kind,
+                            f"{lv.seconds:.3f}"])
+    if not args.no_figures:
+        from .plotting import plot_resolution_convergence
+
+        path = os.path.join(args.out, "convergence.png")
+        plot_resolution_convergence(result, path, title=f"{scene.name}, D/L = {args.D / args.L:.4f}: "
+                                                        f"critical twists converged in N")
+        say(f"wrote {path}")
+    summary = {side: r.as_json() for side, r in result.items()}
+    summary.update({"D": args.D, "L": args.L, "nu": args.nu, "contact_stiffness": stiffness,
+                    "accuracy": args.accuracy, "seconds": seconds, "out": args.out})
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        for side, key in (("plus", "phi_plus"), ("minus", "phi_minus")):
+            r = result[side]
+            ns = "/".join(str(lv.N) for lv in r.levels)
+            print(f"{key:10s} = {r.phi_star / math.pi:+.5f} pi +- {r.error / math.pi:.1e} pi "
+                  f"(N = {ns}, order {r.extrapolation.order:.2f}) " + ("" if r.reached else f"NOT CONVERGED: {r.reason}"))
+        print(f"time {seconds:.1f} s; data in {args.out}/")
+    return 0 if all(r.reached for r in result.values()) else 1
 
 
 def _check_knot_memory(n_nodes):

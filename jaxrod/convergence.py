@@ -207,18 +207,37 @@ def refine_scene(scene, x, N):
                         name=scene.name, contact_stiffness=contact)
 
 
-def _level(scene, side, phi_start, start, span, step, tol, say):
+def _level(scene, side, phi_start, start, span, step, tol, say, cancel):
     """Follow ``scene``'s stable branch from ``start`` (an Equilibrium at phi_start) towards
-    side * span; its first end as a Level."""
+    side * span; its first end as a Level. ``cancel`` (an Event) set: stop at the next point."""
     from .continuation import follow_twist
+    from .study import _Cancelled
+
+    def on_point(point):
+        if cancel is not None and cancel.is_set():
+            raise _Cancelled
 
     t0 = time.perf_counter()
     sign = 1.0 if side == "plus" else -1.0
-    path = follow_twist(scene, phi_start, sign * span, step=step, start=start, tol=tol, switch=False)
+    path = follow_twist(scene, phi_start, sign * span, step=step, start=start, tol=tol, switch=False,
+                        on_point=on_point)
     states = tuple((p.equilibrium.phi, np.asarray(p.equilibrium.q)) for p in path.points)
     if not path.instabilities:
         return None, path.reason, states
     inst = path.instabilities[0]
+    if "contact" in scene.terms:
+        # The stable-only engine counts eigenvalues inside the near-zero band kept for sliding
+        # modes as zero; a shape mode negative in that band means the branch ended earlier,
+        # unseen (issue 17: the trefoil's opening side at N >= 241). Such a level is refused.
+        from .continuation import CONTACT_NEGATIVE_TOL
+        from .stability import shape_modes_in_band
+
+        hidden = shape_modes_in_band(scene, inst.equilibrium, CONTACT_NEGATIVE_TOL)
+        if hidden:
+            return None, (f"the last stable state at {inst.equilibrium.phi / math.pi:+.5f} pi has {len(hidden)} "
+                          f"shape mode(s) with negative eigenvalues inside the near-zero band (lowest "
+                          f"{hidden[0][0]:.1e}): the branch ended earlier than the stable-only continuation "
+                          f"sees, so this level's phi* is not trusted"), states
     level = Level(int(scene.n_nodes), float(inst.phi), float(inst.phi_error), str(inst.kind.value),
                   float(phi_start), time.perf_counter() - t0, states)
     say(f"{side}: N = {level.N}: phi* = {level.phi_star / math.pi:+.6f} pi +- {level.phi_error / math.pi:.1e} pi "
@@ -226,35 +245,51 @@ def _level(scene, side, phi_start, start, span, step, tol, say):
     return level, path.reason, states
 
 
-def _side(scene, side, accuracy, N_levels, span, step, tol, say, cancel):
+def _side(scene, side, accuracy, N_levels, span, step, tol, say, cancel, store):
     from .equilibrium import relax_to_minimum
+    from .study import _Cancelled
 
     levels = []
-    start = relax_to_minimum(scene, 0.0)
-    current, phi_start = scene, 0.0
+    current, phi_start, start = scene, 0.0, None
     ext = None
     for k, N in enumerate(N_levels):
         if cancel is not None and cancel.is_set():
-            break
-        if k > 0:
+            raise _Cancelled
+        kept = None if store is None else store.load(side, N)
+        if kept is not None:  # a level finished by an interrupted run: its states start the next one
+            say(f"{side}: N = {N}: phi* = {kept.phi_star / math.pi:+.6f} pi (kept from the interrupted run)")
+            levels.append(kept)
+            current = None  # rebuilt from the kept states at the next level
+        elif k == 0:
+            start = relax_to_minimum(scene, 0.0)
+        else:
             prev = levels[-1]
             margin = max(0.25 * math.pi, abs(prev.phi_star - levels[-2].phi_star) if k > 1 else math.pi)
             target = prev.phi_star - math.copysign(margin, prev.phi_star)
             # the previous level's stable state nearest below the target (in |phi|), resampled
             below = [(phi, q) for phi, q in prev.states if abs(phi) <= abs(target)]
-            phi_start, q = below[-1] if below else prev.states[0]
-            x = current.positions(q)
-            current = refine_scene(current, x, N)
+            if below:
+                phi_start, q = below[-1]
+                x = np.asarray(q)[: 3 * prev.N].reshape(prev.N, 3)  # a closed rod's q starts with its nodes
+            else:  # the previous level began past the target: from the drawing, relaxed at 0
+                phi_start, x = 0.0, scene.positions(np.asarray(scene.q_init))
+            current = refine_scene(scene, x, N)
+            # the imposed twist spread evenly over the rod, not left as a jump at the joint (a
+            # jump of several turns at one vertex drives strands through each other as it relaxes)
+            q0 = np.array(current.q_init)
+            q0[3 * N:] += phi_start * np.arange(N) / N
             try:
-                start = relax_to_minimum(current, phi_start)
-            except Exception as exc:  # a resampled start that does not relax: from phi = 0 instead
+                start = relax_to_minimum(current, phi_start, q0=q0)
+            except Exception as exc:  # noqa: BLE001 -- a resampled start that does not relax: from 0
                 say(f"{side}: N = {N}: resampled start at {phi_start / math.pi:+.3f} pi failed ({exc}); from 0")
                 phi_start, start = 0.0, relax_to_minimum(current, 0.0)
-        level, reason, _ = _level(current, side, phi_start, start, span, step, tol, say)
-        if level is None:
-            return SideConvergence(side, tuple(levels), ext, accuracy, False,
-                                   f"no branch end within {span / math.pi:g} pi at N = {N}: {reason}")
-        levels.append(level)
+        if kept is None:
+            level, reason, _ = _level(current, side, phi_start, start, span, step, tol, say, cancel)
+            if level is None:
+                return SideConvergence(side, tuple(levels), ext, accuracy, False, f"at N = {N}: {reason}")
+            levels.append(level)
+            if store is not None:
+                store.save(side, level)
         if len(levels) >= 2:
             ext = richardson([lv.N for lv in levels], [lv.phi_star for lv in levels])
             say(f"{side}: extrapolated phi* = {ext.value / math.pi:+.6f} pi +- {ext.error / math.pi:.1e} pi "
@@ -263,7 +298,7 @@ def _side(scene, side, accuracy, N_levels, span, step, tol, say, cancel):
                 return SideConvergence(side, tuple(levels), ext, accuracy, True,
                                        f"error estimate {ext.error / math.pi:.1e} pi <= {accuracy / math.pi:.1e} pi "
                                        f"at N = {levels[-1].N}")
-    why = "cancelled" if (cancel is not None and cancel.is_set()) else f"N_max = {N_levels[-1]} reached"
+    why = f"N_max = {N_levels[-1]} reached"
     err = "no estimate" if ext is None else f"error estimate {ext.error / math.pi:.1e} pi"
     return SideConvergence(side, tuple(levels), ext, accuracy, False,
                            f"{why} before the accuracy asked for ({err} > {accuracy / math.pi:.1e} pi)")
@@ -278,14 +313,18 @@ def resolution_levels(N_start, N_max):
 
 
 def converged_critical_twists(scene, accuracy, sides=("plus", "minus"), N_max=481, span=16 * math.pi,
-                              step=0.5 * math.pi, progress=None, parallel=True, levels=None):
+                              step=0.5 * math.pi, progress=None, parallel=True, levels=None, out=None):
     """The first branch end on each side of the closed rod ``scene`` (the coarsest level, e.g.
     ``trefoil(D, L, 61)``), refined in N until its extrapolated value's error estimate is below
     ``accuracy`` (radians). Each level is followed from a state resampled from the previous one,
     its end bracketed to accuracy / 20. Returns {side: SideConvergence}. parallel: the sides in
     two threads (the compiled code is shared). N_max: the finest level allowed (the dense
     linear algebra grows as N^3: 481 takes minutes a side). levels: the node counts to use instead
-    (increasing, the first the scene's own, at least three; N_max is then ignored)."""
+    (increasing, the first the scene's own, at least three; N_max is then ignored). out: a folder
+    where every finished level is kept as it is found (``levels/<side>_N<N>.npz``: phi*, its
+    bracket, the branch's states), and ``convergence.json`` at the end; a run interrupted and
+    called again with the same arguments reuses the finished levels (Ctrl-C: the sides stop at
+    their next continuation point)."""
     accuracy = check_positive("accuracy", accuracy)
     check_positive("span", span)
     check_positive("step", step)
@@ -306,25 +345,78 @@ def converged_critical_twists(scene, accuracy, sides=("plus", "minus"), N_max=48
     say = progress or (lambda s: None)
     say(f"{scene.name}: levels N = {', '.join(map(str, levels))} at most, until the error estimate is "
         f"<= {accuracy / math.pi:g} pi (each end bracketed to {tol / math.pi:.1e} pi)")
-    results, errors = {}, {}
+    from .study import _run_all
+
+    store = None if out is None else _LevelStore(out, scene, accuracy, span, step)
+    results = {}
     cancel = threading.Event()
 
     def run(side):
-        try:
-            results[side] = _side(scene, side, accuracy, levels, span, step, tol, say, cancel)
-        except BaseException as exc:  # noqa: BLE001 (re-raised in the caller's thread)
-            errors[side] = exc
-            cancel.set()
+        results[side] = _side(scene, side, accuracy, levels, span, step, tol, say, cancel, store)
 
-    if parallel and len(sides) > 1:
-        threads = [threading.Thread(target=run, args=(s,), daemon=True) for s in sides]
-        for t in threads:
-            t.start()
-        for t in threads:
-            t.join()
-    else:
-        for s in sides:
-            run(s)
-    if errors:
-        raise next(iter(errors.values()))
-    return {s: results[s] for s in sides}
+    _run_all(run, [(s,) for s in sides], parallel, cancel)
+    results = {s: results[s] for s in sides}
+    if store is not None:
+        store.finish(results)
+    return results
+
+
+class _LevelStore:
+    """Finished levels on file, written atomically as they are found, read back on resume. The
+    run's parameters are in levels/run.json; another run's folder is refused."""
+
+    def __init__(self, out, scene, accuracy, span, step):
+        import json
+        import os
+
+        self.out = out
+        self.folder = os.path.join(out, "levels")
+        os.makedirs(self.folder, exist_ok=True)
+        params = {"name": scene.name, "N0": int(scene.n_nodes), "L": float(scene.length),
+                  "D": None if scene.material.D is None else float(scene.material.D), "B": float(scene.material.B),
+                  "C": float(scene.material.C), "Lk0": float(scene.Lk0), "terms": list(scene.terms),
+                  "contact_stiffness": float(getattr(scene, "contact_stiffness", 0.0) or 0.0),
+                  "accuracy": float(accuracy), "span": float(span), "step": float(step)}
+        path = os.path.join(self.folder, "run.json")
+        if os.path.exists(path):
+            with open(path) as f:
+                before = json.load(f)
+            if before != params:
+                changed = sorted(k for k in params if before.get(k) != params[k])
+                raise ValueError(f"out: {out} holds levels of another accuracy study (different {', '.join(changed)}): "
+                                 f"use another folder or delete {self.folder}")
+        else:
+            from .atomic import write_json
+
+            write_json(path, params)
+
+    def _path(self, side, N):
+        import os
+
+        return os.path.join(self.folder, f"{side}_N{N:05d}.npz")
+
+    def load(self, side, N):
+        import os
+
+        path = self._path(side, N)
+        if not os.path.exists(path):
+            return None
+        with np.load(path) as f:
+            states = tuple((float(phi), q) for phi, q in zip(f["state_phi"], f["state_q"]))
+            return Level(int(f["N"]), float(f["phi_star"]), float(f["phi_error"]), str(f["kind"]), float(f["phi_start"]),
+                         float(f["seconds"]), states)
+
+    def save(self, side, level):
+        from .atomic import savez
+
+        states = level.states
+        savez(self._path(side, level.N), N=level.N, phi_star=level.phi_star, phi_error=level.phi_error,
+              kind=level.kind, phi_start=level.phi_start, seconds=level.seconds,
+              state_phi=np.array([phi for phi, _ in states]), state_q=np.stack([q for _, q in states]))
+
+    def finish(self, results):
+        import os
+
+        from .atomic import write_json
+
+        write_json(os.path.join(self.out, "convergence.json"), {s: r.as_json() for s, r in results.items()})

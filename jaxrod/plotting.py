@@ -541,3 +541,33 @@ def plot_atlas_convergence(series, path=None, title="Atlas: convergence in N"):
     axes[0][0].set_ylabel("phi* / pi (rad / pi)")
     fig.suptitle(title, fontsize=10)
     return _finish(fig, path)
+
+
+def plot_resolution_convergence(result, path=None, title="Critical twists converged in N"):
+    """phi*/pi against 10^4/N^2 for each side of a ``jaxrod.convergence.converged_critical_twists``
+    result ({side: SideConvergence}), with the extrapolated value (at 1/N^2 = 0) and its error bar."""
+    sides = list(result)
+    if not sides:
+        raise ValueError("result: no side")
+    fig, axes = plt.subplots(1, len(sides), figsize=(3.8 * len(sides), 3.4), squeeze=False)
+    for ax, side in zip(axes[0], sides):
+        r = result[side]
+        n = np.array([lv.N for lv in r.levels], dtype=float)
+        phi = np.array([lv.phi_star for lv in r.levels]) / math.pi
+        colour = "C0" if side == "plus" else "C3"
+        ax.plot(1e4 / n ** 2, phi, "o-", color=colour, label="levels")
+        for ni, v in zip(n, phi):
+            ax.annotate(f"N = {ni:.0f}", (1e4 / ni ** 2, v), textcoords="offset points", xytext=(4, 4), fontsize=7)
+        if r.extrapolation is not None:
+            e = r.extrapolation
+            ax.errorbar([0.0], [e.value / math.pi], yerr=[e.error / math.pi], fmt="s", color="k", capsize=3,
+                        label=f"extrapolated {e.value / math.pi:+.4f} pi\n+- {e.error / math.pi:.1e} pi "
+                              f"(order {e.order:.2f})")
+        ax.set_xlim(left=-0.05 * max(1e4 / n.min() ** 2, 1e-9))
+        ax.set_title(f"{side} ({'reached' if r.reached else 'not reached'})", fontsize=9)
+        ax.set_xlabel("10^4 / N^2")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7)
+    axes[0][0].set_ylabel("phi* / pi (rad / pi)")
+    fig.suptitle(title, fontsize=10)
+    return _finish(fig, path)
