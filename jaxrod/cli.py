@@ -808,7 +808,7 @@ def _number_list(flag, text, kind):
 
 
 # Options whose value is an angle such as -12pi: argparse would read a leading '-' as an option.
-_ANGLE_OPTIONS = ("--phi-min", "--phi-max", "--step", "--tol", "--span")
+_ANGLE_OPTIONS = ("--phi-min", "--phi-max", "--step", "--tol", "--span", "--accuracy")
 
 
 def _join_angle_values(argv):

@@ -1,6 +1,7 @@
 """Accuracy asked for, not N (issue 18, item 2): Richardson extrapolation with the order measured,
 an error estimate that covers the true error, and the refinement study on Michell's ring, whose
 limit is known (2 pi sqrt(3)(1 + nu))."""
+import json
 import math
 
 import pytest
@@ -87,3 +88,48 @@ def test_michell_ring_converged_to_the_accuracy_asked_for():
     # the finest level alone is further off than the extrapolation
     assert abs(side.levels[-1].phi_star - analytic) > 3 * abs(side.phi_star - analytic)
     assert any("extrapolated" in line for line in said)
+
+
+def test_cli_accuracy_writes_its_files_and_resumes_from_the_finished_levels(tmp_path, monkeypatch, capsys):
+    # The CLI layer of --accuracy (flags, files, printing, exit code, resume): the levels' physics
+    # replaced by a known convergence phi*(N) = phi_inf + c / N^2 + d / N^3 (the continuation itself
+    # is tested above on Michell's ring and in test_trefoil_twist.py).
+    import numpy as np
+
+    import jaxrod.convergence as conv
+    import jaxrod.equilibrium as equilibrium
+    from jaxrod.cli import main
+
+    limits = {"plus": 6.42 * PI, "minus": -11.09 * PI}
+    calls = []
+
+    def fake_level(scene, side, phi_start, start, span, step, tol, say, cancel):
+        N = int(scene.n_nodes)
+        calls.append((side, N))
+        phi = limits[side] + math.copysign(1.0, limits[side]) * (4e3 / N ** 2 - 2e4 / N ** 3)
+        q = np.asarray(scene.q_init)
+        states = ((phi_start, q), (0.5 * (phi_start + phi), q))
+        return conv.Level(N, phi, tol, "jump", phi_start, 0.01, states), "", states
+
+    monkeypatch.setattr(conv, "_level", fake_level)
+    monkeypatch.setattr(equilibrium, "relax_to_minimum", lambda scene, phi, q0=None: None)
+    out = tmp_path / "acc"
+    args = ["trefoil", "--accuracy", "0.01pi", "--N-max", "481", "--out", str(out), "--quiet"]
+    assert main(args + ["--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    for side in ("plus", "minus"):
+        s = summary[side]
+        assert s["reached"] and s["error"] <= 0.01 * PI and abs(s["phi_star"] - limits[side]) <= s["error"]
+        assert [lv["N"] for lv in s["levels"]] == [61, 121, 241]
+    assert sorted(calls) == sorted((s, n) for s in ("plus", "minus") for n in (61, 121, 241))
+    for name in ("convergence.json", "convergence.csv", "convergence.png", "levels/run.json",
+                 "levels/plus_N00241.npz"):
+        assert (out / name).stat().st_size > 0, name
+    # again: every level is on file, none is computed again; the same numbers, printed as text
+    calls.clear()
+    assert main(args) == 0
+    text = capsys.readouterr().out
+    assert calls == [] and f"{summary['plus']['phi_star'] / PI:+.5f} pi" in text and "NOT CONVERGED" not in text
+    # another study's folder is refused, naming what differs
+    assert main(["trefoil", "--accuracy", "0.02pi", "--N-max", "481", "--out", str(out), "--quiet"]) == 2
+    assert "accuracy" in capsys.readouterr().err
