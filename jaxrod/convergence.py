@@ -38,7 +38,7 @@ from __future__ import annotations
 import math
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -232,17 +232,53 @@ def _level(scene, side, phi_start, start, span, step, tol, say, cancel):
         from .continuation import CONTACT_NEGATIVE_TOL
         from .stability import shape_modes_in_band
 
-        hidden = shape_modes_in_band(scene, inst.equilibrium, CONTACT_NEGATIVE_TOL)
-        if hidden:
-            return None, (f"the last stable state at {inst.equilibrium.phi / math.pi:+.5f} pi has {len(hidden)} "
-                          f"shape mode(s) with negative eigenvalues inside the near-zero band (lowest "
-                          f"{hidden[0][0]:.1e}): the branch ended earlier than the stable-only continuation "
-                          f"sees, so this level's phi* is not trusted"), states
+        if shape_modes_in_band(scene, inst.equilibrium, CONTACT_NEGATIVE_TOL):
+            level, why = _level_by_events(scene, side, path, phi_start, tol, say)
+            if level is None:
+                return None, why, states
+            return replace(level, seconds=time.perf_counter() - t0, states=states), "", states
     level = Level(int(scene.n_nodes), float(inst.phi), float(inst.phi_error), str(inst.kind.value),
                   float(phi_start), time.perf_counter() - t0, states)
     say(f"{side}: N = {level.N}: phi* = {level.phi_star / math.pi:+.6f} pi +- {level.phi_error / math.pi:.1e} pi "
         f"({level.kind}), {level.seconds:.1f} s")
     return level, path.reason, states
+
+
+def _level_by_events(scene, side, path, phi_start, tol, say):
+    """The level's end located as the first event (fold or branch point) of the pseudo-arclength
+    continuation (``jaxrod.bifurcation``, sliding modes told apart by their shape, events located
+    on extended systems), from the last state of ``path`` with no shape mode negative inside the
+    near-zero band. Used where the stable-only engine's band hid the end (its last 'stable' state
+    already had such modes). Returns (Level or None, reason)."""
+    from .bifurcation import ContinuationOptions, PseudoArclength, continuation
+    from .bifurcation.rods import knot_problem
+    from .continuation import CONTACT_NEGATIVE_TOL
+    from .stability import shape_modes_in_band
+
+    clean = [p.equilibrium for p in path.points if not shape_modes_in_band(scene, p.equilibrium, CONTACT_NEGATIVE_TOL)]
+    if not clean:
+        return None, "every state of the branch has a shape mode negative inside the near-zero band"
+    e = clean[-1]
+    hidden_at = path.instabilities[0].equilibrium.phi
+    say(f"{side}: N = {scene.n_nodes}: the stable-only continuation's band hid the end (a shape mode negative "
+        f"at {hidden_at / math.pi:+.5f} pi); locating it by pseudo-arclength from {e.phi / math.pi:+.5f} pi")
+    sign = 1.0 if side == "plus" else -1.0
+    lo, hi = sorted((e.phi, hidden_at + sign * 0.5 * math.pi))
+    opts = ContinuationOptions(ds=sign * 0.05, ds_min=1e-6, ds_max=0.25, p_min=lo, p_max=hi, max_steps=120,
+                               newton_tol=1e-10, eig_rtol=1e-13, n_eig=6, resolve_crossings=1e-4)
+    rod = knot_problem(scene, np.asarray(e.q), e.phi)
+    branch = continuation(rod.problem, PseudoArclength(), opts, throw=False)
+    events = [ev for ev in branch.events if ev.kind in ("fold", "branch_point") and ev.morse_before == 0]
+    if not events:
+        return None, (f"the end hidden in the near-zero band was not located by the pseudo-arclength continuation "
+                      f"({branch.result}: {branch.message})")
+    ev = events[0]
+    if not ev.converged:
+        return None, f"the {ev.kind} at {ev.p / math.pi:+.6f} pi was not located to event_tol (residual {ev.residual:.1e})"
+    level = Level(int(scene.n_nodes), float(ev.p), 0.0, ev.kind, float(phi_start), 0.0)
+    say(f"{side}: N = {level.N}: phi* = {level.phi_star / math.pi:+.8f} pi ({ev.kind}, multiplicity "
+        f"{ev.multiplicity}, critical eigenvalue {ev.critical_eigenvalue:.1e}, located by Newton on its extended system)")
+    return level, ""
 
 
 def _side(scene, side, accuracy, N_levels, span, step, tol, say, cancel, store):
