@@ -39,7 +39,7 @@ import jaxrod  # noqa: E402,F401  (float64 before any test builds arrays)
 _LONGEST_FIRST = ("test_notebooks.py", "test_atlas.py", "test_bifurcation_knots.py", "test_resume.py",
                   "test_sparse_stability.py", "test_readme.py", "test_notebook_damped_dynamics.py",
                   "test_interrupt_and_lock.py", "test_dynamics.py", "test_bifurcation_rods.py", "test_trefoil_twist.py",
-                  "test_michell.py", "test_conventions.py", "test_cli.py", "test_energy.py", "test_hessian.py",
+                  "test_michell.py", "test_conventions.py", "test_endloads.py", "test_convergence.py", "test_cli.py", "test_energy.py", "test_hessian.py",
                   "test_knots.py", "test_solvers.py", "test_topology.py", "test_analysis.py", "test_contact.py",
                   "test_bifurcation_analytic.py", "test_stability.py", "test_properties.py", "test_lk0.py",
                   "test_banded.py", "test_analyze_study_files.py", "test_plotting.py", "test_bad_input.py")
