@@ -35,6 +35,7 @@ writhe of the loop).
 from __future__ import annotations
 
 import copy
+import dataclasses
 import functools
 import math
 from dataclasses import dataclass
@@ -47,7 +48,8 @@ from .contact import contact_energy  # noqa: F401  (the contact term is the scen
 from .hessian import scaled_hessian as structured_scaled_hessian
 from .material import Material
 from .scenes import ClampedRod, _pytree, clamped_rod
-from .solvers import DampedNewton, Newton, minimise
+from .solvers import DampedNewton, Newton, minimise, orthonormal_columns
+from .stability import DEFAULT_NEGATIVE_TOL, _lowest_of, _stability_from_lowest
 from .validation import check_finite, check_int_at_least, check_positive
 
 __all__ = [
@@ -68,6 +70,7 @@ __all__ = [
     "tension_twist_threshold",
     "clamped_tension_twist_threshold",
     "check_helix_resolution",
+    "check_rotation_resolution",
     "tangent_angles",
     "envelope_error",
     "solve",
@@ -183,88 +186,222 @@ class EndLoads:
     M_twist: float
 
 
+# ---------------------------------------------------------------------- compiled pieces
+# Python compositions of separately jitted pieces (as ``jaxrod.stability``): the structured
+# Hessian, the largest program to compile (~2-4 s per scene shape), is compiled once per shape in
+# ``_rod_hessian`` and shared by Newton's steps, the stability analysis, the force-loaded rod's
+# rod block and ``straight_buckling_moment``; the gradient and the end loads are one program
+# (``_rod_gradients``). One jit around each solve compiled the Hessian into each of them.
+def _f64(x):
+    """A float64 array (never weakly typed: one compiled program per shape, whatever the caller passes)."""
+    return jnp.asarray(np.asarray(x, dtype=np.float64))
+
+
+def _offset_scaled_energy(scene, u, off, phi, nbr):
+    return with_end_offset(scene, off).scaled_energy(u, phi, nbr)
+
+
 @jax.jit
-def _end_loads(scene, q, phi, nbr):
-    e = lambda off, p: scene.__class__.energy(with_end_offset(scene, off), q, p, nbr)  # noqa: E731
-    f, M = jax.grad(e, argnums=(0, 1))(scene.end_offset, phi)
-    tw = scene.vertex_twists(q, phi, nbr)
+def _rod_all(scene, u, phi, nbr):
+    """Everything Newton, the stability analysis and the end loads need at scaled DOFs u, in one
+    program: (scaled energy, its gradient in u (n,), dE/d(far clamp offset) (3,) and dE/dphi in
+    physical units, the twisting moment C * twist per length, the structured scaled Hessian
+    (n, n), the zero-mode generators (n, k), scaled)."""
+    val, (gu, goff, gphi) = jax.value_and_grad(_offset_scaled_energy, argnums=(1, 2, 3))(
+        scene, u, scene.end_offset, phi, nbr)
+    tw = scene.vertex_twists(u * scene.dof_scale, phi, nbr)
     M_twist = scene.material.C * jnp.sum(tw) / jnp.sum(scene.voronoi)
-    return jnp.dot(f, scene.axis), M, f, M_twist
+    es = scene.energy_scale
+    return (val, gu, goff * es, gphi * es, M_twist, structured_scaled_hessian(scene, u, phi, nbr),
+            scene.scaled_zero_modes(u, phi))
+
+
+def _rod_gradients(scene, u, phi, nbr):
+    """(scaled energy, gradient in u, dE/d(offset), dE/dphi, M_twist), host arrays."""
+    return jax.device_get(_rod_all(scene, _f64(u), _f64(phi), nbr)[:5])
+
+
+def _rod_hessian(scene, u, phi, nbr):
+    """(structured scaled Hessian (n, n), zero-mode generators (n, k)), host arrays."""
+    return jax.device_get(_rod_all(scene, _f64(u), _f64(phi), nbr)[5:])
+
+
+def _project(h, z):
+    """(H with the zero modes projected out and lifted to the top, n_zero), on the host: as
+    ``jaxrod.stability``'s projected Hessian (``orthonormal_columns``, ``project_out``)."""
+    h, z = np.asarray(h), np.asarray(z)
+    if z.shape[1] == 0:
+        return h, 0
+    uz, sv, _ = np.linalg.svd(z, full_matrices=False)
+    keep = sv > 1e-10 * np.max(sv) if np.max(sv) > 0.0 else np.zeros_like(sv, dtype=bool)
+    z = uz * keep[None, :]
+    hz = h @ z  # project_out (jaxrod.hessian) in numpy
+    hp = h - z @ hz.T - hz @ z.T + z @ (z.T @ hz) @ z.T
+    hp = hp + (2.0 * np.max(np.sum(np.abs(h), axis=1)) + 1.0) * (z @ z.T)
+    return 0.5 * (hp + hp.T), int(np.sum(keep))
+
+
+@jax.jit
+def _offset_coupling(scene, u, phi, nbr):
+    """(n + 3, 3): d/d(far clamp offset, physical) of [dE_s/du (n,), dE_s/d(offset) (3,)], E_s the
+    scaled energy: the force-loaded rod's end rows and columns, by 3 forward-over-reverse products."""
+    def g(off):
+        gu, goff = jax.grad(_offset_scaled_energy, argnums=(1, 2))(scene, u, off, phi, nbr)
+        return jnp.concatenate([gu, goff])
+
+    return jax.jacfwd(g)(scene.end_offset)
+
+
+def _rod_stability(scene, u, phi, nbr, k, tol=DEFAULT_NEGATIVE_TOL):
+    """``jaxrod.stability.stability`` on the shared compiled Hessian (same projection, same
+    lowest-eigenpair routine and tolerance)."""
+    h, z = _rod_hessian(scene, u, phi, nbr)
+    hp, n_zero = _project(h, z)
+    lam, vec, n_neg = _lowest_of(hp, tol)
+    return _stability_from_lowest(np.asarray(lam), np.asarray(vec), int(n_zero), int(n_neg), k, tol)
 
 
 def end_loads(scene, q, phi, nbr=None):
     """The ``EndLoads`` of state q (physical DOFs) at end rotation phi: exact partial derivatives of
     the energy in the far clamp's position and in phi (at an equilibrium these are the total
-    derivatives of the equilibrium energy, by the envelope theorem)."""
-    T, M, f, Mt = jax.device_get(_end_loads(scene, jnp.asarray(q, dtype=jnp.float64),
-                                            jnp.asarray(phi, dtype=jnp.float64), nbr))
-    return EndLoads(float(T), float(M), np.asarray(f), float(Mt))
+    derivatives of the equilibrium energy, by the envelope theorem). ``nbr``: the state's
+    neighbourhood (``Equilibrium.neighbourhood``; built here if None)."""
+    q = np.asarray(q, dtype=float)
+    phi = check_finite("phi", phi)
+    if nbr is None:
+        nbr = scene.neighbourhood(q, phi)
+    _, _, f, M, Mt = _rod_gradients(scene, scene.to_scaled(q), phi, nbr)
+    f = np.asarray(f)
+    return EndLoads(float(np.dot(f, np.asarray(scene.axis))), float(M), f, float(Mt))
 
 
 # ---------------------------------------------------------------------- Newton with a capped step
-@functools.partial(jax.jit, static_argnames=("fun", "hessian", "zero_modes"))
-def _capped_newton_loop(fun, hessian, zero_modes, y0, args, gtol, max_step, max_steps):
-    grad = jax.grad(fun)
-
-    def step(y, g):
-        h = hessian(y, args)
-        if zero_modes is not None:
-            z = zero_modes(y, args)
-            z = z / jnp.maximum(jnp.linalg.norm(z, axis=0, keepdims=True), 1e-300)
-            h = h + (jnp.max(jnp.abs(jnp.diag(h))) + 1.0) * (z @ z.T)
-        dy = -jnp.linalg.solve(h, g)
-        big = jnp.max(jnp.abs(dy))
-        return dy * jnp.minimum(1.0, max_step / jnp.maximum(big, 1e-300))
-
-    def cond(c):
-        y, g, it = c
-        gn = jnp.max(jnp.abs(g))
-        return (it < max_steps) & (gn > gtol) & jnp.isfinite(gn)
-
-    def body(c):
-        y, g, it = c
-        y = y + step(y, g)
-        return y, grad(y, args), it + 1
-
-    y, g, it = jax.lax.while_loop(cond, body, (y0, grad(y0, args), 0))
-    return y, fun(y, args), jnp.max(jnp.abs(g)), it
+def _capped_step(h, z, g, max_step):
+    """Newton's step -H^-1 g (exact zero modes z lifted), its largest component capped; on the host
+    (LAPACK: nothing to compile per shape)."""
+    h, g = np.array(h, dtype=float), np.asarray(g, dtype=float)
+    if z is not None:
+        z = np.asarray(z, dtype=float)
+        z = z / np.maximum(np.linalg.norm(z, axis=0, keepdims=True), 1e-300)
+        h += (np.max(np.abs(np.diag(h))) + 1.0) * (z @ z.T)
+    dy = -np.linalg.solve(h, g)
+    big = np.max(np.abs(dy))
+    return dy * min(1.0, max_step / max(big, 1e-300))
 
 
-def newton(fun, hessian, y0, args, zero_modes=None, gtol=1e-9, max_step=0.5, max_steps=100, throw=True):
+@functools.lru_cache(maxsize=None)
+def _jitted_value_and_grad(fun):
+    return jax.jit(jax.value_and_grad(fun))
+
+
+@functools.lru_cache(maxsize=None)
+def _jitted(fun):
+    return jax.jit(fun)
+
+
+def _compiled(fun):
+    """fun itself if it is jitted or a host composition of jitted pieces (``fun.host``), else
+    ``jax.jit(fun)`` (cached per function)."""
+    if fun is None or hasattr(fun, "lower") or getattr(fun, "host", False):
+        return fun
+    return _jitted(fun)
+
+
+def _host(fun):
+    fun.host = True
+    return fun
+
+
+def newton(fun, hessian, y0, args, zero_modes=None, gtol=1e-9, max_step=0.5, max_steps=100, throw=True,
+           value_and_grad=None, evaluate=None):
     """The stationary point of ``fun(y, args)`` nearest y0 (stable or not) by Newton's method with
-    the exact ``hessian(y, args)``, each step's largest component capped at ``max_step`` (scaled
-    units: an edge length), exact symmetry directions ``zero_modes(y, args) -> (n, k)`` lifted out
-    of the solve. No line search on |grad|: on a stiff (nearly inextensible) rod a good Newton step
-    often raises |grad| for one iteration (a second-order stretch), which a merit test refuses,
-    and the iteration then crawls. Returns a ``jaxrod.solvers.Solution``."""
+    the exact ``hessian(y, args)`` (it may return (H, zero modes)), each step's largest component
+    capped at ``max_step`` (scaled units: an edge length), exact symmetry directions
+    ``zero_modes(y, args) -> (n, k)`` lifted out of the solve. No line search on |grad|: on a
+    stiff (nearly inextensible) rod a good Newton step often raises |grad| for one iteration (a
+    second-order stretch), which a merit test refuses, and the iteration then crawls.
+    A Python loop over jitted pieces (``hessian``, ``zero_modes`` and ``value_and_grad(y, args)
+    -> (value, grad)`` are jitted unless already jitted or marked host compositions), so that
+    the compiled Hessian is shared with the stability analysis; ``evaluate(y, args) -> (value,
+    grad, H, zero modes)``, where given, replaces all three (one program per step). Returns a
+    ``jaxrod.solvers.Solution``."""
     from .solvers import ConvergenceError, Solution, StopReason  # noqa: PLC0415
 
-    y, value, gnorm, it = _capped_newton_loop(fun, hessian, zero_modes, jnp.asarray(y0, dtype=jnp.float64), args,
-                                              float(gtol), float(max_step), int(max_steps))
-    gnorm = float(gnorm)
+    vg = None if evaluate is not None else (_jitted_value_and_grad(fun) if value_and_grad is None
+                                            else _compiled(value_and_grad))
+    hess, zm = _compiled(hessian), _compiled(zero_modes)
+    max_steps = check_int_at_least("max_steps", max_steps, 0)
+    y = np.asarray(y0, dtype=np.float64)
+    cap = float(max_step)
+    it = 0
+    while True:
+        if evaluate is not None:
+            value, g, h, z = evaluate(y, args)
+        else:
+            value, g = vg(y, args)
+        gnorm = float(np.max(np.abs(g)))
+        if not np.isfinite(gnorm) or gnorm <= gtol or it >= max_steps:
+            break
+        if evaluate is None:
+            h = hess(y, args)
+            z = zm(y, args) if zm is not None else None
+            if isinstance(h, tuple):
+                h, z = h
+        y = y + _capped_step(h, z, g, cap)
+        it += 1
     ok = bool(np.isfinite(gnorm) and gnorm <= gtol)
     reason = StopReason.CONVERGED if ok else (StopReason.NONFINITE if not np.isfinite(gnorm) else StopReason.MAX_STEPS)
-    sol = Solution(y=np.asarray(y), value=float(value), grad_norm=gnorm, iterations=int(it), converged=ok,
+    sol = Solution(y=np.asarray(y), value=float(value), grad_norm=gnorm, iterations=it, converged=ok,
                    reason=reason, solver="capped_newton", gtol=float(gtol))
     if throw and not ok:
         raise ConvergenceError(f"capped Newton did not converge: {sol!r}", solution=sol)
     return sol
 
 
+def _rod_evaluate(u, args):
+    """(scaled energy, gradient, Hessian, zero modes) of an ``EndLoadedRod``: one program."""
+    scene, phi, nbr = args
+    val, gu, _, _, _, h, z = jax.device_get(_rod_all(scene, _f64(u), _f64(phi), nbr))
+    return float(val), gu, h, z
+
+
+def _check_scene(scene):
+    if not isinstance(scene, EndLoadedRod):
+        raise TypeError(f"scene must be an EndLoadedRod (jaxrod.endloads.shortened_rod), got {type(scene).__name__}")
+
+
+def _check_q(scene, name, q):
+    q = np.asarray(q, dtype=float)
+    if q.shape != (scene.n_dof,):
+        raise ValueError(f"{name} must have shape ({scene.n_dof},) (the scene's DOFs), got {q.shape}")
+    if not np.all(np.isfinite(q)):
+        raise ValueError(f"{name} must be finite")
+    return q
+
+
 def solve(scene, phi, q0, gtol=1e-8, max_step=0.5, max_steps=200, k=8, throw=True, with_stability=True):
     """Equilibrium (``jaxrod.Equilibrium``, with its stability) of an ``EndLoadedRod`` at end
     rotation phi nearest q0 (physical DOFs), by ``newton`` on the scaled energy (the axial
-    rotation lifted out). Without contact only (the exact writhe fixes the twist's branch)."""
-    from .equilibrium import equilibrium_from_solution, scaled_energy, scaled_zero_modes, structured_hessian  # noqa
+    rotation lifted out). Without contact only (the exact writhe fixes the twist's branch).
+    Refused: a scene too coarse for its end rotation (more than ``MAX_TWIST_PER_EDGE`` rad of
+    imposed twist per edge: N named), non-finite phi or q0, non-positive gtol or max_step."""
+    from .equilibrium import equilibrium_from_solution  # noqa: PLC0415
 
+    _check_scene(scene)
     phi = check_finite("phi", phi)
-    nbr = scene.neighbourhood(np.asarray(q0, dtype=float), phi)
-    sol = newton(scaled_energy, structured_hessian, scene.to_scaled(np.asarray(q0, dtype=float)),
-                 (scene, jnp.asarray(phi), nbr), zero_modes=scaled_zero_modes, gtol=gtol, max_step=max_step,
-                 max_steps=max_steps, throw=throw)
+    check_positive("gtol", gtol)
+    check_positive("max_step", max_step)
+    check_rotation_resolution(scene.n_nodes, phi)
+    q0 = _check_q(scene, "q0", q0)
+    nbr = scene.neighbourhood(q0, phi)
+    sol = newton(None, None, scene.to_scaled(q0), (scene, phi, nbr), gtol=gtol, max_step=max_step,
+                 max_steps=max_steps, throw=throw, evaluate=_rod_evaluate)
     q = scene.from_scaled(np.asarray(sol.y))
     nbr = scene.neighbourhood(q, phi)
-    return equilibrium_from_solution(scene, phi, sol, nbr, k=k, with_stability=with_stability)
+    e = equilibrium_from_solution(scene, phi, sol, nbr, k=k, with_stability=False)
+    if with_stability:
+        e = dataclasses.replace(e, stability=_rod_stability(scene, sol.y, phi, nbr, k))
+    return e
 
 
 # ---------------------------------------------------------------------- force control
@@ -324,24 +461,6 @@ def force_hessian(u, args):
     return 0.5 * (h + h.T)
 
 
-@jax.jit
-def _force_report(u, args):
-    """Diagnostics, Hessian, zero mode and gradient of a force-loaded state: one program."""
-    return _force_diagnostics(u, args), force_hessian(u, args), force_zero_modes(u, args), _force_grad(u, args)
-
-
-def _force_diagnostics(u, args):
-    scene, phi, T, nbr, basis = args
-    ur, w = _force_split(scene, u)
-    off = (w * scene.length_scale) @ basis
-    rod = with_end_offset(scene, off)
-    q = ur * rod.dof_scale
-    x = rod.nodes(q)
-    M = jax.grad(lambda p: rod.energy(q, p, nbr))(phi)
-    tw = rod.twist(q, phi, nbr)
-    return q, x, off, M, tw, rod.energy(q, phi, nbr)
-
-
 @dataclass(frozen=True)
 class ForceEquilibrium:
     """An equilibrium of a ``ForceLoadedRod``: u (scaled DOFs, the end's included), q (physical rod
@@ -386,6 +505,10 @@ class ForceLoadedRod:
         self.end = end
         self.k = _BASES[end]
         self.basis = _offset_basis(self.rod, end)
+        self._basis = np.asarray(self.basis, dtype=float)
+        self._axis = np.asarray(self.rod.axis, dtype=float)
+        self._ls = float(self.rod.length_scale)
+        self._es = float(self.rod.energy_scale)
 
     def args(self, phi, T, nbr=None):
         return (self.rod, jnp.asarray(phi, dtype=jnp.float64), jnp.asarray(T, dtype=jnp.float64), nbr, self.basis)
@@ -413,38 +536,106 @@ class ForceLoadedRod:
 
     def solve(self, T, phi, u0, method="newton", gtol=1e-8, max_steps=None, throw=True, k=6):
         """Equilibrium at (T, phi) from u0: "newton" (nearest stationary point) or "damped" (a
-        minimiser: damped Newton). Returns a ``ForceEquilibrium`` with its stability."""
+        minimiser: damped Newton). Returns a ``ForceEquilibrium`` with its stability.
+        Refused: non-positive or non-finite T, non-finite phi or u0, a rod too coarse for the
+        end rotation (N named)."""
+        from .solvers import ConvergenceError  # noqa: PLC0415
+
         T = check_positive("T", T)
         phi = check_finite("phi", phi)
-        args = self.args(phi, T)
+        check_positive("gtol", gtol)
+        check_rotation_resolution(self.rod.n_nodes, phi)
+        u0 = np.asarray(u0, dtype=float)
+        if u0.shape != (self.rod.n_dof + self.k,):
+            raise ValueError(f"u0 must have shape ({self.rod.n_dof + self.k},) (rod DOFs and end offset), got {u0.shape}")
+        if not np.all(np.isfinite(u0)):
+            raise ValueError("u0 must be finite")
         if method == "newton":
-            sol = newton(force_energy, force_hessian, np.asarray(u0, dtype=float), args, zero_modes=force_zero_modes,
-                         gtol=gtol, max_steps=200 if max_steps is None else max_steps, throw=throw)
+            # the neighbourhood (the writhe that fixes the twist's branch; contact candidates) is
+            # frozen during Newton's steps and rebuilt at the result, until the result is an
+            # equilibrium with its own neighbourhood
+            u = u0
+            for _ in range(5):
+                nbr = self._neighbourhood(u, phi)
+                sol = newton(None, self._hessian, u, (phi, T, nbr), gtol=gtol,
+                             max_steps=200 if max_steps is None else max_steps, throw=False,
+                             value_and_grad=self._value_and_grad)
+                u = sol.y
+                if not sol.converged:
+                    break
+                _, g = self._value_and_grad(u, (phi, T, self._neighbourhood(u, phi)))
+                gnorm = float(np.max(np.abs(g)))
+                if gnorm <= gtol:
+                    break
+                sol = dataclasses.replace(sol, grad_norm=gnorm, converged=False)
+            if throw and not sol.converged:
+                raise ConvergenceError(f"capped Newton did not converge: {sol!r}", solution=sol)
         elif method == "damped":
             solver = DampedNewton(hessian=force_hessian, zero_modes=force_zero_modes)
-            sol = minimise(force_energy, np.asarray(u0, dtype=float), args, solver, gtol, max_steps, throw=throw)
+            sol = minimise(force_energy, u0, self.args(phi, T), solver, gtol, max_steps, throw=throw)
         else:
             raise ValueError(f"method must be 'newton' or 'damped', got {method!r}")
         return self.equilibrium(sol.y, T, phi, sol=sol, k=k)
 
+    # host compositions of the rod's compiled pieces (``_rod_gradients``, ``_rod_hessian``,
+    # ``_offset_coupling``): the force-loaded rod shares the displacement-controlled rod's programs
+    def _state(self, u):
+        u = np.asarray(u, dtype=float)
+        n = self.rod.n_dof
+        off = self._ls * (u[n:] @ self._basis)
+        return with_end_offset(self.rod, off), u[:n], off
+
+    def _neighbourhood(self, u, phi):
+        rod, ur, _ = self._state(u)
+        return rod.neighbourhood(np.asarray(rod.from_scaled(ur)), phi)
+
+    @_host
+    def _value_and_grad(self, u, args):
+        phi, T, nbr = args
+        rod, ur, off = self._state(u)
+        val, gu, goff, _, _ = _rod_gradients(rod, ur, phi, nbr)
+        value = float(val) - float(T) * float(off @ self._axis) / self._es
+        gw = self._basis @ (np.asarray(goff) - float(T) * self._axis) * self._ls / self._es
+        return value, np.concatenate([np.asarray(gu), gw])
+
+    @_host
+    def _hessian(self, u, args):
+        """(exact Hessian of ``force_energy`` (n + k, n + k), the zero mode (n + k, 1))."""
+        phi, T, nbr = args
+        rod, ur, off = self._state(u)
+        h_rr, z_r = _rod_hessian(rod, ur, phi, nbr)
+        c = np.asarray(_offset_coupling(rod, _f64(ur), _f64(phi), nbr))
+        n, b = ur.shape[0], self._basis
+        cols = self._ls * c[:n] @ b.T
+        hww = self._ls ** 2 * b @ c[n:] @ b.T
+        h = np.block([[np.asarray(h_rr), cols], [cols.T, 0.5 * (hww + hww.T)]])
+        zw = b @ np.cross(self._axis, off) / self._ls
+        return h, np.concatenate([np.asarray(z_r)[:, 0], zw])[:, None]
+
     def equilibrium(self, u, T, phi, sol=None, k=6):
-        args = self.args(phi, T)
-        u = jnp.asarray(u, dtype=jnp.float64)
-        (q, x, off, M, tw, energy), h, z, g = jax.device_get(_force_report(u, args))
+        from .equilibrium import _diagnostics  # noqa: PLC0415
+
+        u = np.asarray(u, dtype=float)
+        rod, ur, off = self._state(u)
+        nbr = rod.neighbourhood(np.asarray(rod.from_scaled(ur)), phi)
+        args = (phi, T, nbr)
+        _, g = self._value_and_grad(u, args)
+        h, z = self._hessian(u, args)
+        _, _, _, M, _ = _rod_gradients(rod, ur, phi, nbr)
+        q, x, _, terms, tw = jax.device_get(_diagnostics(rod, _f64(ur), _f64(phi), nbr))
         nz = np.linalg.norm(z)
         if nz > 0.0:  # lift the axial rotation (exact zero mode) above the spectrum
             z = z / nz
             p = np.eye(h.shape[0]) - z @ z.T
             h = p @ h @ p + (np.max(np.abs(np.diag(h))) + 1.0) * (z @ z.T)
         lam = np.linalg.eigvalsh(h)
-        rod = with_end_offset(self.rod, jnp.asarray(off))
-        wr = float(rod.exact_writhe(jnp.asarray(x)))
-        a = np.asarray(self.rod.axis)
+        wr = float(nbr.wr_ref)
         tol = 1e-10 * max(float(np.max(np.abs(np.diag(h)))), 1.0)
         return ForceEquilibrium(
-            u=np.asarray(u), q=np.asarray(q), x=np.asarray(x), end_offset=np.asarray(off),
-            extension=float(np.dot(off, a)), T=float(T), phi=float(phi), M=float(M), Wr=wr, Tw=float(tw),
-            Lk=wr + float(tw), energy=float(energy), grad_norm=float(np.max(np.abs(g))),
+            u=u, q=np.asarray(q), x=np.asarray(x), end_offset=np.asarray(off),
+            extension=float(np.dot(off, self._axis)), T=float(T), phi=float(phi), M=float(M), Wr=wr, Tw=float(tw),
+            Lk=wr + float(tw), energy=float(sum(float(v) for v in terms.values())),
+            grad_norm=float(np.max(np.abs(g))),
             converged=True if sol is None else bool(sol.converged), iterations=0 if sol is None else sol.iterations,
             eigenvalues=lam[:k], morse=int(np.sum(lam < -tol)))
 
@@ -622,6 +813,17 @@ EDGES_PER_CORE = 6.0
 MAX_TWIST_PER_EDGE = 0.5
 
 
+def check_rotation_resolution(N, phi):
+    """N as an int, or ValueError naming N: an end rotation phi (rad) spread over N - 1 edges needs
+    at most ``MAX_TWIST_PER_EDGE`` rad per edge (N >= |phi| / 0.5 + 2)."""
+    N = check_int_at_least("N", N, 5)
+    need = math.ceil(abs(float(phi)) / MAX_TWIST_PER_EDGE) + 2
+    if N < need:
+        raise ValueError(f"N = {N} is too few nodes for the end rotation {float(phi) / TWO_PI:.3g} turns "
+                         f"(at most {MAX_TWIST_PER_EDGE} rad of twist per edge): N >= {need}")
+    return N
+
+
 def check_helix_resolution(N, m, t, R):
     """N as an int, or ValueError naming N: the localized helix (m, t) with end rotation R needs
     N - 2 >= 6 lambda edges (6 per core width L / lambda) and at most 0.5 rad of twist per edge."""
@@ -670,18 +872,15 @@ def tension_twist_threshold(B, T):
     return 2.0 * math.sqrt(check_positive("B", B) * check_positive("T", T))
 
 
-@functools.partial(jax.jit, static_argnames=("n_low",))
-def _straight_lowest(scene, u, phi, n_low=2):
-    h = structured_scaled_hessian(scene, u, phi, None)
-    return jnp.linalg.eigvalsh(h)[:n_low]
-
-
 def straight_buckling_moment(rod, T, phi_hi=None, tol=1e-10):
     """The buckling twist of the straight rod ``rod`` (an EndLoadedRod at 0 shortening) under
     tension T (its ends held at the stretched length (1 + T/EA) L; the straight state's stability
     is the same under force control, its end motion decoupled from the lateral modes): the phi at
     which the straight state's lowest eigenvalue crosses zero (a double eigenvalue: the helical
     mode and its rotation), by bisection then secant. Returns (phi_c, M_c = C phi_c / L)."""
+    import scipy.linalg  # noqa: PLC0415
+
+    _check_scene(rod)
     T = check_positive("T", T)
     C = float(rod.material.C)
     L = float(rod.clamp_length)
@@ -689,10 +888,14 @@ def straight_buckling_moment(rod, T, phi_hi=None, tol=1e-10):
     fr = ForceLoadedRod(rod, "slide")
     ext = float(fr.straight(T)[-1]) * float(rod.length_scale)
     scene = with_end_offset(rod, ext * np.asarray(rod.axis))
+    u0 = fr.straight(T, 0.0)[:-1]
+    # the straight states all have writhe 0: one neighbourhood serves every phi
+    nbr = scene.neighbourhood(np.asarray(scene.from_scaled(u0)), 0.0)
 
     def low(phi):
-        u = jnp.asarray(fr.straight(T, phi)[:-1])
-        return float(_straight_lowest(scene, u, jnp.asarray(float(phi)))[0])
+        h, _ = _rod_hessian(scene, fr.straight(T, phi)[:-1], phi, nbr)
+        return float(scipy.linalg.eigh(np.asarray(h), subset_by_index=[0, 0], eigvals_only=True,
+                                       driver="evr", check_finite=False)[0])
 
     # bracket: the threshold lies between the infinite rod's 2 sqrt(BT) and above Greenhill's M L/B
     lo = 0.5 * min(2.0 * math.sqrt(B * T), 8.9868 * B / L) * L / C
@@ -730,6 +933,28 @@ def _clamped_twist_matrix(m, t, n_quad=64):
     return np.stack([f(0.0), f(1.0), integral], axis=0)
 
 
+def _clamped_twist_matrices(ms, t, n_quad=64):
+    """``_clamped_twist_matrix`` for an array of m (K,) at once: (K, 3, 3) (the scan's batch;
+    quadrature with the batch's largest point count)."""
+    ms = np.asarray(ms, dtype=float)
+    a = 0.5 * ms
+    b = np.sqrt((t - 0.25 * ms * ms).astype(complex))
+    b = np.where(np.abs(b) > 1e-12, b, 1e-12)
+    x, w = np.polynomial.legendre.leggauss(max(n_quad, int(4 * np.max(np.abs(b))) + 16))
+    small = (np.abs(b) < 5.0)[:, None]
+
+    def f(s):  # (K, n_s, 3) at points s (n_s,)
+        s = np.asarray(s, dtype=float)[None, :]
+        bb, e = b[:, None], np.exp(1j * a[:, None] * s)
+        with np.errstate(all="ignore"):
+            c1 = np.where(small, np.cosh(bb * s), np.exp(bb * (s - 1.0)))
+            c2 = np.where(small, np.sinh(bb * s) / bb, np.exp(-bb * s))
+        return np.stack([np.ones_like(e), e * c1, e * c2], axis=-1)
+
+    integral = 0.5 * np.einsum("q,kqj->kj", w, f(0.5 * (x + 1.0)))
+    return np.stack([f([0.0])[:, 0], f([1.0])[:, 0], integral], axis=1)
+
+
 def clamped_tension_twist_threshold(B, T, L, n_scan=400):
     """The buckling moment M_c of a straight rod of length L clamped at both ends under tension T
     (continuum, inextensible): the smallest m = M L / B at which ``_clamped_twist_matrix`` is
@@ -743,7 +968,7 @@ def clamped_tension_twist_threshold(B, T, L, n_scan=400):
     hi = 2.0 * math.sqrt(t) + 12.0
     grid = np.linspace(0.05 * hi, hi, max(n_scan, min(int(50 * hi), 40000)))
     n_scan = grid.size
-    vals = np.array([sig(m) for m in grid])
+    vals = np.linalg.svd(_clamped_twist_matrices(grid, t), compute_uv=False)[:, -1]
     scale = np.max(vals)
     for i in range(1, n_scan - 1):
         if vals[i] <= vals[i - 1] and vals[i] <= vals[i + 1]:

@@ -129,8 +129,21 @@ def test_force_control_reproduces_the_displacement_controlled_state(helices):
     assert abs(f.extension + ref.d) < 1e-9 and abs(f.M / loads.M - 1.0) < 1e-9
     assert abs(f.Lk - ref.R / (2 * math.pi)) < 1e-10
     assert f.morse >= e.stability.n_negative  # a dead load constrains less than fixed ends (measured 1 and 1)
-    # the end free in space (ForceLoadedRod(rod, "free")) is checked by benchmarks/helical_buckling.py
-    # (one more compiled shape: ~10 s)
+    # the Hessian Newton uses (rod block and end rows composed on the host from the rod's compiled
+    # pieces) against central differences of the gradient, for the sliding end and the end free in
+    # space (whose solve benchmarks/helical_buckling.py checks), off equilibrium
+    rng = np.random.default_rng(1)
+    for end in ("slide", "free"):
+        fe = el.ForceLoadedRod(rod, end)
+        u = fe.u_from(e.q, np.array([2e-3, -1e-3, -ref.d])) + 1e-3 * rng.standard_normal(rod.n_dof + fe.k)
+        args = (ref.R, loads.T, fe._neighbourhood(u, ref.R))
+        h, z = fe._hessian(u, args)
+        v = rng.standard_normal(u.size)
+        eps = 1e-6
+        fd = (fe._value_and_grad(u + eps * v, args)[1] - fe._value_and_grad(u - eps * v, args)[1]) / (2 * eps)
+        assert np.max(np.abs(fd - h @ v)) < 1e-6 * np.max(np.abs(h @ v)), end
+        # the zero mode: the energy is invariant under the rotation about the axis
+        assert abs(fe._value_and_grad(u, args)[1] @ z[:, 0]) < 1e-9 * np.linalg.norm(z)
 
 
 def test_straight_rod_buckling_moment_under_tension():
