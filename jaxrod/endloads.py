@@ -732,7 +732,7 @@ class LocalizedHelix:
 
 def localized_helix(m, t, gamma):
     """NvdHT 2002 eqs. 14-15 for m = ML/B, t = TL^2/B, gamma = C/B (needs m^2 < 4t)."""
-    m, t, gamma = float(m), check_positive("t", t), check_positive("gamma", gamma)
+    m, t, gamma = check_finite("m", m), check_positive("t", t), check_positive("gamma", gamma)
     if not m * m < 4.0 * t:
         raise ValueError(f"need m^2 < 4 t (below the straight rod's threshold M = 2 sqrt(BT)), got m = {m}, t = {t}")
     lam = math.sqrt(t - m * m / 4.0)
@@ -750,6 +750,8 @@ def localized_helix_from_shortening(d, R, gamma):
     from scipy.optimize import brentq  # noqa: PLC0415
 
     d, gamma = check_positive("d", d), check_positive("gamma", gamma)
+    if not d < 1.0:
+        raise ValueError(f"d (end shortening / L) must be below 1, got {d!r}")
     R = check_finite("R", R)
 
     def f(u):
@@ -772,7 +774,11 @@ def localized_helix_curve(m, t, s, L=1.0):
     removed: the tails lie on the z axis). Integrated with DOP853 (rtol 1e-12)."""
     from scipy.integrate import solve_ivp  # noqa: PLC0415
 
+    localized_helix(m, t, 1.0)  # m finite, t positive, m^2 < 4 t
+    L = check_positive("L", L)
     s = np.asarray(s, dtype=float)
+    if not np.all(np.isfinite(s)):
+        raise ValueError("s must be finite")
     lam = math.sqrt(t - m * m / 4.0)
     c = 2.0 * lam * lam / t
 
@@ -840,7 +846,11 @@ def helical_start(scene, m, t, phi):
     """A starting state q for ``scene`` (an ``EndLoadedRod``) near the localized helix (m, t): the
     analytic centreline at the interior nodes' arc lengths (centred on the rod's midpoint, the near
     clamp's point at the origin of s = -L/2), the twist spread evenly so the far clamp's frame is
-    turned by phi."""
+    turned by phi. Refused: N too few for the loop (``check_helix_resolution``), m^2 >= 4 t."""
+    _check_scene(scene)
+    phi = check_finite("phi", phi)
+    localized_helix(m, t, 1.0)  # m finite, t positive, m^2 < 4 t
+    check_helix_resolution(scene.n_nodes, m, t, phi)
     L = float(scene.clamp_length)
     n = scene.n_nodes
     h = L / (n - 2)
@@ -1003,6 +1013,8 @@ def envelope_error(x, m, t, L=1.0, axis=(0.0, 0.0, 1.0)):
     """L1 distance over s, integral |theta_h(s) - theta(s)| ds / L, between the tangent angle of
     a clamped rod's nodes x (N, 3) (edge i at s = i h - L/2 from the midpoint, h = L / (N - 2):
     edges 0 and N-2 are the clamps) and the localized helix's theta(s) (``localized_helix_curve``)."""
+    localized_helix(m, t, 1.0)  # m finite, t positive, m^2 < 4 t
+    L = check_positive("L", L)
     th = tangent_angles(x, axis)
     n_edges = th.size
     h = L / (n_edges - 1)

@@ -162,13 +162,52 @@ def test_straight_rod_buckling_moment_under_tension():
 
 
 def test_bad_input_is_refused_naming_the_parameter():
+    """Each refusal is one ValueError naming the parameter (issue 19, acceptance 5)."""
     mat = Material.from_ratio(B=1.0, nu=0.5, D=0.01)
-    with pytest.raises(ValueError, match="shortening"):
-        el.shortened_rod(20, 1.0, mat, shortening=1.0)
     rod = el.shortened_rod(20, 1.0, mat)
-    with pytest.raises(ValueError, match="T must be positive"):
-        el.ForceLoadedRod(rod).solve(0.0, 0.0, el.ForceLoadedRod(rod).straight(1.0))
-    with pytest.raises(ValueError, match="m\\^2 < 4 t"):
-        el.localized_helix(10.0, 20.0, 1.0)
-    with pytest.raises(ValueError, match="N"):
-        el.check_helix_resolution(30, 20.0, 300.0, 33.8)
+    fr = el.ForceLoadedRod(rod)
+    q0 = np.asarray(rod.q_init)
+    ref = el.localized_helix(20.0, 300.0, 2.0 / 3.0)  # R = 33.8 rad (5.4 turns), lambda = 14.1
+    bad = [
+        ("shortening", lambda: el.shortened_rod(20, 1.0, mat, shortening=1.0)),  # end shortening >= L
+        ("shortening", lambda: el.shortened_rod(20, 1.0, mat, shortening=-0.1)),
+        ("shortening", lambda: el.shortened_rod(20, 1.0, mat, shortening=float("nan"))),
+        ("N must", lambda: el.shortened_rod(3, 1.0, mat)),
+        ("length", lambda: el.shortened_rod(20, 0.0, mat)),
+        ("contact_stiffness", lambda: el.shortened_rod(20, 1.0, mat, contact_stiffness=-1.0)),
+        ("T must be positive", lambda: fr.solve(0.0, 0.0, fr.straight(1.0))),  # non-positive force
+        ("T must be positive", lambda: fr.solve(-2.0, 0.0, fr.straight(1.0))),
+        ("T must be finite", lambda: fr.solve(float("inf"), 0.0, fr.straight(1.0))),
+        ("phi", lambda: fr.solve(1.0, float("nan"), fr.straight(1.0))),
+        ("u0", lambda: fr.solve(1.0, 0.0, np.full(rod.n_dof + 1, np.nan))),
+        ("end must be", lambda: el.ForceLoadedRod(rod, "fixed")),
+        ("phi", lambda: el.solve(rod, float("nan"), q0)),
+        ("q0", lambda: el.solve(rod, 0.0, np.full_like(q0, np.inf))),
+        ("q0", lambda: el.solve(rod, 0.0, q0[:-1])),
+        ("gtol", lambda: el.solve(rod, 0.0, q0, gtol=-1.0)),
+        ("phi", lambda: el.end_loads(rod, q0, float("inf"))),
+        ("m\\^2 < 4 t", lambda: el.localized_helix(10.0, 20.0, 1.0)),
+        ("m must be finite", lambda: el.localized_helix(float("nan"), 20.0, 1.0)),
+        ("t must be positive", lambda: el.localized_helix(1.0, -20.0, 1.0)),
+        ("gamma", lambda: el.localized_helix(1.0, 20.0, 0.0)),
+        ("d must be positive", lambda: el.localized_helix_from_shortening(-0.1, 30.0, 1.0)),
+        ("d \\(end shortening / L\\) must be below 1", lambda: el.localized_helix_from_shortening(1.0, 30.0, 1.0)),
+        ("R must be finite", lambda: el.localized_helix_from_shortening(0.2, float("nan"), 1.0)),
+        ("T must be positive", lambda: el.straight_buckling_moment(rod, 0.0)),
+        ("L must be positive", lambda: el.clamped_tension_twist_threshold(1.0, 1.0, -1.0)),
+        # too few nodes for the turns asked: the loop's core (6 edges per L / lambda) or the twist (0.5 rad per edge)
+        ("N = 30 is too few", lambda: el.check_helix_resolution(30, 20.0, 300.0, 33.8)),
+        ("N = 20 is too few", lambda: el.helical_start(rod, 20.0, 300.0, ref.R)),
+        ("N = 20 is too few", lambda: el.solve(rod, ref.R, q0)),
+        ("N = 20 is too few", lambda: fr.solve(1.0, ref.R, fr.straight(1.0))),
+    ]
+    for match, call in bad:
+        with pytest.raises(ValueError, match=match):
+            call()
+    # the limits themselves: 0.5 rad per edge and 6 edges per core width, N = need passes
+    assert el.check_rotation_resolution(70, ref.R) == 70
+    with pytest.raises(ValueError, match="N >= 70"):
+        el.check_rotation_resolution(69, ref.R)
+    assert el.check_helix_resolution(87, 20.0, 300.0, ref.R) == 87
+    with pytest.raises(ValueError, match="N >= 87"):
+        el.check_helix_resolution(86, 20.0, 300.0, ref.R)
