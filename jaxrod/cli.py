@@ -238,6 +238,9 @@ def _study_arguments(t, default_out, length_rule):
                    help="instead of the twist study: both critical twists converged in N to this accuracy "
                         "(e.g. 0.01pi): N, 2N-1, 4N-3, ... each started from the previous one, extrapolated "
                         "(Richardson, order measured) until the error estimate is below it")
+    t.add_argument("--no-extrapolation", action="store_true",
+                   help="skip the rough error estimate of the study's critical twists (each end found again at "
+                        "N' = (N+1)/2 from the study's state, then Richardson; a few seconds)")
     t.add_argument("--N-max", type=int, default=481,
                    help="with --accuracy: the finest level allowed (default 481; dense linear algebra, "
                         "minutes a side there)")
@@ -604,6 +607,19 @@ def _trefoil(args):
     summary = study_summary(result)
     summary.update({"D": args.D, "L": args.L, "N": args.N, "nu": args.nu, "contact_stiffness": stiffness,
                     "out": args.out})
+    if not args.no_extrapolation and (summary["phi_plus"] is not None or summary["phi_minus"] is not None):
+        from .convergence import coarse_companion
+
+        say(f"estimating the discretisation error of phi*: each end again at N = {(args.N + 1) // 2}")
+        t_extra = time.perf_counter()
+        companion = coarse_companion(scene, args.out, result.critical, span=max(-args.phi_min, args.phi_max),
+                                     step=args.step, tol=args.tol, progress=say)
+        for side, (level, ext) in companion.items():
+            summary[f"phi_{side}_extrapolated"] = {"value": ext.value, "value_over_pi": ext.value / math.pi,
+                                                   "error": ext.error, "error_over_pi": ext.error / math.pi,
+                                                   "N": list(ext.N), "values": list(ext.values),
+                                                   "order": ext.order, "order_measured": ext.order_measured}
+        summary["seconds_extrapolation"] = time.perf_counter() - t_extra
     if args.command == "trefoil":
         summary["chirality"] = args.chirality
     else:
@@ -624,6 +640,11 @@ def _trefoil(args):
         for key in ("phi_plus", "phi_minus"):
             v = summary[key]
             print(f"{key:10s} = " + ("none in range" if v is None else f"{v:+.6f} rad = {v / math.pi:+.5f} pi"))
+            ext = summary.get(key + "_extrapolated")
+            if ext is not None:
+                print(f"{'':10s}   at N = {args.N}, not converged in N: extrapolated {ext['value_over_pi']:+.3f} pi "
+                      f"+- {ext['error_over_pi']:.2f} pi (from N = {ext['N'][0]} and {ext['N'][1]}, order 2 assumed; "
+                      f"--accuracy 0.01pi for a converged value)")
         total = summary.get("seconds_total")
         resumed = f" ({total:.1f} s with the interrupted runs)" if total and total > summary["seconds"] + 0.05 else ""
         side = summary.get("tightening_side")

@@ -456,3 +456,55 @@ class _LevelStore:
         from .atomic import write_json
 
         write_json(os.path.join(self.out, "convergence.json"), {s: r.as_json() for s, r in results.items()})
+
+
+def coarse_companion(scene, out, critical, span=16 * math.pi, step=0.5 * math.pi, tol=None, margin=0.5 * math.pi,
+                     progress=None):
+    """An error estimate for a finished twist study (``jaxrod.study.twist_study`` in ``out``, of the
+    closed rod ``scene`` at N nodes): each side's first branch end found again at the coarser
+    N_c = (N + 1) / 2 (every coarse node a node of the study's rod), started from the study's own
+    state ``margin`` before its end, resampled; then Richardson on the two levels, the order
+    assumed (2) and Roache's factor 3 on the difference. Cheap (a few continuation steps at N_c)
+    and deliberately rough: it says how far the study's phi* may be from the converged value, not
+    that value (``converged_critical_twists`` measures the order). Returns {side: (Level,
+    Extrapolation)} for the sides with an end; {} when N_c is below the rod's resolution (8
+    nodes; a knot: 24, and L/D)."""
+    import glob
+    import os
+
+    from .equilibrium import relax_to_minimum
+
+    say = progress or (lambda s: None)
+    N = int(scene.n_nodes)
+    N_c = (N + 1) // 2
+    need = 8
+    if "contact" in scene.terms:  # a knot: at least 24 nodes, and edges no longer than the diameter
+        need = max(24, math.ceil(float(scene.length) / float(scene.material.D) - 1e-9))
+    if N_c < need:
+        return {}
+    tol = critical.get("tol") if tol is None else tol
+    found = {}
+    for side in ("plus", "minus"):
+        first = [c for c in critical["instabilities"] if c["direction"] == side]
+        if not first:
+            continue
+        phi_star, branch = first[0]["phi"], first[0]["from_branch"]
+        target = abs(phi_star) - margin
+        best = None
+        for path in sorted(glob.glob(os.path.join(out, "steps", f"{side}_*.npz"))):
+            with np.load(path) as f:
+                if str(f["branch"]) == branch and abs(float(f["phi"])) <= target:
+                    best = (float(f["phi"]), np.asarray(f["q"]))
+        if best is None:
+            continue
+        phi_start, q = best
+        coarse = refine_scene(scene, np.asarray(q)[: 3 * N].reshape(N, 3), N_c)
+        q0 = np.array(coarse.q_init)
+        q0[3 * N_c:] += phi_start * np.arange(N_c) / N_c
+        start = relax_to_minimum(coarse, phi_start, q0=q0)
+        level, reason, _ = _level(coarse, side, phi_start, start, span, step, tol or 1e-3 * math.pi, say, None)
+        if level is None:
+            say(f"{side}: no estimate from N = {N_c}: {reason}")
+            continue
+        found[side] = (level, richardson([N_c, N], [level.phi_star, phi_star]))
+    return found

@@ -133,3 +133,21 @@ def test_cli_accuracy_writes_its_files_and_resumes_from_the_finished_levels(tmp_
     # another study's folder is refused, naming what differs
     assert main(["trefoil", "--accuracy", "0.02pi", "--N-max", "481", "--out", str(out), "--quiet"]) == 2
     assert "accuracy" in capsys.readouterr().err
+
+
+def test_coarse_companion_of_a_study_brackets_the_converged_value(tmp_path):
+    # What the CLI prints after a study: each end found again at (N + 1) / 2 from the study's own
+    # state, and a rough extrapolation (order assumed, factor 3) that covers the converged value.
+    from jaxrod.convergence import coarse_companion
+    from jaxrod.study import twist_study
+
+    ring = jr.michell_ring(32, nu=0.5)
+    study = twist_study(ring, -0.5 * PI, 6.0 * PI, step=0.5 * PI, out=str(tmp_path / "ring"), tol=1e-3 * PI,
+                        max_switches=0)
+    found = coarse_companion(ring, str(tmp_path / "ring"), study.critical, step=0.5 * PI, tol=1e-3 * PI)
+    assert list(found) == ["plus"]  # nothing ends on the minus side within -0.5 pi
+    level, ext = found["plus"]
+    analytic = jr.michell_critical_twist(0.5)
+    assert level.N == 16 and level.phi_star > study.critical["phi_plus"] > analytic  # from above, as Michell's
+    assert ext.N == (16, 32) and not ext.order_measured
+    assert abs(ext.value - analytic) <= ext.error < abs(level.phi_star - analytic)
