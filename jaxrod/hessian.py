@@ -227,9 +227,12 @@ def _add_contact_hessian(h, scene, u, nbr, pat):
         nd = nodes[idx]
         blocks = jax.vmap(block)(x[nd].reshape(chunk, 12)) * (scale * keep)[:, None, None]
         dof = x_dof[nd].reshape(chunk, 12)
+        # clamped nodes have no DOF (-1): sent out of range and dropped (a -1 would wrap to the
+        # last DOF)
+        dof = jnp.where(dof < 0, hh.shape[0], dof)
         rows = jnp.broadcast_to(dof[:, :, None], blocks.shape)
         cols = jnp.broadcast_to(dof[:, None, :], blocks.shape)
-        return k + 1, hh.at[rows.ravel(), cols.ravel()].add(blocks.ravel())
+        return k + 1, hh.at[rows.ravel(), cols.ravel()].add(blocks.ravel(), mode="drop")
 
     return jax.lax.while_loop(more, add_chunk, (0, h))[1]
 

@@ -211,3 +211,30 @@ def test_bad_input_is_refused_naming_the_parameter():
     assert el.check_helix_resolution(87, 20.0, 300.0, ref.R) == 87
     with pytest.raises(ValueError, match="N >= 87"):
         el.check_helix_resolution(86, 20.0, 300.0, ref.R)
+
+
+def test_contact_hessian_of_a_pair_at_a_clamp():
+    """Clamped nodes have no DOFs (index -1 in the Hessian pattern): a contact pair whose segment
+    touches a clamp (here edge 1, nodes 1 (clamped) and 2 (free), against a node of the middle
+    of the rod) must add only its free rows and columns. Structured Hessian against jax.hessian
+    of the same energy."""
+    import jax
+
+    from jaxrod.hessian import dense_autodiff_hessian, scaled_hessian
+
+    N, D = 12, 0.1
+    rod = el.shortened_rod(N, 1.0, Material.from_ratio(B=1.0, nu=0.5, D=D), shortening=0.3, contact_stiffness=10.0)
+    q = np.asarray(rod.q_init).copy()
+    x = np.asarray(rod.nodes(jnp.asarray(q)))
+    # node 7 brought back beside the midpoint of edge 1 (0.7 D away), nodes 6 and 8 beside it
+    target = 0.5 * (x[1] + x[2]) + np.array([0.7 * D, 0.0, 0.0])
+    for k, dz in ((6, -0.08), (7, 0.0), (8, 0.08)):
+        q[3 * (k - 2):3 * (k - 1)] = target + np.array([0.02 * (k - 7) ** 2, 0.03 * (k - 7), dz])
+    q[3 * (N - 4):] = 0.1 * np.arange(N - 3)
+    nbr = rod.neighbourhood(q, 0.4)
+    u = rod.to_scaled(q)
+    e_contact = float(rod.energy_terms(jnp.asarray(q), 0.4, nbr)["contact"])
+    assert e_contact > 0.0  # the pair is in contact
+    fast = np.asarray(scaled_hessian(rod, jnp.asarray(u), 0.4, nbr))
+    ref = np.asarray(jax.jit(dense_autodiff_hessian)(rod, jnp.asarray(u), 0.4, nbr))
+    assert np.max(np.abs(fast - ref)) < 1e-11 * np.max(np.abs(ref)), np.unravel_index(np.argmax(np.abs(fast - ref)), ref.shape)
