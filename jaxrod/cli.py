@@ -146,7 +146,7 @@ def _build_parser():
                        "  jaxrod atlas --knots 3_1,4_1 --ratios 0.01,0.02,0.03 --N 101 --out results/atlas\n"
                        "  jaxrod michell --N 128 --out results/michell\n  jaxrod trefoil --help")
     p.add_argument("--version", action="version", version=f"jaxrod {_version()}")
-    sub = p.add_subparsers(dest="command", parser_class=_Parser, metavar="{michell,trefoil,knot,atlas,analyze}")
+    sub = p.add_subparsers(dest="command", parser_class=_Parser, metavar="{michell,trefoil,knot,atlas,analyze,helix}")
     raw = argparse.RawDescriptionHelpFormatter
     m = sub.add_parser("michell", help="critical twist of Michell's ring, against 2 pi sqrt(3)(1+nu)",
                        description=_MICHELL_HELP, formatter_class=raw)
@@ -213,6 +213,25 @@ def _build_parser():
     at.add_argument("--no-figures", action="store_true", help="data only")
     at.add_argument("--json", action="store_true", help="print the rows as one JSON object")
     at.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    hx = sub.add_parser("helix", help="localized helical buckling of a clamped rod with end shortening and "
+                        "rotation, against NvdHT 2002 (M, T, stability, figures)", description=_HELIX_HELP,
+                        formatter_class=raw)
+    hx.add_argument("--m", type=float, default=None, help="end moment M L/B (with --t)")
+    hx.add_argument("--t", type=float, default=None, help="tension T L^2/B (with --m)")
+    hx.add_argument("--d", type=float, default=None, help="end shortening / L, in (0, 1) (with --R)")
+    hx.add_argument("--R", type=_angle, default=None, metavar="R", help="end rotation in rad, e.g. 10pi (with --d)")
+    hx.add_argument("--nu", type=float, default=0.5, help="Poisson ratio in (-1, 0.5], B/C = 1 + nu (default 0.5)")
+    hx.add_argument("--N", type=int, default=240, help="number of nodes (default 240; at least 6 per loop core "
+                                                      "width L/lambda and 2 per radian of R)")
+    hx.add_argument("--slenderness", type=float, default=2e-4,
+                    help="rod diameter over length D/L: the stretch stiffness (default 2e-4: inextensible)")
+    hx.add_argument("--sweep", type=int, default=0, metavar="K",
+                    help="also solve K end rotations from 0.9 R to 1.1 R at the same shortening (default 0)")
+    hx.add_argument("--out", default=None, help="folder for helix.json, CSV files and figures (default: none)")
+    hx.add_argument("--json", action="store_true", help="print one JSON object")
+    hx.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    hx.add_argument("--no-cache", action="store_true",
+                    help="do not keep compiled code in ~/.cache/jaxrod (later runs then compile again)")
     at.add_argument("--no-cache", action="store_true", help="do not keep compiled code in ~/.cache/jaxrod")
     return p
 
@@ -848,6 +867,217 @@ def _warn_in_one_line(message, category, filename, lineno, file=None, line=None)
     print(f"jaxrod: warning: {message}", file=sys.stderr, flush=True)
 
 
+_HELIX_HELP = """\
+Localized helical buckling of a clamped rod (Neukirch, van der Heijden & Thompson 2002, J. Mech.
+Phys. Solids 50, eqs. 14-15): a rod of length L clamped at both ends along one axis, the far clamp
+moved closer by the end shortening d L and turned by the end rotation R, solved from the analytic
+loop by Newton. Give the loads (--m M L/B, --t T L^2/B) or the imposed ends (--d, --R); with
+--nu (B/C = 1 + nu). Reports the end moment M and tension T (exact derivatives of the energy),
+theta_max, Lk = Wr + Tw (= R / 2 pi), the Morse index, and the analytic values beside them.
+--sweep K also follows the loop along K end rotations around R at the same shortening (M, T and
+stability along the path).
+
+Writes into --out: helix.json (summary), centreline.csv, envelope.csv (s/L, theta numeric and
+analytic), centreline.png, envelope.png and, with --sweep, path.csv and loads.png.
+
+examples:
+  jaxrod helix --m 20 --t 300 --N 240 --out results/helix
+  jaxrod helix --d 0.13 --R 13pi --nu 0.3 --sweep 9 --out results/helix_sweep
+"""
+
+
+def _helix(args):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import numpy as np
+
+    from . import endloads as el
+    from .locking import folder_lock
+    from .material import Material
+    from .validation import check_finite, check_int_at_least, check_poisson_ratio, check_positive
+
+    N = check_int_at_least("N", args.N, 8)
+    nu = check_poisson_ratio("nu", args.nu)
+    gamma = 1.0 / (1.0 + nu)
+    D = check_positive("slenderness", args.slenderness)
+    if not D < 0.1:
+        raise ValueError(f"--slenderness (D/L) must be below 0.1, got {D!r}")
+    sweep = check_int_at_least("sweep", args.sweep, 0)
+    by_loads, by_ends = args.m is not None or args.t is not None, args.d is not None or args.R is not None
+    if by_loads == by_ends or (by_loads and (args.m is None or args.t is None)) or \
+            (by_ends and (args.d is None or args.R is None)):
+        raise ValueError("give either --m and --t (loads) or --d and --R (end shortening and rotation)")
+    if by_loads:
+        ref = el.localized_helix(check_finite("m", args.m), args.t, gamma)
+    else:
+        d = check_positive("d", args.d)
+        if not d < 1.0:
+            raise ValueError(f"--d (end shortening / L) must be below 1, got {d!r}")
+        found = el.localized_helix_from_shortening(d, check_finite("R", args.R), gamma)
+        if not found:
+            raise ValueError(f"--d {d:g} --R {args.R:g}: no localized helix (NvdHT 2002 eqs. 14-15) has this end "
+                             "shortening and rotation at this --nu: change --R or --d")
+        ref = max(found, key=lambda h: h.t)  # the most localized loop
+    el.check_helix_resolution(N, ref.m, ref.t, ref.R)
+    if args.out:
+        _output_folder(args.out)
+        args.hold(folder_lock(args.out))
+    bar = _Progress(args, 1 + sweep, "helix", counting="states")
+    say = bar.say
+    say(f"localized helix: m = {ref.m:.6g}, t = {ref.t:.6g}, gamma = {gamma:.4g}: d = {ref.d:.6g}, "
+        f"R = {ref.R:.6g} rad ({ref.R / (2 * math.pi):.4g} turns); N = {N}")
+    say(args.compile_notice)
+    t0 = time.perf_counter()
+    rod = el.shortened_rod(N, 1.0, Material.from_ratio(B=1.0, nu=nu, D=D), shortening=ref.d)
+
+    def state(e, R, h):
+        loads = el.end_loads(rod, e.q, R, e.neighbourhood)
+        return {"R": R, "M": loads.M, "T": loads.T, "m": loads.M, "t": loads.T,  # L = B = 1
+                "m_analytic": None if h is None else h.m, "t_analytic": None if h is None else h.t,
+                "theta_max": float(el.tangent_angles(e.x).max()),
+                "theta_max_analytic": None if h is None else h.theta_max,
+                "Lk": e.Lk, "Wr": e.Wr, "Tw": e.Tw, "Lk_expected": R / (2 * math.pi),
+                "Wr_analytic": None if h is None else h.Wr, "Tw_analytic": None if h is None else h.Tw,
+                "morse": e.stability.n_negative, "stable": bool(e.stability.stable),
+                "lowest_eigenvalue": float(e.stability.eigenvalues[0])}
+
+    try:
+        e = el.solve(rod, ref.R, el.helical_start(rod, ref.m, ref.t, ref.R), k=4)
+        main = state(e, ref.R, ref)
+        bar.update(1)
+        say(f"solved: m = {main['m']:.6g} (analytic {ref.m:.6g}), t = {main['t']:.6g} (analytic {ref.t:.6g}), "
+            f"Morse index {main['morse']} ({e.solution.iterations} Newton steps)")
+        path, stopped = [main] if sweep else [], []
+        if sweep:
+            # end rotations around R at the same shortening, each solved from its neighbour
+            # (at fixed d the analytic loop exists up to a fold in R: the sweep stops where Newton finds none)
+            from .solvers import ConvergenceError
+
+            Rs = np.linspace(0.8 * ref.R, 1.1 * ref.R, sweep)
+            for side in (Rs[Rs >= ref.R], Rs[Rs < ref.R][::-1]):
+                prev = e
+                for R in side:
+                    try:
+                        el.check_rotation_resolution(N, R)
+                        # continuation in sub-steps of at most 0.25 rad (Newton alone does not follow larger ones)
+                        R0 = float(prev.phi)
+                        n_sub = max(1, math.ceil(abs(float(R) - R0) / 0.25))
+                        for j in range(1, n_sub):
+                            prev = el.solve(rod, R0 + (float(R) - R0) * j / n_sub, prev.q, with_stability=False)
+                        prev = el.solve(rod, float(R), prev.q, k=4)
+                        # the analytic loop at (d, R): of the two branches meeting at the fold, the
+                        # one nearest the computed loads
+                        loads = el.end_loads(rod, prev.q, float(R), prev.neighbourhood)
+                        found = el.localized_helix_from_shortening(ref.d, float(R), gamma)
+                        h = min(found, key=lambda x: abs(x.t / loads.T - 1) + abs(x.m / loads.M - 1)) if found else None
+                        path.append(state(prev, float(R), h))
+                        bar.update(1 + len(path))
+                        say(f"R = {R:.5g}: M = {path[-1]['M']:.6g}, T = {path[-1]['T']:.6g}, Morse {path[-1]['morse']}")
+                    except ConvergenceError:
+                        say(f"R = {R:.5g}: no equilibrium reached from R = {float(prev.phi):.5g} (past a fold?): "
+                            "this side of the sweep stops")
+                        stopped.append(float(R))
+                        break
+            path.sort(key=lambda r: r["R"])
+    finally:
+        bar.close()
+    seconds = time.perf_counter() - t0
+    # envelope (edge midpoints, s from the rod's middle) and centreline against the closed form
+    L = 1.0
+    theta = el.tangent_angles(e.x)
+    h_edge = L / (theta.size - 1)
+    s_edge = np.arange(theta.size) * h_edge - 0.5 * L
+    theta_exact = np.arccos(np.clip(1.0 - 2.0 * ref.lam ** 2 / ref.t / np.cosh(ref.lam * s_edge / L) ** 2, -1, 1))
+    s_node = (np.arange(N) - 0.5) * h_edge - 0.5 * L
+    _, _, r = el.localized_helix_curve(ref.m, ref.t, s_node, L)
+    r = r - 0.5 * (r[0] + r[1])
+    x = e.x - 0.5 * (e.x[0] + e.x[1])
+    # the rotation about the axis is a symmetry: turn the computed loop onto the analytic one
+    ang = math.atan2(float(np.sum(x[:, 0] * r[:, 1] - x[:, 1] * r[:, 0])), float(np.sum(x[:, :2] * r[:, :2])))
+    c, s_ = math.cos(ang), math.sin(ang)
+    x = np.stack([c * x[:, 0] - s_ * x[:, 1], s_ * x[:, 0] + c * x[:, 1], x[:, 2]], axis=1)
+    result = {"N": N, "nu": nu, "gamma": gamma, "slenderness": D, "d": ref.d, "lambda": ref.lam, **main,
+              "m_rel_error": main["m"] / ref.m - 1.0, "t_rel_error": main["t"] / ref.t - 1.0,
+              "envelope_L1": el.envelope_error(e.x, ref.m, ref.t, L),
+              "centreline_max_distance": float(np.max(np.linalg.norm(x - r, axis=1))),
+              "newton_steps": e.solution.iterations, "seconds": seconds, "path": path, "sweep_stopped_at": stopped}
+    if args.out:
+        from . import plotting  # noqa: F401  (matplotlib's style)
+        import matplotlib.pyplot as plt
+
+        with open(os.path.join(args.out, "helix.json"), "w") as f:
+            json.dump(result, f, indent=2)
+        with open(os.path.join(args.out, "centreline.csv"), "w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(["s_over_L", "x", "y", "z", "x_analytic", "y_analytic", "z_analytic"])
+            for k in range(N):
+                w.writerow([s_node[k] / L, *x[k], *r[k]])
+        with open(os.path.join(args.out, "envelope.csv"), "w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(["s_over_L", "theta", "theta_analytic"])
+            for k in range(theta.size):
+                w.writerow([s_edge[k] / L, theta[k], theta_exact[k]])
+        title = f"m = {ref.m:.4g}, t = {ref.t:.4g}, gamma = {gamma:.3g}, N = {N}"
+        fig = plt.figure(figsize=(6, 6))
+        ax = fig.add_subplot(projection="3d")
+        ax.plot(*r.T, "k--", lw=1, label="analytic (NvdHT 2002)")
+        ax.plot(*x.T, "C0", lw=2, label="jaxrod")
+        ax.set_title(title)
+        ax.legend()
+        fig.savefig(os.path.join(args.out, "centreline.png"), dpi=120)
+        plt.close(fig)
+        fig, ax = plt.subplots(figsize=(7, 4))
+        ax.plot(s_edge / L, theta_exact, "k--", lw=1, label="analytic")
+        ax.plot(s_edge / L, theta, "C0.", ms=3, label="jaxrod (edges)")
+        ax.set_xlabel("s / L (from the middle)")
+        ax.set_ylabel("tangent angle to the axis theta (rad)")
+        ax.set_title(f"{title}: L1 error {result['envelope_L1']:.2e}")
+        ax.legend()
+        fig.tight_layout()
+        fig.savefig(os.path.join(args.out, "envelope.png"), dpi=120)
+        plt.close(fig)
+        written = "helix.json, centreline.csv, envelope.csv, centreline.png, envelope.png"
+        if path:
+            keys = list(path[0])
+            with open(os.path.join(args.out, "path.csv"), "w", newline="") as f:
+                w = csv.writer(f)
+                w.writerow(keys)
+                for row in path:
+                    w.writerow(["" if row[k] is None else row[k] for k in keys])
+            fig, axes = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
+            R_ = np.array([p["R"] for p in path])
+            st = np.array([p["stable"] for p in path])
+            for ax, key, label in ((axes[0], "m", "M L / B"), (axes[1], "t", "T L^2 / B")):
+                v = np.array([p[key] for p in path])
+                va = np.array([np.nan if p[key + "_analytic"] is None else p[key + "_analytic"] for p in path])
+                ax.plot(R_, va, "k--", lw=1, label="analytic")
+                ax.plot(R_[st], v[st], "C0o", label="jaxrod, stable")
+                ax.plot(R_[~st], v[~st], "C3o", mfc="none", label="jaxrod, unstable")
+                ax.set_ylabel(label)
+            axes[0].legend()
+            axes[1].set_xlabel(f"end rotation R (rad), d = {ref.d:.4g}")
+            axes[0].set_title(f"gamma = {gamma:.3g}, N = {N} (stability under fixed ends)")
+            fig.tight_layout()
+            fig.savefig(os.path.join(args.out, "loads.png"), dpi=120)
+            plt.close(fig)
+            written += ", path.csv, loads.png"
+        say(f"wrote {args.out}/{written}")
+    if args.json:
+        print(json.dumps(result))
+    else:
+        fmt = lambda v: "-" if v is None else f"{v:.6g}"  # noqa: E731
+        print(f"{'':14s}{'jaxrod':>14s}{'analytic':>14s}")
+        for label, a, b in (("m = M L/B", main["m"], ref.m), ("t = T L^2/B", main["t"], ref.t),
+                            ("theta_max", main["theta_max"], ref.theta_max), ("Lk", main["Lk"], main["Lk_expected"]),
+                            ("Wr", main["Wr"], ref.Wr), ("Tw", main["Tw"], ref.Tw)):
+            print(f"{label:14s}{fmt(a):>14s}{fmt(b):>14s}")
+        print(f"Morse index   {main['morse']:>14d}  ({'stable' if main['stable'] else 'unstable'} under fixed ends)")
+        print(f"envelope L1   {result['envelope_L1']:>14.3e}")
+        print(f"time          {seconds:>14.2f} s")
+    return 0
+
+
 def _interrupt(signum, frame):
     """SIGTERM (a scheduler's or a `kill`'s stop) is handled like Ctrl-C: the study stops at its
     next saved state, says that the same command resumes, and exits with status 130."""
@@ -896,6 +1126,8 @@ def _main(argv):
                 return _trefoil(args)
             if args.command == "atlas":
                 return _atlas(args)
+            if args.command == "helix":
+                return _helix(args)
     except ValueError as exc:
         print(f"jaxrod: error: {_in_flags(str(exc), flags)}", file=sys.stderr)
         return 2

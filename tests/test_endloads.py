@@ -238,3 +238,36 @@ def test_contact_hessian_of_a_pair_at_a_clamp():
     fast = np.asarray(scaled_hessian(rod, jnp.asarray(u), 0.4, nbr))
     ref = np.asarray(jax.jit(dense_autodiff_hessian)(rod, jnp.asarray(u), 0.4, nbr))
     assert np.max(np.abs(fast - ref)) < 1e-11 * np.max(np.abs(ref)), np.unravel_index(np.argmax(np.abs(fast - ref)), ref.shape)
+
+
+def test_cli_helix(helices, tmp_path, capsys):
+    """`jaxrod helix`: the files and the summary, in process (the fixture's compiled programs:
+    same N, material and slenderness); bad flags exit 2 with one line naming the flag."""
+    import csv
+    import json
+
+    from jaxrod.cli import main
+
+    out = tmp_path / "helix"
+    assert main(["helix", "--m", "20", "--t", "300", "--nu", "0.5", "--N", str(NS[0]), "--out", str(out),
+                 "--json", "--quiet", "--no-cache"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    ref, rod, e, loads = helices[NS[0], 20.0]
+    assert abs(res["M"] - loads.M) < 1e-9 * abs(loads.M) and abs(res["T"] - loads.T) < 1e-9 * loads.T
+    assert res["m_analytic"] == ref.m and res["t_analytic"] == ref.t and res["morse"] == 1
+    assert abs(res["Lk"] - ref.R / (2 * math.pi)) < 1e-10
+    assert abs(res["envelope_L1"] - el.envelope_error(e.x, 20.0, 300.0)) < 1e-12
+    assert res["centreline_max_distance"] < 0.05  # the computed loop turned onto the analytic one (L = 1)
+    assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) == ["centreline.csv", "centreline.png", "envelope.csv",
+                                                     "envelope.png", "helix.json"]
+    with open(out / "envelope.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == NS[0] - 1 and abs(max(float(r["theta_analytic"]) for r in rows) - ref.theta_max) < 1e-3
+    for argv, flag in ((["--m", "20", "--t", "300", "--N", "60"], "--N = 60 is too few"),
+                       (["--m", "20"], "give either --m and --t"),
+                       (["--d", "1.5", "--R", "3"], "--d \\(end shortening / L\\) must be below 1"),
+                       (["--m", "20", "--t", "-3"], "--t must be positive"),
+                       (["--m", "20", "--t", "300", "--nu", "0.7"], "--nu")):
+        assert main(["helix", *argv, "--quiet", "--no-cache"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and __import__("re").search(flag, err[0]), err
