@@ -1045,13 +1045,21 @@ class _Follower:
         grid = step * (math.floor(prev.phi / step + 1e-9) + 1 if direction > 0 else math.ceil(prev.phi / step - 1e-9) - 1)
         phi_next = prev.phi + direction * min(state.h, abs(self.phi_stop - prev.phi), abs(grid - prev.phi))
         s = self.engine.step(prev, state.tangent, phi_next)
-        if s.ok:
+        hidden = _hidden_shape_modes(self.engine, s.equilibrium) if s.ok else None
+        if s.ok and hidden is None:
             return self._accept(state, s, h=min(step, 2.0 * state.h))
+        if hidden is not None:
+            # Converged, every eigenvalue above -negative_tol, but a mode that changes the shape
+            # (not material sliding) is negative inside the near-zero band kept for the sliding
+            # modes: the branch has ended (issue 17: at N = 241 and 481 the trefoil's opening side
+            # was called stable 0.09 pi and 1.09 pi past its end). Refused as unstable, with that
+            # mode as the critical one, so the locator below tracks its eigenvalue's sign.
+            s = replace(s, refusal=_hidden_refusal(hidden[0]))
         # The branch was lost at phi_next: shrink the bracket between the last stable state and
         # there to tol, aiming each trial with a model of the critical eigenvalue (a few solves
         # where bisection needs ~log2(step/tol) ~ 11).
         self.say(f"[{state.branch}] lost at phi = {phi_next / math.pi:+.5f} pi ({s.refusal}); locating the end")
-        critical = self._critical_modes(s, None)
+        critical = hidden[1] if hidden is not None else self._critical_modes(s, None)
         lam = _past_zero(critical, prev)
         if lam is not None and state.older is not None and _past_zero(critical, state.older) is None:
             # The last accepted state already has the critical eigenvalue below zero (inside the
@@ -1070,22 +1078,29 @@ class _Follower:
 
     def _critical_modes(self, s, current):
         """The critical modes for ``PathState.critical_modes`` after the refused step s: the
-        eigenvectors of its eigenvalues below -negative_tol where it converged unstable, else
-        ``current``."""
+        eigenvectors of its eigenvalues below -negative_tol where it converged unstable (or, none
+        being there, of its shape modes negative inside the near-zero band), else ``current``."""
         if s.refusal is None or s.refusal.failure is not StepFailure.UNSTABLE:
             return current
         found = _negative_modes(s.equilibrium, self.engine.opts.negative_tol)
+        if found is None:
+            hidden = _hidden_shape_modes(self.engine, s.equilibrium)
+            found = None if hidden is None else hidden[1]
         return current if found is None else found
 
     def _unless_past_zero(self, state, s):
         """The accepted step s, or s refused (UNSTABLE) when its critical eigenvalue is already
-        negative (see ``PathState.critical_modes``)."""
+        negative (see ``PathState.critical_modes``), or when a shape mode is negative inside the
+        near-zero band (``_hidden_shape_modes``)."""
         if not s.ok:
             return s
         lam = _past_zero(state.critical_modes, s.equilibrium)
-        if lam is None:
-            return s
-        return replace(s, refusal=_Refusal(StepFailure.UNSTABLE, _band_detail(lam)))
+        if lam is not None:
+            return replace(s, refusal=_Refusal(StepFailure.UNSTABLE, _band_detail(lam)))
+        hidden = _hidden_shape_modes(self.engine, s.equilibrium)
+        if hidden is not None:
+            return replace(s, refusal=_hidden_refusal(hidden[0]))
+        return s
 
     def _locate(self, state):
         tol, prev = self.engine.opts.tol, state.prev
@@ -1167,6 +1182,26 @@ def _warn_if_band_hides_shape_modes(scene, branch, e, opts, warned):
             f"the shape (not material sliding: sliding fraction {frac:.2f}) have negative eigenvalues inside the "
             f"near-zero band kept for sliding modes (lowest {lam:.2e} > -{opts.negative_tol:.0e}): the branch may "
             "have ended before here, unnoticed", stacklevel=4)
+
+
+def _hidden_refusal(lam):
+    return _Refusal(StepFailure.UNSTABLE, f"a shape mode's eigenvalue {lam:.3e} < 0 inside the near-zero band kept "
+                                          "for sliding modes")
+
+
+def _hidden_shape_modes(engine, e):
+    """(lowest eigenvalue, eigenvectors (n, m)) of the equilibrium e's modes that change the
+    shape and are negative inside the near-zero band (``stability.shape_modes_in_band``), or None
+    (no such mode, no band, no state or stability, or a scene without contact)."""
+    if e is None or e.stability is None or not engine.contact or not engine.opts.negative_tol > DEFAULT_NEGATIVE_TOL:
+        return None
+    hidden = shape_modes_in_band(engine.scene, e, engine.opts.negative_tol)
+    if not hidden:
+        return None
+    lam = np.asarray(e.stability.eigenvalues)
+    wanted = {v for v, _ in hidden}
+    cols = [j for j in range(lam.size) if float(lam[j]) in wanted]
+    return min(wanted), np.asarray(e.stability.eigenvectors)[:, cols].copy()
 
 
 def _negative_modes(e, negative_tol):
