@@ -436,7 +436,7 @@ def plot(pe_runs, jx, out_dir, path=None):
                     fontsize=8, color="crimson")
     if path is not None:
         ax.loglog([path["wall_s"]], [path["err_l1"]], "D", mfc="none", color="darkorange", ms=8,
-                  label=f"jaxrod N={path['N']} from the straight rod, {path['load_steps']} load steps (cold)")
+                  label=f"jaxrod N={path['N']} from the straight rod, {path['load_steps']} load steps (cold; its own run)")
     ax.plot([], [], "s", color="crimson", label="jaxrod static solve, warm (second solve in process)")
     ax.plot([], [], "s", mfc="none", color="crimson", label="jaxrod, cold (JIT compile included)")
     ax.set_xlabel("wall time (s), this machine (2 cores, shared)")
