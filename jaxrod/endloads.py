@@ -65,6 +65,8 @@ __all__ = [
     "localized_helix_from_shortening",
     "LocalizedHelix",
     "localized_helix_curve",
+    "plectoneme_plateau",
+    "Plectoneme",
     "helical_start",
     "straight_buckling_moment",
     "tension_twist_threshold",
@@ -812,16 +814,61 @@ def localized_helix_curve(m, t, s, L=1.0):
     return theta, y[:, 3], r
 
 
+@dataclass(frozen=True)
+class Plectoneme:
+    """The hard-contact two-phase plectoneme at tension T (``plectoneme_plateau``): M the plateau
+    torque, alpha the superhelix angle (rad, strand tangent to the plectoneme axis), r = D/2, slope
+    d(extension)/d(turns) = -4 pi r / sin 2 alpha, writhe_per_length sin 2 alpha / (4 pi r)."""
+
+    M: float
+    alpha: float
+    r: float
+    slope: float
+    writhe_per_length: float
+
+
+def plectoneme_plateau(B, T, D):
+    """The torque plateau of a plectoneme of a rod of bending stiffness B and diameter D under
+    tension T, in the two-phase model with hard contact: two strands wound at radius r = D/2 about
+    the plectoneme axis with helix angle alpha (curvature sin^2 alpha / r, writhe sin 2 alpha /
+    (4 pi r) per length), coexisting with straight tails; the end loop neglected (long plectonemes).
+    Per length, at torque M, the plectoneme's B sin^4 alpha / (2 r^2) - M sin 2 alpha / (2 r) equals
+    the straight phase's -T, stationary in alpha:
+
+        M r / B = 2 sin^3 alpha cos alpha / cos 2 alpha,
+        T r^2 / B = sin^4 alpha (1 + 2 cos^2 alpha) / (2 cos 2 alpha).
+
+    For T r^2 / B -> 0, M -> 2 (2/3)^(3/4) B^(1/4) T^(3/4) r^(1/2) (alpha^4 ~ 2 T r^2 / 3 B)."""
+    from scipy.optimize import brentq  # noqa: PLC0415
+
+    B, T, D = check_positive("B", B), check_positive("T", T), check_positive("D", D)
+    r = 0.5 * D
+    tau = T * r * r / B
+
+    def f(a):
+        return math.sin(a) ** 4 * (1.0 + 2.0 * math.cos(a) ** 2) / (2.0 * math.cos(2.0 * a)) - tau
+
+    a = brentq(f, 1e-12, math.pi / 4.0 - 1e-12, xtol=1e-15, rtol=1e-15)
+    M = 2.0 * B * math.sin(a) ** 3 * math.cos(a) / (r * math.cos(2.0 * a))
+    return Plectoneme(M=M, alpha=a, r=r, slope=-4.0 * math.pi * r / math.sin(2.0 * a),
+                      writhe_per_length=math.sin(2.0 * a) / (4.0 * math.pi * r))
+
+
 # Edges per core width L / lambda of the localized helix, and the largest twist per edge (rad),
 # below which ``check_helix_resolution`` refuses N: at 6 edges per core the end loads are still
 # O(h^2) (measured: t within 7 % at N = 120, lambda = 14.1).
 EDGES_PER_CORE = 6.0
-MAX_TWIST_PER_EDGE = 0.5
+# The twist energy of uniform twist is exact at any angle per edge (C m^2 / 2 l, m not wrapped);
+# what coarse edges lose is the bending-twist coupling of the loop, which the core-width rule
+# covers. pi/2 per edge keeps the material frame's rotation between edges well below the half
+# turn at which a drawn stripe aliases. (0.5 rad refused the PyElastica case at N < 342, which
+# solved at N = 202 and 302 on the h^2 trend of the finer N: benchmarks/peer_pyelastica.py.)
+MAX_TWIST_PER_EDGE = 0.5 * math.pi
 
 
 def check_rotation_resolution(N, phi):
     """N as an int, or ValueError naming N: an end rotation phi (rad) spread over N - 1 edges needs
-    at most ``MAX_TWIST_PER_EDGE`` rad per edge (N >= |phi| / 0.5 + 2)."""
+    at most ``MAX_TWIST_PER_EDGE`` (pi/2) rad per edge (N >= |phi| / (pi/2) + 2)."""
     N = check_int_at_least("N", N, 5)
     need = math.ceil(abs(float(phi)) / MAX_TWIST_PER_EDGE) + 2
     if N < need:
@@ -832,7 +879,7 @@ def check_rotation_resolution(N, phi):
 
 def check_helix_resolution(N, m, t, R):
     """N as an int, or ValueError naming N: the localized helix (m, t) with end rotation R needs
-    N - 2 >= 6 lambda edges (6 per core width L / lambda) and at most 0.5 rad of twist per edge."""
+    N - 2 >= 6 lambda edges (6 per core width L / lambda) and at most pi/2 rad of twist per edge."""
     N = check_int_at_least("N", N, 8)
     lam = math.sqrt(max(t - m * m / 4.0, 0.0))
     need = max(math.ceil(EDGES_PER_CORE * lam), math.ceil(abs(R) / MAX_TWIST_PER_EDGE)) + 2

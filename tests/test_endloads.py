@@ -195,7 +195,7 @@ def test_bad_input_is_refused_naming_the_parameter():
         ("R must be finite", lambda: el.localized_helix_from_shortening(0.2, float("nan"), 1.0)),
         ("T must be positive", lambda: el.straight_buckling_moment(rod, 0.0)),
         ("L must be positive", lambda: el.clamped_tension_twist_threshold(1.0, 1.0, -1.0)),
-        # too few nodes for the turns asked: the loop's core (6 edges per L / lambda) or the twist (0.5 rad per edge)
+        # too few nodes for the turns asked: the loop's core (6 edges per L / lambda) or the twist (pi/2 rad per edge)
         ("N = 30 is too few", lambda: el.check_helix_resolution(30, 20.0, 300.0, 33.8)),
         ("N = 20 is too few", lambda: el.helical_start(rod, 20.0, 300.0, ref.R)),
         ("N = 20 is too few", lambda: el.solve(rod, ref.R, q0)),
@@ -204,10 +204,10 @@ def test_bad_input_is_refused_naming_the_parameter():
     for match, call in bad:
         with pytest.raises(ValueError, match=match):
             call()
-    # the limits themselves: 0.5 rad per edge and 6 edges per core width, N = need passes
-    assert el.check_rotation_resolution(70, ref.R) == 70
-    with pytest.raises(ValueError, match="N >= 70"):
-        el.check_rotation_resolution(69, ref.R)
+    # the limits themselves: pi/2 rad per edge and 6 edges per core width, N = need passes
+    assert el.check_rotation_resolution(24, ref.R) == 24
+    with pytest.raises(ValueError, match="N >= 24"):
+        el.check_rotation_resolution(23, ref.R)
     assert el.check_helix_resolution(87, 20.0, 300.0, ref.R) == 87
     with pytest.raises(ValueError, match="N >= 87"):
         el.check_helix_resolution(86, 20.0, 300.0, ref.R)
@@ -271,3 +271,24 @@ def test_cli_helix(helices, tmp_path, capsys):
         assert main(["helix", *argv, "--quiet", "--no-cache"]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and __import__("re").search(flag, err[0]), err
+
+
+def test_plectoneme_plateau_two_phase_model():
+    """The hard-contact two-phase plectoneme (``plectoneme_plateau``): at its torque and helix
+    angle the plectoneme's energy per length, B sin^4 a / 2r^2 - M sin 2a / 2r, equals the straight
+    phase's -T and is stationary in a (coexistence); the small-T limit
+    M -> 2 (2/3)^(3/4) B^(1/4) T^(3/4) r^(1/2); the plateau lies below the buckling torque 2 sqrt(BT)
+    for a thin rod; slope = -1 / (writhe per length)."""
+    B, T, D = 1.0, 400.0, 0.015
+    p = el.plectoneme_plateau(B, T, D)
+    g = lambda a: B * math.sin(a) ** 4 / (2 * p.r ** 2) - p.M * math.sin(2 * a) / (2 * p.r)  # noqa: E731
+    assert abs(g(p.alpha) + T) < 1e-9 * T
+    h = 1e-6
+    assert abs((g(p.alpha + h) - g(p.alpha - h)) / (2 * h)) < 1e-5 * T
+    assert p.M < 2 * math.sqrt(B * T)
+    assert abs(p.slope * p.writhe_per_length + 1.0) < 1e-12
+    small = el.plectoneme_plateau(B, 1e-4, D)
+    approx = 2 * (2 / 3) ** 0.75 * B ** 0.25 * 1e-4 ** 0.75 * (D / 2) ** 0.5
+    assert abs(small.M / approx - 1) < 1e-3
+    with pytest.raises(ValueError, match="D"):
+        el.plectoneme_plateau(B, T, 0.0)
