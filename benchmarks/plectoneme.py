@@ -421,8 +421,28 @@ def figure(res, summ, path):
     fig.savefig(path, dpi=120)
 
 
+def replot():
+    """Redraw plectoneme.png from plectoneme.csv and plectoneme.json (no solving). Snaps missing
+    from an older CSV are inferred: a writhe step above 0.01 between two touching states."""
+    with open(os.path.join(HERE, "results", "plectoneme.json")) as fh:
+        summ = json.load(fh)
+    rows = []
+    with open(os.path.join(HERE, "results", "plectoneme.csv")) as fh:
+        for r in csv.DictReader(fh):
+            row = {k: (v if k == "branch" else float(v)) for k, v in r.items() if v != ""}
+            row["morse"], row["contacts"] = int(row["morse"]), int(row["contacts"])
+            rows.append(row)
+    for a, b in zip(rows[:-1], rows[1:]):
+        if "snap" not in b and b["branch"] == a["branch"] == "buckled" and a["contacts"] > 0 and b["contacts"] > 0:
+            b["snap"] = abs(b["Wr"] - a["Wr"]) > 0.01 and abs(b["R"] - a["R"]) < 0.2
+    res = dict(rows=rows, T=summ["T"], D=summ["D"], N=summ["N"], nu=0.0, kappa_c=1e4)
+    figure(res, summ, os.path.join(HERE, "results", "plectoneme.png"))
+
+
 def main():
     os.makedirs(os.path.join(HERE, "results"), exist_ok=True)
+    if "--replot" in sys.argv:
+        return replot()
     quick = "--quick" in sys.argv
     D = float(sys.argv[sys.argv.index("--D") + 1]) if "--D" in sys.argv else 0.015
     res = run(D=D, max_points=60 if quick else 600, time_budget=120 if quick else 540)
