@@ -84,16 +84,18 @@ TWO_PI = 2.0 * math.pi
 
 # ---------------------------------------------------------------------- displacement control
 @_pytree(["material", "rest_lengths", "q_init", "x_clamped", "director_start", "Lk0", "end_offset",
-          "contact_stiffness"], ["terms", "name"])
+          "contact_stiffness"], ["terms", "name", "contact_quadrature"])
 @dataclass(frozen=True, eq=False)
 class EndLoadedRod(ClampedRod):
     """A ``ClampedRod`` whose far clamp (nodes N-2, N-1) is displaced by ``end_offset`` (3,) from
     its place one rod length from the near clamp; its edge keeps the axis direction. A shortening
     s is ``end_offset = -s * axis``. DOFs as ``ClampedRod``: q = [x[2:N-2].ravel(), theta[1:M-1]].
-    ``contact_stiffness``: kappa_c of soft self-contact when "contact" is a term (as ``ClosedRod``)."""
+    ``contact_stiffness``: kappa_c of soft self-contact when "contact" is a term (as ``ClosedRod``);
+    ``contact_quadrature``: Gauss points per segment in the contact integral (static: 1, 2 or 3)."""
 
     end_offset: np.ndarray = None
     contact_stiffness: float = 0.0
+    contact_quadrature: int = 2
 
     # Rotating the interior nodes rigidly about the clamp axis, twist angles unchanged, leaves the
     # energy exactly unchanged: both clamped edges lie on the axis, the twist angles are measured
@@ -142,12 +144,17 @@ def with_shortening(scene, shortening):
     return with_end_offset(scene, -shortening * scene.axis)
 
 
-def shortened_rod(N, length, material, shortening=0.0, axis=(0.0, 0.0, 1.0), contact_stiffness=None, Lk0=0.0):
+def shortened_rod(N, length, material, shortening=0.0, axis=(0.0, 0.0, 1.0), contact_stiffness=None, Lk0=0.0,
+                  contact_quadrature=2):
     """A rod of rest length ``length`` (between the clamps' material points, as ``clamped_rod``)
     with N nodes, clamped at both ends along ``axis``, the far clamp ``shortening`` closer than one
     rod length (0 <= shortening < length). q_init: the interior nodes evenly spaced between the
     clamps on the axis (uniformly compressed, straight) and no twist.
-    contact_stiffness: kappa_c of soft self-contact (needs the material's D); None: no contact."""
+    contact_stiffness: kappa_c of soft self-contact (needs the material's D); None: no contact.
+    contact_quadrature: Gauss points per segment of the contact integral (1, 2 or 3; 3 where
+    strands cross at short contacts with edges near D, as in a knot pulled tight)."""
+    if contact_quadrature not in (1, 2, 3):
+        raise ValueError(f"contact_quadrature must be 1, 2 or 3 Gauss points per segment, got {contact_quadrature!r}")
     base = clamped_rod(N, length, material, axis=axis)
     length = float(length)
     s = check_finite("shortening", shortening)
@@ -171,7 +178,7 @@ def shortened_rod(N, length, material, shortening=0.0, axis=(0.0, 0.0, 1.0), con
     return EndLoadedRod(material=material, rest_lengths=base.rest_lengths, q_init=jnp.asarray(q0),
                         x_clamped=base.x_clamped, director_start=base.director_start, Lk0=float(Lk0),
                         end_offset=jnp.asarray(-s * a), contact_stiffness=kc, terms=terms,
-                        name="end-loaded rod")
+                        name="end-loaded rod", contact_quadrature=int(contact_quadrature))
 
 
 @dataclass(frozen=True)

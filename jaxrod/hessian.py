@@ -200,7 +200,7 @@ def _add_contact_hessian(h, scene, u, nbr, pat):
 
     def pair_energy(y):
         return contact_energy(y.reshape(4, 3), local_pair, np.array([True]), False, m.D, m.B,
-                              scene.contact_stiffness)
+                              scene.contact_stiffness, scene.contact_quadrature)
 
     block = jax.hessian(pair_energy)
     a0, a1, b0, b1 = (x[nodes[:, k]] for k in range(4))

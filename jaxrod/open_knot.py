@@ -31,7 +31,8 @@ from .endloads import end_loads, shortened_rod
 from .material import Material
 from .validation import check_finite, check_int_at_least, check_positive
 
-__all__ = ["open_overhand_knot", "KnotState", "pull", "loop_height", "relax_knot", "fit_prefactor"]
+__all__ = ["open_overhand_knot", "KnotState", "pull", "loop_height", "loop_span", "relax_knot", "fit_prefactor",
+           "fit_loose_limit"]
 
 TWO_PI = 2.0 * math.pi
 DEFAULT_CONTACT_STIFFNESS = 100.0
@@ -62,7 +63,7 @@ def _arclength(p):
 
 
 def open_overhand_knot(N, L, D, loop, B=1.0, nu=0.5, phi=0.0, contact_stiffness=DEFAULT_CONTACT_STIFFNESS,
-                       delta=0.3, Lk0=None):
+                       delta=0.3, Lk0=None, contact_quadrature=3):
     """(scene, q0): an open overhand knot of rest length L (between the clamps' points) and
     diameter D, N nodes, clamped on the z axis; ``loop``: the trefoil's unit length (its
     lobes are ~6 loop across); material B, nu (EA = 16 B / D^2). The far clamp sits where the
@@ -72,7 +73,11 @@ def open_overhand_knot(N, L, D, loop, B=1.0, nu=0.5, phi=0.0, contact_stiffness=
     writhe of the loose, nearly flat knot (three crossings of one sign; measured 3.04 relaxed),
     so phi = 0 is the nearly twist-free knot; the drawn curve (ray-closed writhe 4.23: its
     slanted tails) starts with Tw = Lk - Wr spread evenly. Refused (naming the parameter): N < 40 or edges longer than D,
-    non-positive L, D, loop, B, a knot too long for the rod (tails shorter than 2 loops)."""
+    non-positive L, D, loop, B, a knot too long for the rod (tails shorter than 2 loops).
+    contact_quadrature: Gauss points per segment of the contact integral, 3 by default: where the
+    strands cross, the contact is shorter than an edge, and with 2 points T(e) jumps by ~5 % as
+    strands slide past the nodes (measured at N = 320, D = L/150: non-monotone T with 2 points,
+    monotone within 1.5 % with 3)."""
     L = check_positive("L", L)
     D = check_positive("D", D)
     loop = check_positive("loop", loop)
@@ -106,7 +111,8 @@ def open_overhand_knot(N, L, D, loop, B=1.0, nu=0.5, phi=0.0, contact_stiffness=
     # own frame (X, Y, Z) -> space (Y, Z, X): a cyclic permutation (proper rotation), tails along z
     p = p[:, [1, 2, 0]] - p[0, [1, 2, 0]][None, :]
     mat = Material.from_ratio(B=B, nu=nu, D=D)
-    scene = shortened_rod(N, L, mat, shortening=excess, contact_stiffness=contact_stiffness)
+    scene = shortened_rod(N, L, mat, shortening=excess, contact_stiffness=contact_stiffness,
+                          contact_quadrature=contact_quadrature)
     h = L / (N - 2)
     si = (np.arange(N) - 0.5) * h
     x = np.stack([np.interp(si, s, p[:, j]) for j in range(3)], axis=1)
@@ -137,10 +143,26 @@ def loop_height(scene, x):
     return float(np.max(np.linalg.norm(lat, axis=1)))
 
 
+def loop_span(scene, x, off_axis=2.0):
+    """The loop's diameter: the largest distance between two nodes of x (N, 3) that lie more than
+    ``off_axis`` diameters from the clamp axis (the tails, on the axis, excluded). For the round
+    loop of a loose knot it is the loop's diameter; ``loop_height`` is its largest distance from
+    the axis, which depends on how the loop sits across the axis."""
+    a = np.asarray(scene.axis, dtype=float)
+    x = np.asarray(x, dtype=float)
+    r = x - np.asarray(scene.x_clamped, dtype=float)[0][None, :]
+    lat = np.linalg.norm(r - (r @ a)[:, None] * a[None, :], axis=1)
+    p = x[lat > off_axis * float(scene.material.D)]
+    if len(p) < 2:
+        return 0.0
+    d = np.linalg.norm(p[:, None, :] - p[None, :, :], axis=-1)
+    return float(d.max())
+
+
 @dataclass(frozen=True)
 class KnotState:
     """One pulled state: excess (L - end distance), T (tension), M (axial end moment), height
-    (``loop_height``), phi, Wr, Tw, Lk, morse (negative eigenvalues of the contact Hessian, the
+    (``loop_height``), span (``loop_span``), phi, Wr, Tw, Lk, morse (negative eigenvalues of the contact Hessian, the
     clamp-axis rotation removed), lowest (lowest eigenvalues, scaled), contacts (touching segment
     pairs), energy, q (DOFs), x (nodes)."""
 
@@ -148,6 +170,7 @@ class KnotState:
     T: float
     M: float
     height: float
+    span: float
     phi: float
     Wr: float
     Tw: float
@@ -174,6 +197,7 @@ def relax_knot(scene, phi, q0, previous=None, gtol=1e-7, k=6):
     nbr = e.neighbourhood
     nc = int(contact_count(jnp.asarray(e.x), nbr.pairs, nbr.mask, False, float(scene.material.D)))
     return e, KnotState(excess=float(scene.shortening), T=loads.T, M=loads.M, height=loop_height(scene, e.x),
+                        span=loop_span(scene, e.x),
                         phi=float(phi), Wr=float(e.Wr), Tw=float(e.Tw), Lk=float(e.Lk),
                         morse=int(e.stability.n_negative), lowest=np.asarray(e.stability.eigenvalues),
                         contacts=nc, energy=float(e.energy), q=np.asarray(e.q), x=np.asarray(e.x))
@@ -226,7 +250,7 @@ def pull(scene, q0, excesses, phi=0.0, progress=None, gtol=1e-7, previous=None):
             break
         q = st.q
         out.append(st)
-        say(f"excess {v:.4g}: T = {st.T:.4g}, height = {st.height:.4g}, Lk = {st.Lk:.6f}, Wr = {st.Wr:.4f}, "
+        say(f"excess {v:.4g}: T = {st.T:.4g}, span = {st.span:.4g}, height = {st.height:.4g}, Lk = {st.Lk:.6f}, Wr = {st.Wr:.4f}, "
             f"morse = {st.morse}, contacts = {st.contacts}")
     return out
 
@@ -250,3 +274,22 @@ def fit_prefactor(T, y, B=1.0):
     else:
         p_std = float("nan")
     return c, c_std, p, p_std
+
+
+def fit_loose_limit(x, c, degree=1):
+    """The loose-knot limit of a scale-free measure: for a long rod (L much longer than the knot)
+    dimensional analysis leaves c = y sqrt(T/B) a function of x = D sqrt(T/B) alone (at given
+    nu, contact law and end moment M / sqrt(BT)), whatever D; the loose limit is c(0).
+    Fits c = c0 + c1 x (+ c2 x^2 with degree 2) by least squares. Returns (coefficients (degree+1,),
+    their standard errors, the largest residual)."""
+    x, c = np.asarray(x, dtype=float), np.asarray(c, dtype=float)
+    A = np.stack([x ** k for k in range(degree + 1)], axis=1)
+    coef, *_ = np.linalg.lstsq(A, c, rcond=None)
+    r = c - A @ coef
+    dof = len(c) - degree - 1
+    if dof > 0:
+        cov = float(r @ r) / dof * np.linalg.inv(A.T @ A)
+        err = np.sqrt(np.diag(cov))
+    else:
+        err = np.full(degree + 1, np.nan)
+    return coef, err, float(np.max(np.abs(r)))

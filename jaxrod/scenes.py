@@ -136,6 +136,11 @@ class Scene:
     terms: names of the energy terms this scene sums.
     """
 
+    # Gauss points per segment in the contact integral (``contact.contact_energy``). 2 suffices
+    # where strands touch along lengths of several edges; scenes with short crossing contacts at
+    # edges near D (an open knot pulled tight) set 3 (``endloads.shortened_rod(contact_quadrature=3)``).
+    contact_quadrature = 2
+
     material: Material
     rest_lengths: np.ndarray
     q_init: np.ndarray
@@ -235,7 +240,8 @@ class Scene:
             out["twist"] = E.twist_energy(self.vertex_twists(q, phi, nbr), vor, m.C)
         if "contact" in terms and "contact" in self.terms:
             pairs, mask = self.contact_candidates(nbr)
-            out["contact"] = contact_energy(x, pairs, mask, self.closed, m.D, m.B, self.contact_stiffness)
+            out["contact"] = contact_energy(x, pairs, mask, self.closed, m.D, m.B, self.contact_stiffness,
+                                            self.contact_quadrature)
         return out
 
     def contact_candidates(self, nbr=None):

@@ -213,7 +213,8 @@ def test_bad_input_is_refused_naming_the_parameter():
         el.check_helix_resolution(86, 20.0, 300.0, ref.R)
 
 
-def test_contact_hessian_of_a_pair_at_a_clamp():
+@pytest.mark.parametrize("quadrature", [2, 3])
+def test_contact_hessian_of_a_pair_at_a_clamp(quadrature):
     """Clamped nodes have no DOFs (index -1 in the Hessian pattern): a contact pair whose segment
     touches a clamp (here edge 1, nodes 1 (clamped) and 2 (free), against a node of the middle
     of the rod) must add only its free rows and columns. Structured Hessian against jax.hessian
@@ -223,7 +224,8 @@ def test_contact_hessian_of_a_pair_at_a_clamp():
     from jaxrod.hessian import dense_autodiff_hessian, scaled_hessian
 
     N, D = 12, 0.1
-    rod = el.shortened_rod(N, 1.0, Material.from_ratio(B=1.0, nu=0.5, D=D), shortening=0.3, contact_stiffness=10.0)
+    rod = el.shortened_rod(N, 1.0, Material.from_ratio(B=1.0, nu=0.5, D=D), shortening=0.3, contact_stiffness=10.0,
+                           contact_quadrature=quadrature)
     q = np.asarray(rod.q_init).copy()
     x = np.asarray(rod.nodes(jnp.asarray(q)))
     # node 7 brought back beside the midpoint of edge 1 (0.7 D away), nodes 6 and 8 beside it
@@ -238,6 +240,20 @@ def test_contact_hessian_of_a_pair_at_a_clamp():
     fast = np.asarray(scaled_hessian(rod, jnp.asarray(u), 0.4, nbr))
     ref = np.asarray(jax.jit(dense_autodiff_hessian)(rod, jnp.asarray(u), 0.4, nbr))
     assert np.max(np.abs(fast - ref)) < 1e-11 * np.max(np.abs(ref)), np.unravel_index(np.argmax(np.abs(fast - ref)), ref.shape)
+    # the scene's quadrature is the one both use (3 Gauss points per segment: another energy)
+    from jaxrod.contact import contact_energy
+
+    pairs, mask = rod.contact_candidates(nbr)
+    x = rod.nodes(jnp.asarray(q))
+    by_points = {k: float(contact_energy(x, pairs, mask, False, D, 1.0, 10.0, k)) for k in (2, 3)}
+    assert e_contact == pytest.approx(by_points[quadrature], rel=1e-13)
+    assert abs(by_points[2] - by_points[3]) > 1e-6 * by_points[3]
+
+
+def test_contact_quadrature_is_refused_unless_1_2_or_3():
+    with pytest.raises(ValueError, match="contact_quadrature"):
+        el.shortened_rod(12, 1.0, Material.from_ratio(B=1.0, nu=0.5, D=0.1), contact_stiffness=10.0,
+                         contact_quadrature=4)
 
 
 def test_cli_helix(helices, tmp_path, capsys):

@@ -49,6 +49,27 @@ def test_pull_step_keeps_topology(built):
     assert float(new.linking_number(jnp.asarray(q2), 0.0)) == pytest.approx(3.0, abs=1e-9)
 
 
+def test_loop_span_is_the_diameter_of_the_off_axis_part(built):
+    scene, _ = built
+    # a circle of radius R in a plane containing the axis, touching the axis, plus nodes on the axis
+    R = 10 * D
+    t = np.linspace(0.0, 2 * math.pi, 400, endpoint=False)
+    circle = np.stack([R + R * np.cos(t), np.zeros_like(t), 0.5 + R * np.sin(t)], axis=1)
+    axis_nodes = np.stack([np.zeros(50), np.zeros(50), np.linspace(0.0, 1.0, 50)], axis=1)
+    x = np.concatenate([axis_nodes, circle])
+    assert ok.loop_height(scene, x) == pytest.approx(2 * R)
+    assert ok.loop_span(scene, x) == pytest.approx(2 * R, rel=1e-4)
+    assert ok.loop_span(scene, axis_nodes) == 0.0
+
+
+def test_fit_loose_limit_recovers_the_intercept():
+    x = np.linspace(0.02, 0.2, 9)
+    coef, err, res = ok.fit_loose_limit(x, 5.1 + 4.0 * x)
+    assert coef == pytest.approx([5.1, 4.0]) and np.all(err < 1e-10) and res < 1e-12
+    coef, err, res = ok.fit_loose_limit(x, 5.1 + 4.0 * x - 7.0 * x ** 2, degree=2)
+    assert coef == pytest.approx([5.1, 4.0, -7.0])
+
+
 def test_fit_prefactor_recovers_a_power_law():
     T = np.geomspace(10.0, 1000.0, 7)
     c, c_std, p, p_std = ok.fit_prefactor(T, 3.7 / np.sqrt(T))
