@@ -1,16 +1,31 @@
 """An open overhand knot pulled tight (issue 19, item 4): loop size against the tension T.
 
-A trefoil-shaped open knot (``jaxrod.open_knot.open_overhand_knot``) in a rod of length L = 1,
-B = 1, diameter D, clamped on the z axis with self-contact (kappa_c = 100), is pulled by moving
-the far clamp away (displacement control: the excess length e = L - end distance decreases
-geometrically), at end rotations phi = 0 and +-2 pi (Lk = 3 + phi/2pi conserved: no strand passage).
-At each state: T (exact, dE/d(end distance)), the loop height (largest distance from the axis),
-Wr, Tw, Lk, the Morse index under the rigid loading. Fits e = c_e sqrt(B/T) and
-height = c_h sqrt(B/T) (and the free exponent) per phi; the planar elastica loop (outer solution
-of a loose knot) has c_e = 4, c_h = 2.
+A trefoil-shaped open knot (``jaxrod.open_knot.open_overhand_knot``, loop unit 0.012 L) in a rod of
+length L = 1, B = 1, nu = 0.5, diameter D, clamped on the z axis with soft self-contact
+(kappa_c = 100), is pulled by displacement control: the excess length e = L - end distance is set,
+and each state is relaxed from the last (damped Newton, strand passage refused). At each state:
+T (exact, dE/d(end distance)), the excess e, the loop span (the loop's diameter), Wr, Tw,
+Lk = Lk0 + phi/2pi and the Morse index under fixed ends.
 
-    python benchmarks/open_knot.py            # ~10 min on 2 cores (the three phi in 2 processes)
-writes benchmarks/results/open_knot.csv, open_knot.json, open_knot.png.
+Scaling. For a rod much longer than the knot, dimensional analysis leaves e sqrt(T/B) and
+span sqrt(T/B) functions of x = D sqrt(T/B) alone (at given nu, contact law and end moment
+M/sqrt(BT)). Two diameters (L/150 at N = 160 and L/300 at N = 310) at phi = 0 test that: where
+their x overlap the values must agree (finite-length effects would separate them), and the loose
+limit (D << sqrt(B/T): the knot's size set by bending against tension alone, e and span
+proportional to sqrt(B/T)) is the intercept at x = 0 (``open_knot.fit_loose_limit``). Twist:
+phi = +-2 pi at D = L/150 (the end moment M/sqrt(BT) is reported). Edges are about D/2 and the
+contact integral takes 3 Gauss points per segment (with 2, T(e) jumped by ~5 % as strands slid
+past the nodes); N = 640 at D = L/150 checks the resolution.
+
+From the relaxed drawn knot (e0 = 0.337) the rod is loosened in steps of 1.05 in e, then
+tightened in steps of 0.95, each leg from the first state.
+
+    python benchmarks/open_knot.py            # ~19 min on 2 cores (the five cases in 2 processes)
+    python benchmarks/open_knot.py --combine  # table, fits and figure from the finished cases
+
+Each case writes its states as they come (benchmarks/results/open_knot/<case>.json; a rerun skips
+finished cases); the combination writes benchmarks/results/open_knot.csv, open_knot.json,
+open_knot.png.
 """
 from __future__ import annotations
 
@@ -27,152 +42,262 @@ for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 OUT = os.path.join(HERE, "results")
-N, L, D, LOOP = 160, 1.0, 1.0 / 150, 0.012
-PHIS = (0.0, 2 * math.pi, -2 * math.pi)
-N_STEPS = 6
+PARTS = os.path.join(OUT, "open_knot")
+L, LOOP, KAPPA = 1.0, 0.012, 100.0
+# (name, D, N, phi): edges of about D/2 (N = 2 L/D + 20), and one case at D/4 for the resolution
+CASES = (("D150_phi0", 1.0 / 150, 320, 0.0), ("D300_phi0", 1.0 / 300, 620, 0.0),
+         ("D150_phi+2pi", 1.0 / 150, 320, 2 * math.pi), ("D150_phi-2pi", 1.0 / 150, 320, -2 * math.pi),
+         ("D150_phi0_N640", 1.0 / 150, 640, 0.0))
+LOOSEN = tuple(1.05 ** k for k in range(1, 10))  # up to 1.55 e0
+TIGHTEN = tuple(0.95 ** k for k in range(1, 21))  # down to 0.36 e0
+FIELDS = ("phi", "excess", "T", "M", "span", "height", "Wr", "Tw", "Lk", "morse", "lowest", "contacts", "energy")
 
 
-def one(phi, path):
+def run_case(name, path):
     import numpy as np
 
     sys.path.insert(0, os.path.dirname(HERE))
     from jaxrod import open_knot as ok
 
+    (_, D, N, phi), = [c for c in CASES if c[0] == name]
     t0 = time.time()
-    scene, q = ok.open_overhand_knot(N, L, D, LOOP, phi=phi)
+    scene, q = ok.open_overhand_knot(N, L, D, LOOP, phi=phi, contact_stiffness=KAPPA)
     e0 = float(scene.shortening)
-    excesses = np.geomspace(e0, 0.62 * e0, N_STEPS)
-    states = []
-
-    def save():
-        dump(phi, path, states, t0)
 
     def say(s):
-        print(f"[phi={phi:+.3f}] {s}", flush=True)
+        print(f"[{name}] {s}", flush=True)
 
-    scene_q = (scene, q)
-    prev = None
-    for v in excesses:  # one state at a time, the results saved after each (a long run can be cut)
-        got = ok.pull(scene_q[0], scene_q[1], [v], phi=phi, progress=say, previous=prev)
-        if not got:
-            break
-        states.append(got[0])
-        prev = got[0]
-        scene_q = (ok._moved(scene_q[0], got[0].q, v)[0], got[0].q)
-        save()
+    first, st0 = ok.relax_knot(scene, phi, q)
+    say(f"e0 = {e0:.4g}: T = {st0.T:.4g}, span = {st0.span:.4g}, Lk = {st0.Lk:.6f}, morse = {st0.morse}")
+    states = [st0]
+    legs = {}
+    for leg, factors in (("loosen", LOOSEN), ("tighten", TIGHTEN)):
+        got = []
+        sc, qq, prev = scene, st0.q, first
+        for f in factors:  # one state at a time, written after each (an interrupted run keeps them)
+            step = ok.pull(sc, qq, [f * e0], phi=phi, progress=say, previous=prev)
+            if not step:
+                legs[leg] = "stopped"
+                break
+            got.append(step[0])
+            sc, qq, prev = ok._moved(sc, step[0].q, f * e0)[0], step[0].q, step[0]
+            _dump(path, name, D, N, phi, states + got, t0, done=False)
+        legs.setdefault(leg, "finished")
+        states += got
+    states.sort(key=lambda s: s.excess)
+    _dump(path, name, D, N, phi, states, t0, done=True, legs=legs)
+    say(f"done in {time.time() - t0:.0f} s")
 
 
-def dump(phi, path, states, t0):
-    rows = [dict(phi=s.phi, excess=s.excess, T=s.T, M=s.M, height=s.height, Wr=s.Wr, Tw=s.Tw, Lk=s.Lk,
-                 morse=s.morse, lowest=float(s.lowest[0]), contacts=s.contacts, energy=s.energy) for s in states]
-    with open(path, "w") as f:
-        json.dump(dict(rows=rows, wall_s=time.time() - t0, x_last=states[-1].x.tolist() if states else None,
-                       x_first=states[0].x.tolist() if states else None), f)
+def _dump(path, name, D, N, phi, states, t0, done, legs=None):
+    import numpy as np
+
+    rows = [{k: (float(getattr(s, k)[0]) if k == "lowest" else getattr(s, k)) for k in FIELDS} for s in states]
+    tight = min(states, key=lambda s: s.excess) if states else None
+    loose = max(states, key=lambda s: s.excess) if states else None
+    tmp = path + ".tmp"
+    with open(tmp, "w") as f:
+        json.dump(dict(case=name, D=D, N=N, phi=phi, rows=rows, wall_s=time.time() - t0, done=done, legs=legs,
+                       x_tight=tight.x.tolist() if tight else None, x_loose=loose.x.tolist() if loose else None,
+                       x=[np.round(s.x, 12).tolist() for s in states]), f)
+    os.replace(tmp, path)
+
+
+def combine():
+    import numpy as np
+
+    sys.path.insert(0, os.path.dirname(HERE))
+    from jaxrod.open_knot import fit_loose_limit, fit_prefactor, mean_tension
+
+    results = {}
+    for name, *_ in CASES:
+        p = os.path.join(PARTS, name + ".json")
+        if os.path.exists(p):
+            with open(p) as f:
+                results[name] = json.load(f)
+    lines = ["case,D,N," + ",".join(FIELDS)]
+    steps_lines = ["case,D,N,phi,e_mid,T_mean,T_states,span_mid,M_mid,x,e_sqrtT,span_sqrtT,m,stable"]
+    table, steps = {}, {}
+    for name, r in results.items():
+        rows = sorted(r["rows"], key=lambda w: w["excess"])
+        for w in rows:
+            lines.append(f"{name},{r['D']:.10g},{r['N']}," + ",".join(f"{w[k]:.10g}" for k in FIELDS))
+        # the scaling is read off the mean tension over each step (-dE/de), which the exact
+        # tension at the states (end_loads) follows to within its ripple
+        e = np.array([w["excess"] for w in rows])
+        e_mid, T_mean = mean_tension(e, [w["energy"] for w in rows])
+        pts = []
+        for i in range(len(e_mid)):
+            a, b = rows[i], rows[i + 1]
+            T_states = 0.5 * (a["T"] + b["T"])
+            span = 0.5 * (a["span"] + b["span"])
+            M = 0.5 * (a["M"] + b["M"])
+            sq = math.sqrt(T_mean[i]) if T_mean[i] > 0 else float("nan")
+            pt = dict(e_mid=float(e_mid[i]), T_mean=float(T_mean[i]), T_states=T_states, span_mid=span, M_mid=M,
+                      x=r["D"] * sq, e_sqrtT=float(e_mid[i]) * sq, span_sqrtT=span * sq, m=M / sq,
+                      stable=a["morse"] == 0 and b["morse"] == 0)
+            pts.append(pt)
+            steps_lines.append(f"{name},{r['D']:.10g},{r['N']},{r['phi']:.10g}," + ",".join(
+                f"{pt[k]:.10g}" for k in ("e_mid", "T_mean", "T_states", "span_mid", "M_mid", "x", "e_sqrtT",
+                                          "span_sqrtT", "m")) + f",{int(pt['stable'])}")
+        steps[name] = pts
+        T = np.array([w["T"] for w in rows])
+        ripple = np.array([p["T_states"] / p["T_mean"] - 1 for p in pts])
+        pe = fit_prefactor([p["T_mean"] for p in pts], [p["e_mid"] for p in pts])
+        table[name] = dict(D=r["D"], N=r["N"], phi=r["phi"], n_states=len(rows), done=r["done"], wall_s=r["wall_s"],
+                           T_range=[float(T.min()), float(T.max())],
+                           x_range=[min(p["x"] for p in pts), max(p["x"] for p in pts)],
+                           m_range=[min(p["m"] for p in pts), max(p["m"] for p in pts)],
+                           e_sqrtT_range=[min(p["e_sqrtT"] for p in pts), max(p["e_sqrtT"] for p in pts)],
+                           tension_ripple_rms=float(np.sqrt(np.mean(ripple ** 2))),
+                           tension_ripple_max=float(np.max(np.abs(ripple))),
+                           exponent_e=pe[2], exponent_e_std=pe[3],
+                           morse=sorted({w["morse"] for w in rows}),
+                           Lk_error=max(abs(w["Lk"] - (3 + w["phi"] / (2 * math.pi))) for w in rows))
+    fits = {}
+    untwisted = [n for n in ("D150_phi0", "D300_phi0") if n in steps]  # the N = 640 case: resolution only
+    pts = [p for n in untwisted for p in steps[n] if p["stable"] and p["T_mean"] > 0]
+    if len(pts) >= 4:
+        x = np.array([p["x"] for p in pts])
+        for key in ("e_sqrtT", "span_sqrtT"):
+            c = np.array([p[key] for p in pts])
+            lin, lin_err, lin_res = fit_loose_limit(x, c, 1)
+            quad, quad_err, quad_res = fit_loose_limit(x, c, 2)
+            small = x <= 0.12  # the linear law over the loosest states only
+            lin_s, lin_s_err, lin_s_res = fit_loose_limit(x[small], c[small], 1)
+            # the loose limit depends on the form assumed for the correction: compare three
+            forms = {}
+            for form, cols in (("c0 + c1 x + c2 x^2", [x, x ** 2]), ("c0 + c1 sqrt(x) + c2 x", [np.sqrt(x), x]),
+                               ("c0 + c1 x log x + c2 x", [x * np.log(x), x])):
+                A = np.stack([np.ones_like(x)] + cols, axis=1)
+                coef, *_ = np.linalg.lstsq(A, c, rcond=None)
+                res = c - A @ coef
+                cov = float(res @ res) / (len(c) - 3) * np.linalg.inv(A.T @ A)
+                forms[form] = dict(c0=float(coef[0]), c0_std=float(math.sqrt(cov[0, 0])),
+                                   rms_residual=float(np.sqrt(np.mean(res ** 2))), max_residual=float(np.max(np.abs(res))))
+            fits[key] = dict(by_correction_form=forms, c0_quadratic=quad[0], c0_quadratic_std=quad_err[0], c1_quadratic=quad[1],
+                             c2_quadratic=quad[2], max_residual_quadratic=quad_res,
+                             c0_linear=lin[0], c0_linear_std=lin_err[0], c1_linear=lin[1], max_residual_linear=lin_res,
+                             c0_linear_x_le_0p12=lin_s[0], c0_linear_x_le_0p12_std=lin_s_err[0],
+                             x_range=[float(x.min()), float(x.max())], n_points=len(pts))
+    # collapse: the D = L/300 values against the D = L/150 curve (linear interpolation in x) where both exist
+    collapse = {}
+    if len(untwisted) == 2:
+        a = sorted(steps["D150_phi0"], key=lambda p: p["x"])
+        xa = np.array([p["x"] for p in a])
+        for key in ("e_sqrtT", "span_sqrtT"):
+            ya = np.array([p[key] for p in a])
+            d = [p[key] / np.interp(p["x"], xa, ya) - 1 for p in steps["D300_phi0"] if xa.min() <= p["x"] <= xa.max()]
+            collapse[key] = dict(points=len(d), max_relative_difference=float(np.max(np.abs(d))) if d else None,
+                                 mean_relative_difference=float(np.mean(d)) if d else None)
+    # resolution: N = 640 against N = 320 at D = L/150 (the same excess steps)
+    resolution = {}
+    if "D150_phi0" in steps and "D150_phi0_N640" in steps:
+        a = {round(p["e_mid"], 9): p for p in steps["D150_phi0"]}
+        for key in ("T_mean", "span_mid"):
+            d = [p[key] / a[round(p["e_mid"], 9)][key] - 1 for p in steps["D150_phi0_N640"] if round(p["e_mid"], 9) in a]
+            resolution[key] = dict(points=len(d), max_relative_difference=float(np.max(np.abs(d))) if d else None,
+                                   mean_relative_difference=float(np.mean(d)) if d else None)
+    os.makedirs(OUT, exist_ok=True)
+    with open(os.path.join(OUT, "open_knot.csv"), "w") as f:
+        f.write("\n".join(lines) + "\n")
+    with open(os.path.join(OUT, "open_knot_steps.csv"), "w") as f:
+        f.write("\n".join(steps_lines) + "\n")
+    summary = dict(L=L, B=1.0, nu=0.5, loop_unit=LOOP, contact_stiffness=KAPPA, contact_quadrature=3, cases=table,
+                   loose_limit=fits, collapse=collapse, resolution_N640_vs_N320=resolution,
+                   elastica_loop=dict(e_sqrtT=4.0, note="a planar elastica loop: e = 4 sqrt(B/T)"),
+                   circle_loop=dict(e_sqrtT=2 * math.pi / math.sqrt(2), span_sqrtT=math.sqrt(2),
+                                    note="a circular loop of radius R: B pi/R + T 2 pi R least at R = sqrt(B/2T)"))
+    with open(os.path.join(OUT, "open_knot.json"), "w") as f:
+        json.dump(summary, f, indent=1)
+    print(json.dumps(dict(cases=table, loose_limit=fits, collapse=collapse, resolution=resolution), indent=1))
+    _figure(results, steps, fits)
+
+
+def _figure(results, steps, fits):
+    import matplotlib
+    import numpy as np
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    style = {"D150_phi0": ("k", "o"), "D300_phi0": ("tab:green", "s"), "D150_phi+2pi": ("tab:red", "^"),
+             "D150_phi-2pi": ("tab:blue", "v"), "D150_phi0_N640": ("tab:orange", ".")}
+    fig, axs = plt.subplots(1, 4, figsize=(21, 4.8))
+    for name, r in results.items():
+        pts = [p for p in steps[name] if p["T_mean"] > 0]
+        col, mk = style[name]
+        lab = f"D = L/{round(1 / r['D'])}, N = {r['N']}, phi = {r['phi'] / math.pi:+.0f} pi"
+        T = np.array([p["T_mean"] for p in pts])
+        st = np.array([p["stable"] for p in pts])
+        for ax, key in ((axs[0], "e_mid"), (axs[1], "span_mid")):
+            y = np.array([p[key] for p in pts])
+            ax.loglog(T[st], y[st], mk, color=col, mfc="none" if r["phi"] else col, ms=4, label=lab)
+            if np.any(~st):
+                ax.loglog(T[~st], y[~st], "x", color=col, label=lab + " (Morse > 0)")
+        if name == "D150_phi0":  # the tension at the states, with its ripple
+            rows = r["rows"]
+            axs[0].loglog([w["T"] for w in rows], [w["excess"] for w in rows], "+", color="0.6", ms=5,
+                          label="D = L/150, phi = 0: T at the states (end_loads)")
+        for ax, key in ((axs[2], "e_sqrtT"), (axs[3], "span_sqrtT")):
+            ax.plot([p["x"] for p in pts], [p[key] for p in pts], mk + "-", color=col, mfc="none" if r["phi"] else col,
+                    lw=0.7, ms=4, label=lab)
+    for ax, key, title in ((axs[2], "e_sqrtT", "e sqrt(T/B)"), (axs[3], "span_sqrtT", "loop span sqrt(T/B)")):
+        f = fits.get(key)
+        if f:
+            xx = np.linspace(0, f["x_range"][1], 80)
+            ax.plot(xx, f["c0_quadratic"] + f["c1_quadratic"] * xx + f["c2_quadratic"] * xx ** 2, "--", color="0.4",
+                    lw=1, label=f"phi = 0, both D: quadratic fit, c0 = {f['c0_quadratic']:.3f}")
+            ax.plot([0], [f["c0_quadratic"]], "*", color="0.2", ms=12)
+        ax.set(xlabel="x = D sqrt(T/B)", ylabel=title, title=f"{title} against D sqrt(T/B)", xlim=(0, None))
+        ax.legend(fontsize=7)
+    axs[2].axhline(4.0, color="gray", ls=":", lw=1, label="planar elastica loop: 4")
+    axs[2].axhline(2 * math.pi / math.sqrt(2), color="gray", ls="-.", lw=1, label="circular loop: 4.44")
+    axs[2].legend(fontsize=7)
+    tt = np.geomspace(60, 3000, 20)
+    if "e_sqrtT" in fits:
+        axs[0].loglog(tt, fits["e_sqrtT"]["c0_quadratic"] / np.sqrt(tt), "--", color="0.4",
+                      label=f"loose limit {fits['e_sqrtT']['c0_quadratic']:.2f} sqrt(B/T)")
+    if "span_sqrtT" in fits:
+        axs[1].loglog(tt, fits["span_sqrtT"]["c0_quadratic"] / np.sqrt(tt), "--", color="0.4",
+                      label=f"loose limit {fits['span_sqrtT']['c0_quadratic']:.2f} sqrt(B/T)")
+    axs[0].set(xlabel="T L^2 / B (mean over each step, -dE/de)", ylabel="excess length e / L",
+               title="open overhand knot: excess length")
+    axs[1].set(xlabel="T L^2 / B", ylabel="loop span / L", title="loop diameter")
+    for ax in axs[:2]:
+        ax.legend(fontsize=7)
+    fig.suptitle("open overhand knot pulled by its ends: L = 1, B = 1, nu = 0.5, kappa_c = 100, 3 Gauss points; "
+                 "filled: phi = 0, open: phi = +-2 pi; every state stable (Morse index 0 under fixed ends)")
+    fig.tight_layout()
+    fig.savefig(os.path.join(OUT, "open_knot.png"), dpi=100)
 
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--one", type=float, default=None)
-    ap.add_argument("--to", default=None)
-    ap.add_argument("--combine", action="store_true", help="combine the per-phi files already written")
-    ap.add_argument("--parallel", type=int, default=3)
+    ap.add_argument("--case", default=None, help="run one case (a worker)")
+    ap.add_argument("--combine", action="store_true", help="only combine the cases already written")
+    ap.add_argument("--parallel", type=int, default=2)
     a = ap.parse_args()
-    if a.one is not None:
-        one(a.one, a.to)
+    os.makedirs(PARTS, exist_ok=True)
+    if a.case:
+        run_case(a.case, os.path.join(PARTS, a.case + ".json"))
         return
-    import numpy as np
-
-    sys.path.insert(0, os.path.dirname(HERE))
-    from jaxrod.open_knot import ELASTICA_EXCESS, ELASTICA_HEIGHT, fit_prefactor
-
-    os.makedirs(OUT, exist_ok=True)
-    parts = {phi: os.path.join("/tmp", f"open_knot_{phi:+.4f}.json") for phi in PHIS}
-    t0 = time.time()
-    pending = list(PHIS)
-    running = []
-    if a.combine:  # only combine the parts already written
+    if not a.combine:
+        t0 = time.time()
         pending = []
-    while pending or running:
-        while pending and len(running) < a.parallel:
-            phi = pending.pop(0)
-            running.append(subprocess.Popen([sys.executable, __file__, "--one", repr(phi), "--to", parts[phi]]))
-        if a.combine:
-            break
-        running[0].wait()
-        running = [p for p in running if p.poll() is None]
-    results = {}
-    for phi in PHIS:
-        with open(parts[phi]) as f:
-            results[phi] = json.load(f)
-    wall = time.time() - t0
-    fits = {}
-    lines = ["phi,excess,T,M,height,Wr,Tw,Lk,morse,lowest,contacts,energy"]
-    for phi in PHIS:
-        rows = results[phi]["rows"]
-        for r in rows:
-            lines.append(",".join(f"{r[k]:.10g}" for k in ("phi", "excess", "T", "M", "height", "Wr", "Tw", "Lk",
-                                                            "morse", "lowest", "contacts", "energy")))
-        T = np.array([r["T"] for r in rows])
-        ok = T > 0
-        if np.sum(ok) >= 3:
-            ce = fit_prefactor(T[ok], np.array([r["excess"] for r in rows])[ok])
-            ch = fit_prefactor(T[ok], np.array([r["height"] for r in rows])[ok])
-            fits[f"{phi:+.4f}"] = dict(c_excess=ce[0], c_excess_std=ce[1], p_excess=ce[2], p_excess_std=ce[3],
-                                       c_height=ch[0], c_height_std=ch[1], p_height=ch[2], p_height_std=ch[3],
-                                       T_range=[float(T[ok].min()), float(T[ok].max())],
-                                       Lk_range=[min(r["Lk"] for r in rows), max(r["Lk"] for r in rows)],
-                                       morse=[r["morse"] for r in rows], n_states=len(rows),
-                                       wall_s=results[phi]["wall_s"])
-    with open(os.path.join(OUT, "open_knot.csv"), "w") as f:
-        f.write("\n".join(lines) + "\n")
-    with open(os.path.join(OUT, "open_knot.json"), "w") as f:
-        json.dump(dict(N=N, L=L, D=D, loop=LOOP, B=1.0, nu=0.5, contact_stiffness=100.0, fits=fits,
-                       elastica=dict(c_excess=ELASTICA_EXCESS, c_height=ELASTICA_HEIGHT), wall_s=wall), f, indent=1)
-    print(json.dumps(fits, indent=1))
-
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axs = plt.subplots(1, 3, figsize=(15, 4.6))
-    colors = {0.0: "k", 2 * math.pi: "tab:red", -2 * math.pi: "tab:blue"}
-    for phi in PHIS:
-        rows = results[phi]["rows"]
-        if not rows:
-            continue
-        T = np.array([r["T"] for r in rows])
-        for ax, key in ((axs[0], "excess"), (axs[1], "height")):
-            y = np.array([r[key] for r in rows])
-            st = np.array([r["morse"] == 0 for r in rows])
-            lab = f"phi = {phi / math.pi:+.0f} pi"
-            ax.loglog(T[st], y[st], "o", color=colors[phi], label=lab + " (stable)")
-            if np.any(~st):
-                ax.loglog(T[~st], y[~st], "x", color=colors[phi], label=lab + " (Morse > 0)")
-            f = fits.get(f"{phi:+.4f}")
-            if f:
-                c = f["c_excess" if key == "excess" else "c_height"]
-                tt = np.geomspace(T.min(), T.max(), 20)
-                ax.loglog(tt, c / np.sqrt(tt), "-", color=colors[phi], lw=0.8,
-                          label=f"fit {c:.2f} sqrt(B/T)")
-    tt = np.geomspace(min(min(r["T"] for r in results[p]["rows"]) for p in PHIS if results[p]["rows"]),
-                      max(max(r["T"] for r in results[p]["rows"]) for p in PHIS if results[p]["rows"]), 20)
-    axs[0].loglog(tt, ELASTICA_EXCESS / np.sqrt(tt), "--", color="gray", label="elastica loop 4 sqrt(B/T)")
-    axs[1].loglog(tt, ELASTICA_HEIGHT / np.sqrt(tt), "--", color="gray", label="elastica loop 2 sqrt(B/T)")
-    axs[0].set(xlabel="T L^2 / B", ylabel="excess length e / L", title="open overhand knot: excess length")
-    axs[1].set(xlabel="T L^2 / B", ylabel="loop height / L", title="largest distance from the axis")
-    for ax in axs[:2]:
-        ax.legend(fontsize=7)
-    x = np.array(results[0.0]["x_first"] or [[0, 0, 0]])
-    xl = np.array(results[0.0]["x_last"] or [[0, 0, 0]])
-    axs[2].plot(x[:, 2], x[:, 0], "-", color="0.6", label="loosest (phi = 0)")
-    axs[2].plot(xl[:, 2], xl[:, 0], "-k", label="tightest (phi = 0)")
-    axs[2].set(xlabel="z / L (axis)", ylabel="x / L", title="centreline, side view")
-    axs[2].set_aspect("equal")
-    axs[2].legend(fontsize=7)
-    fig.suptitle(f"N = {N}, D/L = {D:.4g}, kappa_c = 100; T from end_loads, Morse index under fixed ends")
-    fig.tight_layout()
-    fig.savefig(os.path.join(OUT, "open_knot.png"), dpi=110)
-    print(f"wall {wall:.0f} s")
+        for name, *_ in CASES:
+            p = os.path.join(PARTS, name + ".json")
+            if os.path.exists(p) and json.load(open(p)).get("done"):
+                continue
+            pending.append(name)
+        running = []
+        while pending or running:
+            while pending and len(running) < a.parallel:
+                running.append(subprocess.Popen([sys.executable, __file__, "--case", pending.pop(0)]))
+            time.sleep(2)
+            running = [p for p in running if p.poll() is None]
+        print(f"cases ran in {time.time() - t0:.0f} s")
+    combine()
 
 
 if __name__ == "__main__":

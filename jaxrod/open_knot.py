@@ -32,7 +32,7 @@ from .material import Material
 from .validation import check_finite, check_int_at_least, check_positive
 
 __all__ = ["open_overhand_knot", "KnotState", "pull", "loop_height", "loop_span", "relax_knot", "fit_prefactor",
-           "fit_loose_limit"]
+           "fit_loose_limit", "mean_tension"]
 
 TWO_PI = 2.0 * math.pi
 DEFAULT_CONTACT_STIFFNESS = 100.0
@@ -143,16 +143,18 @@ def loop_height(scene, x):
     return float(np.max(np.linalg.norm(lat, axis=1)))
 
 
-def loop_span(scene, x, off_axis=2.0):
-    """The loop's diameter: the largest distance between two nodes of x (N, 3) that lie more than
-    ``off_axis`` diameters from the clamp axis (the tails, on the axis, excluded). For the round
-    loop of a loose knot it is the loop's diameter; ``loop_height`` is its largest distance from
-    the axis, which depends on how the loop sits across the axis."""
+def loop_span(scene, x, fraction=0.3):
+    """The loop's diameter: the largest distance between two nodes of x (N, 3) that lie further
+    from the clamp axis than ``fraction`` of the largest such distance (``loop_height``). The
+    threshold scales with the loop, so the measure is the same for knots of any D at equal
+    D sqrt(T/B): a threshold fixed in D counted the tails' deflection near a thin knot.
+    For the round loop of a loose knot it is the loop's diameter; ``loop_height`` depends on how
+    the loop sits across the axis."""
     a = np.asarray(scene.axis, dtype=float)
     x = np.asarray(x, dtype=float)
     r = x - np.asarray(scene.x_clamped, dtype=float)[0][None, :]
     lat = np.linalg.norm(r - (r @ a)[:, None] * a[None, :], axis=1)
-    p = x[lat > off_axis * float(scene.material.D)]
+    p = x[lat > fraction * lat.max()] if lat.max() > 0 else x[:0]
     if len(p) < 2:
         return 0.0
     d = np.linalg.norm(p[:, None, :] - p[None, :, :], axis=-1)
@@ -293,3 +295,16 @@ def fit_loose_limit(x, c, degree=1):
     else:
         err = np.full(degree + 1, np.nan)
     return coef, err, float(np.max(np.abs(r)))
+
+
+def mean_tension(excess, energy):
+    """The mean tension over each step of a displacement-controlled pull: T = -dE/de between
+    consecutive states, (E1 - E0) / (e0 - e1), placed at the geometric mean sqrt(e0 e1) of their
+    excess lengths (where it is exact for the loose-knot law T = c^2 B / e^2, E = E_inf + c^2 B / e).
+    Smoother than the tension at each state (``end_loads``), which ripples by a few per cent as the
+    strands slide past the nodes; the work done is the same. excess, energy: (K,) in any order.
+    Returns (e_mid (K-1,), T_mean (K-1,)), sorted by excess."""
+    e, E = np.asarray(excess, dtype=float), np.asarray(energy, dtype=float)
+    order = np.argsort(e)
+    e, E = e[order], E[order]
+    return np.sqrt(e[1:] * e[:-1]), -(E[1:] - E[:-1]) / (e[1:] - e[:-1])

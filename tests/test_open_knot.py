@@ -59,7 +59,7 @@ def test_loop_span_is_the_diameter_of_the_off_axis_part(built):
     x = np.concatenate([axis_nodes, circle])
     assert ok.loop_height(scene, x) == pytest.approx(2 * R)
     assert ok.loop_span(scene, x) == pytest.approx(2 * R, rel=1e-4)
-    assert ok.loop_span(scene, axis_nodes) == 0.0
+    assert ok.loop_span(scene, np.zeros((5, 3))) == 0.0
 
 
 def test_fit_loose_limit_recovers_the_intercept():
@@ -68,6 +68,14 @@ def test_fit_loose_limit_recovers_the_intercept():
     assert coef == pytest.approx([5.1, 4.0]) and np.all(err < 1e-10) and res < 1e-12
     coef, err, res = ok.fit_loose_limit(x, 5.1 + 4.0 * x - 7.0 * x ** 2, degree=2)
     assert coef == pytest.approx([5.1, 4.0, -7.0])
+
+
+def test_mean_tension_is_exact_for_the_loose_knot_law():
+    # E = E_inf + c^2 B / e gives T = c^2 B / e^2; states in any order
+    e = np.array([0.3, 0.1, 0.2, 0.15])
+    e_mid, T = ok.mean_tension(e, 7.0 + 5.1 ** 2 / e)
+    assert np.all(np.diff(e_mid) > 0)
+    assert T == pytest.approx(5.1 ** 2 / e_mid ** 2, rel=1e-13)
 
 
 def test_fit_prefactor_recovers_a_power_law():
