@@ -26,7 +26,7 @@ from .geometry import polyline_distance
 from .validation import check_finite, check_int_at_least, check_positive, refuse_knot
 from .solvers import ConvergenceError
 from .sparse_branch import EXTRA_PAIRS, solve_equilibrium_sparse, sparse_branch_analysis
-from .stability import DEFAULT_NEGATIVE_TOL, branch_analysis, shape_modes_in_band
+from .stability import CONTACT_NEGATIVE_TOL, DEFAULT_NEGATIVE_TOL, branch_analysis, shape_modes_in_band  # noqa: F401 (re-exported)
 
 __all__ = ["check_dense_memory", "dense_memory_bytes", "available_memory_bytes", "default_negative_tol",
            "ContinuationOptions", "Task", "PathStop", "StepFailure", "BranchEnd", "CriticalPoint", "critical_twist", "NoCrossingError", "BranchPoint", "Instability", "TwistPath", "follow_twist", "PathState", "Phase"]
@@ -100,10 +100,8 @@ class CriticalPoint:
     scene: object = field(default=None, repr=False)  # the scene as used last (fresh contact list)
 
 
-# Near-zero modes of a loose knot (strands sliding along each other) sit at |lambda| ~ 1e-7 in the
-# scaled units and change sign from step to step: with self-contact an eigenvalue counts as
-# negative, and enters the branch tangent, only beyond this.
-CONTACT_NEGATIVE_TOL = 1e-6
+# CONTACT_NEGATIVE_TOL (the near-zero band with self-contact) lives in .stability and is
+# re-exported here, where callers have always found it.
 # A follow_twist corrector out of steps with a gradient within this factor of gtol has stalled on
 # sliding modes (seen: N = 151 trefoil, |g| ~ 7e-9 against 1e-9, a false branch end at -8.03 pi
 # where the true one is -11.1 pi); Newton finishes it (``_Engine._finish_stalled``).

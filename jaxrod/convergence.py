@@ -229,7 +229,7 @@ def _level(scene, side, phi_start, start, span, step, tol, say, cancel):
         # The stable-only engine counts eigenvalues inside the near-zero band kept for sliding
         # modes as zero; a shape mode negative in that band means the branch ended earlier,
         # unseen (issue 17: the trefoil's opening side at N >= 241). Such a level is refused.
-        from .continuation import CONTACT_NEGATIVE_TOL
+        from .stability import CONTACT_NEGATIVE_TOL
         from .stability import shape_modes_in_band
 
         if shape_modes_in_band(scene, inst.equilibrium, CONTACT_NEGATIVE_TOL):
@@ -252,7 +252,7 @@ def _level_by_events(scene, side, path, phi_start, tol, say):
     already had such modes). Returns (Level or None, reason)."""
     from .bifurcation import ContinuationOptions, PseudoArclength, continuation
     from .bifurcation.rods import knot_problem
-    from .continuation import CONTACT_NEGATIVE_TOL
+    from .stability import CONTACT_NEGATIVE_TOL
     from .stability import shape_modes_in_band
 
     clean = [p.equilibrium for p in path.points if not shape_modes_in_band(scene, p.equilibrium, CONTACT_NEGATIVE_TOL)]

@@ -15,7 +15,7 @@ from .hessian import scaled_hessian
 from .validation import check_finite
 from .neighbourhood import WRITHE_DRIFT_LIMIT, Neighbourhood
 from .solvers import LBFGS, ConvergenceError, DampedNewton, Newton, Solution, StopReason, minimise
-from .stability import DEFAULT_NEGATIVE_TOL, Stability, stability
+from .stability import CONTACT_NEGATIVE_TOL, DEFAULT_NEGATIVE_TOL, Stability, stability
 
 __all__ = ["Equilibrium", "solve_equilibrium", "relax", "relax_to_minimum", "mode_step", "TopologyChangeError", "LeftBranchError", "scaled_energy", "scaled_zero_modes",
            "structured_hessian"]
@@ -179,7 +179,6 @@ def relax_to_minimum(scene, phi=0.0, q0=None, gtol=1e-9, negative_tol=None, push
     at the node that moves most) and relaxed again; the lower-energy result with the same
     writhe branch is kept. Returns a stable ``Equilibrium``; raises ``ConvergenceError`` if
     ``max_pushes`` pushes leave it unstable."""
-    from .continuation import CONTACT_NEGATIVE_TOL  # noqa: PLC0415 (continuation imports this module)
 
     has_contact = "contact" in scene.terms
     if negative_tol is None:

@@ -190,7 +190,7 @@ def relax_knot(scene, phi, q0, previous=None, gtol=1e-7, k=6):
     import jax.numpy as jnp  # noqa: PLC0415
 
     from .contact import contact_count  # noqa: PLC0415
-    from .continuation import CONTACT_NEGATIVE_TOL  # noqa: PLC0415
+    from .stability import CONTACT_NEGATIVE_TOL  # noqa: PLC0415
     from .equilibrium import relax  # noqa: PLC0415
 
     e = relax(scene, phi, q0, gtol=gtol, k=k, negative_tol=CONTACT_NEGATIVE_TOL, previous=previous,

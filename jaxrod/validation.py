@@ -71,9 +71,8 @@ def refuse_knot(scene, what):
     the trefoil at N = 61 returned 2.5411 pi, a slide, in place of the fold at 6.60 pi); and a
     knot's branch end is a fold, where the derivative of the fixed-branch linearisation is the
     wrong formula (it depended on tol, and disagreed with finite differences of studies)."""
-    from .scenes import ClosedRod
-
-    if isinstance(scene, ClosedRod) and "contact" in scene.terms:
+    # told by the scene's attributes, not its class: this module sits below .scenes (no import cycle)
+    if getattr(scene, "closed", False) and "contact" in getattr(scene, "terms", ()):
         raise ValueError(
             f"{what} does not handle knots (a closed rod with self-contact): their sliding modes are taken "
             "for instabilities and their branch ends are folds. Locate a knot's branch ends with "

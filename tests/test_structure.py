@@ -1,0 +1,90 @@
+"""The package's import graph has no cycle (issue 17, item 8): every ``from .x import`` /
+``from . import x`` / ``import jaxrod.x``, at module level or inside a function, is an edge; a cycle
+through function-level imports still ties the modules together."""
+import ast
+import pathlib
+
+PACKAGE = pathlib.Path(__file__).resolve().parent.parent / "jaxrod"
+
+
+def _module_name(path):
+    rel = path.relative_to(PACKAGE.parent).with_suffix("")
+    parts = list(rel.parts)
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
+
+
+def _imports(path, name):
+    package = name if path.name == "__init__.py" else name.rsplit(".", 1)[0]
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")
+                base = base[:len(base) - (node.level - 1)]
+                target = ".".join(base + ([node.module] if node.module else []))
+            else:
+                target = node.module or ""
+            if not target.startswith("jaxrod"):
+                continue
+            if node.module is None or node.level and not node.module:
+                for alias in node.names:  # from . import x: the submodule x
+                    out.add(f"{target}.{alias.name}")
+            else:
+                out.add(target)
+        elif isinstance(node, ast.Import):
+            out.update(a.name for a in node.names if a.name.startswith("jaxrod"))
+    return out
+
+
+def _graph():
+    modules = {_module_name(p): p for p in PACKAGE.rglob("*.py")}
+    graph = {}
+    for name, path in modules.items():
+        edges = set()
+        for target in _imports(path, name):
+            while target and target not in modules:  # jaxrod.x.Name -> jaxrod.x
+                target = target.rsplit(".", 1)[0] if "." in target else ""
+            if target and target != name and not name.startswith(target + "."):
+                edges.add(target)
+        graph[name] = edges
+    return graph
+
+
+def _cycle(graph):
+    colour, stack = {}, []
+
+    def visit(n):
+        colour[n] = 1
+        stack.append(n)
+        for m in sorted(graph.get(n, ())):
+            if m.startswith(n + "."):  # a package importing its own submodules
+                continue
+            if colour.get(m) == 1:
+                return stack[stack.index(m):] + [m]
+            if not colour.get(m):
+                found = visit(m)
+                if found:
+                    return found
+        stack.pop()
+        colour[n] = 2
+        return None
+
+    for n in sorted(graph):
+        if not colour.get(n):
+            found = visit(n)
+            if found:
+                return found
+    return None
+
+
+def test_the_import_graph_is_read():
+    graph = _graph()
+    assert "jaxrod.equilibrium" in graph["jaxrod.continuation"]
+    assert "jaxrod.stability" in graph["jaxrod.equilibrium"]
+
+
+def test_no_import_cycle():
+    cycle = _cycle(_graph())
+    assert cycle is None, " -> ".join(cycle)
