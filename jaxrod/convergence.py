@@ -329,15 +329,33 @@ def _side(scene, side, accuracy, N_levels, span, step, tol, say, cancel, store):
         if len(levels) >= 2:
             ext = richardson([lv.N for lv in levels], [lv.phi_star for lv in levels])
             say(f"{side}: extrapolated phi* = {ext.value / math.pi:+.6f} pi +- {ext.error / math.pi:.1e} pi "
-                f"(order {ext.order:.2f}{'' if ext.order_measured else ' assumed'})")
+                f"(order {ext.order:.2f}{'' if ext.order_measured else ' assumed'}"
+                f"{'' if ext.asymptotic else ', not in the asymptotic range'})")
             if len(levels) >= 3 and ext.asymptotic and ext.order_measured and ext.error <= accuracy:
                 return SideConvergence(side, tuple(levels), ext, accuracy, True,
                                        f"error estimate {ext.error / math.pi:.1e} pi <= {accuracy / math.pi:.1e} pi "
                                        f"at N = {levels[-1].N}")
-    why = f"N_max = {N_levels[-1]} reached"
-    err = "no estimate" if ext is None else f"error estimate {ext.error / math.pi:.1e} pi"
-    return SideConvergence(side, tuple(levels), ext, accuracy, False,
-                           f"{why} before the accuracy asked for ({err} > {accuracy / math.pi:.1e} pi)")
+    return SideConvergence(side, tuple(levels), ext, accuracy, False, _unconverged_reason(N_levels[-1], ext, accuracy,
+                                                                                         levels))
+
+
+def _unconverged_reason(N_max, ext, accuracy, levels=()):
+    """Why a side stopped at N_max without converging, in words that hold: a small last change is
+    not an error estimate when the levels are not in their asymptotic range (e.g. the branch end
+    changed kind between levels: a fold at coarse N, a branch point at fine N)."""
+    why = f"N_max = {N_max} reached before the accuracy asked for"
+    if ext is None:
+        return f"{why} (no estimate)"
+    kinds = [lv.kind for lv in levels]
+    changed = f"; the branch end changed kind between levels ({', '.join(f'{lv.N}: {lv.kind}' for lv in levels)})" \
+        if len(set(kinds)) > 1 else ""
+    if not ext.asymptotic:
+        order = "no order" if math.isnan(ext.order) else f"measured order {ext.order:.2f}"
+        return (f"{why}: the levels are not in their asymptotic range ({order}, outside {ORDER_RANGE}){changed}; "
+                f"the finest value's last change is {ext.error / math.pi:.1e} pi, not an error estimate")
+    if not ext.order_measured:
+        return f"{why}: two levels only (order assumed), error estimate {ext.error / math.pi:.1e} pi{changed}"
+    return f"{why} (error estimate {ext.error / math.pi:.1e} pi > {accuracy / math.pi:.1e} pi){changed}"
 
 
 def resolution_levels(N_start, N_max):
