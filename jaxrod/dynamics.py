@@ -32,7 +32,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from .equilibrium import TopologyChangeError
-from .neighbourhood import WRITHE_DRIFT_LIMIT
 from .validation import check_finite, check_int_at_least, check_positive
 
 __all__ = ["damped_dynamics", "DynamicsResult", "stable_time_step"]
@@ -186,14 +185,14 @@ def damped_dynamics(scene, phi_start, phi_stop, rate, q0=None, gamma=1.0, temper
         q = np.asarray(scene.from_scaled(np.asarray(u)))
         if not np.all(np.isfinite(q)):
             raise FloatingPointError(f"the dynamics blew up at phi = {phi:.6g}: take a smaller dt (was {dt:.3g})")
-        new = scene.neighbourhood(q, phi, capacity=nbr.capacity)
+        upd = nbr.update(scene, q, phi)
+        new = upd.nbr
         if abs(float(new.wr_ref) - records["Wr"][-1]) >= 1.0 and "contact" in scene.terms:
             stop = "topology"  # a strand passed through another within one chunk
             nbr = new
             record(steps * dt, phi, u, nbr)
             break
-        if bool(nbr.stale(scene.positions(jnp.asarray(q)))) or \
-                abs(float(new.wr_ref) - float(nbr.wr_ref)) > WRITHE_DRIFT_LIMIT:
+        if upd.outdated:
             nbr = new
         else:
             nbr = type(nbr)(nbr.pairs, nbr.mask, nbr.x_built, nbr.skin, new.wr_ref)

@@ -13,7 +13,7 @@ import numpy as np
 from .geometry import polyline_distance
 from .hessian import scaled_hessian
 from .validation import check_finite
-from .neighbourhood import WRITHE_DRIFT_LIMIT, Neighbourhood
+from .neighbourhood import Neighbourhood
 from .solvers import LBFGS, ConvergenceError, DampedNewton, Newton, Solution, StopReason, minimise
 from .stability import CONTACT_NEGATIVE_TOL, DEFAULT_NEGATIVE_TOL, Stability, stability
 
@@ -109,8 +109,8 @@ def relax(scene, phi=0.0, q0=None, gtol=1e-9, max_rounds=200, max_displacement=N
         sol = minimise(scaled_energy, u0, (scene, jnp.asarray(phi), nbr), solver, gtol, max_steps, throw=False)
         total += sol.iterations
         q = scene.from_scaled(np.asarray(sol.y))
-        nbr_new = _grown(scene, q, phi, nbr)
-        wr = float(nbr_new.wr_ref)
+        upd = nbr.update(scene, q, phi)
+        wr = float(upd.nbr.wr_ref)
         say(f"relax round {round_}: {sol.reason}, {sol.iterations} steps, |g| = {sol.grad_norm:.2e}, Wr = {wr:.4f}")
         if abs(wr - wr_last) >= 1.0:
             raise TopologyChangeError(
@@ -121,9 +121,8 @@ def relax(scene, phi=0.0, q0=None, gtol=1e-9, max_rounds=200, max_displacement=N
             moved = polyline_distance(np.asarray(scene.positions(jnp.asarray(q))), guide[0], scene.closed)
             if moved > guide[1]:
                 raise LeftBranchError(f"the state moved {moved:.3g} from the guide shape (more than {guide[1]:.3g})")
-        drifted = abs(wr - float(nbr.wr_ref)) > WRITHE_DRIFT_LIMIT
-        nbr = nbr_new
-        if sol.reason is StopReason.LEFT_REGION or drifted:
+        nbr = upd.nbr
+        if sol.reason is StopReason.LEFT_REGION or upd.drifted:
             continue
         if not sol.converged:
             raise ConvergenceError(f"relaxation did not converge: {sol!r}", solution=sol, q=q)
@@ -309,12 +308,10 @@ def solve_equilibrium(
             )
         if not np.all(np.isfinite(sol.y)):
             break
-        q_new = scene.from_scaled(np.asarray(sol.y))
-        nbr_new = _grown(scene, q_new, phi, nbr)
-        moved_out = bool(nbr.stale(scene.positions(jnp.asarray(q_new)))) or \
-            abs(float(nbr_new.wr_ref) - float(nbr.wr_ref)) > WRITHE_DRIFT_LIMIT
-        q, nbr = q_new, nbr_new
-        if not moved_out:
+        q = scene.from_scaled(np.asarray(sol.y))
+        upd = nbr.update(scene, q, phi)
+        nbr = upd.nbr
+        if not upd.outdated:
             break
     if throw and not sol.converged:
         raise ConvergenceError(f"{sol.solver} did not converge: {sol!r}")

@@ -26,7 +26,7 @@ import numpy as np
 from .contact import candidate_pairs
 from .topology import writhe
 
-__all__ = ["Neighbourhood", "build_neighbourhood", "WRITHE_DRIFT_LIMIT"]
+__all__ = ["Neighbourhood", "NeighbourhoodUpdate", "build_neighbourhood", "WRITHE_DRIFT_LIMIT"]
 
 # The holonomy lift is exact while |Wr - wr_ref| < 1/2; a solve that ends further than this from
 # its reference is repeated around the new state (a quarter turn of margin).
@@ -66,6 +66,38 @@ class Neighbourhood:
             return jnp.asarray(False)
         moved = jnp.max(jnp.linalg.norm(x - self.x_built, axis=1))
         return moved > 0.5 * (self.skin - grown)
+
+
+    def update(self, scene, q, phi, grown=0.0):
+        """The one place a solver renews its neighbourhood after a solve: rebuilds it around the
+        new state q (n,) of ``scene`` (``scene.neighbourhood``, this list's capacity kept so that
+        compiled code is reused; it grows if the new list does not fit) and says what changed
+        since this one was built. Returns a ``NeighbourhoodUpdate``; each caller keeps its own
+        policy (repeat the solve, refuse a strand passage, keep the old pairs)."""
+        new = scene.neighbourhood(q, phi, capacity=self.capacity)
+        x = scene.positions(jnp.asarray(q))
+        return NeighbourhoodUpdate(new, bool(self.stale(x, grown)), float(new.wr_ref) - float(self.wr_ref))
+
+
+@dataclass(frozen=True)
+class NeighbourhoodUpdate:
+    """What ``Neighbourhood.update`` found. nbr: the neighbourhood rebuilt at the new state;
+    stale: some node moved more than skin/2 from where the old list was built (a pair could have
+    come within D unlisted); drift: the new writhe minus the old reference writhe."""
+
+    nbr: Neighbourhood
+    stale: bool
+    drift: float
+
+    @property
+    def drifted(self):
+        """The writhe left the range where the old holonomy lift is exact (WRITHE_DRIFT_LIMIT)."""
+        return abs(self.drift) > WRITHE_DRIFT_LIMIT
+
+    @property
+    def outdated(self):
+        """The old neighbourhood no longer gives the exact energy at the new state: solve again."""
+        return self.stale or self.drifted
 
 
 jax.tree_util.register_pytree_node(

@@ -23,7 +23,6 @@ import numpy as np
 from . import sparse_stability as ss
 from .equilibrium import _grown, equilibrium_from_solution, scaled_energy
 from .validation import check_finite
-from .neighbourhood import WRITHE_DRIFT_LIMIT
 from .solvers import ConvergenceError, Newton, minimise
 from .stability import DEFAULT_NEGATIVE_TOL, Stability
 
@@ -71,10 +70,9 @@ def solve_equilibrium_sparse(scene, phi, q0=None, gtol=1e-9, max_steps=50, nbr=N
         if not np.all(np.isfinite(sol.y)):
             break
         q = scene.from_scaled(np.asarray(sol.y))
-        nbr_new = _grown(scene, q, phi, nbr)
-        drifted = abs(float(nbr_new.wr_ref) - float(nbr.wr_ref)) > WRITHE_DRIFT_LIMIT
-        nbr = nbr_new
-        if not drifted:
+        upd = nbr.update(scene, q, phi)
+        nbr = upd.nbr
+        if not upd.drifted:  # (stale needs no repeat: without contact the list is empty)
             break
     if throw and not sol.converged:
         raise ConvergenceError(f"sparse_newton did not converge: {sol!r}")

@@ -91,3 +91,23 @@ def test_candidate_list_matches_all_pairs_on_a_knot():
     assert float(nbr.skin) == cl.skin
     assert not bool(nbr.stale(jnp.asarray(x + 0.2 * cl.skin)))  # every node moved 0.35 skin
     assert bool(nbr.stale(jnp.asarray(x + np.array([0.0, 0.0, 0.6 * cl.skin]))))
+
+
+def test_neighbourhood_update_says_what_changed():
+    """``Neighbourhood.update``, the one renewal every solver uses: at the same state nothing is
+    stale and the writhe has not drifted; a node moved by more than skin/2 makes the list stale;
+    the rebuilt list keeps the capacity (no recompilation) and gives the exact energy."""
+    import jaxrod as jr
+
+    knot = jr.trefoil(D=8.0, L=292.0, N=61)
+    q = np.asarray(knot.q_init)
+    nbr = knot.neighbourhood(q, 0.0)
+    same = nbr.update(knot, q, 0.0)
+    assert not same.stale and not same.drifted and not same.outdated and abs(same.drift) < 1e-12
+    assert same.nbr.capacity == nbr.capacity
+    moved = q.copy()
+    moved[:3] += 0.6 * float(nbr.skin) * np.array([1.0, 0.0, 0.0])  # node 0 by 0.6 skin
+    upd = nbr.update(knot, moved, 0.0)
+    assert upd.stale and upd.outdated and upd.nbr.capacity >= nbr.capacity
+    assert float(knot.energy(jnp.asarray(moved), 0.0, upd.nbr)) == pytest.approx(
+        float(knot.energy(jnp.asarray(moved), 0.0)), rel=1e-12)
