@@ -224,15 +224,12 @@ def knot_problem(scene, q_ref, phi0, *, pins=None, capacity=None, sliding=SLIDIN
     def update_args(u_free, phi, args):
         sc, nbr = args.scene, args.nbr
         q = holder["rod"].q(u_free)
-        x = jnp.asarray(sc.positions(jnp.asarray(q)))
         D = float(sc.material.D)
-        if not bool(nbr.stale(x, grown=max(0.0, D - built_for.get(nbr, D)))):
-            wr = float(_writhe(x))
-            if abs(wr - float(nbr.wr_ref)) < 0.25:
-                return args
-        new = sc.neighbourhood(q, float(phi), capacity=nbr.capacity)
-        built_for[new] = D
-        return args._replace(nbr=new)
+        upd = nbr.update(sc, q, float(phi), grown=max(0.0, D - built_for.get(nbr, D)))
+        if not upd.outdated:  # still exact here: keep it (the same args, nothing to re-trace)
+            return args
+        built_for[upd.nbr] = D
+        return args._replace(nbr=upd.nbr)
 
     def soft_modes(u_free, phi, values, vectors):
         rod = holder["rod"]
