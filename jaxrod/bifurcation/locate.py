@@ -72,6 +72,10 @@ def locate_fold(problem, opts, starts, morse, step):
         if found is not None and not (found.ok and found.soft and morse[0] != morse[1]):
             break
     same_morse = morse[0] == morse[1]
+    if (found is None or not found.ok) and not same_morse and len(ends) == 2 and problem.soft_modes is not None:
+        # Newton diverged or stalled from both ends (the critical mode mixed with a near-null slide:
+        # the trefoil at N = 128, D/L = 0.031): the shape fold by its own eigenvalue's root along the bracket
+        found = _fold_by_bracket(problem, opts, ends[0], ends[1], morse) or found
     if (found is None or not found.ok) and same_morse and len(ends) == 2 and problem.soft_modes is not None:
         # not located from either end: a turn along a soft mode that Newton did not converge to?
         found = _fold_by_bracket(problem, opts, ends[0], ends[1], morse, along_soft=True) or found
@@ -248,9 +252,17 @@ def _fold_by_bracket(problem, opts, a, b, morse, along_soft=False):
         s = brentq(f, 0.0, sb, xtol=1e-15 * abs(sb), rtol=1e-15, maxiter=100)
     except (_Failed, ValueError):
         return None
-    c, (_, vecs, _, soft_vecs) = at(s)
+    c, (vals, vecs, _, soft_vecs) = at(s)
     border = soft_vecs[:, 0] if along_soft else vecs[:, lo]
     found = _classified(problem, opts, morse, *_fold_newton(problem, opts, c.z[:-1], float(c.z[-1]), border))
+    if (found is None or not found.ok) and not along_soft:
+        # Newton on the fold system did not converge from the root either (a near-null slide next
+        # to the critical mode): the root itself is the fold, a point of the branch (F = 0 to the
+        # corrector's tolerance) where the shape eigenvalue vanishes (to Brent's tolerance); the
+        # tangent's p-component vanishes there with it (p is stationary along the branch)
+        ok = bool(c.residual <= opts.event_tol and abs(vals[lo]) <= opts.event_tol)
+        return _FoldTry(c.z[:-1].copy(), float(c.z[-1]), c.lin[1], c.lin[2], float(c.residual), 0, vals, vecs, lo, ok,
+                        False)
     if found is None or (found.ok and found.soft != along_soft):
         return None
     return found

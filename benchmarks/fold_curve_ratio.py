@@ -1,0 +1,253 @@
+"""The trefoil's critical twists as curves phi*+-(D/L) (issue 17, item 5 / acceptance 6).
+
+D is varied at fixed L = 292 mm and N = 128 (N >= L/D down to D/L = 0.0079), E and nu fixed, so
+B, C ~ D^4, EA ~ D^2 and the contact distance is D (``jaxrod.bifurcation.rods.set_diameter``).
+Each side's first instability is located at the paper's D/L = 8/292 (the symmetric branch from
+phi = 0 by the stable-only engine, then pseudo-arclength continuation through the event), then
+followed in D by ``jaxrod.bifurcation.event_curve``: natural-parameter continuation in D, whose
+predictor is the implicit function theorem on the event's extended system and whose corrector is
+the event located again on a short pseudo-arclength run in phi at the new D (the fold system
+alone, Newton in (u, phi) at fixed D, drifts onto the knot's sliding mode: see the module
+docstring). Every row carries the kind of the event, its critical eigenvalue and residual, and
+dphi*/d(D/L) from the implicit function theorem.
+
+Checks:
+- point studies at 5 values of D/L: a new scene at that D, the stable-only engine from phi = 0 to
+  0.3 pi before the curve's value, then the event located on its own;
+- dphi*/d(D/L) (IFT) against central differences of two located events at D +- h, each started
+  from the curve's state at D (h = 1e-3 D).
+
+Writes benchmarks/results/fold_curve_ratio.{json,csv,md,png} (the JSON after every point, so an
+interrupted run keeps what it did).
+Run: python benchmarks/fold_curve_ratio.py   (~20 min on 2 cores)
+"""
+import os
+
+for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")
+
+import csv  # noqa: E402
+import json  # noqa: E402
+import math  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+import jaxrod as jr  # noqa: E402
+from jaxrod.bifurcation import ContinuationOptions, PseudoArclength  # noqa: E402
+from jaxrod.bifurcation.event_curve import EventCurveOptions, event_curve  # noqa: E402
+from jaxrod.bifurcation.rods import knot_problem, set_diameter  # noqa: E402
+
+PI = math.pi
+L, N, D0, NU = 292.0, 128, 8.0, 0.5
+GRID = np.round(np.arange(0.008, 0.0451, 0.001), 4)  # D/L
+CHECKS = (0.010, 0.015, 0.020, 0.035, 0.040)
+SIDES = {"plus": dict(sign=1.0, below=6.35, name="opening"), "minus": dict(sign=-1.0, below=-10.9, name="tightening")}
+DELTA = 0.03 * PI
+MAX_JUMP = 1.0  # scaled units (edge lengths): a start that relaxed further has left the branch
+H_REL = 1e-3
+HERE = os.path.dirname(os.path.abspath(__file__))
+OUT = os.path.join(HERE, "results")
+ALG = PseudoArclength()
+
+
+def options(sign, max_points=60):
+    return EventCurveOptions(_path(sign), DELTA, ALG, max_jump=MAX_JUMP, max_points=max_points)
+
+
+def _path(sign):
+    return ContinuationOptions(ds=0.05 * sign, ds_min=1e-6, ds_max=0.5, newton_tol=1e-10, eig_rtol=1e-13, n_eig=6,
+                               p_min=-20 * PI, p_max=16 * PI)
+
+
+def row_of(side, r, stage):
+    return dict(side=side, stage=stage, D_over_L=r.mu / L, phi_star_over_pi=r.p / PI, kind=r.kind,
+                morse_before=r.morse_before, morse_after=r.morse_after, critical_eigenvalue=r.critical_eigenvalue,
+                residual=r.residual, dphi_dratio_over_pi=r.dp_dmu * L / PI,
+                predicted_over_pi=(r.predicted / PI if np.isfinite(r.predicted) else None), seconds=r.seconds,
+                back_offs=r.back_offs, points=r.points)
+
+
+def start_state(D, below):
+    """A state on the symmetric branch at phi = below (rad), from phi = 0, at diameter D."""
+    scene = jr.trefoil(D=D, L=L, N=N, nu=NU)
+    old = jr.follow_twist(scene, 0.0, below, step=2 * PI, max_switches=0)
+    e = old.points[-1].equilibrium
+    return knot_problem(scene, np.asarray(e.q), e.phi)
+
+
+def run_side(side, summary, save):
+    cfg = SIDES[side]
+    sign = cfg["sign"]
+    t0 = time.perf_counter()
+    rod = start_state(D0, cfg["below"] * PI)
+    summary["start_seconds"][side] = time.perf_counter() - t0
+    anchors = {}
+
+    def observer(stage):
+        def obs(r):
+            rows = summary["curve"]
+            rows.append(row_of(side, r, stage))
+            print(f"[{side} {stage}] D/L {r.mu / L:.4f}: {r.kind} {r.p / PI:+.9f} pi, lambda {r.critical_eigenvalue:.1e}, "
+                  f"residual {r.residual:.1e}, dphi*/d(D/L) {r.dp_dmu * L / PI:+.3f} pi, {r.seconds:.1f} s",
+                  flush=True)
+            save()
+        return obs
+
+    results = {}
+    for stage, grid in (("up", [g for g in GRID if g > D0 / L]), ("down", [g for g in GRID[::-1] if g < D0 / L])):
+        problem = rod.problem
+        problem.args = set_diameter(problem.args, D0)
+        t = time.perf_counter()
+        curve = event_curve(problem, (problem.u0, problem.p0), set_diameter, D0, [g * L for g in grid],
+                            options(sign, 150), observer=observer(stage),
+                            progress=lambda m: print(f"  [{side} {stage}] {m}", flush=True))
+        summary["curve_seconds"][f"{side}_{stage}"] = time.perf_counter() - t
+        summary["curve_result"][f"{side}_{stage}"] = [curve.result.value, curve.message]
+        results[stage] = curve
+        for r in curve.points:
+            anchors[round(r.mu / L, 4)] = r
+        if stage == "up":  # the start state again at D0 for the way down (args back at D0)
+            rod = start_state(D0, cfg["below"] * PI)
+    return rod, anchors
+
+
+def checks(side, anchors, summary, save):
+    sign = SIDES[side]["sign"]
+    for ratio in CHECKS:
+        r = anchors.get(round(ratio, 4))
+        if r is None:
+            continue
+        D = ratio * L
+        t = time.perf_counter()
+        rod = start_state(D, r.p - sign * 0.3 * PI)
+        study = event_curve(rod.problem, (rod.problem.u0, rod.problem.p0), set_diameter, D, [], options(sign, 150))
+        seconds = time.perf_counter() - t
+        p_study = study.points[0].p if study.points else float("nan")
+        kind_study = study.points[0].kind if study.points else None
+        # central differences: the event at D +- h, each from the curve's state before it at D
+        h = H_REL * D
+        located = []
+        for mu in (D - h, D + h):
+            rod.problem.args = set_diameter(rod.problem.args, D)
+            c = event_curve(rod.problem, (r.anchor_u, r.anchor_p), set_diameter, mu, [], options(sign, 150))
+            located.append(c.points[0].p if c.points else float("nan"))
+        fd = (located[1] - located[0]) / (2 * h)
+        row = dict(side=side, D_over_L=ratio, curve_over_pi=r.p / PI, curve_kind=r.kind, study_over_pi=p_study / PI,
+                   study_kind=kind_study, difference_over_pi=abs(p_study - r.p) / PI, study_seconds=seconds,
+                   ift_over_pi=r.dp_dmu * L / PI, central_difference_over_pi=fd * L / PI,
+                   derivative_rel_diff=abs(fd - r.dp_dmu) / abs(r.dp_dmu), h_over_D=H_REL)
+        summary["checks"].append(row)
+        print(f"[{side} check] D/L {ratio}: curve {r.p / PI:+.10f} pi ({r.kind}), study {p_study / PI:+.10f} pi "
+              f"({kind_study}), difference {row['difference_over_pi']:.1e} pi; IFT {row['ift_over_pi']:+.5f} pi, "
+              f"central {row['central_difference_over_pi']:+.5f} pi, rel {row['derivative_rel_diff']:.1e}", flush=True)
+        save()
+
+
+def main():
+    os.makedirs(OUT, exist_ok=True)
+    sides = sys.argv[1:] or ["plus", "minus"]
+    path = os.path.join(OUT, "fold_curve_ratio.json")
+    summary = dict(L=L, N=N, nu=NU, D0=D0, grid=GRID.tolist(), delta_over_pi=DELTA / PI, curve=[], checks=[],
+                   start_seconds={}, curve_seconds={}, curve_result={})
+    if os.path.exists(path) and len(sides) < 2:
+        with open(path) as f:
+            old = json.load(f)
+        summary["curve"] = [r for r in old.get("curve", []) if r["side"] not in sides]
+        summary["checks"] = [r for r in old.get("checks", []) if r["side"] not in sides]
+        for key in ("start_seconds", "curve_seconds", "curve_result"):
+            summary[key] = {k: v for k, v in old.get(key, {}).items() if not any(k.startswith(s) for s in sides)}
+
+    def save():
+        tmp = path + ".tmp"
+        with open(tmp, "w") as f:
+            json.dump(summary, f, indent=1)
+        os.replace(tmp, path)
+
+    for side in sides:
+        _, anchors = run_side(side, summary, save)
+        checks(side, anchors, summary, save)
+    report(summary)
+
+
+def report(s):
+    rows = sorted(s["curve"], key=lambda r: (r["side"], r["D_over_L"]))
+    with open(os.path.join(OUT, "fold_curve_ratio.csv"), "w", newline="") as f:
+        w = csv.writer(f)
+        keys = ["side", "D_over_L", "phi_star_over_pi", "kind", "morse_before", "morse_after", "critical_eigenvalue",
+                "residual", "dphi_dratio_over_pi", "predicted_over_pi", "seconds"]
+        w.writerow(keys)
+        for r in rows:
+            w.writerow([r[k] if not isinstance(r[k], float) else f"{r[k]:.12g}" for k in keys])
+    lines = ["# The trefoil's critical twists against D/L: event curves against point studies", "",
+             f"L = {s['L']:g} mm, N = {s['N']}, nu = {s['nu']}, D varied at fixed E (B, C ~ D^4), contact at D; "
+             f"`benchmarks/fold_curve_ratio.py`. Each side's first instability followed in D/L by "
+             f"`jaxrod.bifurcation.event_curve` from D/L = {s['D0'] / s['L']:.4f} up and down.", ""]
+    for key, seconds in s["curve_seconds"].items():
+        res = s["curve_result"].get(key, ["", ""])
+        n = len([r for r in s["curve"] if f"{r['side']}_{r['stage']}" == key])
+        lines.append(f"- {key}: {n} points in {seconds:.0f} s ({res[0]}{': ' + res[1] if res[1] else ''})")
+    lines += ["", "| side | D/L | phi* / pi | kind | Morse | critical eigenvalue | residual | dphi*/d(D/L) / pi |",
+              "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['side']} | {r['D_over_L']:.4f} | {r['phi_star_over_pi']:+.9f} | {r['kind']} | "
+                     f"{r['morse_before']} -> {r['morse_after']} | {r['critical_eigenvalue']:.1e} | {r['residual']:.1e} | "
+                     f"{r['dphi_dratio_over_pi']:+.3f} |")
+    lines += ["", "Point studies (a new scene at that D, from phi = 0) and central differences (h = 1e-3 D):", "",
+              "| side | D/L | curve / pi | point study / pi | difference / pi | dphi*/d(D/L) IFT / pi | central / pi | "
+              "rel. diff |", "|---|---|---|---|---|---|---|---|"]
+    for c in s["checks"]:
+        lines.append(f"| {c['side']} | {c['D_over_L']:.3f} | {c['curve_over_pi']:+.10f} ({c['curve_kind']}) | "
+                     f"{c['study_over_pi']:+.10f} ({c['study_kind']}) | {c['difference_over_pi']:.1e} | "
+                     f"{c['ift_over_pi']:+.5f} | {c['central_difference_over_pi']:+.5f} | {c['derivative_rel_diff']:.1e} |")
+    with open(os.path.join(OUT, "fold_curve_ratio.md"), "w") as f:
+        f.write("\n".join(lines) + "\n")
+    plot(rows, s)
+
+
+def plot(rows, s):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7.5, 5))
+    for side, colour in (("plus", "C0"), ("minus", "C3")):
+        rr = [r for r in rows if r["side"] == side]
+        if not rr:
+            continue
+        x = np.array([r["D_over_L"] for r in rr])
+        y = np.array([r["phi_star_over_pi"] for r in rr])
+        ax.plot(x, y, "-", color=colour, lw=1.2, label=f"{SIDES[side]['name']} side: first instability (event curve)")
+        for kind, marker in (("fold", "o"), ("branch_point", "D")):
+            m = np.array([r["kind"] == kind for r in rr])
+            if m.any():
+                ax.plot(x[m], y[m], marker, color=colour, ms=3.5, ls="none",
+                        label=f"  {kind.replace('_', ' ')}s")
+    for c in s["checks"]:
+        ax.plot(c["D_over_L"], c["study_over_pi"], "ks", mfc="none", ms=8)
+    ax.plot([], [], "ks", mfc="none", ms=8, label="point studies (from phi = 0)")
+    atlas = os.path.join(OUT, "atlas", "atlas.csv")
+    if os.path.exists(atlas):
+        with open(atlas) as f:
+            pts = [r for r in csv.DictReader(f) if r["knot"] == "3_1"]
+        ax.plot([float(r["D_over_L"]) for r in pts], [float(r["phi_star_over_pi"]) for r in pts], "x", color="0.4",
+                label="knot atlas (N = 101 to 201, stable-only engine)")
+    m = 2 * math.sqrt(3) * (1 + s["nu"])
+    ax.axhline(m, color="C0", ls="--", lw=1, label=f"Michell's ring, +{m:.3f} pi")
+    ax.axhline(-2 * m, color="C3", ls="--", lw=1, label=f"2 x Michell, -{2 * m:.3f} pi")
+    ax.set_xlabel("D / L (-)")
+    ax.set_ylabel("critical twist phi* / pi")
+    ax.set_title(f"Trefoil, L = {s['L']:g} mm, N = {s['N']}: critical twists against D/L")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5))
+    fig.tight_layout()
+    fig.savefig(os.path.join(OUT, "fold_curve_ratio.png"), dpi=120)
+
+
+if __name__ == "__main__":
+    if sys.argv[1:2] == ["report"]:
+        with open(os.path.join(OUT, "fold_curve_ratio.json")) as f:
+            report(json.load(f))
+    else:
+        main()
