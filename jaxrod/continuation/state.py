@@ -27,11 +27,11 @@ class Phase(_ValueEnum):
 class PathState:
     """Everything a ``follow_twist`` run needs to go on, between two corrector calls.
 
-    ``follow_twist(..., on_state=f)`` calls f(state) after every step tried (and after the
-    points and instabilities that step reported); ``follow_twist(..., resume=state)`` goes on
-    from it exactly as the uninterrupted run would (the continuation is deterministic: a
-    resumed run reports the same points and instabilities, to the last bit). ``to_arrays()``
-    and ``PathState.from_arrays(scene, arrays)`` store it in an npz file (every equilibrium by
+    ``follow_twist(..., observer=Observer(on_state=f))`` calls f(state) after every step tried
+    (and after the points and instabilities that step reported); ``follow_twist(...,
+    resume=state)`` goes on from it exactly as the uninterrupted run would (the continuation is
+    deterministic: a resumed run reports the same points and instabilities, to the last bit).
+    ``to_arrays()`` and ``PathState.from_arrays(arrays)`` store it in an npz file (every equilibrium by
     its scaled DOFs, solver record and neighbourhood; the stabilities are recomputed on load).
 
     phase: a ``Phase``; branch: name of the branch followed ('symmetric+', ...); prev: last
