@@ -138,9 +138,9 @@ def branch_point_study(n):
     scene = jr.michell_ring(n, nu=NU)
     times = {}
     cp_default, times["critical_twist (gtol 1e-9, first call)"] = timed(
-        jr.critical_twist, scene, 0.0, 2 * PHI_M, tol=1e-10 * PI)
-    cp, times["critical_twist (gtol 3e-11)"] = timed(jr.critical_twist, scene, 0.0, 2 * PHI_M, tol=1e-10 * PI,
-                                                      gtol=3e-11)
+        jr.critical_twist, scene, 0.0, 2 * PHI_M, jr.ContinuationOptions(tol=1e-10 * PI))
+    cp, times["critical_twist (gtol 3e-11)"] = timed(jr.critical_twist, scene, 0.0, 2 * PHI_M,
+                                                      jr.ContinuationOptions(tol=1e-10 * PI, gtol=3e-11))
     rod = pinned_problem(scene, np.asarray(scene.q_init), 0.0)
     trivial, times["trivial branch (7 pins)"] = timed(
         continuation, rod.problem, ALG, ContinuationOptions(ds=2.0, ds_max=8.0, p_max=1.2 * PHI_M, **COMMON))

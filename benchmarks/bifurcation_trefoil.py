@@ -50,7 +50,7 @@ def run_side(scene, side):
     cfg = SIDES[side]
     sign = 1.0 if side == "plus" else -1.0
     t0 = time.perf_counter()
-    old = jr.follow_twist(scene, 0.0, cfg["stop"] * PI, step=2 * PI, max_switches=0)
+    old = jr.follow_twist(scene, 0.0, cfg["stop"] * PI, jr.ContinuationOptions(step=2 * PI, max_switches=0))
     t_old = time.perf_counter() - t0
     states = {round(p.equilibrium.phi / PI, 6): p.equilibrium for p in old.points}
     runs = []

@@ -42,7 +42,7 @@ def main(argv):
     knot = jr.trefoil(D=D, L=L, N=N)
     start = jr.relax(knot, 0.0, with_stability=False)
     t0 = time.perf_counter()
-    path = jr.follow_twist(knot, 0.0, 7.5 * PI, step=0.5 * PI, start=start, switch=False)
+    path = jr.follow_twist(knot, 0.0, 7.5 * PI, jr.ContinuationOptions(step=0.5 * PI, switch=False), start=start)
     t_cont = time.perf_counter() - t0
     phi_c, err_c = path.instabilities[0].phi, path.instabilities[0].phi_error
     print(f"continuation: branch end {phi_c / PI:.4f} pi +- {err_c / PI:.1e} in {t_cont:.1f} s (compilation included)")

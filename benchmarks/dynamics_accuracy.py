@@ -75,7 +75,8 @@ def run(N=121, rates=(1e-2, 3e-3, 1e-3)):
         ends = {}
         for tol in (TARGET, 2e-4 * PI):
             t0 = time.perf_counter()
-            path = jr.follow_twist(knot, 0.0, stop, step=0.5 * PI, start=start, tol=tol, switch=False)
+            path = jr.follow_twist(knot, 0.0, stop, jr.ContinuationOptions(step=0.5 * PI, tol=tol, switch=False),
+                                   start=start)
             seconds = time.perf_counter() - t0 + t_relax
             ends[tol] = path.instabilities[0].phi
             key = (N, side, "continuation", "", f"{tol / PI:g}")

@@ -45,7 +45,8 @@ def main(argv):
     start = jr.relax_to_minimum(knot, 0.0)
     rows, profiles = [], {}
     t0 = time.perf_counter()
-    path = jr.follow_twist(knot, 0.0, 9.0 * PI, step=0.5 * PI, start=start, switch=True, max_switches=1)
+    path = jr.follow_twist(knot, 0.0, 9.0 * PI, jr.ContinuationOptions(step=0.5 * PI, switch=True, max_switches=1),
+                           start=start)
     first = next(p for p in path.points if not p.branch.startswith("symmetric"))
     _, extra = step_record(knot, first.equilibrium)
     profiles["continuation"] = extra["kappa_L"]

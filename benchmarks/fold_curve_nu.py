@@ -53,7 +53,7 @@ def _path_options(p_max, steps=40):
 def locate_opening_fold(nu, below):
     """A point study: the opening fold of the trefoil with Poisson ratio nu, from phi = 0."""
     scene = jr.trefoil(D=D, L=L, N=N, nu=nu)
-    old = jr.follow_twist(scene, 0.0, below, step=2 * PI, max_switches=0)
+    old = jr.follow_twist(scene, 0.0, below, jr.ContinuationOptions(step=2 * PI, max_switches=0))
     e = old.points[-1].equilibrium
     rod = knot_problem(scene, np.asarray(e.q), e.phi)
     br = continuation(rod.problem, ALG, _path_options(below + 1.0 * PI), throw=False)

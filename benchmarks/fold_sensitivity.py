@@ -55,7 +55,7 @@ def main():
         sign = 1 if start > 0 else -1
         scene = jr.trefoil(D=D, L=L, N=N)
         t0 = time.perf_counter()
-        old = jr.follow_twist(scene, 0.0, start * PI, step=2 * PI * sign, max_switches=0)
+        old = jr.follow_twist(scene, 0.0, start * PI, jr.ContinuationOptions(step=2 * PI * sign, max_switches=0))
         e = old.points[-1].equilibrium
         rod = knot_problem(scene, np.asarray(e.q), e.phi)
         opts = _options(sign, bound, steps)

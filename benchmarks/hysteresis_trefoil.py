@@ -58,7 +58,7 @@ def symmetric_ends():
 def buckled_state(scene, side):
     stop = SIDES[side] * PI
     t = time.perf_counter()
-    path = jr.follow_twist(scene, 0.0, stop, step=0.5 * PI, max_switches=1)
+    path = jr.follow_twist(scene, 0.0, stop, jr.ContinuationOptions(step=0.5 * PI, max_switches=1))
     seconds = time.perf_counter() - t
     buckled = [p for p in path.points if p.branch.startswith("buckled")]
     if not path.completed or not buckled:

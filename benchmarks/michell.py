@@ -31,7 +31,7 @@ OUT = os.path.join(HERE, "results")
 
 
 def ours(scene, analytic):
-    cp = critical_twist(scene, 0.0, 2 * analytic, step=analytic / 8, tol=TOL)
+    cp = critical_twist(scene, 0.0, 2 * analytic, jaxrod.ContinuationOptions(step=analytic / 8, tol=TOL))
     return cp.phi, len(cp.scan) + cp.hessian_evaluations
 
 

@@ -3,14 +3,16 @@
 side in one process.
 
 Cases
-  michell  Michell's ring, nu = 0.5: critical_twist(michell_ring(N, 0.5), 0, 2 phi_a, step=phi_a/8,
-           tol=1e-6 pi), phi_a = 2 pi sqrt(3) (1 + nu). N = 64 ... 1024 for the current engine, the
-           baseline up to --baseline-max-N (it is O(N^3)). First call (JIT compile included) and a
-           second, warm call; phi*, its error against phi_a; cost growth exponent in N.
+  michell  Michell's ring, nu = 0.5: critical_twist(michell_ring(N, 0.5), 0, 2 phi_a,
+           ContinuationOptions(step=phi_a/8, tol=1e-6 pi)), phi_a = 2 pi sqrt(3) (1 + nu). N = 64
+           ... 1024 for the current engine, the baseline up to --baseline-max-N (it is O(N^3)). First
+           call (JIT compile included) and a second, warm call; phi*, its error against phi_a; cost
+           growth exponent in N.
   trefoil  Trefoil (D, L) = (8, 292) mm, branch end on each side: opening (0 -> 7.5 pi) and
-           tightening (0 -> -12 pi), follow_twist(step=0.5 pi, tol=2e-4 pi, switch=False) from the
-           knot relaxed at phi = 0. N = 61, 121 (+241 with --big); the baseline at N > 61 only with
-           --baseline (3-15 min a side). At N = 61 the current engine is run twice (cold, warm).
+           tightening (0 -> -12 pi), follow_twist(..., ContinuationOptions(step=0.5 pi, tol=2e-4 pi,
+           switch=False)) from the knot relaxed at phi = 0. N = 61, 121 (+241 with --big); the
+           baseline at N > 61 only with --baseline (3-15 min a side). At N = 61 the current engine
+           is run twice (cold, warm).
 
 How: the parent process plans the cases and runs each (case, N, side) in a child process of this
 script (``--child``). The child imports jaxrod (working tree) first, then jaxrod_baseline (the
@@ -138,6 +140,16 @@ def _say(text):
     print(text, flush=True)
 
 
+def _call(jr, entry, scene, phi_start, phi_stop, options, observer, **kwargs):
+    """entry(scene, phi_start, phi_stop, ...) with ``options`` (dict) and ``observer`` (dict of callbacks)
+    as the engine takes them: one ContinuationOptions and one Observer (the current engine), keywords
+    (the baseline, 61e87f5)."""
+    if hasattr(jr, "Observer"):
+        return entry(scene, phi_start, phi_stop, jr.ContinuationOptions(**options), observer=jr.Observer(**observer),
+                     **kwargs)
+    return entry(scene, phi_start, phi_stop, **options, **observer, **kwargs)
+
+
 def _run_michell(jr, N, verbose):
     analytic = michell_analytic()
     scene = jr.michell_ring(N, nu=NU)
@@ -145,7 +157,8 @@ def _run_michell(jr, N, verbose):
 
     def once():
         t = time.perf_counter()
-        cp = jr.critical_twist(scene, 0.0, 2.0 * analytic, step=analytic / 8.0, tol=MICHELL_TOL, progress=progress)
+        cp = _call(jr, jr.critical_twist, scene, 0.0, 2.0 * analytic, dict(step=analytic / 8.0, tol=MICHELL_TOL),
+                   dict(progress=progress))
         return cp, time.perf_counter() - t
 
     cp1, first = once()
@@ -170,8 +183,8 @@ def _run_trefoil(jr, engine, N, stop, warm, verbose):
             relaxed, scene = relaxed
         t1 = time.perf_counter()
         _say(f"  [{tag}] relaxed in {t1 - t0:.1f} s (Wr = {relaxed.Wr:.4f})")
-        path = jr.follow_twist(scene, 0.0, stop, step=TREFOIL_STEP, start=relaxed, tol=TREFOIL_TOL, switch=False,
-                               progress=lambda s: _say(f"    [{tag}] {s}"))
+        path = _call(jr, jr.follow_twist, scene, 0.0, stop, dict(step=TREFOIL_STEP, tol=TREFOIL_TOL, switch=False),
+                     dict(progress=lambda s: _say(f"    [{tag}] {s}")), start=relaxed)
         t2 = time.perf_counter()
         inst = path.instabilities[0] if path.instabilities else None
         phi = f"{inst.phi / PI:+.6f} pi" if inst else "none"
@@ -461,7 +474,7 @@ def write_report(csv_path, md_path, png_path):
     if mich:
         analytic = michell_analytic()
         L += ["## Michell's ring: critical twist", "",
-              f"`critical_twist(michell_ring(N, 0.5), 0, 2 phi_a, step=phi_a/8, tol=1e-6 pi)`, "
+              f"`critical_twist(michell_ring(N, 0.5), 0, 2 phi_a, ContinuationOptions(step=phi_a/8, tol=1e-6 pi))`, "
               f"phi_a = 2 pi sqrt(3) (1 + nu) = {analytic / PI:.10f} pi. 'first': first call, JIT compilation "
               "included; 'warm': the second call in the same process. Ratios are baseline / current.", "",
               "| N | current first (s) | current warm (s) | baseline first (s) | baseline warm (s) | ratio first | "
@@ -494,7 +507,7 @@ def write_report(csv_path, md_path, png_path):
     if tref:
         L += ["## Trefoil: branch ends", "",
               f"Trefoil (D, L) = ({TREFOIL_D:g}, {TREFOIL_L:g}) mm, nu = 0.5, relaxed at phi = 0, then "
-              f"`follow_twist(step=0.5 pi, tol=2e-4 pi, switch=False)` to the first branch end, one side at a "
+              f"`follow_twist(..., ContinuationOptions(step=0.5 pi, tol=2e-4 pi, switch=False))` to the first branch end, one side at a "
               "time (opening: phi > 0; tightening: phi < 0). Time = relax + follow, first run in its process "
               "(compilation included). Steps: accepted continuation steps (bisection steps included). "
               "Ratios are baseline / current.", "",

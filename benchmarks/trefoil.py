@@ -64,8 +64,8 @@ def case(study, N, D, stiffness=100.0, step=PI, tol=1e-3 * PI, span=(-16.0 * PI,
         t0 = time.perf_counter()
         if start is None:
             start = jr.relax(scene, 0.0, gtol=1e-9, with_stability=False)
-        path = jr.follow_twist(scene, 0.0, stop, step=step, start=start, tol=tol, switch=False,
-                               progress=lambda s: print("   ", s, flush=True))
+        path = jr.follow_twist(scene, 0.0, stop, jr.ContinuationOptions(step=step, tol=tol, switch=False), start=start,
+                               observer=jr.Observer(progress=lambda s: print("   ", s, flush=True)))
         seconds = time.perf_counter() - t0
         rg = [np.sqrt(np.mean(np.sum((p.equilibrium.x - p.equilibrium.x.mean(0)) ** 2, 1))) for p in path.points]
         row = {"study": study, "N": N, "D": D, "L": L, "D_over_L": D / L, "contact_stiffness": stiffness,

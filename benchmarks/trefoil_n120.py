@@ -41,7 +41,7 @@ def main():
     for side, start, bound, steps in SIDES:
         sign = 1 if start > 0 else -1
         t0 = time.perf_counter()
-        old = jr.follow_twist(scene, 0.0, start * PI, step=2 * PI * sign, max_switches=0)
+        old = jr.follow_twist(scene, 0.0, start * PI, jr.ContinuationOptions(step=2 * PI * sign, max_switches=0))
         e = old.points[-1].equilibrium
         rod = knot_problem(scene, np.asarray(e.q), e.phi)
         kw = dict(p_max=bound * PI) if sign > 0 else dict(p_min=bound * PI)

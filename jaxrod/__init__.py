@@ -36,7 +36,7 @@ from .solvers import LBFGS, ConvergenceError, DampedNewton, Newton, Solution, St
 from .stability import Stability, critical_twist_derivative, eigenvalue_phi_derivative, stability  # noqa: E402
 from .equilibrium import Equilibrium, TopologyChangeError, relax, relax_to_minimum, solve_equilibrium  # noqa: E402
 from .continuation import (  # noqa: E402
-    BranchPoint, ContinuationOptions, CriticalPoint, Instability, NoCrossingError, PathStop, TwistPath,
+    BranchPoint, ContinuationOptions, CriticalPoint, Instability, NoCrossingError, Observer, PathStop, TwistPath,
     critical_twist, follow_twist,
 )
 from .dynamics import DynamicsResult, damped_dynamics  # noqa: E402
@@ -92,6 +92,7 @@ __all__ = [
     "follow_twist",
     "TwistPath",
     "ContinuationOptions",
+    "Observer",
     "PathStop",
     "BranchPoint",
     "Instability",

@@ -176,7 +176,7 @@ def knot_critical_twist(case, settings=None):
     the last stable state, the change along the branch of the segment pairs in contact and of the
     radius of gyration (``tightening_sides`` compares the two sides), n_points, seconds.
     Pure in its inputs: the same case gives the same numbers on any worker."""
-    from .continuation import follow_twist
+    from .continuation import ContinuationOptions, follow_twist
     from .equilibrium import relax_to_minimum
 
     if isinstance(case, dict):
@@ -190,8 +190,8 @@ def knot_critical_twist(case, settings=None):
         scene = _scene(case.knot, case.D_over_L, case.N, settings)
     start = relax_to_minimum(scene, 0.0)
     sign = 1.0 if case.side == "plus" else -1.0
-    path = follow_twist(scene, 0.0, sign * settings.span, step=settings.step, start=start, tol=settings.tol,
-                        switch=False)
+    path = follow_twist(scene, 0.0, sign * settings.span,
+                        ContinuationOptions(step=settings.step, tol=settings.tol, switch=False), start=start)
     last = path.points[-1].equilibrium
     if path.instabilities:
         last = path.instabilities[0].equilibrium

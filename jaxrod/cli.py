@@ -393,7 +393,7 @@ def _michell(args):
 
     matplotlib.use("Agg")  # files only, no display needed
     from . import plotting
-    from .continuation import critical_twist
+    from .continuation import ContinuationOptions, Observer, critical_twist
     from .validation import check_int_at_least, check_poisson_ratio, check_positive
     from .scenes import michell_critical_twist, michell_ring
 
@@ -417,8 +417,8 @@ def _michell(args):
         bar.update(phi / math.pi, steps=steps[0], negative=n_negative)
 
     try:
-        cp = critical_twist(scene, 0.0, 2.0 * analytic, step=analytic / 10.0, tol=args.tol, progress=say,
-                            on_step=on_step)
+        cp = critical_twist(scene, 0.0, 2.0 * analytic, ContinuationOptions(step=analytic / 10.0, tol=args.tol),
+                            observer=Observer(progress=say, on_step=on_step))
     finally:
         bar.close()
     seconds = time.perf_counter() - t0
@@ -562,6 +562,7 @@ def _trefoil(args):
     from .validation import check_finite, check_int_at_least, check_poisson_ratio, check_positive
     from .scenes import DEFAULT_CONTACT_STIFFNESS, IDEAL_ROPELENGTH, MIN_TREFOIL_NODES
     from .locking import folder_lock
+    from .continuation import ContinuationOptions, Observer
     from .study import check_study_folder, figures, study_summary, twist_study
 
     D, L = check_positive("D", args.D), check_positive("L", args.L)
@@ -602,8 +603,9 @@ def _trefoil(args):
         return _accuracy(args, _study_scene(args, knot_name, stiffness), stiffness)
     _check_knot_memory(args.N)
     scene = _study_scene(args, knot_name, stiffness)
+    options = ContinuationOptions(step=args.step, tol=args.tol)
     if not args.fresh:  # a folder of another run: refused now, not after the compilation
-        check_study_folder(args.out, scene, args.phi_min, args.phi_max, args.step, args.tol)
+        check_study_folder(args.out, scene, args.phi_min, args.phi_max, options)
     bar = _Progress(args, (args.phi_max - args.phi_min) / math.pi, args.command)
     say = bar.say
     lk0 = "given" if getattr(args, "lk0", None) is not None else "the integer nearest the writhe as drawn"
@@ -619,8 +621,8 @@ def _trefoil(args):
         bar.update(reached["plus"] + reached["minus"], steps=counts["steps"], branch=point.branch)
 
     try:
-        result = twist_study(scene, args.phi_min, args.phi_max, step=args.step, out=args.out, tol=args.tol,
-                             progress=say, resume=not args.fresh, parallel=not args.serial, on_point=on_point)
+        result = twist_study(scene, args.phi_min, args.phi_max, options, out=args.out, resume=not args.fresh,
+                             parallel=not args.serial, observer=Observer(progress=say, on_point=on_point))
     finally:
         bar.close()
     summary = study_summary(result)

@@ -210,7 +210,7 @@ def refine_scene(scene, x, N):
 def _level(scene, side, phi_start, start, span, step, tol, say, cancel):
     """Follow ``scene``'s stable branch from ``start`` (an Equilibrium at phi_start) towards
     side * span; its first end as a Level. ``cancel`` (an Event) set: stop at the next point."""
-    from .continuation import follow_twist
+    from .continuation import ContinuationOptions, Observer, follow_twist
     from .study import _Cancelled
 
     def on_point(point):
@@ -219,8 +219,8 @@ def _level(scene, side, phi_start, start, span, step, tol, say, cancel):
 
     t0 = time.perf_counter()
     sign = 1.0 if side == "plus" else -1.0
-    path = follow_twist(scene, phi_start, sign * span, step=step, start=start, tol=tol, switch=False,
-                        on_point=on_point)
+    path = follow_twist(scene, phi_start, sign * span, ContinuationOptions(step=step, tol=tol, switch=False),
+                        start=start, observer=Observer(on_point=on_point))
     states = tuple((p.equilibrium.phi, np.asarray(p.equilibrium.q)) for p in path.points)
     if not path.instabilities:
         return None, path.reason, states

@@ -3,7 +3,7 @@
 
 Built on ``jaxrod.sparse_stability`` (block-tridiagonal Hessian + rank one, gauge pinning), so no
 n x n array is ever formed: every piece costs O(N). Scope as there: scenes WITHOUT the "contact"
-term. Used by ``jaxrod.critical_twist(..., linear_algebra="sparse")``.
+term. Used by ``jaxrod.critical_twist(..., ContinuationOptions(linear_algebra="sparse"))``.
 
 * :func:`sparse_newton`: ``minimise`` with ``Newton(direction=...)``: the solvers' jitted Newton
   loop (backtracking on |grad|^2) with the pinned block solve as its step, returning a ``Solution``.

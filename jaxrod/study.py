@@ -32,11 +32,13 @@ import math
 import os
 import threading
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .continuation import CONTACT_NEGATIVE_TOL, PathState, check_dense_memory, follow_twist
+from .continuation import (CONTACT_NEGATIVE_TOL, ContinuationOptions, Observer, PathState, check_dense_memory,
+                           follow_twist)
+from .continuation.options import checked_options, observed
 from .stability import DEFAULT_NEGATIVE_TOL
 from .equilibrium import relax_to_minimum
 from .validation import check_finite, check_positive
@@ -44,7 +46,8 @@ from .records import ROW_KEYS, ROW_UNITS, step_record
 from .locking import holds_output_folder
 from .atomic import savez as _savez, write_json as _write_json, write_rows as _write_rows
 
-__all__ = ["twist_study", "StudyResult", "read_table", "figures", "study_summary", "check_study_folder"]
+__all__ = ["twist_study", "StudyResult", "read_table", "figures", "study_summary", "check_study_folder",
+           "study_options"]
 
 
 @dataclass(frozen=True)
@@ -127,9 +130,30 @@ def _study_parameters(scene, phi_min, phi_max, step, tol, k, max_switches):
                                   "step": step, "tol": tol, "k": k, "max_switches": max_switches}))
 
 
-def check_study_folder(out, scene, phi_min, phi_max, step=0.5 * math.pi, tol=2e-4 * math.pi, k=8, max_switches=3):
+# A study's own defaults (a coarser step than follow_twist's 0.25 pi); run.json records these four.
+STUDY_DEFAULTS = {"step": 0.5 * math.pi, "tol": 2e-4 * math.pi, "k": 8, "max_switches": 3}
+
+
+def study_options(options=None):
+    """``options`` (a ``ContinuationOptions``, or None) with the study's defaults filled in where
+    None: step 0.5 pi, tol 2e-4 pi, k 8, max_switches 3 (the values run.json records). A study
+    sets the other fields itself (negative_tol from critical.json), so a value given for one of
+    them is refused (ValueError naming it): a resumed run could not check it against run.json."""
+    options = checked_options(options)
+    for name in ("negative_tol", "gtol", "jump_tol", "corrector_max_steps", "max_refine", "linear_algebra", "branch",
+                 "switch", "perturbation"):
+        if getattr(options, name) is not None:
+            raise ValueError(f"options.{name}: twist_study does not take it (it sets step, tol, k and max_switches, "
+                             "which run.json records)")
+    return replace(options, **{key: d for key, d in STUDY_DEFAULTS.items() if getattr(options, key) is None})
+
+
+def check_study_folder(out, scene, phi_min, phi_max, options=None):
     """Raise ValueError naming ``out`` if it holds a study (run.json) with other parameters than
-    these, which a ``twist_study`` with resume=True would refuse: checked before any work."""
+    these (options: as for ``twist_study``), which a ``twist_study`` with resume=True would
+    refuse: checked before any work."""
+    o = study_options(options)
+    step, tol, k, max_switches = o.step, o.tol, o.k, o.max_switches
     run_path = os.path.join(out, "run.json")
     if not os.path.exists(run_path):
         return
@@ -144,14 +168,16 @@ def check_study_folder(out, scene, phi_min, phi_max, step=0.5 * math.pi, tol=2e-
 
 
 @holds_output_folder
-def twist_study(scene, phi_min, phi_max, step=0.5 * math.pi, out=None, tol=2e-4 * math.pi, k=8,
-                progress=None, resume=True, max_switches=3, parallel=True, on_point=None):
+def twist_study(scene, phi_min, phi_max, options=None, *, out=None, resume=True, parallel=True, observer=None):
     """Follow the knot's stable states from phi = 0 up to phi_max and down to phi_min (relaxed at
     phi = 0 first), switching branches at each instability (see ``follow_twist``). Records every
     step (``step_record``); with ``out`` writes the files described in the module docstring as it
-    goes and resumes an interrupted run (see the module docstring). progress(str): progress
-    lines; on_point(direction, BranchPoint): after every step recorded ('plus' or 'minus'; from
-    two threads when ``parallel``). Returns a ``StudyResult``.
+    goes and resumes an interrupted run (see the module docstring; resume=False starts over).
+    options: a ``ContinuationOptions`` with step, tol, k, max_switches (``study_options``: a
+    study's defaults are step 0.5 pi, tol 2e-4 pi, k 8, max_switches 3). observer: an
+    ``Observer`` whose progress(str) gets progress lines and on_point(direction, BranchPoint) is
+    called after every step recorded ('plus' or 'minus'; from two threads when ``parallel``).
+    Returns a ``StudyResult``.
 
     parallel: follow the two directions at once, in two threads (JAX releases the GIL while it
     computes, so on two cores the study takes about as long as its longer side: README's trefoil
@@ -162,16 +188,20 @@ def twist_study(scene, phi_min, phi_max, step=0.5 * math.pi, out=None, tol=2e-4 
     phi_max = check_finite("phi_max", phi_max)
     if not phi_min < 0.0 < phi_max:
         raise ValueError(f"phi_min must be < 0 < phi_max, got phi_min = {phi_min!r}, phi_max = {phi_max!r}")
-    step = check_positive("step", step)
-    tol = check_positive("tol", tol)
+    options = study_options(options)
+    step = check_positive("step", options.step)
+    tol = check_positive("tol", options.tol)
+    k, max_switches = options.k, options.max_switches
+    observer = observed(observer, "twist_study", ("progress", "on_point"))
+    on_point = observer.on_point
     check_dense_memory(scene)  # the dense Hessian must fit: refused before anything is compiled
-    say = progress or (lambda s: None)
+    say = observer.say
     params = _study_parameters(scene, phi_min, phi_max, step, tol, k, max_switches)
     csv_path = crit_path = None
     critical = {"instabilities": [], "finished": []}
     if out:
         if resume:
-            check_study_folder(out, scene, phi_min, phi_max, step, tol, k, max_switches)
+            check_study_folder(out, scene, phi_min, phi_max, options)
         os.makedirs(os.path.join(out, "steps"), exist_ok=True)
         run_path, csv_path, crit_path = (os.path.join(out, n) for n in ("run.json", "branch.csv", "critical.json"))
         if os.path.exists(run_path) and resume:
@@ -266,10 +296,11 @@ def twist_study(scene, phi_min, phi_max, step=0.5 * math.pi, out=None, tol=2e-4 
                                 {"seconds_total": seconds_before + time.perf_counter() - t0})
             stop_if_cancelled()  # after the state is on file: a resumed run goes on from it
 
-        path = follow_twist(scene, 0.0, target, step=step, start=start if state is None else None, tol=tol,
-                            k=k, negative_tol=critical["negative_tol"], max_switches=max_switches,
-                            on_point=on_point_saved, progress=say, on_instability=on_instability, on_state=on_state,
-                            resume=state)
+        opts = ContinuationOptions(step=step, tol=tol, k=k, negative_tol=critical["negative_tol"],
+                                   max_switches=max_switches)
+        path = follow_twist(scene, 0.0, target, opts, start=start if state is None else None, resume=state,
+                            observer=Observer(progress=say, on_point=on_point_saved, on_instability=on_instability,
+                                              on_state=on_state))
         with lock:
             critical["finished"].append(direction)
             critical["stopped_" + direction] = path.reason

@@ -43,7 +43,7 @@ README_PHI, README_ERROR = 6.46490 * PI, 5e-5 * PI
 def paths():
     scene = jr.trefoil(D=8.0, L=292.0, N=121)
     # two starts on the symmetric branch, reached by the stable-only engine in big steps
-    old = jr.follow_twist(scene, 0.0, 6.3 * PI, step=2 * PI, max_switches=0)
+    old = jr.follow_twist(scene, 0.0, 6.3 * PI, jr.ContinuationOptions(step=2 * PI, max_switches=0))
     starts = {round(p.equilibrium.phi / PI, 6): p.equilibrium for p in old.points}
     # step limits 1 and 0.25: without the corrector-displacement test (PseudoArclength.max_correction)
     # both landed on a nearby branch next to the fold, where two modes are nearly degenerate

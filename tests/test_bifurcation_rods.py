@@ -16,6 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+import jaxrod as jr
 from jaxrod import critical_twist, michell_critical_twist, michell_ring
 from jaxrod.bifurcation import ContinuationOptions, PseudoArclength, Result, continuation, emanating_directions, \
     switch_branches, branch_point_curve
@@ -23,6 +24,8 @@ from jaxrod.bifurcation.rods import pinned_problem, set_poisson_ratio, sliding_s
 
 N = 32
 ALG = PseudoArclength()
+# critical_twist's options (the stable-only engine's, not the pseudo-arclength ContinuationOptions above)
+STABLE_ONLY = jr.ContinuationOptions(tol=1e-10 * math.pi, gtol=3e-11)
 # the scaled gradient's roundoff floor is ~1e-11 (the stretching stiffness EA l^2/B ~ 1e4 at D/R = 0.01);
 # ||J|| ~ 4e4, so eig_rtol = 1e-13 puts the negative band at ~4e-9, far above the eigenvalues' noise (~1e-11)
 # and below the buckled branch's negative eigenvalue at the first predicted point
@@ -39,7 +42,7 @@ def ring():
     # relative at N = 32 (benchmarks/results/bifurcation_michell.md). At the default gtol (1e-9)
     # critical_twist's crossing eigenvalue is left at ~8e-12, 7.5e-10 relative above the exact-circle
     # root; its equilibria reach ~2e-11, so gtol = 3e-11 takes it to 2.5e-10 of the extended system
-    cp = critical_twist(scene, 0.0, 2 * michell_critical_twist(0.5), tol=1e-10 * math.pi, gtol=3e-11)
+    cp = critical_twist(scene, 0.0, 2 * michell_critical_twist(0.5), STABLE_ONLY)
     rod = pinned_problem(scene, np.asarray(scene.q_init), 0.0)
     trivial = continuation(rod.problem, ALG, TRIVIAL)
     return scene, cp, rod, trivial
@@ -120,6 +123,6 @@ def test_branch_point_curve_in_nu_equals_critical_twist(ring, buckled):
     for nu in (0.0, 0.25, 0.5):
         (k,) = np.flatnonzero(curve.mu == nu)
         ref = cp if nu == 0.5 else critical_twist(michell_ring(N, nu=nu), 0.0, 2 * michell_critical_twist(nu),
-                                                  tol=1e-10 * math.pi, gtol=3e-11)
+                                                  STABLE_ONLY)
         assert abs(curve.p[k] - ref.phi) <= 1e-9 * ref.phi, (nu, curve.p[k], ref.phi)
     assert np.max(np.abs(curve.dp_dmu - curve.p[0] / 1.5)) <= 1e-8 * curve.p[0]

@@ -142,8 +142,8 @@ def test_coarse_companion_of_a_study_brackets_the_converged_value(tmp_path):
     from jaxrod.study import twist_study
 
     ring = jr.michell_ring(32, nu=0.5)
-    study = twist_study(ring, -0.5 * PI, 6.0 * PI, step=0.5 * PI, out=str(tmp_path / "ring"), tol=1e-3 * PI,
-                        max_switches=0)
+    study = twist_study(ring, -0.5 * PI, 6.0 * PI, jr.ContinuationOptions(step=0.5 * PI, tol=1e-3 * PI, max_switches=0),
+                        out=str(tmp_path / "ring"))
     found = coarse_companion(ring, str(tmp_path / "ring"), study.critical, step=0.5 * PI, tol=1e-3 * PI)
     assert list(found) == ["plus"]  # nothing ends on the minus side within -0.5 pi
     level, ext = found["plus"]

@@ -72,12 +72,12 @@ def test_refusal_names_n_and_the_largest_n_that_fits():
 
 
 def test_the_api_refuses_before_compiling(monkeypatch):
-    monkeypatch.setattr(cont, "available_memory_bytes", lambda: GB24)
+    monkeypatch.setattr(cont.memory, "available_memory_bytes", lambda: GB24)  # where check_dense_memory looks
     ring = jr.michell_ring(10000)  # no contact: follow_twist and the dense critical_twist are dense
     with pytest.raises(ValueError, match=r"^N 10000 needs about 82 GB"):
         jr.follow_twist(ring, 0.0, 1.0)
     with pytest.raises(ValueError, match=r"^N 10000 needs about 82 GB"):
-        jr.critical_twist(ring, 0.0, 1.0, linear_algebra="dense")
+        jr.critical_twist(ring, 0.0, 1.0, jr.ContinuationOptions(linear_algebra="dense"))
     from jaxrod.study import twist_study
 
     with pytest.raises(ValueError, match=r"^N 10000 needs about 82 GB"):
@@ -85,7 +85,7 @@ def test_the_api_refuses_before_compiling(monkeypatch):
 
 
 def test_cli_refuses_a_trefoil_too_large_in_one_line(monkeypatch, tmp_path, capsys):
-    monkeypatch.setattr(cont, "available_memory_bytes", lambda: GB24)
+    monkeypatch.setattr(cont.memory, "available_memory_bytes", lambda: GB24)  # where check_dense_memory looks
     out = tmp_path / "big"
     rc = main(["trefoil", "--N", "10000", "--out", str(out), "--quiet"])
     err = capsys.readouterr().err.strip()

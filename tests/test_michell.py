@@ -8,13 +8,14 @@ import math
 import numpy as np
 import pytest
 
-from jaxrod import critical_twist, michell_critical_twist, michell_ring
+from jaxrod import ContinuationOptions, critical_twist, michell_critical_twist, michell_ring
 from jaxrod.solvers import ConvergenceError
 
 
 def _phi_star(N, nu, slenderness=0.01):
     analytic = michell_critical_twist(nu)
-    cp = critical_twist(michell_ring(N, nu=nu, slenderness=slenderness), 0.0, 2 * analytic, step=analytic / 8)
+    cp = critical_twist(michell_ring(N, nu=nu, slenderness=slenderness), 0.0, 2 * analytic,
+                        ContinuationOptions(step=analytic / 8))
     return cp
 
 
@@ -83,4 +84,4 @@ def test_refinement_refuses_a_bracket_without_sign_change(series):
     ring = michell_ring(32)
     analytic = michell_critical_twist(0.5)
     with pytest.raises(ConvergenceError, match="same sign"):
-        critical_twist(ring, 0.0, 2.0 * analytic, step=analytic / 10.0, negative_tol=5e-3)
+        critical_twist(ring, 0.0, 2.0 * analytic, ContinuationOptions(step=analytic / 10.0, negative_tol=5e-3))

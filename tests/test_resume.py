@@ -53,7 +53,8 @@ SCRIPT = textwrap.dedent("""
             kill()
 
     scene = jr.trefoil(D=8.0, L=292.0, N=61)
-    study.twist_study(scene, %r, %r, step=%r, tol=1e-3 * math.pi, out=out, progress=progress)
+    study.twist_study(scene, %r, %r, jr.ContinuationOptions(step=%r, tol=1e-3 * math.pi), out=out,
+                  observer=jr.Observer(progress=progress))
 """ % (RANGE + (STEP,)))
 
 
@@ -70,7 +71,7 @@ def _arrays(path):
 def test_sigkill_at_three_moments_resumes_to_the_uninterrupted_files(tmp_path):
     scene = jr.trefoil(D=8.0, L=292.0, N=61)
     whole = tmp_path / "whole"
-    ref = twist_study(scene, *RANGE, step=STEP, tol=1e-3 * PI, out=str(whole))
+    ref = twist_study(scene, *RANGE, jr.ContinuationOptions(step=STEP, tol=1e-3 * PI), out=str(whole))
     assert ref.critical["phi_plus"] is not None and len(ref.critical["instabilities"]) >= 1
 
     script = tmp_path / "killed_study.py"
@@ -87,7 +88,8 @@ def test_sigkill_at_three_moments_resumes_to_the_uninterrupted_files(tmp_path):
             assert crit["phi_plus"] == ref.critical["phi_plus"]
     # The last resumption runs here, in this process (its code is compiled already).
     said = []
-    twist_study(scene, *RANGE, step=STEP, tol=1e-3 * PI, out=str(cut), progress=said.append)
+    twist_study(scene, *RANGE, jr.ContinuationOptions(step=STEP, tol=1e-3 * PI), out=str(cut),
+                observer=jr.Observer(progress=said.append))
     assert any(m.startswith("plus: resuming on ") for m in said), said
 
     for name in ("branch.csv", "critical.json"):

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from jaxrod import LBFGS, ConvergenceError, DampedNewton, Material, Newton, clamped_critical_twist, clamped_rod
-from jaxrod import critical_twist, minimise, solve_equilibrium, closed_curve
+from jaxrod import ContinuationOptions, critical_twist, minimise, solve_equilibrium, closed_curve
 from helpers import wobbly_loop
 
 
@@ -84,7 +84,7 @@ def test_clamped_rod_greenhill_threshold():
     exact = clamped_critical_twist(mat.B, mat.C)
     err = []
     for N in (24, 48):  # N = 24: the size test_sparse_stability compiles too (one compilation shared)
-        cp = critical_twist(clamped_rod(N, 1.0, mat), 0.0, 2 * exact, step=exact / 8)
+        cp = critical_twist(clamped_rod(N, 1.0, mat), 0.0, 2 * exact, ContinuationOptions(step=exact / 8))
         err.append((cp.phi - exact) / exact)
     assert 0 < err[1] < 5e-3
     assert 3.0 < err[0] / err[1] < 5.0

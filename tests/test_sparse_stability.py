@@ -301,7 +301,8 @@ def test_critical_twist_sparse_equals_dense(kind):
     else:
         mat = jr.Material.from_ratio(B=1.0, nu=0.5, D=0.01)
         scene, guess = jr.clamped_rod(N, 1.0, mat), jr.clamped_critical_twist(mat.B, mat.C)
-    run = lambda la: jr.critical_twist(scene, 0.0, 2 * guess, step=guess / 8, linear_algebra=la)  # noqa: E731
+    run = lambda la: jr.critical_twist(scene, 0.0, 2 * guess,  # noqa: E731
+                                   jr.ContinuationOptions(step=guess / 8, linear_algebra=la))
     sparse, dense = run("sparse"), run("dense")
     assert sparse.phi == pytest.approx(dense.phi, rel=1e-9)
     assert guess < sparse.phi < 1.1 * guess  # the discrete threshold (N = 24), from above

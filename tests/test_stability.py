@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from jaxrod import Material, clamped_rod, critical_twist, critical_twist_derivative, michell_critical_twist
-from jaxrod import michell_ring, ring, solve_equilibrium, stability
+from jaxrod import ContinuationOptions, michell_ring, ring, solve_equilibrium, stability
 
 
 def test_zero_modes_removed_and_counted():
@@ -37,7 +37,7 @@ def test_critical_twist_derivative_with_respect_to_material():
     # extensibility ratio B/(EA R^2) = 6e-6 here, so d phi*/dB = phi*/B up to ~1e-5.
     scene = michell_ring(32, nu=0.5)
     an = michell_critical_twist(0.5)
-    cp = critical_twist(scene, 0.0, 2 * an, step=an / 8)
+    cp = critical_twist(scene, 0.0, 2 * an, ContinuationOptions(step=an / 8))
     dC = critical_twist_derivative(scene, cp, "C")
     assert dC == pytest.approx(-cp.phi / scene.material.C, rel=1e-7)
     dB = critical_twist_derivative(scene, cp, "B")
@@ -50,7 +50,7 @@ def test_critical_twist_derivative_with_respect_to_material():
         s2 = michell_ring(32, nu=0.5)
         s2 = type(s2)(material=Material(B=m.B * (1 + sgn * h), C=m.C, EA=m.EA, D=m.D),
                       rest_lengths=s2.rest_lengths, q_init=s2.q_init, Lk0=s2.Lk0)
-        phis.append(critical_twist(s2, 0.0, 2 * an, step=an / 8, tol=1e-10).phi)
+        phis.append(critical_twist(s2, 0.0, 2 * an, ContinuationOptions(step=an / 8, tol=1e-10)).phi)
     fd = (phis[1] - phis[0]) / (2 * h * scene.material.B)
     assert dB == pytest.approx(fd, rel=1e-5)
     with pytest.raises(ValueError, match="parameter"):

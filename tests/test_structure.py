@@ -81,7 +81,7 @@ def _cycle(graph):
 
 def test_the_import_graph_is_read():
     graph = _graph()
-    assert "jaxrod.equilibrium" in graph["jaxrod.continuation"]
+    assert "jaxrod.equilibrium" in graph["jaxrod.continuation.engine"]
     assert "jaxrod.stability" in graph["jaxrod.equilibrium"]
 
 

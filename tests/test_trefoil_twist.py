@@ -16,6 +16,7 @@ from jaxrod.records import step_record
 from jaxrod.study import read_table, twist_study
 
 PI = math.pi
+HALF_PI_STEP = jr.ContinuationOptions(step=0.5 * PI)
 
 
 def _assert_inside_its_bracket(inst):
@@ -33,7 +34,8 @@ def opening():
     def keep(point):
         records.append(step_record(point.scene, point.equilibrium, branch=point.branch))
 
-    path = jr.follow_twist(scene, 0.0, 7.5 * PI, step=PI, tol=1e-3 * PI, max_switches=1, on_point=keep)
+    path = jr.follow_twist(scene, 0.0, 7.5 * PI, jr.ContinuationOptions(step=PI, tol=1e-3 * PI, max_switches=1),
+                           observer=jr.Observer(on_point=keep))
     return path, records
 
 
@@ -120,7 +122,7 @@ def test_mirror_knot_has_the_mirrored_energy():
 def test_study_writes_as_it_goes_and_resumes(tmp_path):
     scene = jr.trefoil(D=8.0, L=292.0, N=61)
     out = str(tmp_path / "run")
-    twist_study(scene, -1.0 * PI, 1.0 * PI, step=0.5 * PI, out=out)
+    twist_study(scene, -1.0 * PI, 1.0 * PI, HALF_PI_STEP, out=out)
     table = read_table(os.path.join(out, "branch.csv"))
     assert sorted(set(table["direction"])) == ["minus", "plus"]
     assert len(table["phi"]) == 6  # 0, 0.5 pi, pi on each side
@@ -130,7 +132,7 @@ def test_study_writes_as_it_goes_and_resumes(tmp_path):
     assert sorted(crit["finished"]) == ["minus", "plus"]
     # The two sides ran in two threads: a serial run writes byte-identical files.
     serial = str(tmp_path / "serial")
-    twist_study(scene, -1.0 * PI, 1.0 * PI, step=0.5 * PI, out=serial, parallel=False)
+    twist_study(scene, -1.0 * PI, 1.0 * PI, HALF_PI_STEP, out=serial, parallel=False)
     names = ["branch.csv", "critical.json"] + [os.path.join("steps", f) for f in os.listdir(os.path.join(out, "steps"))]
     assert len(names) == 2 + 6
     for name in names:
@@ -143,13 +145,13 @@ def test_study_writes_as_it_goes_and_resumes(tmp_path):
     crit["finished"] = ["plus"]
     json.dump(crit, open(os.path.join(out, "critical.json"), "w"))
     said = []
-    twist_study(scene, -1.0 * PI, 1.0 * PI, step=0.5 * PI, out=out, progress=said.append)
+    twist_study(scene, -1.0 * PI, 1.0 * PI, HALF_PI_STEP, out=out, observer=jr.Observer(progress=said.append))
     assert open(os.path.join(out, "branch.csv"), "rb").read() == open(os.path.join(serial, "branch.csv"), "rb").read()
     assert "plus: already finished (resumed run)" in said  # not recomputed
     assert any(m.startswith("minus: files missing") for m in said), said
     # Other parameters in the same folder are refused, naming the problem.
     with pytest.raises(ValueError, match="other parameters"):
-        twist_study(scene, -1.0 * PI, 2.0 * PI, step=0.5 * PI, out=out)
+        twist_study(scene, -1.0 * PI, 2.0 * PI, HALF_PI_STEP, out=out)
 
 
 def test_bad_study_input():
@@ -157,7 +159,7 @@ def test_bad_study_input():
     with pytest.raises(ValueError, match="phi_min"):
         twist_study(scene, 1.0, 2.0)
     with pytest.raises(ValueError, match="step"):
-        twist_study(scene, -1.0, 2.0, step=0.0)
+        twist_study(scene, -1.0, 2.0, jr.ContinuationOptions(step=0.0))
     with pytest.raises(ValueError, match="phi_max"):
         twist_study(scene, -1.0, float("nan"))
 
@@ -168,12 +170,13 @@ def test_follow_twist_locates_michell_like_critical_twist():
     # extrapolation; it must agree with critical_twist (Newton on the eigenvalue) at the same N.
     ring = jr.michell_ring(24, nu=0.5)
     analytic = jr.michell_critical_twist(0.5)
-    path = jr.follow_twist(ring, 0.0, 1.5 * analytic, step=analytic / 4, tol=1e-4 * PI, switch=False)
+    path = jr.follow_twist(ring, 0.0, 1.5 * analytic,
+                           jr.ContinuationOptions(step=analytic / 4, tol=1e-4 * PI, switch=False))
     assert not path.completed and len(path.instabilities) == 1
     assert path.stop is jr.PathStop.BRANCH_ENDED and path.stop == "branch_ended"
     inst = path.instabilities[0]
     assert inst.kind == "unstable" and inst.multiplicity == 2
-    cp = jr.critical_twist(ring, 0.0, 1.5 * analytic, step=analytic / 4)
+    cp = jr.critical_twist(ring, 0.0, 1.5 * analytic, jr.ContinuationOptions(step=analytic / 4))
     assert abs(inst.phi - cp.phi) <= inst.phi_error
     assert abs(inst.phi - cp.phi) < 1e-6 * PI  # the extrapolation is far better than the bracket
     _assert_inside_its_bracket(inst)
@@ -191,16 +194,23 @@ def test_continuation_options_hold_the_contact_aware_defaults():
     assert (c.negative_tol, c.gtol, c.step, c.tol) == (CONTACT_NEGATIVE_TOL, CONTACT_GTOL, 0.25, 1e-6 * PI)
     r = o.resolved(ring, "critical_twist", 8.0)
     assert (r.negative_tol, r.gtol, r.k) == (1e-10, 1e-9, 8)
-    # Set values are kept, keywords that are not None win over the options object.
+    f = o.resolved(ring, Task.FOLLOW_TWIST, 1.0)
+    assert (f.branch, f.switch, f.max_switches, f.perturbation, f.max_refine, f.linear_algebra) == \
+        ("symmetric", True, 3, f.jump_tol, 30, "auto")
+    # Set values are kept; updated() replaces the values that are not None.
     mine = jr.ContinuationOptions(tol=1e-3, k=4).updated(tol=None, gtol=1e-8)
     assert mine.resolved(ring, Task.FOLLOW_TWIST, 1.0).tol == 1e-3 and mine.gtol == 1e-8 and mine.k == 4
-    for bad in (dict(tol=0.0), dict(gtol=float("nan")), dict(k=0), dict(jump_tol=-1.0)):
+    for bad in (dict(tol=0.0), dict(gtol=float("nan")), dict(k=0), dict(jump_tol=-1.0), dict(max_refine=0),
+                dict(max_switches=-1), dict(perturbation=0.0), dict(linear_algebra="banded"), dict(switch="no"),
+                dict(branch="")):
         name = next(iter(bad))
         with pytest.raises(ValueError, match=name):
             jr.ContinuationOptions(**bad).resolved(ring, Task.FOLLOW_TWIST, 1.0)
-    # critical_twist takes the object: the same answer as with the keywords.
+    with pytest.raises(ValueError, match="linear_algebra"):  # follow_twist is dense only
+        jr.ContinuationOptions(linear_algebra="sparse").resolved(ring, Task.FOLLOW_TWIST, 1.0)
+    # One way to give them: the options object (by position or as options=), no keyword duplicates.
     a = jr.critical_twist(ring, 0.0, 40.0, options=jr.ContinuationOptions(step=2.0, tol=1e-8))
-    b = jr.critical_twist(ring, 0.0, 40.0, step=2.0, tol=1e-8)
+    b = jr.critical_twist(ring, 0.0, 40.0, jr.ContinuationOptions(step=2.0, tol=1e-8))
     assert a.phi == b.phi and a.multiplicity == b.multiplicity == 2
 
 

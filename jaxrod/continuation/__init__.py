@@ -1,0 +1,45 @@
+"""The stable-only twist continuation: branches of equilibria in the imposed twist phi, kept to
+stable states.
+
+Two entries, each ``entry(scene, phi_start, phi_stop, options, *, ...)``:
+
+* ``critical_twist(scene, phi_start, phi_stop, options, *, q0, observer)`` -> ``CriticalPoint``:
+  the first twist where the negative count changes (rings and clamped rods), refined by Newton
+  on the crossing eigenvalue;
+* ``follow_twist(scene, phi_start, phi_stop, options, *, start, observer, resume)`` ->
+  ``TwistPath``: a whole stable path, its branch ends located to tol, switching to the buckled
+  branch at each (knots).
+
+``options`` is one ``ContinuationOptions`` (every tolerance, budget and behaviour knob; None
+fields take the scene-aware defaults), ``observer`` one ``Observer`` (progress lines, points,
+instabilities, states). Read in this order:
+
+* ``options``   ContinuationOptions, Task, Observer; the defaults (contact-aware tolerances)
+* ``memory``    the dense path's memory estimate and its refusal before anything is compiled
+* ``results``   CriticalPoint, BranchPoint, Instability, TwistPath, PathStop, BranchEnd
+* ``engine``    the one predictor-corrector-accept step (_Engine, _Step, StepFailure); dense or
+  block linear algebra
+* ``critical``  critical_twist
+* ``state``     PathState: where a follow_twist run stands (exact resume, npz storage)
+* ``ends``      where a followed branch ends: critical mode, end trials, phi*, the near-zero band
+* ``switching`` the switch to the buckled branch
+* ``follow``    follow_twist and its loop (_Follower)
+"""
+from ..stability import CONTACT_NEGATIVE_TOL, DEFAULT_NEGATIVE_TOL  # noqa: F401 (where callers have found them)
+from .options import (CONTACT_GTOL, CORRECTOR_MAX_STEPS, LINEAR_ALGEBRA, MAX_REFINE,  # noqa: F401
+                      NEGATIVE_TOL_FRACTION, ContinuationOptions, Observer, Task, default_negative_tol)
+from .memory import (DENSE_BYTES_PER_DOF, DENSE_HESSIAN_COPIES, PROCESS_BASE_BYTES,  # noqa: F401
+                     available_memory_bytes, check_dense_memory, dense_memory_bytes)
+from .results import (BranchEnd, BranchPoint, CriticalPoint, Instability, NoCrossingError,  # noqa: F401
+                      PathStop, TwistPath)
+from .engine import K_MARGIN, STALL_FACTOR, StepFailure, _Engine, _grown_engine, _Step, _use_sparse  # noqa: F401
+from .critical import critical_twist
+from .state import PathState, Phase
+from .ends import (_end_trial, _locate, _negative_modes, _past_zero,  # noqa: F401 (tests reach them here)
+                   _warn_if_band_hides_shape_modes)
+from .follow import follow_twist
+
+__all__ = ["check_dense_memory", "dense_memory_bytes", "available_memory_bytes", "default_negative_tol",
+           "ContinuationOptions", "Observer", "Task", "PathStop", "StepFailure", "BranchEnd", "CriticalPoint",
+           "critical_twist", "NoCrossingError", "BranchPoint", "Instability", "TwistPath", "follow_twist",
+           "PathState", "Phase"]

@@ -1,0 +1,239 @@
+"""The one predictor-corrector-accept step that both continuations are loops over (``_Engine``),
+its outcome (``_Step``, refused with a ``StepFailure``), and the choice between the dense and the
+O(n) block linear algebra (``_use_sparse``, ``_grown_engine``)."""
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+import jax.numpy as jnp
+
+from ..equilibrium import Equilibrium, LeftBranchError, TopologyChangeError, mode_step, relax, solve_equilibrium
+from ..geometry import polyline_distance
+from ..solvers import ConvergenceError
+from ..sparse_branch import EXTRA_PAIRS, solve_equilibrium_sparse, sparse_branch_analysis
+from ..stability import branch_analysis
+from .options import ContinuationOptions, Task
+
+
+class StepFailure(enum.Enum):
+    """Why a continuation step was refused (never parsed from a message)."""
+
+    NOT_CONVERGED = "not converged"  # the corrector failed (ConvergenceError)
+    TOPOLOGY = "topology"  # the rod passed through itself
+    JUMP = "jump"  # the state left the branch (moved more than jump_tol from the prediction)
+    LINKING = "linking"  # Lk is not Lk0 + phi/2pi
+    UNSTABLE = "unstable"  # converged on the branch, but with a negative eigenvalue
+
+
+@dataclass(frozen=True)
+class _Refusal:
+    failure: StepFailure
+    detail: str
+
+    def __str__(self):
+        return f"{self.failure.value}: {self.detail}"
+
+
+# A follow_twist corrector out of steps with a gradient within this factor of gtol has stalled on
+# sliding modes (seen: N = 151 trefoil, |g| ~ 7e-9 against 1e-9, a false branch end at -8.03 pi
+# where the true one is -11.1 pi); Newton finishes it (``_Engine._finish_stalled``).
+STALL_FACTOR = 100.0
+# Damped-Newton iterations a continuation corrector may take between two neighbourhood pauses.
+
+@dataclass(frozen=True)
+class _Step:
+    """The outcome of one predictor-corrector step (``_Engine.step``).
+
+    equilibrium: the corrected state (with its stability once analysed; None if the corrector
+    failed); tangent: dq/dphi there; eigenvalue, dlambda_dphi, mode: the tracked eigenpair and
+    its derivative along the branch; refusal: why the step was refused (None: accepted)."""
+
+    equilibrium: Equilibrium | None
+    tangent: np.ndarray | None = field(default=None, repr=False)
+    eigenvalue: float = math.nan
+    dlambda_dphi: float = math.nan
+    mode: np.ndarray | None = field(default=None, repr=False)
+    refusal: _Refusal | None = None
+
+    @property
+    def ok(self):
+        return self.refusal is None
+
+
+@dataclass(frozen=True)
+class _Engine:
+    """The one predictor-corrector-accept step that both continuations are loops over.
+
+    Predictor: the branch tangent, q(phi) = q_prev + dq/dphi (phi - phi_prev). Corrector, by task:
+    ``critical_twist`` uses Newton (it must also converge *past* the crossing, onto the branch
+    that has just turned unstable, to bracket and refine it; the O(n) block Newton for large
+    rings and rods), ``follow_twist`` the damped-Newton minimiser of ``relax``, guided by the
+    predicted shape, which cannot wander onto an unstable branch. Analysis (shared): the
+    stability, the tracked eigenpair with its derivative along the branch, and the new tangent.
+    Acceptance: any converged state for ``critical_twist`` (it watches the negative count
+    itself); for ``follow_twist`` a state that stayed within jump_tol of the prediction, has
+    Lk = Lk0 + phi/2pi (closed rods) and no negative eigenvalue (after a soft-saddle escape)."""
+
+    scene: object
+    task: Task
+    opts: ContinuationOptions
+    sparse: bool = False
+
+    @property
+    def contact(self):
+        return "contact" in self.scene.terms
+
+    @property
+    def closed(self):
+        return bool(self.scene.closed)
+
+    @property
+    def lk0(self):
+        return float(getattr(self.scene, "Lk0", 0.0))
+
+    @property
+    def pinv_tol(self):
+        # Near-zero sliding modes of a contact knot are left out of the tangent's pseudo-inverse.
+        return self.opts.negative_tol if self.contact else 0.0
+
+    def analyse(self, e, index=0, ref=None, guess=None):
+        """(stability, eigenvalue, dlambda_dphi, mode, tangent) at the equilibrium e: the eigenpair
+        tracked is number ``index``, or the one nearest ``ref`` (an eigenvector)."""
+        analysis = sparse_branch_analysis if self.sparse else branch_analysis
+        return analysis(self.scene, e.q, e.phi, index, k=self.opts.k, tol=self.opts.negative_tol, ref=ref,
+                        pinv_tol=self.pinv_tol, nbr=e.neighbourhood, guess=guess)
+
+    def analysed(self, e, index=0, ref=None, guess=None):
+        """``analyse`` as a _Step: the equilibrium with its stability attached."""
+        stab, lam, dlam, v, dq = self.analyse(e, index, ref, guess)
+        return _Step(replace(e, stability=stab), dq, lam, dlam, v)
+
+    def step(self, prev, tangent, phi, index=0, ref=None, guess=None):
+        """Predict from ``prev`` (an Equilibrium) along ``tangent`` to ``phi``, correct, analyse and
+        accept or refuse. index, ref, guess: the tracked eigenpair (see ``analyse``). Returns a
+        _Step."""
+        q_pred = prev.q + tangent * (phi - prev.phi)
+        if self.task is Task.CRITICAL_TWIST:
+            return self._newton_step(prev, q_pred, phi, index, ref, guess)
+        return self._minimiser_step(prev, q_pred, phi)
+
+    def _newton(self, phi, q_start, nbr):
+        if self.sparse:
+            return solve_equilibrium_sparse(self.scene, phi, q_start, gtol=self.opts.gtol, nbr=nbr)
+        return solve_equilibrium(self.scene, phi, q_start, method="newton", with_stability=False,
+                                 near_null_tol=self.opts.negative_tol if self.contact else 0.0,
+                                 gtol=self.opts.gtol, nbr=nbr)
+
+    def _newton_step(self, prev, q_pred, phi, index, ref, guess):
+        try:
+            e = self._newton(phi, q_pred, prev.neighbourhood)
+        except ConvergenceError:
+            try:  # from the last state itself, in case the predictor overshot
+                e = self._newton(phi, prev.q, prev.neighbourhood)
+            except ConvergenceError as exc:
+                return _Step(None, refusal=_Refusal(StepFailure.NOT_CONVERGED, str(exc)))
+        return self.analysed(e, index, ref, guess)
+
+    def _minimiser_step(self, prev, q_pred, phi):
+        opts = self.opts
+        x_pred = np.asarray(self.scene.positions(jnp.asarray(q_pred)))
+        try:
+            e = relax(self.scene, phi, q_pred, gtol=opts.gtol, previous=prev, with_stability=False,
+                      nbr=prev.neighbourhood, guide=(x_pred, opts.jump_tol), max_steps=opts.corrector_max_steps)
+        except LeftBranchError as exc:
+            return _Step(None, refusal=_Refusal(StepFailure.JUMP, str(exc)))
+        except TopologyChangeError as exc:
+            return _Step(None, refusal=_Refusal(StepFailure.TOPOLOGY, str(exc)))
+        except ConvergenceError as exc:
+            e = self._finish_stalled(exc, phi, prev)
+            if e is None:
+                return _Step(None, refusal=_Refusal(StepFailure.NOT_CONVERGED, str(exc)))
+        moved = polyline_distance(e.x, x_pred, self.closed)
+        if moved > opts.jump_tol:
+            return _Step(e, refusal=_Refusal(StepFailure.JUMP, f"the state moved {moved:.3g} from the predicted shape"))
+        s = self.analysed(e)
+        if self.closed and abs(s.equilibrium.Lk - (self.lk0 + phi / (2.0 * math.pi))) > 1e-6:
+            return replace(s, tangent=None,
+                           refusal=_Refusal(StepFailure.LINKING, f"Lk = {s.equilibrium.Lk:.8f} is not Lk0 + phi/2pi"))
+        if s.equilibrium.stability.n_negative > 0 and self.contact:
+            # A soft, sliding-type mode of a loose knot may turn slightly negative: the minimiser
+            # then stalls on a saddle that differs from a stable state only by a slide of the
+            # material along the same shape. Push along the negative mode and relax: if a stable
+            # state of the *same shape* appears, the branch goes on (no false detection).
+            escaped = self._escape_soft_saddle(s.equilibrium, prev, x_pred)
+            if escaped is not None:
+                s = escaped
+        n_negative = s.equilibrium.stability.n_negative
+        if n_negative > 0:
+            return replace(s, refusal=_Refusal(StepFailure.UNSTABLE, f"{n_negative} negative eigenvalue(s)"))
+        return s
+
+    def _finish_stalled(self, exc, phi, prev):
+        """A minimiser that ran out of steps within a factor STALL_FACTOR of gtol has stalled on
+        the near-null sliding modes of a contact knot (a curvature ~1e-8 makes its progress along
+        them crawl), not met a fold (there it runs away from the prediction, or stops far from
+        gtol). Finish it with Newton, which leaves the near-null directions alone; the result is
+        checked like any corrected state (distance, Lk, stability). None if that fails too."""
+        sol = getattr(exc, "solution", None)
+        if not self.contact or sol is None or exc.q is None or not sol.grad_norm < STALL_FACTOR * self.opts.gtol:
+            return None
+        try:
+            return self._newton(phi, exc.q, prev.neighbourhood)
+        except ConvergenceError:
+            return None
+
+    def _escape_soft_saddle(self, e, prev, x_pred):
+        """From a saddle e, relax after pushes of +-jump_tol/4 along its most negative mode; the
+        analysed _Step of a stable state within jump_tol of the predicted shape x_pred, or None."""
+        jump_tol = self.opts.jump_tol
+        v = np.asarray(e.stability.eigenvectors[:, 0])
+        step = mode_step(self.scene, v, 0.25 * jump_tol)
+        for sgn in (1.0, -1.0):
+            try:
+                # Guided: a push along a real buckling mode runs off the predicted shape and is
+                # stopped at its first pause instead of being relaxed to the end.
+                e2 = relax(self.scene, e.phi, e.q + sgn * step, gtol=self.opts.gtol, previous=prev,
+                           with_stability=False, nbr=e.neighbourhood, guide=(x_pred, jump_tol),
+                           max_steps=self.opts.corrector_max_steps)
+            except (ConvergenceError, TopologyChangeError):
+                continue
+            if polyline_distance(e2.x, x_pred, self.closed) > jump_tol:
+                continue
+            s = self.analysed(e2)
+            if s.equilibrium.stability.n_negative == 0:
+                return s
+        return None
+
+
+# "auto" takes the O(n) block path from this many DOFs on (N ~ 250 nodes): below it the dense
+# path is fast enough, and compiled already for most small scenes.
+_SPARSE_MIN_DOF = 1000
+
+
+def _use_sparse(scene, linear_algebra):
+    """Whether ``critical_twist`` uses the block path (see its ``linear_algebra``)."""
+    if linear_algebra not in ("auto", "dense", "sparse"):
+        raise ValueError(f"linear_algebra must be 'auto', 'dense' or 'sparse', got {linear_algebra!r}")
+    if linear_algebra == "sparse" and "contact" in scene.terms:
+        raise ValueError("linear_algebra='sparse' does not handle self-contact: use 'dense'")
+    if linear_algebra == "auto":
+        return "contact" not in scene.terms and scene.n_dof >= _SPARSE_MIN_DOF
+    return linear_algebra == "sparse"
+
+
+K_MARGIN = EXTRA_PAIRS  # eigenpairs beyond the tracked index or the negative count (sparse path)
+
+
+def _grown_engine(engine, needed):
+    """``engine`` itself if its k eigenpairs reach index ``needed`` + K_MARGIN - 1 (needed: the
+    tracked index or the negative count), else a copy with k = needed + K_MARGIN (sparse path
+    only: the dense one computes LOWEST_COUNT eigenpairs whatever k)."""
+    k = needed + K_MARGIN
+    if not engine.sparse or k <= engine.opts.k or engine.opts.k >= engine.scene.n_dof:
+        return engine
+    return replace(engine, opts=replace(engine.opts, k=min(k, int(engine.scene.n_dof))))
+

@@ -1,0 +1,272 @@
+"""``follow_twist``: follow a stable branch through its instabilities, with branch switching
+(knots), as a loop of ``_Follower.advance`` over ``PathState`` (follow; locate the end; confirm
+it; at the end, switch branches or stop). Where a branch ends is worked out in ``ends``, the
+switch in ``switching``."""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, replace
+
+from ..equilibrium import Equilibrium, relax
+from ..validation import check_finite
+from .engine import StepFailure, _Engine, _Refusal
+from .ends import (_band_detail, _critical_mode, _end_trial, _hidden_refusal, _hidden_shape_modes, _locate,
+                   _negative_modes, _past_zero, _warn_if_band_hides_shape_modes)
+from .memory import check_dense_memory
+from .options import Task, checked_options, observed
+from .results import BranchEnd, BranchPoint, PathStop, TwistPath
+from .state import PathState, Phase, _StoredPathState
+from .switching import _next_branch_name, _switch_branch
+
+
+def follow_twist(scene, phi_start=0.0, phi_stop=None, options=None, *, start=None, observer=None, resume=None):
+    """Follow the stable equilibrium branch from phi_start towards phi_stop (default 8 pi); where
+    it ends (an eigenvalue crosses zero or the branch folds), locate the end to ``options.tol``
+    and switch to the stable buckled branch along the critical eigenvector, then go on.
+
+    scene: closed or clamped rod scene; options: a ``ContinuationOptions`` (step, tol,
+    negative_tol, gtol, jump_tol, k, corrector_max_steps, branch, switch, max_switches,
+    perturbation; None: the scene-aware defaults defined there); start: an ``Equilibrium`` to
+    begin from (used as is; phi_start is then its phi), or an initial guess of the DOFs at
+    phi_start (relaxed first; default scene.q_init); observer: an ``Observer`` whose progress,
+    on_point, on_instability and on_state are called; resume: a ``PathState`` (or
+    ``PathState.from_arrays``) to go on from, in place of phi_start / start / options.branch (the
+    same scene, phi_stop and options must be given).
+
+    Predictor: the branch tangent dq/dphi (implicit function theorem, near-zero sliding modes
+    left out). Corrector: the damped-Newton minimiser of ``relax`` (exact Hessian, capped steps,
+    contact lists rebuilt, strand passage refused), which cannot wander onto an unstable branch.
+    A step is accepted when the corrector converges, the state stays within ``jump_tol``
+    (default D/2) of the predicted shape (a distance blind to material sliding along the
+    centreline), the linking number is Lk0 + phi/2 pi (closed rods) and no eigenvalue is below
+    -negative_tol (see ``_Engine``). Otherwise the step is halved; once the failing twist is
+    within ``tol`` of the last accepted one, the branch has ended there (a failure that persists
+    as the step goes to zero is not a step-size artefact). Near-zero modes (|lambda| <
+    negative_tol: strands sliding in a loose knot, ~1e-7) never count.
+
+    Branch switching (unless options.switch is False, at most options.max_switches times): at
+    the nearest twist where the branch was lost, the predicted state is pushed by
+    +-``perturbation`` (default jump_tol, at the node that moves most) along the critical
+    eigenvector and relaxed; the lower-energy stable state away from the old branch is the new
+    branch ("buckled", then "buckled2", ...; the sign of the direction is appended).
+
+    The run is deterministic, so a resumed run reports exactly the points and instabilities
+    that the uninterrupted one reports after that state. Returns a ``TwistPath`` (with the
+    points and instabilities of this call). A scene whose dense n x n Hessian does not fit in
+    memory is refused at once (``check_dense_memory``: ValueError naming N).
+    """
+    t0 = time.perf_counter()
+    phi_stop = check_finite("phi_stop", 8.0 * math.pi if phi_stop is None else phi_stop)
+    check_dense_memory(scene)  # follow_twist is dense: refuse before anything is compiled
+    observer = observed(observer, "follow_twist", ("progress", "on_point", "on_instability", "on_state"))
+    opts = checked_options(options)
+    on_point, on_instability, on_state = observer.on_point, observer.on_instability, observer.on_state
+    points, instabilities = [], []
+    say = observer.say
+    warned = set()  # branches already warned about a shape mode inside the near-zero band
+
+    def emit(state, s):
+        e = s.equilibrium
+        point = BranchPoint(branch=state.branch, equilibrium=e, tangent=s.tangent, scene=scene)
+        points.append(point)
+        if on_point is not None:
+            on_point(point)
+        lam = e.stability.eigenvalues
+        say(f"[{state.branch}] phi = {e.phi / math.pi:+.5f} pi: E = {e.energy:.6g}, Wr = {e.Wr:.4f}, "
+            f"Tw = {e.Tw:.4f}, {e.stability.n_negative} negative, lowest " + " ".join(f"{v:.2e}" for v in lam[:3]))
+        _warn_if_band_hides_shape_modes(scene, state.branch, e, opts, warned)  # opts resolved below, before any step
+        return replace(state, n_points=state.n_points + 1)
+
+    def record(state, inst):
+        instabilities.append(inst)
+        if on_instability is not None:
+            on_instability(inst)
+        return replace(state, n_instabilities=state.n_instabilities + 1)
+
+    if resume is not None:
+        # The direction is the branch name's sign; the span only sizes the default step, which
+        # the resumed run must share with the first one (pass the same phi_stop).
+        stored_phi = float(resume.arrays["prev_phi"]) if isinstance(resume, _StoredPathState) else resume.prev.phi
+        opts = opts.resolved(scene, Task.FOLLOW_TWIST, abs(phi_stop - stored_phi) or 1.0)
+        engine = _Engine(scene, Task.FOLLOW_TWIST, opts)
+        state = resume.restore(engine) if isinstance(resume, _StoredPathState) else resume
+        direction = 1.0 if state.branch.endswith("+") else -1.0
+    else:
+        given = isinstance(start, Equilibrium)  # else None or an initial guess of the DOFs
+        phi_start = check_finite("phi_start", start.phi if given else phi_start)
+        if phi_stop == phi_start:
+            raise ValueError("phi_stop must differ from phi_start")
+        direction = 1.0 if phi_stop > phi_start else -1.0
+        opts = opts.resolved(scene, Task.FOLLOW_TWIST, abs(phi_stop - phi_start))
+        engine = _Engine(scene, Task.FOLLOW_TWIST, opts)
+        if not given:
+            e0 = relax(scene, phi_start, start, gtol=opts.gtol, with_stability=False)
+        else:
+            e0 = start
+            if e0.neighbourhood is None:
+                e0 = replace(e0, neighbourhood=scene.neighbourhood(e0.q, e0.phi))
+        s = engine.analysed(e0)
+        if s.equilibrium.stability.n_negative:
+            st = s.equilibrium.stability
+            raise ValueError(
+                f"the starting state at phi = {e0.phi:.6g} is unstable ({st.n_negative} negative eigenvalue(s), "
+                f"lowest {st.eigenvalues[0]:.3e}): follow_twist follows a stable branch; start from a minimum "
+                "(jaxrod.relax_to_minimum)")
+        state = PathState(phase=Phase.FOLLOW, branch=f"{opts.branch}{'+' if direction > 0 else '-'}",
+                          prev=s.equilibrium, tangent=s.tangent, h=opts.step)
+        state = emit(state, s)
+        if on_state is not None:
+            on_state(state)
+    follower = _Follower(engine, phi_stop, direction, emit, record, say)
+    while state.phase is not Phase.DONE:
+        state = follower.advance(state)
+        if on_state is not None:
+            on_state(state)
+    return TwistPath(points=points, instabilities=instabilities, reason=state.reason,
+                     seconds=time.perf_counter() - t0, stop=state.stop)
+
+
+@dataclass(frozen=True)
+class _Follower:
+    """``follow_twist``'s loop body: ``advance(state)`` tries one step (or, at a located end,
+    switches branches) and returns the next ``PathState``."""
+
+    engine: _Engine
+    phi_stop: float
+    direction: float
+    emit: object
+    record: object
+    say: object
+
+    def advance(self, state):
+        return {Phase.FOLLOW: self._follow, Phase.LOCATE: self._locate, Phase.CONFIRM: self._confirm,
+                Phase.END: self._end}[state.phase](state)
+
+    def _accept(self, state, s, **changes):
+        state = replace(state, older=state.prev, prev=s.equilibrium, tangent=s.tangent, **changes)
+        return self.emit(state, s)
+
+    def _follow(self, state):
+        prev, step, direction = state.prev, self.engine.opts.step, self.direction
+        if direction * (self.phi_stop - prev.phi) <= 1e-12:
+            return replace(state, phase=Phase.DONE, stop=PathStop.PHI_STOP, reason="phi_stop")
+        # Steps land on the grid of multiples of ``step`` (so whole turns are visited, where the
+        # ribbon closes and the Gauss linking number can be compared) unless shortened.
+        grid = step * (math.floor(prev.phi / step + 1e-9) + 1 if direction > 0 else math.ceil(prev.phi / step - 1e-9) - 1)
+        phi_next = prev.phi + direction * min(state.h, abs(self.phi_stop - prev.phi), abs(grid - prev.phi))
+        s = self.engine.step(prev, state.tangent, phi_next)
+        hidden = _hidden_shape_modes(self.engine, s.equilibrium) if s.ok else None
+        if s.ok and hidden is None:
+            return self._accept(state, s, h=min(step, 2.0 * state.h))
+        if hidden is not None:
+            # Converged, every eigenvalue above -negative_tol, but a mode that changes the shape
+            # (not material sliding) is negative inside the near-zero band kept for the sliding
+            # modes: the branch has ended (issue 17: at N = 241 and 481 the trefoil's opening side
+            # was called stable 0.09 pi and 1.09 pi past its end). Refused as unstable, with that
+            # mode as the critical one, so the locator below tracks its eigenvalue's sign.
+            s = replace(s, refusal=_hidden_refusal(hidden[0]))
+        # The branch was lost at phi_next: shrink the bracket between the last stable state and
+        # there to tol, aiming each trial with a model of the critical eigenvalue (a few solves
+        # where bisection needs ~log2(step/tol) ~ 11).
+        self.say(f"[{state.branch}] lost at phi = {phi_next / math.pi:+.5f} pi ({s.refusal}); locating the end")
+        critical = hidden[1] if hidden is not None else self._critical_modes(s, None)
+        lam = _past_zero(critical, prev)
+        if lam is not None and state.older is not None and _past_zero(critical, state.older) is None:
+            # The last accepted state already has the critical eigenvalue below zero (inside the
+            # near-zero band, so the stability test let it pass): the end lies between the state
+            # before it and it. Locate it there, from the state before.
+            self.say(f"[{state.branch}] phi = {prev.phi / math.pi:+.5f} pi is past the end already (critical "
+                     f"eigenvalue {lam:.3e}); locating it from phi = {state.older.phi / math.pi:+.5f} pi")
+            back = self.engine.analysed(state.older)
+            return replace(state, phase=Phase.LOCATE, prev=back.equilibrium, tangent=back.tangent, older=None,
+                           lost_phi=prev.phi, lost_refusal=_Refusal(StepFailure.UNSTABLE, _band_detail(lam)),
+                           lost_equilibrium=prev, lost_from=state.older.phi, failures=0, successes=0,
+                           probe_held=False, critical_modes=critical)
+        return replace(state, phase=Phase.LOCATE, lost_phi=phi_next, lost_refusal=s.refusal,
+                       lost_equilibrium=s.equilibrium, lost_from=prev.phi, failures=0, successes=0, probe_held=False,
+                       critical_modes=critical)
+
+    def _critical_modes(self, s, current):
+        """The critical modes for ``PathState.critical_modes`` after the refused step s: the
+        eigenvectors of its eigenvalues below -negative_tol where it converged unstable (or, none
+        being there, of its shape modes negative inside the near-zero band), else ``current``."""
+        if s.refusal is None or s.refusal.failure is not StepFailure.UNSTABLE:
+            return current
+        found = _negative_modes(s.equilibrium, self.engine.opts.negative_tol)
+        if found is None:
+            hidden = _hidden_shape_modes(self.engine, s.equilibrium)
+            found = None if hidden is None else hidden[1]
+        return current if found is None else found
+
+    def _unless_past_zero(self, state, s):
+        """The accepted step s, or s refused (UNSTABLE) when its critical eigenvalue is already
+        negative (see ``PathState.critical_modes``), or when a shape mode is negative inside the
+        near-zero band (``_hidden_shape_modes``)."""
+        if not s.ok:
+            return s
+        lam = _past_zero(state.critical_modes, s.equilibrium)
+        if lam is not None:
+            return replace(s, refusal=_Refusal(StepFailure.UNSTABLE, _band_detail(lam)))
+        hidden = _hidden_shape_modes(self.engine, s.equilibrium)
+        if hidden is not None:
+            return replace(s, refusal=_hidden_refusal(hidden[0]))
+        return s
+
+    def _locate(self, state):
+        tol, prev = self.engine.opts.tol, state.prev
+        if abs(state.lost_phi - prev.phi) <= tol:
+            # Bracketed. If the nearest failure was met from a state further back, confirm it from
+            # the last stable state, so that a predictor too far off is not taken for the end.
+            return replace(state, phase=Phase.CONFIRM if abs(state.lost_phi - state.lost_from) > tol else Phase.END)
+        trial, probe = _end_trial(state.older, prev, state.lost_phi, state.lost_equilibrium, self.direction, tol,
+                                  self.engine.opts.negative_tol, state.failures, state.probe_held, state.successes,
+                                  state.critical_modes)
+        s = self._unless_past_zero(state, self.engine.step(prev, state.tangent, trial))
+        if s.ok:
+            return self._accept(state, s, failures=0, successes=state.successes + 1, probe_held=probe)
+        self.say(f"[{state.branch}] phi = {trial / math.pi:+.5f} pi refused ({s.refusal})")
+        return replace(state, lost_phi=trial, lost_refusal=s.refusal, lost_equilibrium=s.equilibrium,
+                       lost_from=prev.phi, failures=state.failures + 1, successes=0, probe_held=False,
+                       critical_modes=self._critical_modes(s, state.critical_modes))
+
+    def _confirm(self, state):
+        s = self._unless_past_zero(state, self.engine.step(state.prev, state.tangent, state.lost_phi))
+        if not s.ok:
+            return replace(state, phase=Phase.END, lost_refusal=s.refusal, lost_equilibrium=s.equilibrium)
+        self.say(f"[{state.branch}] phi = {state.lost_phi / math.pi:+.5f} pi reached from closer by: going on")
+        # The step that failed was too long for the predictor, not past the end: go on with half
+        # of it (not from 2 tol, which needs ~10 doublings back to ``step``).
+        h = max(2.0 * self.engine.opts.tol, 0.5 * abs(state.lost_phi - state.lost_from))
+        return self._accept(state, s, phase=Phase.FOLLOW, h=h, critical_modes=None)
+
+    def _end(self, state):
+        engine, prev, direction, lost_phi = self.engine, state.prev, self.direction, state.lost_phi
+        kind = BranchEnd.UNSTABLE if state.lost_refusal.failure is StepFailure.UNSTABLE else BranchEnd.JUMP
+        inst = _critical_mode(engine, prev, state.older, kind, direction)
+        rate = inst.dlambda_dphi if kind is BranchEnd.UNSTABLE or not math.isfinite(inst.dlambda_dphi_secant) \
+            else inst.dlambda_dphi_secant
+        phi_c, phi_err = _locate(prev.phi, lost_phi, inst.eigenvalue, rate, direction)
+        inst = replace(inst, phi=phi_c, phi_error=phi_err, bracket=(prev.phi, lost_phi), from_branch=state.branch,
+                       negative_tol=engine.opts.negative_tol)
+        self.say(f"[{state.branch}] branch ends at phi* = {inst.phi / math.pi:+.6f} pi +- {inst.phi_error:.1e} rad "
+                 f"({kind}; last: {state.lost_refusal}); critical eigenvalue {inst.eigenvalue:.3e}, "
+                 f"d/dphi {inst.dlambda_dphi:.3e}")
+        if not engine.opts.switch or state.switches >= engine.opts.max_switches:
+            state = self.record(state, inst)
+            return replace(state, phase=Phase.DONE, stop=PathStop.BRANCH_ENDED,
+                           reason=f"branch ended at phi = {inst.phi:.8g} ({kind})")
+        found = _switch_branch(engine, prev, state.tangent, lost_phi, inst.mode, state.lost_equilibrium, self.say)
+        if found is None:
+            state = self.record(replace(state, switches=state.switches + 1), inst)
+            return replace(state, phase=Phase.DONE, stop=PathStop.NO_STABLE_BRANCH,
+                           reason=f"no stable branch found beyond phi = {lost_phi:.8g}")
+        new_name = _next_branch_name(state.branch[:-1]) + state.branch[-1]
+        state = self.record(state, replace(inst, to_branch=new_name, jumped_to=found.equilibrium))
+        state = replace(state, phase=Phase.FOLLOW, branch=new_name, prev=found.equilibrium, tangent=found.tangent,
+                        older=None, h=engine.opts.step, switches=state.switches + 1, lost_phi=math.nan,
+                        lost_from=math.nan, lost_refusal=None, lost_equilibrium=None, failures=0, successes=0,
+                        probe_held=False, critical_modes=None)
+        # The new branch's first point, after its instability (a study then has both on file).
+        return self.emit(state, found)
+

@@ -1,0 +1,55 @@
+"""Branch switching at a located branch end: relax from the predicted state pushed both ways
+along the critical mode (``_switch_branch``) and name the new branch (``_next_branch_name``)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+import jax.numpy as jnp
+
+from ..equilibrium import TopologyChangeError, mode_step, relax
+from ..geometry import polyline_distance
+from ..solvers import ConvergenceError
+
+
+def _next_branch_name(name):
+    """symmetric -> buckled -> buckled2 -> buckled3 ..."""
+    if not name.startswith("buckled"):
+        return "buckled"
+    tail = name[len("buckled"):]
+    return f"buckled{int(tail) + 1 if tail.isdigit() else 2}"
+
+
+
+def _switch_branch(engine, prev, dq, phi, mode, lost_eq, say):
+    """Relax from the predicted state pushed both ways along the critical mode (and from the
+    state the corrector itself jumped to, if any); keep stable states away from the old branch
+    with the right Lk; return the lowest in energy as an analysed _Step, or None."""
+    scene, closed, jump_tol = engine.scene, engine.closed, engine.opts.jump_tol
+    q_pred = prev.q + dq * (phi - prev.phi)
+    x_pred = np.asarray(scene.unpack(jnp.asarray(q_pred), phi)[0])
+    step = mode_step(scene, mode, float(engine.opts.perturbation))  # resolved: jump_tol unless given
+    starts = [("+mode", q_pred + step), ("-mode", q_pred - step)]
+    # Where the corrector itself goes when left alone (it was stopped early while locating the
+    # end, so that state is computed here, once).
+    starts.append(("jumped", np.asarray(lost_eq.q) if lost_eq is not None else q_pred))
+    best = None
+    for label, q_start in starts:
+        try:
+            e = relax(scene, phi, q_start, gtol=engine.opts.gtol, previous=prev, with_stability=False,
+                      nbr=prev.neighbourhood)
+        except (ConvergenceError, TopologyChangeError) as exc:
+            say(f"  switch from {label}: {type(exc).__name__}: {exc}")
+            continue
+        moved = polyline_distance(e.x, x_pred, closed)
+        s = engine.analysed(e)
+        e = s.equilibrium
+        lk_ok = (not closed) or abs(e.Lk - (engine.lk0 + phi / (2.0 * math.pi))) <= 1e-6
+        say(f"  switch from {label}: E = {e.energy:.8g}, Wr = {e.Wr:.4f}, moved {moved:.3g}, "
+            f"{e.stability.n_negative} negative, Lk ok: {lk_ok}")
+        if moved <= jump_tol or not e.stability.stable or not lk_ok:
+            continue
+        if best is None or e.energy < best.equilibrium.energy:
+            best = s
+    return best
