@@ -72,7 +72,7 @@ def row_of(side, r, stage):
 def start_state(D, below):
     """A state on the symmetric branch at phi = below (rad), from phi = 0, at diameter D."""
     scene = jr.trefoil(D=D, L=L, N=N, nu=NU)
-    old = jr.follow_twist(scene, 0.0, below, step=2 * PI, max_switches=0)
+    old = jr.follow_twist(scene, 0.0, below, jr.ContinuationOptions(step=2 * PI, max_switches=0))
     e = old.points[-1].equilibrium
     return knot_problem(scene, np.asarray(e.q), e.phi)
 
