@@ -14,8 +14,8 @@ dphi*/d(D/L) from the implicit function theorem.
 Checks:
 - point studies at 5 values of D/L: a new scene at that D, the stable-only engine from phi = 0 to
   0.3 pi before the curve's value, then the event located on its own;
-- dphi*/d(D/L) (IFT) against central differences of two located events at D +- h, each started
-  from the curve's state at D (h = 1e-3 D).
+- dphi*/d(D/L) of each point study (IFT) against central differences of two more point studies at
+  D +- h, started from that point study's stable state before its event (h = 1e-3 D).
 
 Writes benchmarks/results/fold_curve_ratio.{json,csv,md,png} (the JSON after every point, so an
 interrupted run keeps what it did).
@@ -45,7 +45,7 @@ GRID = np.round(np.arange(0.008, 0.0451, 0.001), 4)  # D/L
 CHECKS = (0.010, 0.015, 0.020, 0.035, 0.040)
 SIDES = {"plus": dict(sign=1.0, below=6.35, name="opening"), "minus": dict(sign=-1.0, below=-10.9, name="tightening")}
 DELTA = 0.03 * PI
-MAX_JUMP = 1.0  # scaled units (edge lengths): a start that relaxed further has left the branch
+MAX_JUMP = 2.0  # scaled units (edge lengths): a start that relaxed further has left the branch
 H_REL = 1e-3
 HERE = os.path.dirname(os.path.abspath(__file__))
 OUT = os.path.join(HERE, "results")
@@ -83,7 +83,6 @@ def run_side(side, summary, save):
     t0 = time.perf_counter()
     rod = start_state(D0, cfg["below"] * PI)
     summary["start_seconds"][side] = time.perf_counter() - t0
-    anchors = {}
 
     def observer(stage):
         def obs(r):
@@ -106,58 +105,66 @@ def run_side(side, summary, save):
         summary["curve_seconds"][f"{side}_{stage}"] = time.perf_counter() - t
         summary["curve_result"][f"{side}_{stage}"] = [curve.result.value, curve.message]
         results[stage] = curve
-        for r in curve.points:
-            anchors[round(r.mu / L, 4)] = r
         if stage == "up":  # the start state again at D0 for the way down (args back at D0)
             rod = start_state(D0, cfg["below"] * PI)
-    return rod, anchors
 
 
-def checks(side, anchors, summary, save):
+def checks(side, curve_rows, summary, save):
+    """Point studies at CHECKS: a new scene at D from phi = 0, its event located on its own; then
+    dphi*/d(D/L) of that point study (IFT) against central differences of two more point studies
+    at D +- h, each started from the point study's own stable state before its event."""
     sign = SIDES[side]["sign"]
     for ratio in CHECKS:
-        r = anchors.get(round(ratio, 4))
+        r = next((q for q in curve_rows if q["side"] == side and abs(q["D_over_L"] - ratio) < 1e-9), None)
         if r is None:
             continue
         D = ratio * L
         t = time.perf_counter()
-        rod = start_state(D, r.p - sign * 0.3 * PI)
-        study = event_curve(rod.problem, (rod.problem.u0, rod.problem.p0), set_diameter, D, [], options(sign, 150))
+        rod = start_state(D, (r["phi_star_over_pi"] - sign * 0.1) * PI)
+        study = event_curve(rod.problem, (rod.problem.u0, rod.problem.p0), set_diameter, D, [], options(sign, 300))
         seconds = time.perf_counter() - t
-        p_study = study.points[0].p if study.points else float("nan")
-        kind_study = study.points[0].kind if study.points else None
-        # central differences: the event at D +- h, each from the curve's state before it at D
+        if not study.points:
+            print(f"[{side} check] D/L {ratio}: point study found no event ({study.message})", flush=True)
+            summary["checks"].append(dict(side=side, D_over_L=ratio, curve_over_pi=r["phi_star_over_pi"],
+                                          curve_kind=r["kind"], study_over_pi=None, message=study.message))
+            save()
+            continue
+        q = study.points[0]
         h = H_REL * D
         located = []
         for mu in (D - h, D + h):
-            rod.problem.args = set_diameter(rod.problem.args, D)
-            c = event_curve(rod.problem, (r.anchor_u, r.anchor_p), set_diameter, mu, [], options(sign, 150))
-            located.append(c.points[0].p if c.points else float("nan"))
-        fd = (located[1] - located[0]) / (2 * h)
-        row = dict(side=side, D_over_L=ratio, curve_over_pi=r.p / PI, curve_kind=r.kind, study_over_pi=p_study / PI,
-                   study_kind=kind_study, difference_over_pi=abs(p_study - r.p) / PI, study_seconds=seconds,
-                   ift_over_pi=r.dp_dmu * L / PI, central_difference_over_pi=fd * L / PI,
-                   derivative_rel_diff=abs(fd - r.dp_dmu) / abs(r.dp_dmu), h_over_D=H_REL)
+            c = event_curve(rod.problem, (q.anchor_u, q.anchor_p), set_diameter, mu, [], options(sign, 300))
+            located.append((c.points[0].p, c.points[0].kind) if c.points else (float("nan"), None))
+        fd = (located[1][0] - located[0][0]) / (2 * h)
+        row = dict(side=side, D_over_L=ratio, curve_over_pi=r["phi_star_over_pi"], curve_kind=r["kind"],
+                   study_over_pi=q.p / PI, study_kind=q.kind,
+                   difference_over_pi=abs(q.p / PI - r["phi_star_over_pi"]), study_seconds=seconds,
+                   curve_ift_over_pi=r["dphi_dratio_over_pi"], study_ift_over_pi=q.dp_dmu * L / PI,
+                   central_difference_over_pi=fd * L / PI, central_kinds=[k for _, k in located],
+                   derivative_rel_diff=abs(fd - q.dp_dmu) / abs(q.dp_dmu), h_over_D=H_REL)
         summary["checks"].append(row)
-        print(f"[{side} check] D/L {ratio}: curve {r.p / PI:+.10f} pi ({r.kind}), study {p_study / PI:+.10f} pi "
-              f"({kind_study}), difference {row['difference_over_pi']:.1e} pi; IFT {row['ift_over_pi']:+.5f} pi, "
-              f"central {row['central_difference_over_pi']:+.5f} pi, rel {row['derivative_rel_diff']:.1e}", flush=True)
+        print(f"[{side} check] D/L {ratio}: curve {r['phi_star_over_pi']:+.10f} pi ({r['kind']}), study "
+              f"{q.p / PI:+.10f} pi ({q.kind}), difference {row['difference_over_pi']:.1e} pi; IFT "
+              f"{row['study_ift_over_pi']:+.6f} pi, central {row['central_difference_over_pi']:+.6f} pi "
+              f"({located[0][1]}, {located[1][1]}), rel {row['derivative_rel_diff']:.1e}", flush=True)
         save()
 
 
 def main():
     os.makedirs(OUT, exist_ok=True)
-    sides = sys.argv[1:] or ["plus", "minus"]
+    only_checks = sys.argv[1:2] == ["checks"]
+    sides = sys.argv[2:] if only_checks else (sys.argv[1:] or ["plus", "minus"])
     path = os.path.join(OUT, "fold_curve_ratio.json")
     summary = dict(L=L, N=N, nu=NU, D0=D0, grid=GRID.tolist(), delta_over_pi=DELTA / PI, curve=[], checks=[],
                    start_seconds={}, curve_seconds={}, curve_result={})
     if os.path.exists(path) and len(sides) < 2:
         with open(path) as f:
             old = json.load(f)
-        summary["curve"] = [r for r in old.get("curve", []) if r["side"] not in sides]
+        summary["curve"] = [r for r in old.get("curve", []) if only_checks or r["side"] not in sides]
         summary["checks"] = [r for r in old.get("checks", []) if r["side"] not in sides]
         for key in ("start_seconds", "curve_seconds", "curve_result"):
-            summary[key] = {k: v for k, v in old.get(key, {}).items() if not any(k.startswith(s) for s in sides)}
+            summary[key] = {k: v for k, v in old.get(key, {}).items()
+                            if only_checks or not any(k.startswith(s) for s in sides)}
 
     def save():
         tmp = path + ".tmp"
@@ -166,8 +173,10 @@ def main():
         os.replace(tmp, path)
 
     for side in sides:
-        _, anchors = run_side(side, summary, save)
-        checks(side, anchors, summary, save)
+        if not only_checks:
+            run_side(side, summary, save)
+        summary["checks"] = [c for c in summary["checks"] if c["side"] != side]
+        checks(side, summary["curve"], summary, save)
     report(summary)
 
 
@@ -194,13 +203,20 @@ def report(s):
         lines.append(f"| {r['side']} | {r['D_over_L']:.4f} | {r['phi_star_over_pi']:+.9f} | {r['kind']} | "
                      f"{r['morse_before']} -> {r['morse_after']} | {r['critical_eigenvalue']:.1e} | {r['residual']:.1e} | "
                      f"{r['dphi_dratio_over_pi']:+.3f} |")
-    lines += ["", "Point studies (a new scene at that D, from phi = 0) and central differences (h = 1e-3 D):", "",
+    lines += ["", "Point studies (a new scene at that D, from phi = 0; its event located on its own) and, for each, "
+              "dphi*/d(D/L) from the IFT against central differences of two more point studies at D +- h (h = 1e-3 D, "
+              "each from the point study's stable state before its event):", "",
               "| side | D/L | curve / pi | point study / pi | difference / pi | dphi*/d(D/L) IFT / pi | central / pi | "
               "rel. diff |", "|---|---|---|---|---|---|---|---|"]
     for c in s["checks"]:
+        if c.get("study_over_pi") is None:
+            lines.append(f"| {c['side']} | {c['D_over_L']:.3f} | {c['curve_over_pi']:+.10f} ({c['curve_kind']}) | "
+                         f"no event: {c.get('message', '')} | | | | |")
+            continue
         lines.append(f"| {c['side']} | {c['D_over_L']:.3f} | {c['curve_over_pi']:+.10f} ({c['curve_kind']}) | "
                      f"{c['study_over_pi']:+.10f} ({c['study_kind']}) | {c['difference_over_pi']:.1e} | "
-                     f"{c['ift_over_pi']:+.5f} | {c['central_difference_over_pi']:+.5f} | {c['derivative_rel_diff']:.1e} |")
+                     f"{c['study_ift_over_pi']:+.6f} | {c['central_difference_over_pi']:+.6f} | "
+                     f"{c['derivative_rel_diff']:.1e} |")
     with open(os.path.join(OUT, "fold_curve_ratio.md"), "w") as f:
         f.write("\n".join(lines) + "\n")
     plot(rows, s)
@@ -225,7 +241,8 @@ def plot(rows, s):
                 ax.plot(x[m], y[m], marker, color=colour, ms=3.5, ls="none",
                         label=f"  {kind.replace('_', ' ')}s")
     for c in s["checks"]:
-        ax.plot(c["D_over_L"], c["study_over_pi"], "ks", mfc="none", ms=8)
+        if c.get("study_over_pi") is not None:
+            ax.plot(c["D_over_L"], c["study_over_pi"], "ks", mfc="none", ms=8)
     ax.plot([], [], "ks", mfc="none", ms=8, label="point studies (from phi = 0)")
     atlas = os.path.join(OUT, "atlas", "atlas.csv")
     if os.path.exists(atlas):

@@ -233,6 +233,25 @@ def _build_parser():
     hx.add_argument("--no-cache", action="store_true",
                     help="do not keep compiled code in ~/.cache/jaxrod (later runs then compile again)")
     at.add_argument("--no-cache", action="store_true", help="do not keep compiled code in ~/.cache/jaxrod")
+    cc = sub.add_parser("critical-curve", help="a knot's critical twists as curves phi*+-(D/L): each side's first "
+                        "instability followed in D (CSV, JSON, figure)", description=_CURVE_HELP,
+                        formatter_class=raw)
+    cc.add_argument("--knot", choices=("3_1", "4_1", "5_1", "5_2"), default="3_1", help="the knot (default 3_1)")
+    cc.add_argument("--N", type=int, default=128, help="number of nodes, at least L/D over the range (default 128)")
+    cc.add_argument("--ratios", default="0.008:0.045:0.001",
+                    help="D/L values: first:last:step or a comma-separated list (default 0.008:0.045:0.001)")
+    cc.add_argument("--start", type=float, default=None,
+                    help="the D/L where each side's event is first located (default: mid-range)")
+    cc.add_argument("--sides", default="plus,minus", help="plus (phi > 0), minus (phi < 0) or both (default)")
+    cc.add_argument("--nu", type=float, default=0.5, help="Poisson ratio in (-1, 0.5] (default 0.5)")
+    cc.add_argument("--contact-stiffness", type=float, default=100.0,
+                    help="contact penalty kappa_c in units of B/D^3 (default 100)")
+    cc.add_argument("--span", type=_angle, default=16.0 * math.pi,
+                    help="search each side's first end up to +-span (default 16pi)")
+    cc.add_argument("--out", default="results/critical_curve", help="output folder (default results/critical_curve)")
+    cc.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    cc.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    cc.add_argument("--no-cache", action="store_true", help="do not keep compiled code in ~/.cache/jaxrod")
     return p
 
 
@@ -869,6 +888,62 @@ def _warn_in_one_line(message, category, filename, lineno, file=None, line=None)
     print(f"jaxrod: warning: {message}", file=sys.stderr, flush=True)
 
 
+_CURVE_HELP = """\
+A knot's critical twists as curves in its slenderness, phi*+-(D/L): D varied at fixed L, N, E and
+nu (B, C ~ D^4, contact at D). On each side the knot at the start ratio is followed from phi = 0
+to near its branch end, the first instability is located on its extended system (a fold or a
+branch point), then followed in D up and down the ratios (jaxrod.bifurcation.event_curve: the
+implicit function theorem predicts it at the next D, and it is located again there on a short
+pseudo-arclength run in phi). Each row gives the event's kind, Morse index across it, critical
+eigenvalue, residual and dphi*/d(D/L) from the implicit function theorem.
+
+Writes into --out: critical_curve.csv (a row per point, as they come), critical_curve.json and
+critical_curve.png (with Michell's ring line and its double).
+
+examples:
+  jaxrod critical-curve --ratios 0.008:0.045:0.001 --N 128 --out results/critical_curve
+  jaxrod critical-curve --ratios 0.026,0.0274,0.029 --N 121 --sides plus --out results/curve_plus
+"""
+
+
+def _critical_curve(args):
+    import json
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from .critical_curve import CriticalCurveOptions, check_ratio_range, critical_twist_curve
+    from .locking import folder_lock
+    from .validation import check_poisson_ratio
+
+    ratios = check_ratio_range(args.ratios)
+    sides = tuple(x.strip() for x in args.sides.split(",") if x.strip())
+    opts = CriticalCurveOptions(sides=sides, start_ratio=args.start, span=args.span,
+                                nu=check_poisson_ratio("nu", args.nu), contact_stiffness=args.contact_stiffness)
+    args.hold(folder_lock(args.out))
+    bar = _Progress(args, len(ratios) * len(opts.sides), "critical curve", counting="points")
+    done = [0]
+
+    def say(line):
+        bar.say(line)
+        if "D/L = " in line and "Morse" in line:
+            done[0] += 1
+            bar.update(done[0])
+
+    say(args.compile_notice)
+    try:
+        result = critical_twist_curve(args.knot, args.N, ratios, opts, out=args.out, progress=say)
+    finally:
+        bar.close()
+    for key, leg in result["legs"].items():
+        if leg["message"]:
+            say(f"{key}: ended early: {leg['message']}")
+    say(f"{len(result['rows'])} points in {result['seconds']:.0f} s; results in {args.out}/")
+    if args.json:
+        print(json.dumps(result))
+    return 0
+
+
 _HELIX_HELP = """\
 Localized helical buckling of a clamped rod (Neukirch, van der Heijden & Thompson 2002, J. Mech.
 Phys. Solids 50, eqs. 14-15): a rod of length L clamped at both ends along one axis, the far clamp
@@ -1130,6 +1205,8 @@ def _main(argv):
                 return _atlas(args)
             if args.command == "helix":
                 return _helix(args)
+            if args.command == "critical-curve":
+                return _critical_curve(args)
     except ValueError as exc:
         print(f"jaxrod: error: {_in_flags(str(exc), flags)}", file=sys.stderr)
         return 2

@@ -468,6 +468,37 @@ def plot_critical_vs_ratio(ratios, phi_plus, phi_minus, michell_plus=None, miche
     return _finish(fig, path)
 
 
+def plot_critical_curve(rows, nu=0.5, path=None, title=None, points=None):
+    """Critical twists against D/L as curves (``jaxrod.critical_curve``): rows with side,
+    D_over_L, phi_star (rad) and kind ("fold" or "branch_point"); each side a line, folds as
+    dots and branch points as diamonds; Michell's ring (2 sqrt(3)(1 + nu) pi) and its double as
+    dashed lines. points: optional [(D/L, phi* (rad), label)] drawn as open squares (point studies)."""
+    fig, ax = plt.subplots(figsize=(8.5, 4.8))
+    names = {"plus": "phi > 0 side", "minus": "phi < 0 side"}
+    for side, colour in (("plus", "C0"), ("minus", "C3")):
+        rr = sorted((r for r in rows if r["side"] == side), key=lambda r: r["D_over_L"])
+        if not rr:
+            continue
+        x = np.array([r["D_over_L"] for r in rr])
+        y = np.array([r["phi_star"] for r in rr]) / math.pi
+        ax.plot(x, y, "-", color=colour, lw=1.2, label=f"{names[side]}: first instability")
+        for kind, marker in (("fold", "o"), ("branch_point", "D")):
+            m = np.array([r["kind"] == kind for r in rr])
+            if m.any():
+                ax.plot(x[m], y[m], marker, color=colour, ms=3.5, ls="none", label=f"  {kind.replace('_', ' ')}s")
+    for k, (r, phi, label) in enumerate(points or ()):
+        ax.plot(r, phi / math.pi, "ks", mfc="none", ms=8, label=label if k == 0 else None)
+    m = 2.0 * math.sqrt(3.0) * (1.0 + float(nu))
+    ax.axhline(m, color="C0", ls="--", lw=1, label=f"Michell's ring, +{m:.3f} pi")
+    ax.axhline(-2.0 * m, color="C3", ls="--", lw=1, label=f"2 x Michell, -{2 * m:.3f} pi")
+    ax.set_xlabel("slenderness D / L (-)")
+    ax.set_ylabel("critical twist phi* / pi (rad / pi)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(**_OUTSIDE)
+    ax.set_title(title or "Critical twists against slenderness")
+    return _finish(fig, path)
+
+
 _KNOT_TITLES = {"3_1": "trefoil 3_1", "4_1": "figure-eight 4_1", "5_1": "cinquefoil 5_1", "5_2": "three-twist 5_2"}
 
 

@@ -64,3 +64,23 @@ def test_first_instability_changes_kind_where_two_event_curves_cross():
 def test_delta_must_be_positive():
     with pytest.raises(ValueError, match="delta"):
         EventCurveOptions(OPTS, -math.pi)
+
+
+def test_critical_curve_command_refuses_bad_input_naming_the_flag(tmp_path, capsys):
+    # refused before anything is compiled: one line, naming the flag
+    from jaxrod.cli import main
+
+    cases = [(["--ratios", "0.03:0.02:0.001"], "--ratios"), (["--ratios", "0.02,abc"], "--ratios"),
+             (["--ratios", "0.005,0.02"], "--N"), (["--sides", "up"], "sides"),
+             (["--ratios", "0.02,0.03", "--start", "0.04"], "start_ratio"), (["--nu", "0.7"], "nu")]
+    for extra, flag in cases:
+        assert main(["critical-curve", "--quiet", "--out", str(tmp_path / "c"), *extra]) == 2, extra
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and flag in err[0], (extra, err)
+
+
+def test_ratio_range_parsing():
+    from jaxrod.critical_curve import check_ratio_range
+
+    np.testing.assert_allclose(check_ratio_range("0.008:0.010:0.001"), [0.008, 0.009, 0.010])
+    np.testing.assert_allclose(check_ratio_range("0.03, 0.01,0.02"), [0.01, 0.02, 0.03])
