@@ -19,7 +19,8 @@ Checks:
 
 Writes benchmarks/results/fold_curve_ratio.{json,csv,md,png} (the JSON after every point, so an
 interrupted run keeps what it did).
-Run: python benchmarks/fold_curve_ratio.py   (~20 min on 2 cores)
+Run: python benchmarks/fold_curve_ratio.py   (~70 min on 2 cores; `... plus` or `... minus` for one side,
+`... checks SIDE` for the point studies only, `... report` to rewrite the tables and figure)
 """
 import os
 
@@ -213,10 +214,13 @@ def report(s):
             lines.append(f"| {c['side']} | {c['D_over_L']:.3f} | {c['curve_over_pi']:+.10f} ({c['curve_kind']}) | "
                          f"no event: {c.get('message', '')} | | | | |")
             continue
+        if "study_ift_over_pi" not in c:  # a point study of the first run, whose central differences were not kept
+            deriv = "-- | -- | --"
+        else:
+            deriv = (f"{c['study_ift_over_pi']:+.6f} | {c['central_difference_over_pi']:+.6f} | "
+                     f"{c['derivative_rel_diff']:.1e}")
         lines.append(f"| {c['side']} | {c['D_over_L']:.3f} | {c['curve_over_pi']:+.10f} ({c['curve_kind']}) | "
-                     f"{c['study_over_pi']:+.10f} ({c['study_kind']}) | {c['difference_over_pi']:.1e} | "
-                     f"{c['study_ift_over_pi']:+.6f} | {c['central_difference_over_pi']:+.6f} | "
-                     f"{c['derivative_rel_diff']:.1e} |")
+                     f"{c['study_over_pi']:+.10f} ({c['study_kind']}) | {c['difference_over_pi']:.1e} | {deriv} |")
     with open(os.path.join(OUT, "fold_curve_ratio.md"), "w") as f:
         f.write("\n".join(lines) + "\n")
     plot(rows, s)
