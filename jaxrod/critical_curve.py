@@ -23,7 +23,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from .validation import check_finite, check_int_at_least, check_positive
+from .validation import check_int_at_least, check_positive
 
 __all__ = ["CriticalCurveOptions", "critical_twist_curve", "CSV_COLUMNS"]
 
@@ -138,7 +138,7 @@ def critical_twist_curve(knot, N, ratios, options=None, *, out=None, progress=No
                                 n_eig=6, p_min=-opts.span - math.pi, p_max=opts.span + math.pi)
         curve_opts = EventCurveOptions(path_opts, opts.delta, max_jump=opts.max_jump, max_points=opts.max_points)
         for leg, values in (("up", [v for v in r if v > start]), ("down", [v for v in r[::-1] if v < start])):
-            if leg == "down" and not values and legs:
+            if leg == "down" and not values:  # the up leg has done the start ratio
                 continue
             rod = knot_problem(scene, np.asarray(e.q), e.phi)
             prob = rod.problem
@@ -185,5 +185,4 @@ def check_ratio_range(text):
             from None
     if values.size == 0 or not np.all(np.isfinite(values)) or np.any(values <= 0):
         raise ValueError(f"--ratios: D/L values must be finite and > 0, got {text!r}")
-    check_finite("ratios", float(values[0]))
     return np.unique(values)

@@ -126,23 +126,14 @@ def _slide(problem, opts, fold, direction, step):
     change), to 1e-9, then correct it on p = p1 to newton_tol. -> (Slide, Correction), or None."""
     import jax.numpy as jnp
 
-    from ..solvers import DampedNewton, minimise
-
     if problem.energy is None:
         raise ValueError("soft_folds='slide' needs the problem's energy (give energy=, or soft_folds='follow')")
     p1 = jnp.asarray(fold.p + direction * opts.slide_dp, dtype=jnp.float64)
-    solver = DampedNewton(hessian=problem.jacobian_at if problem.jacobian is not None else None,
-                          max_step=10.0 * opts.slide_kick)
     u0, v = np.asarray(fold.u), np.asarray(fold.v[:, 0])
     args = problem.args
     g = np.asarray(problem.linearise(u0, p1, args)[0])  # the gradient F, compiled already
     y = u0 - opts.slide_kick * (1.0 if float(g @ v) > 0 else -1.0) * v  # downhill: past the fold, E falls along v
-    for _ in range(8):
-        sol = minimise(problem.energy_at, y, (p1, args), solver, gtol=1e-9, throw=False)
-        fresh = problem.update_args(sol.y, float(p1), args) if problem.update_args is not None else args
-        if fresh is args:
-            break
-        args, y = fresh, sol.y
+    sol, args = problem.relax(y, p1, args, gtol=1e-9, max_step=10.0 * opts.slide_kick)
     if not sol.converged:
         return None
     problem.args = args

@@ -31,18 +31,16 @@ event (two event curves crossing), shows in the rows (``kind``, and p* against t
 """
 from __future__ import annotations
 
-import functools
 import time
 from dataclasses import dataclass, field, replace
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .continuation import continuation
 from .options import ContinuationOptions, PseudoArclength
 from .results import Result
-from .two_parameter import _branch_point_blocks_jit, fold_sensitivity
+from .two_parameter import _branch_point_system, fold_sensitivity
 
 __all__ = ["EventCurve", "EventCurveOptions", "EventCurvePoint", "event_curve", "branch_point_sensitivity",
            "first_event"]
@@ -140,14 +138,10 @@ def branch_point_sensitivity(problem, event, set_mu, mu0):
     """dp*/dmu at the located simple branch point ``event`` of ``problem`` (args at mu = mu0): the
     implicit function theorem on the unfolded system (F + beta v0, sigma, tau) = 0 in (u, p, beta)
     (see ``branch_point_curve``), one solve with its Jacobian."""
-    n = problem.n
     v0 = np.asarray(event.v[:, 0]) / np.linalg.norm(event.v[:, 0])
-    f64 = functools.partial(jnp.asarray, dtype=jnp.float64)
-    F, J, Fp, Fmu, st, gu, gp, gm, w = _branch_point_blocks_jit(problem, set_mu, problem.args, f64(event.u),
-                                                                f64(event.p), f64(mu0), f64(v0))
-    A = jnp.block([[J, Fp[:, None], jnp.asarray(v0)[:, None]], [gu, gp[:, None], jnp.zeros((2, 1))]])
-    dx = np.linalg.solve(np.asarray(A), -np.asarray(jnp.concatenate([Fmu, gm])))
-    return float(dx[n])
+    _, A, a, _ = _branch_point_system(problem, set_mu, problem.args, event.u, event.p, 0.0, mu0, v0, v0)
+    dx = np.linalg.solve(np.asarray(A), -np.asarray(a))
+    return float(dx[problem.n])
 
 
 def first_event(branch):
@@ -170,24 +164,13 @@ def _relaxed(problem, u, p):
     while they change). The start at a new mu: Newton on F = 0 from the old state can fail where
     the new diameter pushes strands into contact; the state is stable there, so a minimiser gets
     it. Returns u as it is when the problem has no energy."""
-    from ..solvers import DampedNewton, minimise
-
     if problem.update_args is not None:
         problem.args = problem.update_args(u, p, problem.args)
     if problem.energy is None:
         return u
-    solver = DampedNewton(hessian=problem.jacobian_at if problem.jacobian is not None else None)
-    args, y = problem.args, jnp.asarray(u)
-    for _ in range(8):
-        sol = minimise(problem.energy_at, y, (jnp.asarray(p, dtype=jnp.float64), args), solver, gtol=1e-10,
-                       throw=False)
-        y = sol.y
-        fresh = problem.update_args(y, float(p), args) if problem.update_args is not None else args
-        if fresh is args:
-            break
-        args = fresh
-    problem.args = args
-    return np.asarray(y)
+    sol, problem.args = problem.relax(jnp.asarray(u), p, problem.args, gtol=1e-10)
+    # not converged or not: the run's first corrector puts the start on F = 0 at p, or refuses it
+    return np.asarray(sol.y)
 
 
 def _run_to_event(problem, alg, opts, u, p, direction, chunk, max_points):

@@ -69,6 +69,23 @@ class BifurcationProblem:
         """E(u, p, args) with p_args = (p, args): the form ``jaxrod.solvers.minimise`` takes."""
         return self.energy(u, p_args[0], p_args[1])
 
+    def relax(self, u, p, args, *, gtol, max_step=float("inf")):
+        """A minimum of E(., p) from u with ``args``: damped Newton (the structured ``jacobian`` if
+        given, steps capped at max_step), the args refreshed by ``update_args`` at the minimum and
+        the relaxation repeated while they change (at most 8 times). -> (Solution, args)."""
+        from ..solvers import DampedNewton, minimise
+
+        solver = DampedNewton(hessian=self.jacobian_at if self.jacobian is not None else None, max_step=max_step)
+        p = jnp.asarray(p, dtype=jnp.float64)
+        y = u
+        for _ in range(8):
+            sol = minimise(self.energy_at, y, (p, args), solver, gtol=gtol, throw=False)
+            fresh = self.update_args(sol.y, float(p), args) if self.update_args is not None else args
+            if fresh is args:
+                break
+            args, y = fresh, sol.y
+        return sol, args
+
     def jacobian_at(self, u, p_args):
         """The structured ``jacobian`` hook in ``minimise``'s form (a Hessian of energy_at)."""
         return self.jacobian(u, p_args[0], p_args[1])

@@ -177,6 +177,17 @@ def _branch_point_blocks_jit(problem, set_mu, args0, u, p, mu, b):
     return F, J, Fp, Fmu, st, gu, gp, gm, w
 
 
+def _branch_point_system(problem, set_mu, args0, u, p, beta, mu, v0, b):
+    """The unfolded branch-point system at (u, p, beta, mu) with args = set_mu(args0, mu), border b:
+    (G = (F + beta v0, sigma, tau) (n+2,), A = dG/d(u, p, beta) (n+2, n+3), a = dG/dmu (n+2,), w)."""
+    f64 = functools.partial(jnp.asarray, dtype=jnp.float64)
+    F, J, Fp, Fmu, st, gu, gp, gm, w = _branch_point_blocks_jit(problem, set_mu, args0, f64(u), f64(p), f64(mu),
+                                                                f64(b))
+    G = jnp.concatenate([F + beta * v0, st])
+    A = jnp.block([[J, Fp[:, None], jnp.asarray(v0)[:, None]], [gu, gp[:, None], jnp.zeros((2, 1))]])
+    return G, A, jnp.concatenate([Fmu, gm]), w
+
+
 def branch_point_curve(problem, event, set_mu, mu0, alg, opts, *, throw=True, observer=None, at=()):
     """Continue the simple branch point ``event`` of ``problem`` (whose args hold mu = mu0) in mu.
 
@@ -195,16 +206,9 @@ def branch_point_curve(problem, event, set_mu, mu0, alg, opts, *, throw=True, ob
     base = [problem.args]
     v0 = np.asarray(event.v[:, 0]) / np.linalg.norm(event.v[:, 0])
     border = [v0]
-    f64 = functools.partial(jnp.asarray, dtype=jnp.float64)
-
-    def blocks(x, mu):
-        return _branch_point_blocks_jit(problem, set_mu, base[0], f64(x[:n]), f64(x[n]), f64(mu), f64(border[0]))
 
     def system(x, mu):  # (G, A = dG/dx, a = dG/dmu, w) from one evaluation of the blocks
-        F, J, Fp, Fmu, st, gu, gp, gm, w = blocks(x, mu)
-        G = jnp.concatenate([F + x[n + 1] * v0, st])
-        A = jnp.block([[J, Fp[:, None], jnp.asarray(v0)[:, None]], [gu, gp[:, None], jnp.zeros((2, 1))]])
-        return G, A, jnp.concatenate([Fmu, gm]), w
+        return _branch_point_system(problem, set_mu, base[0], x[:n], x[n], x[n + 1], mu, v0, border[0])
 
     def lin(x, mu):
         return system(x, mu)[:3]
