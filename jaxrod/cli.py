@@ -287,6 +287,9 @@ def _study_arguments(t, default_out, length_rule):
     t.add_argument("--serial", action="store_true",
                    help="follow the two directions one after the other (default: both at once, two threads)")
     t.add_argument("--no-figures", action="store_true", help="data only")
+    t.add_argument("--stable-only", action="store_true",
+                   help="stable branches only: no exact location of the branch ends (extended system), no unstable "
+                        "branches beyond them")
     t.add_argument("--vtk", action="store_true",
                    help="also write every step as a VTK polyline file (vtk/*.vtk, for ParaView)")
     t.add_argument("--json", action="store_true", help="print one JSON summary object")
@@ -645,6 +648,13 @@ def _trefoil(args):
     finally:
         bar.close()
     summary = study_summary(result)
+    if not args.stable_only and result.end_states:
+        from .diagram import unstable_branches
+
+        t_diagram = time.perf_counter()
+        result = unstable_branches(scene, result, progress=say).study
+        summary = study_summary(result)
+        summary["seconds_diagram"] = time.perf_counter() - t_diagram
     summary.update({"D": args.D, "L": args.L, "N": args.N, "nu": args.nu, "contact_stiffness": stiffness,
                     "out": args.out})
     if not args.no_extrapolation and (summary["phi_plus"] is not None or summary["phi_minus"] is not None):

@@ -14,6 +14,7 @@ __all__ = [
     "plot_mode",
     "plot_convergence",
     "plot_bifurcation",
+    "plot_branch_ends",
     "plot_linking",
     "plot_profiles",
     "plot_snapshot",
@@ -166,8 +167,13 @@ def _draw_critical(axes, critical, colour_start):
             raise ValueError(f"critical[{i}] must be a dict with a numeric 'phi' and a 'label', got {c!r}") from None
         colour = f"C{(colour_start + i) % 10}"
         for j, ax in enumerate(axes):
-            ax.axvline(phi / math.pi, color=colour, ls="--", lw=1,
+            ax.axvline(phi / math.pi, color=colour, ls=":", lw=1,
                        label=f"{label} ({phi / math.pi:.4f} pi)" if j == 0 else None)
+        kind, wr = c.get("kind"), c.get("Wr")
+        if kind is not None and wr is not None and math.isfinite(float(wr)):
+            # a located event: marked where it sits on the diagram (fold: triangle, branch point: star)
+            axes[0].plot([phi / math.pi], [float(wr)], "v" if kind == "fold" else "*", color=colour, ms=11,
+                         mec="k", mew=0.8, ls="none", zorder=5)
 
 
 def plot_bifurcation(table, critical=None, path=None, title=None):
@@ -177,8 +183,10 @@ def plot_bifurcation(table, critical=None, path=None, title=None):
     table: dict column -> 1-D array, one entry per continuation step, with at least 'phi' (rad),
       'Wr', 'stable' (bool or 0/1), the eigenvalue columns 'lambda_0', 'lambda_1', ..., and
       'branch' (str labels; without it all rows are one branch). One series per branch label:
-      filled markers where stable, open where unstable.
-    critical: optional list of dicts {'phi': rad, 'label': str}: vertical dashed lines, in the legend.
+      filled markers where stable, open where unstable; a branch with no stable row is drawn dashed.
+    critical: optional list of dicts {'phi': rad, 'label': str}: vertical dotted lines, in the
+      legend; with 'kind' ('fold' or 'branch_point') and 'Wr', also a marker at (phi, Wr): a
+      triangle for a fold, a star for a branch point.
     """
     x, branch, labels, n = _table_basics(table)
     wr = _column(table, "Wr", n).astype(float)
@@ -193,8 +201,8 @@ def plot_bifurcation(table, critical=None, path=None, title=None):
         sel = branch == lab
         colour = f"C{b % 10}"
         name = lab or "equilibria"
-        top.plot(x[sel], wr[sel], "-", color=colour, lw=1, label=name)
         st, un = sel & stable, sel & ~stable
+        top.plot(x[sel], wr[sel], "-" if st.any() else "--", color=colour, lw=1, label=name)
         top.plot(x[st], wr[st], "o", color=colour, ms=4, ls="none")
         top.plot(x[un], wr[un], "o", color=colour, ms=4, ls="none", mfc="none")
         for j in range(lam.shape[1]):
@@ -203,6 +211,9 @@ def plot_bifurcation(table, critical=None, path=None, title=None):
     # Legend proxies for the marker convention.
     top.plot([], [], "o", color="0.3", ms=4, label="stable")
     top.plot([], [], "o", color="0.3", ms=4, mfc="none", label="unstable")
+    if critical and any(c.get("kind") for c in critical):
+        top.plot([], [], "v", color="0.3", ms=8, mec="k", label="fold")
+        top.plot([], [], "*", color="0.3", ms=9, mec="k", label="branch point")
     bottom.axhline(0.0, color="k", lw=0.8)
     bottom.set_yscale("symlog", linthresh=1e-7)
     _draw_critical((top, bottom), critical, len(labels))
@@ -215,6 +226,50 @@ def plot_bifurcation(table, critical=None, path=None, title=None):
     top.grid(True, alpha=0.3)
     bottom.grid(True, alpha=0.3)
     top.set_title(title or "Bifurcation diagram")
+    return _finish(fig, path)
+
+
+def plot_branch_ends(table, events, path=None, title=None):
+    """Each located branch end up close: the lowest eigenvalue (column 'lambda_0', the study's
+    scaled units) against phi/pi near the event, for every branch with rows there: stable rows
+    solid, unstable branches dashed, the event marked (fold: triangle, branch point: star).
+
+    table: branch.csv's columns (at least 'phi', 'branch', 'lambda_0', 'stable'); events: dicts
+    with 'phi' (rad), 'kind' and 'unstable_branch' (critical.json's located ``events``). The window
+    spans the unstable branch's rows and the nearest stable rows, at least 1e-3 pi wide.
+    """
+    x, branch, labels, n = _table_basics(table)
+    lam = _column(table, "lambda_0", n).astype(float)
+    stable = _as_bool(_column(table, "stable", n))
+    events = [e for e in events if e.get("kind")]
+    if not events:
+        raise ValueError("events: no located event to draw")
+    ncols = min(2, len(events))
+    nrows = -(-len(events) // ncols)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(5.5 * ncols, 3.8 * nrows), squeeze=False)
+    for ax in axes.ravel()[len(events):]:
+        ax.set_visible(False)
+    for ax, ev in zip(axes.ravel(), events):
+        x0 = float(ev["phi"]) / math.pi
+        own = branch == ev.get("unstable_branch")
+        half = max(1e-3, 1.5 * float(np.max(np.abs(x[own] - x0))) if own.any() else 1e-3)
+        window = np.abs(x - x0) <= half
+        for b, lab in enumerate(labels):
+            sel = (branch == lab) & window
+            if not sel.any():
+                continue
+            ls = "-" if (stable & sel).any() else "--"
+            ax.plot(x[sel] - x0, lam[sel], ls, marker="o", ms=3, color=f"C{b % 10}", lw=1, label=lab or "equilibria",
+                    mfc="none" if ls == "--" else None)
+        ax.plot([0.0], [0.0], "v" if ev["kind"] == "fold" else "*", color="k", ms=10, ls="none",
+                label=f"{ev['kind'].replace('_', ' ')} at {x0:+.8f} pi")
+        ax.axhline(0.0, color="0.5", lw=0.8)
+        ax.set_xlim(-half, half)
+        ax.set_xlabel("(phi - phi*) / pi")
+        ax.set_ylabel("lowest eigenvalue (B/l)")
+        ax.legend(fontsize=7)
+        ax.grid(True, alpha=0.3)
+    fig.suptitle(title or "Branch ends, located on the extended system")
     return _finish(fig, path)
 
 

@@ -45,6 +45,11 @@ ROW_UNITS = {
     "n_peaks": "count", "kappa_max_L": "1 (curvature x L)", "tau_mean_L": "rad (twist density x L)",
     "tau_spread_L": "rad", "radius_of_gyration": "length", "min_distance_over_D": "1", "grad_norm":
     "B/l per l (scaled)", "iterations": "count", "direction": "plus | minus",
+    "branch_id": "integer (one per branch; the branch through phi = 0 is 0)",
+    "arclength": "along the branch from its first state: sum of sqrt(dphi^2 + |du|^2), u the scaled DOFs "
+                 "(node coordinates in mean edge lengths, twist angles in rad); negative on the minus side of "
+                 "the branch through phi = 0; from the located end on an unstable branch",
+    "morse_index": "count (negative eigenvalues, zero modes excluded; on unstable branches shape modes only)",
     "lambda_j": "B/l (scaled Hessian eigenvalue, zero modes removed)",
 }
 

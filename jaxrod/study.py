@@ -32,7 +32,7 @@ import math
 import os
 import threading
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -61,6 +61,8 @@ class StudyResult:
     out: str | None
     seconds: float
     seconds_total: float = math.nan
+    end_states: list = field(default_factory=list, repr=False)  # (q, phi) of the last stable state before
+    # each instability (critical["instabilities"] order), or None where it is not known
 
 
 def _scene_parameters(scene):
@@ -210,7 +212,8 @@ def twist_study(scene, phi_min, phi_max, options=None, *, out=None, resume=True,
                     critical = json.load(f)
         else:
             for stale in [csv_path, crit_path, os.path.join(out, "time.json")] + \
-                    glob.glob(os.path.join(out, "state_*.npz")) + glob.glob(os.path.join(out, "steps", "*.npz")):
+                    glob.glob(os.path.join(out, "state_*.npz")) + glob.glob(os.path.join(out, "steps", "*.npz")) + \
+                    glob.glob(os.path.join(out, "event_*.npz")) + glob.glob(os.path.join(out, "diagram.json")):
                 if os.path.exists(stale):
                     os.remove(stale)
             _write_json(run_path, params)
@@ -235,6 +238,7 @@ def twist_study(scene, phi_min, phi_max, options=None, *, out=None, resume=True,
         with lock:
             if not out:
                 rows.append(row)
+                row_states[id(row)] = (np.asarray(point.scene.to_scaled(e.q)), float(e.phi))
                 return
             new = not os.path.exists(csv_path) or os.path.getsize(csv_path) == 0
             with open(csv_path, "a", newline="") as f:
@@ -246,7 +250,7 @@ def twist_study(scene, phi_min, phi_max, options=None, *, out=None, resume=True,
             _savez(os.path.join(out, "steps", f"{direction}_{counter:04d}.npz"), q=e.q, phi=e.phi,
                    branch=point.branch, **extra)
 
-    rows = []
+    rows, end_states, row_states = [], {}, {}
     if critical.get("negative_tol") is None:
         critical["negative_tol"] = CONTACT_NEGATIVE_TOL if "contact" in scene.terms else DEFAULT_NEGATIVE_TOL
     stored = _reconcile(out, critical, header, say) if out else {}
@@ -281,6 +285,7 @@ def twist_study(scene, phi_min, phi_max, options=None, *, out=None, resume=True,
             # row: a run interrupted after it resumes with the instability already known.
             with lock:
                 index = sum(1 for c in critical["instabilities"] if c["direction"] == direction)
+                end_states[(direction, index)] = (np.asarray(inst.equilibrium.q), float(inst.equilibrium.phi))
                 critical["instabilities"].append(_instability_dict(inst, scene, out, direction, index))
                 _summarise(critical)
                 if out:
@@ -314,18 +319,21 @@ def twist_study(scene, phi_min, phi_max, options=None, *, out=None, resume=True,
     order = {"plus": 0, "minus": 1}
     critical["instabilities"].sort(key=lambda c: order[c["direction"]])
     critical["finished"].sort(key=order.get)
+    final_header = _final_header(k)
     if out:
-        _rewrite_sorted(csv_path, header, order)
+        _rewrite_sorted(csv_path, final_header, order, scene)
     else:
         rows.sort(key=lambda r: order[r["direction"]])
-    table = read_table(csv_path) if out else {key: np.array([r.get(key, math.nan) for r in rows]) for key in header}
+        _add_branch_columns(rows, [row_states[id(r)] for r in rows])
+    table = read_table(csv_path) if out else {key: np.array([r.get(key, math.nan) for r in rows]) for key in final_header}
     _summarise(critical, table)
     seconds = time.perf_counter() - t0
     if out:
         _write_json(crit_path, critical)
         _write_json(os.path.join(out, "time.json"), {"seconds_total": seconds_before + seconds})
     return StudyResult(table=table, critical=critical, out=out, seconds=seconds,
-                       seconds_total=seconds_before + seconds)
+                       seconds_total=seconds_before + seconds,
+                       end_states=_end_states(critical, end_states, out))
 
 
 def _read_seconds(out):
@@ -340,7 +348,12 @@ def _reconcile(out, critical, header, say):
     """Make the files of an interrupted run agree with its saved continuation states: a direction
     keeps the rows, step files and instabilities its state counts (written before it), and
     drops what was written after it (a kill between a row and its state). A direction without a
-    state starts over. Returns {direction: PathState.from_arrays(...)} for those with a state."""
+    state starts over. The bifurcation diagram's rows, events and files (``jaxrod.diagram``) are
+    dropped: they are computed again from the finished study. Returns {direction:
+    PathState.from_arrays(...)} for those with a state."""
+    critical.pop("events", None)
+    for stale in glob.glob(os.path.join(out, "event_*.npz")) + glob.glob(os.path.join(out, "diagram.json")):
+        os.remove(stale)
     stored, keep_rows, keep_inst = {}, {}, {}
     for direction in ("plus", "minus"):
         path = os.path.join(out, f"state_{direction}.npz")
@@ -384,6 +397,8 @@ def _reconcile(out, critical, header, say):
         with open(csv_path, newline="") as f:
             rows = list(csv.DictReader(f))
         good, seen = [], {"plus": 0, "minus": 0}
+        diagram_rows = [row for row in rows if _is_unstable(row)]
+        rows = [row for row in rows if not _is_unstable(row)]  # the diagram's: computed again after the study
         for row in rows:
             d = row.get("direction")
             complete = d in seen and row.get(header[-1]) is not None  # a line cut short has fewer fields
@@ -392,6 +407,7 @@ def _reconcile(out, critical, header, say):
                 good.append(row)
         if len(good) != len(rows):
             dropped.append(f"{len(rows) - len(good)} row(s) of branch.csv")
+        if len(good) != len(rows) or diagram_rows:
             _write_rows(csv_path, header, good)
     if dropped:
         say("resuming: dropped what was written after the last saved state: " + ", ".join(dropped))
@@ -406,7 +422,7 @@ def _files_cover(out, critical, direction, n_points, n_instabilities):
     csv_path = os.path.join(out, "branch.csv")
     if os.path.exists(csv_path):
         with open(csv_path, newline="") as f:
-            rows = sum(1 for row in csv.DictReader(f) if row.get("direction") == direction)
+            rows = sum(1 for row in csv.DictReader(f) if row.get("direction") == direction and not _is_unstable(row))
     found = sum(1 for c in critical["instabilities"] if c["direction"] == direction)
     return steps and rows >= n_points and found >= n_instabilities
 
@@ -459,14 +475,132 @@ def _run_all(run_direction, todo, parallel, cancel):
         raise errors[0]
 
 
-def _rewrite_sorted(csv_path, header, order):
-    """Rewrite branch.csv with its rows stably sorted by direction (atomically)."""
+def _rewrite_sorted(csv_path, header, order, scene):
+    """Rewrite branch.csv with its rows stably sorted by direction, with the diagram's columns
+    (``_add_branch_columns``, from the step files), atomically."""
     if not os.path.exists(csv_path):
         return
     with open(csv_path, newline="") as f:
-        rows = list(csv.DictReader(f))
+        rows = [r for r in csv.DictReader(f) if not _is_unstable(r)]
     rows.sort(key=lambda r: order.get(r.get("direction"), 2))
+    steps = os.path.join(os.path.dirname(csv_path), "steps")
+    states, counter = [], {"plus": 0, "minus": 0}
+    for r in rows:
+        d = r["direction"]
+        with np.load(os.path.join(steps, f"{d}_{counter[d]:04d}.npz")) as f:
+            states.append((np.asarray(scene.to_scaled(f["q"])), float(f["phi"])))
+        counter[d] += 1
+    _add_branch_columns(rows, states)
     _write_rows(csv_path, header, rows)
+
+
+# Columns that place a row in the bifurcation diagram, between ``direction`` and the eigenvalues.
+DIAGRAM_KEYS = ("branch_id", "arclength", "morse_index")
+
+
+def _final_header(k):
+    return list(ROW_KEYS) + ["direction", *DIAGRAM_KEYS] + [f"lambda_{j}" for j in range(k)]
+
+
+# Rows of branch.csv on an unstable branch (``jaxrod.diagram``) have a branch name starting with this.
+UNSTABLE_PREFIX = "unstable "
+
+
+def _is_unstable(row):
+    return str(row.get("branch", "")).startswith(UNSTABLE_PREFIX)
+
+
+def _branch_key(name):
+    # the branch the study starts on (phi = 0) is one branch, followed both ways ('symmetric+'
+    # and 'symmetric-'): one id, its arclength signed (negative on the minus side)
+    return name[:-1] if name.startswith("symmetric") and name[-1:] in "+-" else name
+
+
+def _add_branch_columns(rows, states):
+    """Give each stable row (canonical order) its ``branch_id`` (by first appearance, the branch
+    through phi = 0 being 0), ``arclength`` (along its branch from its first state: the sum of
+    sqrt(dphi^2 + |du|^2) between consecutive states, u the scaled DOFs (node coordinates in mean
+    edge lengths, twist angles in rad); negative on the minus side of the branch through phi = 0)
+    and ``morse_index`` (the study's count of negative eigenvalues, n_negative)."""
+    ids, last = {}, {}
+    for row, (u, phi) in zip(rows, states):
+        key = _branch_key(str(row["branch"]))
+        ids.setdefault(key, len(ids))
+        sign = -1.0 if key != row["branch"] and row["branch"].endswith("-") else 1.0
+        prev = last.get((key, sign))
+        s = 0.0 if prev is None else prev[2] + sign * math.sqrt((phi - prev[1]) ** 2 + float(np.sum((u - prev[0]) ** 2)))
+        last[(key, sign)] = (u, phi, s)
+        row["branch_id"] = ids[key]
+        row["arclength"] = s
+        row["morse_index"] = row.get("n_negative")
+
+
+def _end_states(critical, memory, out):
+    """(q, phi) of the last stable state before each instability (critical order): from this run,
+    or from the instability's mode file; None where neither has it."""
+    states, seen = [], {"plus": 0, "minus": 0}
+    for c in critical["instabilities"]:
+        d = c["direction"]
+        state = memory.get((d, seen[d]))
+        seen[d] += 1
+        if state is None and out and c.get("mode_file"):
+            try:
+                with np.load(os.path.join(out, c["mode_file"])) as f:
+                    state = (np.asarray(f["q"]), float(f["phi"]))
+            except OSError:
+                state = None
+        states.append(state)
+    return states
+
+
+def append_unstable_rows(scene, study, ends):
+    """The rows of the unstable branches beyond the study's branch ends (``jaxrod.diagram``), in
+    branch.csv's columns, appended to branch.csv (with ``study.out``). Returns (rows, the table
+    with them: ``study.table`` and the rows).
+    Each row is the state's ``step_record`` (the study's eigenvalues, zero modes removed), with
+    ``morse_index``, ``n_negative`` and ``stable`` from the pseudo-arclength path (negative
+    eigenvalues of the modes that change the shape)."""
+    from .equilibrium import equilibrium_from_solution
+    from .solvers import Solution
+
+    k = sum(1 for key in study.table if key.startswith("lambda_"))
+    header = _final_header(k)
+    ids = study.table.get("branch_id")
+    next_id = int(np.nanmax(ids)) + 1 if ids is not None and len(ids) else 0
+    negative_tol = study.critical.get("negative_tol", DEFAULT_NEGATIVE_TOL)
+    rows = []
+    for end in ends:
+        if end.event is None or not end.event.converged:
+            continue
+        rod, ev = end.rod, end.event
+        before = end.points[ev.step - 1]
+        # the located end first (arclength 0), then the path beyond it
+        s_end = before.arclength + float(np.linalg.norm(np.append(ev.u - before.u, ev.p - before.p)))
+        path = [(ev.u, float(ev.p), 0.0, ev.morse_before, 0, float(rod.full_gradient(ev.u, ev.p)))]
+        path += [(pt.u, float(pt.p), pt.arclength - s_end, pt.morse_index, pt.iterations,
+                  float(rod.full_gradient(pt.u, pt.p))) for pt in end.unstable]
+        name = UNSTABLE_PREFIX + end.from_branch
+        for u, phi, s, morse, iterations, grad in path:
+            q = rod.q(u)
+            nbr = scene.neighbourhood(q, phi)
+            sol = Solution(y=np.asarray(scene.to_scaled(q)), value=math.nan, grad_norm=grad, iterations=int(iterations),
+                           converged=True, reason="converged", solver="pseudo-arclength", gtol=math.nan)
+            e = equilibrium_from_solution(scene, phi, sol, nbr, k=k, negative_tol=negative_tol)
+            row, _ = step_record(scene, e, branch=name)
+            row.update(direction=end.direction, branch_id=next_id, arclength=s, morse_index=int(morse),
+                       n_negative=int(morse), stable=int(morse == 0))
+            rows.append(row)
+        next_id += 1
+    if study.out:
+        csv_path = os.path.join(study.out, "branch.csv")
+        with open(csv_path, newline="") as f:
+            kept = [r for r in csv.DictReader(f) if not _is_unstable(r)]
+        _write_rows(csv_path, header, kept + [{key: "" if isinstance(v, float) and math.isnan(v) else v
+                                               for key, v in r.items()} for r in rows])
+        return rows, read_table(csv_path)
+    table = study.table
+    return rows, {key: np.concatenate([np.asarray(table[key]), np.array([r.get(key, math.nan) for r in rows])])
+                  for key in table}
 
 
 def _summarise(critical, table=None):
@@ -479,6 +613,18 @@ def _summarise(critical, table=None):
         critical[key + "_error"] = first[0]["phi_error"] if first else None
         critical[key + "_dlambda_dphi"] = first[0]["dlambda_dphi"] if first else None
         critical[key + "_mode_file"] = first[0].get("mode_file") if first else None
+        # Located exactly on the extended system (``jaxrod.diagram``): that value replaces the bracket's
+        # estimate, which is kept as ``<key>_bracketed``.
+        index = critical["instabilities"].index(first[0]) if first else None
+        located = [ev for ev in critical.get("events", []) if ev.get("instability") == index and ev.get("located")]
+        if located:
+            ev = located[0]
+            critical[key + "_bracketed"] = critical[key]
+            critical[key + "_bracketed_error"] = critical[key + "_error"]
+            critical[key] = ev["phi"]
+            critical[key + "_error"] = None
+            critical[key + "_located"] = {name: ev.get(name) for name in ("kind", "critical_eigenvalue", "residual",
+                                                                       "iterations", "state_file")}
     if table is None or "radius_of_gyration" not in table:
         return
     rg, phi, br, cc = table["radius_of_gyration"], table["phi"], table["branch"], table["contact_count"]
@@ -529,7 +675,8 @@ def study_summary(result):
     """A small JSON-able summary of a study: critical twists (rad and /pi), sides, time."""
     c = result.critical
     s = {key: c.get(key) for key in ("phi_plus", "phi_minus", "phi_plus_error", "phi_minus_error",
-                                       "tightening_side", "phi_tightening", "phi_opening")}
+                                       "tightening_side", "phi_tightening", "phi_opening", "phi_plus_located",
+                                       "phi_minus_located", "phi_plus_bracketed", "phi_minus_bracketed")}
     for key in ("phi_plus", "phi_minus", "phi_tightening", "phi_opening"):
         s[key + "_over_pi"] = None if c.get(key) is None else c[key] / math.pi
     s["seconds"] = result.seconds
@@ -538,8 +685,27 @@ def study_summary(result):
     return s
 
 
+def _marks(critical, table):
+    """The branch ends to mark on the figures: each located event (kind, phi, and the writhe of the
+    unstable branch's first row, the located state) where the diagram has it, else the study's
+    bracketed estimate."""
+    located = {ev["instability"]: ev for ev in critical.get("events", []) if ev.get("located")}
+    marks = []
+    for i, c in enumerate(critical["instabilities"]):
+        ev = located.get(i)
+        if ev is None:
+            marks.append({"phi": c["phi"], "label": f"end of {c['from_branch']}"})
+            continue
+        sel = (np.asarray(table["branch"]) == ev["unstable_branch"]) & (np.asarray(table["arclength"]) == 0.0)
+        wr = float(np.asarray(table["Wr"])[sel][0]) if sel.any() else math.nan
+        marks.append({"phi": ev["phi"], "label": f"{ev['kind'].replace('_', ' ')}, end of {c['from_branch']}",
+                      "kind": ev["kind"], "Wr": wr})
+    return marks
+
+
 def figures(out, title="", length_unit=None):
     """Draw the study's figures from the files in ``out``: bifurcation.png, linking.png,
+    branch_ends.png (with the diagram's located events, ``jaxrod.diagram``),
     profiles.png, snapshots.png (the knot as a tube of the rod's diameter, seen along its
     symmetry axis; axes in ``length_unit``, e.g. 'mm'). Returns the list of files written."""
     from . import plotting
@@ -554,14 +720,19 @@ def figures(out, title="", length_unit=None):
     table = read_table(os.path.join(out, "branch.csv"))
     with open(os.path.join(out, "critical.json")) as f:
         critical = json.load(f)
-    marks = [{"phi": c["phi"], "label": f"end of {c['from_branch']}"} for c in critical["instabilities"]]
+    marks = _marks(critical, table)
     written = []
     p = os.path.join(out, "bifurcation.png")
     plotting.plot_bifurcation(table, marks, p, title=title or None)
     written.append(p)
     p = os.path.join(out, "linking.png")
-    plotting.plot_linking(table, marks, p, title=title or None)
+    plotting.plot_linking(table, [{"phi": m["phi"], "label": m["label"]} for m in marks], p, title=title or None)
     written.append(p)
+    located = [ev for ev in critical.get("events", []) if ev.get("located")]
+    if located and "arclength" in table:
+        p = os.path.join(out, "branch_ends.png")
+        plotting.plot_branch_ends(table, located, p, title=title or None)
+        written.append(p)
     # States shown: phi = 0, the last state before each instability and the first one after it.
     steps = {}
     for direction in ("plus", "minus"):

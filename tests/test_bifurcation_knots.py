@@ -11,6 +11,12 @@ N = 61 is not used: there the opening end is a near-double event (a branch point
 and a fold 2e-4 pi later, the two modes of the broken three-fold symmetry), which the simple
 branch point locator does not resolve yet (issue 17, closing note).
 """
+import csv
+import filecmp
+import json
+import os
+import shutil
+
 import math
 
 import jax
@@ -20,7 +26,9 @@ import pytest
 import jaxrod as jr
 from jaxrod.bifurcation import ContinuationOptions, PseudoArclength, Result, continuation, fold_at, fold_curve, \
     fold_sensitivity
-from jaxrod.bifurcation.rods import _pinned_energy, knot_problem, set_diameter, set_poisson_ratio
+from jaxrod.bifurcation.rods import _pinned_energy, _scaled_gradient, knot_problem, set_diameter, set_poisson_ratio
+from jaxrod.diagram import UNSTABLE_PREFIX, DiagramOptions, unstable_branches
+from jaxrod.study import figures, study_summary, twist_study
 from jaxrod.stability import sliding_fraction
 
 PI = math.pi
@@ -171,3 +179,127 @@ def test_fold_curve_in_nu_follows_the_located_fold(paths):
     chords = np.diff(curve.p) / np.diff(curve.mu)
     mids = 0.5 * (curve.dp_dmu[1:] + curve.dp_dmu[:-1])
     assert np.max(np.abs(chords - mids) / np.abs(mids)) <= 1e-4  # trapezoidal: phi* nearly linear in nu
+
+
+# ---------------------------------------------------------------------------------------------
+# The bifurcation diagram of a twist study (``jaxrod.diagram``; issue 17, items 1-3 and 7): each
+# stable branch's end located on the extended system and the unstable branch beyond it, written
+# into the study's files. The same rod, opening side only (the minus side stops at -0.25 pi, before
+# anything happens there); in this file so that it shares the compiled functions above. The located
+# fold must not depend on the step or the start (acceptance 1: 1e-8 pi), and equals benchmarks/bifurcation_trefoil.py's fold, found there
+# from other starts and step limits (6.4648752000 pi, spread 3e-12 pi).
+PHI_MIN, PHI_MAX = -0.25 * PI, 6.6 * PI
+FOLD_BENCHMARK = 6.4648752000  # benchmarks/results/bifurcation_trefoil.md, 6 runs
+DIAGRAM = DiagramOptions(unstable_points=4)
+
+
+@pytest.fixture(scope="module")
+def on_file(paths, tmp_path_factory):
+    scene = paths[0]
+    out = str(tmp_path_factory.mktemp("diagram") / "study")
+    study = twist_study(scene, PHI_MIN, PHI_MAX, jr.ContinuationOptions(step=1.0 * PI, tol=2e-4 * PI), out=out,
+                        parallel=False)
+    diagram = unstable_branches(scene, study, DIAGRAM)
+    return out, study, diagram
+
+
+def test_the_fold_is_located_on_the_extended_system(on_file):
+    out, study, diagram = on_file
+    (end,) = diagram.ends
+    ev = end.event
+    assert end.kind == "fold" and ev.converged
+    assert (ev.morse_before, ev.morse_after) == (0, 1)
+    assert ev.critical_eigenvalue <= 1e-10 and ev.residual <= 1e-10
+    assert end.rod.full_gradient(ev.u, ev.p) <= 1e-10  # an equilibrium of the whole rod, gauge included
+    inst = study.critical["instabilities"][0]
+    # inside the study's bracket, and the benchmark's fold from other starts and steps
+    assert abs(ev.p - inst["phi"]) <= inst["phi_error"] + 1e-12
+    assert ev.p / PI == pytest.approx(FOLD_BENCHMARK, abs=2e-10)
+    # the study's phi_plus is now the located value; the bracket's estimate is kept
+    s = study_summary(diagram.study)
+    assert s["phi_plus"] == ev.p and s["phi_plus_located"]["kind"] == "fold"
+    assert s["phi_plus_bracketed"] == inst["phi"] and s["phi_plus_error"] is None
+    assert study.critical["phi_plus"] == inst["phi"]  # the study passed in is left as it was
+
+
+def test_the_located_fold_does_not_depend_on_the_step_or_the_start(on_file, paths):
+    # the study's last stable state (step 1 pi) against the paths above: two other starts (6.0 and
+    # 6.3 pi) and step limits (1 and 0.25): the same fold to 1e-8 pi (acceptance 1), in fact to roundoff
+    (end,) = on_file[2].ends
+    for _, br in paths[1].values():
+        (fold,) = _folds(br)
+        assert abs(end.phi - fold.p) <= 1e-10 * PI
+
+
+def test_unstable_rows_in_branch_csv(on_file):
+    out, study, diagram = on_file
+    with open(os.path.join(out, "branch.csv"), newline="") as f:
+        rows = list(csv.DictReader(f))
+    for key in ("branch_id", "arclength", "morse_index"):
+        assert all(r[key] != "" for r in rows), key
+    stable = [r for r in rows if not r["branch"].startswith(UNSTABLE_PREFIX)]
+    unstable = [r for r in rows if r["branch"].startswith(UNSTABLE_PREFIX)]
+    assert len(unstable) == DIAGRAM.unstable_points + 1  # the located end, then the path beyond
+    assert {r["branch"] for r in unstable} == {UNSTABLE_PREFIX + "symmetric+"}
+    # the located end first (arclength 0, marginal: Morse index 0), then Morse index 1, arclength growing
+    s = [float(r["arclength"]) for r in unstable]
+    assert s[0] == 0.0 and all(b > a for a, b in zip(s, s[1:]))
+    assert [int(r["morse_index"]) for r in unstable] == [0] + [1] * (len(unstable) - 1)
+    assert all(r["stable"] == "0" for r in unstable[1:])
+    assert float(unstable[0]["phi"]) == diagram.ends[0].phi
+    # past the fold the branch turns back: phi falls along it
+    phi = [float(r["phi"]) for r in unstable]
+    assert all(b < a for a, b in zip(phi[1:], phi[2:]))
+    # stable rows: the branch through phi = 0 is one branch (id 0) with a signed arclength
+    sym = [r for r in stable if r["branch"].startswith("symmetric")]
+    assert {r["branch_id"] for r in sym} == {"0"}
+    assert all(float(r["arclength"]) < 0 for r in sym if float(r["phi"]) < 0)
+    assert all(float(r["arclength"]) >= 0 for r in sym if float(r["phi"]) >= 0)
+    assert int(unstable[0]["branch_id"]) == 1 + max(int(r["branch_id"]) for r in stable)
+    assert all(r["morse_index"] == r["n_negative"] for r in stable)
+
+
+def test_critical_json_events_and_state_file(on_file, paths):
+    scene = paths[0]
+    out, study, diagram = on_file
+    with open(os.path.join(out, "critical.json")) as f:
+        crit = json.load(f)
+    (ev,) = crit["events"]
+    assert ev["kind"] == "fold" and ev["located"] and ev["instability"] == 0
+    assert ev["critical_eigenvalue"] <= 1e-10 and ev["residual"] <= 1e-10
+    assert crit["phi_plus"] == ev["phi"] and crit["phi_plus_located"]["state_file"] == ev["state_file"]
+    with np.load(os.path.join(out, ev["state_file"])) as f:
+        q, phi = f["q"], float(f["phi"])
+    assert phi == ev["phi"]
+    # the located state is an equilibrium: the rod's gradient vanishes there (scaled units)
+    g = np.asarray(_scaled_gradient(scene, scene.to_scaled(q), phi))  # the exact energy, every pair
+    assert np.max(np.abs(g)) <= 1e-9
+
+
+def test_figures_mark_the_located_end(on_file, tmp_path):
+    out, _, _ = on_file
+    copy = str(tmp_path / "copy")
+    shutil.copytree(out, copy)
+    written = [os.path.basename(p) for p in figures(copy)]
+    assert "branch_ends.png" in written and "bifurcation.png" in written
+
+
+def test_a_resumed_study_drops_the_diagram_and_gets_it_back_identical(on_file, paths, tmp_path):
+    scene = paths[0]
+    out, _, _ = on_file
+    copy = str(tmp_path / "resumed")
+    shutil.copytree(out, copy)
+    study = twist_study(scene, PHI_MIN, PHI_MAX, jr.ContinuationOptions(step=1.0 * PI, tol=2e-4 * PI), out=copy,
+                        parallel=False)
+    assert not any(str(b).startswith(UNSTABLE_PREFIX) for b in study.table["branch"])
+    assert "events" not in study.critical and not os.path.exists(os.path.join(copy, "event_plus_0.npz"))
+    unstable_branches(scene, study, DIAGRAM)
+    for name in ("branch.csv", "critical.json", "event_plus_0.npz"):
+        assert filecmp.cmp(os.path.join(out, name), os.path.join(copy, name), shallow=False), name
+
+
+def test_options_are_checked():
+    with pytest.raises(ValueError, match="unstable_points"):
+        DiagramOptions(unstable_points=0)
+    with pytest.raises(ValueError, match="ds_max"):
+        DiagramOptions(ds_max=float("nan"))

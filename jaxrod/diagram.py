@@ -1,0 +1,286 @@
+"""The whole bifurcation diagram of a twist study: every stable branch's end located exactly, as a
+fold or a branch point of the extended system, and the unstable branch beyond it.
+
+A twist study (``jaxrod.study.twist_study``) follows stable states only: each branch end is
+bracketed there, to the study's ``tol``, by corrector runs that fail. ``unstable_branches`` takes
+each end from the study's last stable state before it and follows the branch by pseudo-arclength
+continuation (``jaxrod.bifurcation``, gauge pinned, sliding modes split off by their shape) through
+the end: the end is then the root of an extended system (a fold: the minimally augmented system;
+a branch point: the Morse index changes without a fold), located by Newton to ``event_tol``, so it
+does not depend on the study's step or start. The path goes on along the unstable branch beyond
+the end for ``DiagramOptions.unstable_points`` points (past a fold, the branch turns back; past a
+branch point, the continued branch is the symmetric one, now unstable).
+
+With the study's folder (``study.out``), it writes there:
+
+* ``branch.csv``: the unstable branches' rows are appended after the study's rows (``branch``
+  'unstable <from branch>', ``stable`` 0, ``morse_index`` the count of negative eigenvalues of
+  the modes that change the shape, sliding modes and zero modes excluded), each with its
+  ``branch_id`` and ``arclength`` from the located end;
+* ``critical.json``: ``events``, one per branch end: its kind ('fold' or 'branch_point'), phi, the
+  critical eigenvalue and the extended system's residual (scaled units), Newton iterations, the
+  Morse index before and after, and ``state_file``, ``event_<direction>_<i>.npz`` (the located
+  state q, phi and its critical mode(s) ``mode_q``);
+* ``diagram.json``: how each end's path went (points, result, seconds).
+
+A resumed study drops these rows and events (``twist_study``), and they are computed again.
+"""
+from __future__ import annotations
+
+import copy
+import math
+import os
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from .atomic import savez as _savez, write_json as _write_json
+
+__all__ = ["DiagramOptions", "BranchEnd", "Diagram", "follow_branch_end", "unstable_branches", "UNSTABLE_PREFIX"]
+
+from .study import UNSTABLE_PREFIX, _summarise, append_unstable_rows
+
+
+@dataclass(frozen=True)
+class DiagramOptions:
+    """How far and how finely each branch end's path is followed.
+
+    unstable_points: points kept on the unstable branch beyond the located end; ds_max: largest
+    pseudo-arclength step (scaled DOFs and phi in rad); newton_tol: the corrector's residual (scaled
+    units); event_tol: a located end must have its residual and critical eigenvalue below this;
+    max_points: points followed before the end, at most (the path starts at the study's last stable
+    state, within the study's tol of the end, so a few suffice); n_eig: eigenpairs kept per point.
+    """
+
+    unstable_points: int = 8
+    ds_max: float = 0.5
+    newton_tol: float = 1e-11
+    event_tol: float = 1e-10
+    max_points: int = 60
+    n_eig: int = 6
+    chunk: int = 10
+
+    def __post_init__(self):
+        for name in ("unstable_points", "max_points", "n_eig", "chunk"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, np.integer)) and value >= 1):
+                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+        for name in ("ds_max", "newton_tol", "event_tol"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+
+
+@dataclass
+class BranchEnd:
+    """One stable branch's end and the unstable branch beyond it.
+
+    direction: 'plus' or 'minus' (the study's direction); from_branch: the stable branch's name;
+    event: the located ``jaxrod.bifurcation.Event`` (kind 'fold' or 'branch_point'), or None when
+    the path met none (``message`` says why); points: the path's ``jaxrod.bifurcation.Point``
+    list, from the last stable state through the end onto the unstable branch; rod: the
+    ``PinnedRod`` (``rod.q(u)`` gives a point's physical DOFs); seconds: wall time.
+    """
+
+    direction: str
+    from_branch: str
+    event: object
+    points: list = field(repr=False)
+    rod: object = field(repr=False)
+    message: str = ""
+    seconds: float = 0.0
+
+    @property
+    def kind(self):
+        return None if self.event is None else self.event.kind
+
+    @property
+    def phi(self):
+        return None if self.event is None else float(self.event.p)
+
+    @property
+    def unstable(self):
+        """The points beyond the end (Morse index >= 1 right after it)."""
+        return [] if self.event is None else self.points[self.event.step:]
+
+
+@dataclass
+class Diagram:
+    """ends: a ``BranchEnd`` per instability of the study (in the order of critical.json's
+    ``instabilities``); rows: the unstable branches' rows (dicts, branch.csv's columns); study: the
+    study's ``StudyResult`` with them: its table holds the unstable rows too, its critical dict the
+    located ``events``, and phi_plus / phi_minus are the located ends (the bracket's estimates
+    kept as phi_plus_bracketed / phi_minus_bracketed)."""
+
+    ends: list
+    rows: list = field(repr=False)
+    study: object = field(repr=False)
+    seconds: float = 0.0
+
+
+def follow_branch_end(scene, q, phi, sign, options=None, *, p_min=-math.inf, p_max=math.inf):
+    """Follow a stable branch from the state (q (n,) physical DOFs, phi) towards its end (phi
+    growing when sign > 0, falling when sign < 0) by pseudo-arclength continuation, locate the end
+    (the first fold or branch point at which the Morse index grows) and follow the unstable branch
+    beyond it for ``options.unstable_points`` points. Returns a ``BranchEnd`` (direction and
+    from_branch left empty)."""
+    from .bifurcation import ContinuationOptions as ArclengthOptions, PseudoArclength, Result, continuation
+    from .bifurcation.rods import knot_problem
+
+    o = options or DiagramOptions()
+    t0 = time.perf_counter()
+    rod = knot_problem(scene, np.asarray(q), float(phi))
+    opts = ArclengthOptions(ds=math.copysign(min(0.05, o.ds_max), sign), ds_min=1e-6, ds_max=o.ds_max,
+                            max_steps=o.chunk, newton_tol=o.newton_tol, eig_rtol=1e-13, n_eig=o.n_eig,
+                            event_tol=o.event_tol, p_min=p_min, p_max=p_max)
+    points, events, start, message = [], [], None, ""
+    while True:
+        br = continuation(rod.problem, PseudoArclength(), opts, start=start, throw=False)
+        offset = len(points) - (1 if points else 0)
+        if points:  # a chunk restarts its arclength at 0: carry it on from the last point
+            s0 = points[-1].arclength
+            points += [replace(pt, arclength=pt.arclength + s0) for pt in br.points[1:]]
+        else:
+            points += br.points
+        events += [replace(e, step=e.step + offset) for e in br.events]
+        end = _first_end(events)
+        if br.result is not Result.MAX_STEPS:
+            message = br.message or br.result.value
+            break
+        if end is not None and len(points) - end.step >= o.unstable_points:
+            message = "followed past the end"
+            break
+        if end is None and len(points) >= o.max_points:
+            message = f"no fold or branch point within {len(points)} points"
+            break
+        last = points[-1]
+        start = (last.u, last.p, last.tangent)
+        # the next chunk's first step: the step the path had reached (not ds again)
+        opts = replace(opts, ds=math.copysign(min(max(abs(last.ds), opts.ds_min), o.ds_max), opts.ds))
+    end = _first_end(events)
+    if end is not None and not end.converged:
+        message = (f"the end was detected at {end.p / math.pi:+.8f} pi but not located to event_tol "
+                   f"{o.event_tol:.0e} (residual {end.residual:.1e}, eigenvalue {end.critical_eigenvalue:.1e})")
+    elif end is not None:
+        points = points[:end.step + o.unstable_points]
+    return BranchEnd("", "", end, points, rod, message, time.perf_counter() - t0)
+
+
+def _first_end(events):
+    """The first event that costs the branch its stability: a fold or a branch point at which the
+    Morse index grows (soft folds of the sliding landscape are crossed, not ends)."""
+    return next((e for e in events if e.kind in ("fold", "branch_point") and e.morse_after > e.morse_before), None)
+
+
+def unstable_branches(scene, study, options=None, *, progress=None):
+    """Locate each branch end of a twist study exactly and follow the unstable branch beyond it.
+
+    scene: the study's scene; study: its ``StudyResult`` (``jaxrod.study.twist_study``), whose
+    ``end_states`` hold the last stable state before each instability; options: ``DiagramOptions``;
+    progress: optional callable(str). With ``study.out`` writes the files described in the module
+    docstring. Returns a ``Diagram`` (``Diagram.study``: the study with the diagram; ``study``
+    itself is left as it was).
+    """
+    o = options or DiagramOptions()
+    say = progress or (lambda line: None)
+    t0 = time.perf_counter()
+    instabilities = study.critical.get("instabilities", [])
+    phis = np.asarray(study.table.get("phi", [0.0]), dtype=float)
+    p_min, p_max = float(np.min(phis)), float(np.max(phis))
+    def one_end(inst, state):
+        if state is None:
+            return BranchEnd(inst["direction"], inst["from_branch"], None, [], None, "no state on file")
+        q, phi = state
+        lo, hi = inst["bracket"][0], inst["bracket"][1]
+        sign = 1.0 if hi > lo else -1.0
+        say(f"{inst['direction']}: locating the end of {inst['from_branch']} (bracketed at "
+            f"{inst['phi'] / math.pi:+.6f} pi) on the extended system, then its unstable branch")
+        end = follow_branch_end(scene, q, phi, sign, o, p_min=min(p_min, phi) - 0.5 * math.pi,
+                                p_max=max(p_max, phi) + 0.5 * math.pi)
+        end.direction, end.from_branch = inst["direction"], inst["from_branch"]
+        if end.event is None or not end.event.converged:
+            say(f"{inst['direction']}: {end.message}")
+        else:
+            ev = end.event
+            say(f"{inst['direction']}: {ev.kind} at {ev.p / math.pi:+.10f} pi (critical eigenvalue "
+                f"{ev.critical_eigenvalue:.1e}, residual {ev.residual:.1e}; the study's bracket said "
+                f"{inst['phi'] / math.pi:+.6f} +- {inst['phi_error'] / math.pi:.1e} pi), "
+                f"{len(end.unstable)} unstable points, {end.seconds:.1f} s")
+        return end
+
+    # one end after another: run in two threads (one per direction), the ends of the trefoil at
+    # N = 121 took as long in all (15.3 s against 15.5 s; the dense eigensolvers already keep the
+    # two cores busy)
+    ends = [one_end(inst, state) for inst, state in zip(instabilities, study.end_states)]
+    rows, table = append_unstable_rows(scene, study, ends)
+    study = replace(study, table=table, critical=copy.deepcopy(study.critical))
+    _write_events(study, ends)
+    diagram = Diagram(ends, rows, study, time.perf_counter() - t0)
+    if study.out:
+        _write_json(os.path.join(study.out, "diagram.json"), _diagram_dict(diagram, o))
+    return diagram
+
+
+def _event_dict(end, index):
+    ev = end.event
+    d = {"direction": end.direction, "from_branch": end.from_branch, "instability": index,
+         "located": ev is not None and bool(ev.converged), "message": end.message}
+    if ev is None:
+        return d
+    d.update({"kind": ev.kind, "phi": float(ev.p), "phi_over_pi": float(ev.p) / math.pi,
+              "critical_eigenvalue": ev.critical_eigenvalue, "residual": float(ev.residual),
+              "iterations": int(ev.iterations), "multiplicity": int(ev.multiplicity),
+              "morse_before": int(ev.morse_before), "morse_after": int(ev.morse_after),
+              "full_gradient": end.rod.full_gradient(ev.u, ev.p),
+              "unstable_branch": UNSTABLE_PREFIX + end.from_branch})
+    return d
+
+
+def _write_events(study, ends):
+    """critical.json's ``events`` (and the located states' files), with ``study.out``; the
+    study's own critical dict gets them in any case, and its phi_plus/phi_minus become the located values."""
+    import json
+
+    events = []
+    per_direction = {"plus": 0, "minus": 0}
+    for index, end in enumerate(ends):
+        d = _event_dict(end, index)
+        if end.event is not None:
+            i = per_direction[end.direction]
+            per_direction[end.direction] += 1
+            name = f"event_{end.direction}_{i}.npz"
+            ev, rod = end.event, end.rod
+            if not study.out:
+                events.append(d)
+                continue
+            v = np.asarray(ev.v)
+            full = np.zeros((rod.u_ref.size, v.shape[1]))
+            full[np.asarray(rod.free)] = v
+            mode_q = np.stack([np.asarray(rod.scene.from_scaled(full[:, j])) - np.asarray(rod.scene.from_scaled(
+                np.zeros(rod.u_ref.size))) for j in range(v.shape[1])], axis=1)
+            _savez(os.path.join(study.out, name), q=rod.q(ev.u), phi=np.asarray(float(ev.p)), mode_q=mode_q,
+                   kind=np.asarray(ev.kind))
+            d["state_file"] = name
+        events.append(d)
+    if not study.out:
+        study.critical["events"] = events
+        _summarise(study.critical, study.table)
+        return
+    path = os.path.join(study.out, "critical.json")
+    with open(path) as f:
+        critical = json.load(f)
+    for c in (critical, study.critical):
+        c["events"] = events
+        _summarise(c, study.table)
+    _write_json(path, critical)
+
+
+def _diagram_dict(diagram, options):
+    from dataclasses import asdict
+
+    return {"options": asdict(options), "seconds": diagram.seconds,
+            "ends": [{"direction": e.direction, "from_branch": e.from_branch, "kind": e.kind,
+                      "phi_over_pi": None if e.phi is None else e.phi / math.pi, "points": len(e.points),
+                      "unstable_points": len(e.unstable), "message": e.message, "seconds": e.seconds}
+                     for e in diagram.ends]}
