@@ -28,7 +28,7 @@ from jaxrod.bifurcation import ContinuationOptions, PseudoArclength, Result, con
     fold_sensitivity
 from jaxrod.bifurcation.rods import _pinned_energy, _scaled_gradient, knot_problem, set_diameter, set_poisson_ratio
 from jaxrod.diagram import UNSTABLE_PREFIX, DiagramOptions, unstable_branches
-from jaxrod.study import figures, study_summary, twist_study
+from jaxrod.study import study_summary, twist_study
 from jaxrod.stability import sliding_fraction
 
 PI = math.pi
@@ -274,14 +274,6 @@ def test_critical_json_events_and_state_file(on_file, paths):
     # the located state is an equilibrium: the rod's gradient vanishes there (scaled units)
     g = np.asarray(_scaled_gradient(scene, scene.to_scaled(q), phi))  # the exact energy, every pair
     assert np.max(np.abs(g)) <= 1e-9
-
-
-def test_figures_mark_the_located_end(on_file, tmp_path):
-    out, _, _ = on_file
-    copy = str(tmp_path / "copy")
-    shutil.copytree(out, copy)
-    written = [os.path.basename(p) for p in figures(copy)]
-    assert "branch_ends.png" in written and "bifurcation.png" in written
 
 
 def test_a_resumed_study_drops_the_diagram_and_gets_it_back_identical(on_file, paths, tmp_path):

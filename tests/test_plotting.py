@@ -72,6 +72,34 @@ def test_plot_bifurcation(tmp_path):
     _returns_figure(plotting.plot_bifurcation(t2, CRITICAL))
 
 
+def test_plot_branch_ends_and_event_marks(tmp_path):
+    """A located fold at 2.5 pi with an unstable branch (dashed, no stable row) turning back from it."""
+    table = _table()
+    phi_u = np.linspace(2.5, 2.3, 5) * math.pi
+    t = {k: np.concatenate([np.asarray(v), np.asarray(v)[:5]]) for k, v in table.items()}
+    t["phi"][-5:] = phi_u
+    t["branch"] = np.concatenate([table["branch"], ["unstable symmetric"] * 5])
+    t["stable"] = np.concatenate([table["stable"], [False] * 5])
+    t["lambda_0"][-5:] = -1e-3 * (2.5 * math.pi - phi_u)
+    events = [{"phi": 2.5 * math.pi, "kind": "fold", "unstable_branch": "unstable symmetric"}]
+    path = tmp_path / "branch_ends.png"
+    fig = plotting.plot_branch_ends(t, events, path=None)
+    ax = fig.axes[0]
+    dashed = [line for line in ax.get_lines() if line.get_label() == "unstable symmetric"]
+    assert len(dashed) == 1 and dashed[0].get_linestyle() == "--"
+    assert ax.get_xlim()[0] < -0.2 < 0.2 < ax.get_xlim()[1]  # the window holds the unstable branch
+    plotting.plot_branch_ends(t, events, path=path)
+    _check(path)
+    with pytest.raises(ValueError, match="no located event"):
+        plotting.plot_branch_ends(t, [{"phi": 1.0}])
+    # the event marker on the diagram itself: a triangle for a fold, at (phi, Wr)
+    fig = plotting.plot_bifurcation(t, [{"phi": 2.5 * math.pi, "label": "fold", "kind": "fold", "Wr": -3.35}])
+    marks = [line for line in fig.axes[0].get_lines() if line.get_marker() == "v" and len(line.get_xdata()) == 1
+             and line.get_xdata()[0] == 2.5]
+    assert len(marks) == 1
+    plt.close("all")
+
+
 def test_plot_bifurcation_rejects_bad_tables():
     table = _table()
     with pytest.raises(ValueError, match="missing column 'Wr'"):
