@@ -28,18 +28,25 @@ A resumed study drops these rows and events (``twist_study``), and they are comp
 from __future__ import annotations
 
 import copy
+import csv
 import math
 import os
 import time
+import warnings
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .atomic import savez as _savez, write_json as _write_json
+from .atomic import savez as _savez, write_json as _write_json, write_rows as _write_rows
 
-__all__ = ["DiagramOptions", "BranchEnd", "Diagram", "follow_branch_end", "unstable_branches", "UNSTABLE_PREFIX"]
+__all__ = ["DiagramOptions", "BranchEnd", "Diagram", "follow_branch_end", "unstable_branches", "in_bracket",
+           "UNSTABLE_PREFIX"]
 
-from .study import UNSTABLE_PREFIX, _summarise, append_unstable_rows
+from .equilibrium import equilibrium_from_solution
+from .records import step_record
+from .solvers import Solution
+from .stability import DEFAULT_NEGATIVE_TOL
+from .study import UNSTABLE_PREFIX, _final_header, _is_unstable, _summarise, read_table
 
 
 @dataclass(frozen=True)
@@ -90,6 +97,7 @@ class BranchEnd:
     rod: object = field(repr=False)
     message: str = ""
     seconds: float = 0.0
+    within_bracket: bool | None = None  # whether the located end lies in the study's bracket
 
     @property
     def kind(self):
@@ -167,6 +175,12 @@ def follow_branch_end(scene, q, phi, sign, options=None, *, p_min=-math.inf, p_m
     return BranchEnd("", "", end, points, rod, message, time.perf_counter() - t0)
 
 
+def in_bracket(phi, inst):
+    """Whether phi lies in the study's bracket of the instability ``inst`` (a critical.json
+    dict: the whole bracket lies within phi +- phi_error), to roundoff."""
+    return abs(phi - inst["phi"]) <= inst["phi_error"] * (1.0 + 1e-9) + 1e-12 * max(1.0, abs(inst["phi"]))
+
+
 def _first_end(events):
     """The first event that costs the branch its stability: a fold or a branch point at which the
     Morse index grows (soft folds of the sliding landscape are crossed, not ends)."""
@@ -207,13 +221,22 @@ def unstable_branches(scene, study, options=None, *, progress=None):
                 f"{ev.critical_eigenvalue:.1e}, residual {ev.residual:.1e}; the study's bracket said "
                 f"{inst['phi'] / math.pi:+.6f} +- {inst['phi_error'] / math.pi:.1e} pi), "
                 f"{len(end.unstable)} unstable points, {end.seconds:.1f} s")
+            end.within_bracket = in_bracket(ev.p, inst)
+            if not end.within_bracket:
+                message = (f"{inst['direction']}: the end of {inst['from_branch']} located on the extended system, "
+                           f"{ev.kind} at {ev.p / math.pi:+.8f} pi, lies outside the study's bracket "
+                           f"{inst['phi'] / math.pi:+.8f} +- {inst['phi_error'] / math.pi:.1e} pi: the two methods "
+                           "disagree on where the branch ends (a mode the study counted negative that the "
+                           "path's shape classification does not, or the path left the study's branch); the "
+                           "study's value is kept as phi*")
+                warnings.warn(message, stacklevel=3)
         return end
 
     # one end after another: run in two threads (one per direction), the ends of the trefoil at
     # N = 121 took as long in all (15.3 s against 15.5 s; the dense eigensolvers already keep the
     # two cores busy)
     ends = [one_end(inst, state) for inst, state in zip(instabilities, study.end_states)]
-    rows, table = append_unstable_rows(scene, study, ends)
+    rows, table = _unstable_rows(scene, study, ends)
     study = replace(study, table=table, critical=copy.deepcopy(study.critical))
     _write_events(study, ends)
     diagram = Diagram(ends, rows, study, time.perf_counter() - t0)
@@ -232,7 +255,7 @@ def _event_dict(end, index):
               "critical_eigenvalue": ev.critical_eigenvalue, "residual": float(ev.residual),
               "iterations": int(ev.iterations), "multiplicity": int(ev.multiplicity),
               "morse_before": int(ev.morse_before), "morse_after": int(ev.morse_after),
-              "full_gradient": end.rod.full_gradient(ev.u, ev.p),
+              "full_gradient": end.rod.full_gradient(ev.u, ev.p), "within_bracket": end.within_bracket,
               "unstable_branch": UNSTABLE_PREFIX + end.from_branch})
     return d
 
@@ -284,3 +307,50 @@ def _diagram_dict(diagram, options):
                       "phi_over_pi": None if e.phi is None else e.phi / math.pi, "points": len(e.points),
                       "unstable_points": len(e.unstable), "message": e.message, "seconds": e.seconds}
                      for e in diagram.ends]}
+
+
+def _unstable_rows(scene, study, ends):
+    """The rows of the unstable branches beyond the study's branch ends, in branch.csv's columns,
+    appended to branch.csv (with ``study.out``). Returns (rows, the table
+    with them: ``study.table`` and the rows).
+    Each row is the state's ``step_record`` (the study's eigenvalues, zero modes removed), with
+    ``morse_index``, ``n_negative`` and ``stable`` from the pseudo-arclength path (negative
+    eigenvalues of the modes that change the shape)."""
+    k = sum(1 for key in study.table if key.startswith("lambda_"))
+    header = _final_header(k)
+    ids = study.table.get("branch_id")
+    next_id = int(np.nanmax(ids)) + 1 if ids is not None and len(ids) else 0
+    negative_tol = study.critical.get("negative_tol", DEFAULT_NEGATIVE_TOL)
+    rows = []
+    for end in ends:
+        if end.event is None or not end.event.converged:
+            continue
+        rod, ev = end.rod, end.event
+        before = end.points[ev.step - 1]
+        # the located end first (arclength 0), then the path beyond it
+        s_end = before.arclength + float(np.linalg.norm(np.append(ev.u - before.u, ev.p - before.p)))
+        path = [(ev.u, float(ev.p), 0.0, ev.morse_before, 0, float(rod.full_gradient(ev.u, ev.p)))]
+        path += [(pt.u, float(pt.p), pt.arclength - s_end, pt.morse_index, pt.iterations,
+                  float(rod.full_gradient(pt.u, pt.p))) for pt in end.unstable]
+        name = UNSTABLE_PREFIX + end.from_branch
+        for u, phi, s, morse, iterations, grad in path:
+            q = rod.q(u)
+            nbr = scene.neighbourhood(q, phi)
+            sol = Solution(y=np.asarray(scene.to_scaled(q)), value=math.nan, grad_norm=grad, iterations=int(iterations),
+                           converged=True, reason="converged", solver="pseudo-arclength", gtol=math.nan)
+            e = equilibrium_from_solution(scene, phi, sol, nbr, k=k, negative_tol=negative_tol)
+            row, _ = step_record(scene, e, branch=name)
+            row.update(direction=end.direction, branch_id=next_id, arclength=s, morse_index=int(morse),
+                       n_negative=int(morse), stable=int(morse == 0))
+            rows.append(row)
+        next_id += 1
+    if study.out:
+        csv_path = os.path.join(study.out, "branch.csv")
+        with open(csv_path, newline="") as f:
+            kept = [r for r in csv.DictReader(f) if not _is_unstable(r)]
+        _write_rows(csv_path, header, kept + [{key: "" if isinstance(v, float) and math.isnan(v) else v
+                                               for key, v in r.items()} for r in rows])
+        return rows, read_table(csv_path)
+    table = study.table
+    return rows, {key: np.concatenate([np.asarray(table[key]), np.array([r.get(key, math.nan) for r in rows])])
+                  for key in table}

@@ -553,56 +553,6 @@ def _end_states(critical, memory, out):
     return states
 
 
-def append_unstable_rows(scene, study, ends):
-    """The rows of the unstable branches beyond the study's branch ends (``jaxrod.diagram``), in
-    branch.csv's columns, appended to branch.csv (with ``study.out``). Returns (rows, the table
-    with them: ``study.table`` and the rows).
-    Each row is the state's ``step_record`` (the study's eigenvalues, zero modes removed), with
-    ``morse_index``, ``n_negative`` and ``stable`` from the pseudo-arclength path (negative
-    eigenvalues of the modes that change the shape)."""
-    from .equilibrium import equilibrium_from_solution
-    from .solvers import Solution
-
-    k = sum(1 for key in study.table if key.startswith("lambda_"))
-    header = _final_header(k)
-    ids = study.table.get("branch_id")
-    next_id = int(np.nanmax(ids)) + 1 if ids is not None and len(ids) else 0
-    negative_tol = study.critical.get("negative_tol", DEFAULT_NEGATIVE_TOL)
-    rows = []
-    for end in ends:
-        if end.event is None or not end.event.converged:
-            continue
-        rod, ev = end.rod, end.event
-        before = end.points[ev.step - 1]
-        # the located end first (arclength 0), then the path beyond it
-        s_end = before.arclength + float(np.linalg.norm(np.append(ev.u - before.u, ev.p - before.p)))
-        path = [(ev.u, float(ev.p), 0.0, ev.morse_before, 0, float(rod.full_gradient(ev.u, ev.p)))]
-        path += [(pt.u, float(pt.p), pt.arclength - s_end, pt.morse_index, pt.iterations,
-                  float(rod.full_gradient(pt.u, pt.p))) for pt in end.unstable]
-        name = UNSTABLE_PREFIX + end.from_branch
-        for u, phi, s, morse, iterations, grad in path:
-            q = rod.q(u)
-            nbr = scene.neighbourhood(q, phi)
-            sol = Solution(y=np.asarray(scene.to_scaled(q)), value=math.nan, grad_norm=grad, iterations=int(iterations),
-                           converged=True, reason="converged", solver="pseudo-arclength", gtol=math.nan)
-            e = equilibrium_from_solution(scene, phi, sol, nbr, k=k, negative_tol=negative_tol)
-            row, _ = step_record(scene, e, branch=name)
-            row.update(direction=end.direction, branch_id=next_id, arclength=s, morse_index=int(morse),
-                       n_negative=int(morse), stable=int(morse == 0))
-            rows.append(row)
-        next_id += 1
-    if study.out:
-        csv_path = os.path.join(study.out, "branch.csv")
-        with open(csv_path, newline="") as f:
-            kept = [r for r in csv.DictReader(f) if not _is_unstable(r)]
-        _write_rows(csv_path, header, kept + [{key: "" if isinstance(v, float) and math.isnan(v) else v
-                                               for key, v in r.items()} for r in rows])
-        return rows, read_table(csv_path)
-    table = study.table
-    return rows, {key: np.concatenate([np.asarray(table[key]), np.array([r.get(key, math.nan) for r in rows])])
-                  for key in table}
-
-
 def _summarise(critical, table=None):
     """phi_plus / phi_minus: first instability met at phi > 0 / phi < 0 (jaxrod's sign of phi,
     radians). The tightening side is told by behaviour along the symmetric branch: the number of
@@ -616,7 +566,9 @@ def _summarise(critical, table=None):
         # Located exactly on the extended system (``jaxrod.diagram``): that value replaces the bracket's
         # estimate, which is kept as ``<key>_bracketed``.
         index = critical["instabilities"].index(first[0]) if first else None
-        located = [ev for ev in critical.get("events", []) if ev.get("instability") == index and ev.get("located")]
+        # only where it lies in the study's bracket: elsewhere the two methods disagree (jaxrod.diagram warns)
+        located = [ev for ev in critical.get("events", []) if ev.get("instability") == index and ev.get("located")
+                   and ev.get("within_bracket") is not False]
         if located:
             ev = located[0]
             critical[key + "_bracketed"] = critical[key]

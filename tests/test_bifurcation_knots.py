@@ -207,7 +207,7 @@ def test_the_fold_is_located_on_the_extended_system(on_file):
     out, study, diagram = on_file
     (end,) = diagram.ends
     ev = end.event
-    assert end.kind == "fold" and ev.converged
+    assert end.kind == "fold" and ev.converged and end.within_bracket
     assert (ev.morse_before, ev.morse_after) == (0, 1)
     assert ev.critical_eigenvalue <= 1e-10 and ev.residual <= 1e-10
     assert end.rod.full_gradient(ev.u, ev.p) <= 1e-10  # an equilibrium of the whole rod, gauge included
@@ -295,3 +295,22 @@ def test_options_are_checked():
         DiagramOptions(unstable_points=0)
     with pytest.raises(ValueError, match="ds_max"):
         DiagramOptions(ds_max=float("nan"))
+
+
+def test_a_located_end_outside_the_studys_bracket_does_not_replace_phi_star():
+    """Where the study and the path disagree (measured: with --step 0.25pi at N = 121 the study's
+    first tightening instability is at -11.10996 pi, the path's first event at -11.18414 pi), the
+    study's value stays phi* and the event says so; inside the bracket the located value replaces it."""
+    from jaxrod.diagram import in_bracket
+    from jaxrod.study import _summarise
+
+    inst = {"direction": "minus", "phi": -11.10996 * PI, "phi_error": 3e-5 * PI, "bracket": [0, 0],
+            "dlambda_dphi": 0.0, "from_branch": "symmetric-"}
+    assert in_bracket(-11.10998 * PI, inst) and not in_bracket(-11.18414 * PI, inst)
+    for located, within, expected in ((-11.18414 * PI, False, inst["phi"]), (-11.10998 * PI, True, -11.10998 * PI)):
+        critical = {"instabilities": [dict(inst)], "events": [
+            {"instability": 0, "located": True, "within_bracket": within, "phi": located, "kind": "branch_point",
+             "critical_eigenvalue": 1e-16, "residual": 1e-14, "iterations": 3, "state_file": None}]}
+        _summarise(critical)
+        assert critical["phi_minus"] == expected
+        assert ("phi_minus_located" in critical) == within
