@@ -30,7 +30,9 @@ ARGS = ["trefoil", "--D", "8", "--L", "292", "--N", "121", "--phi-min", "-12pi",
 SETTINGS = {"CLI flags (default)": None, "XLA defaults": "--xla_cpu_use_fusion_emitters=true"}
 
 
-def run(xla_flags, cache, out):
+def run_cli(args, cache, out, xla_flags=None):
+    """Wall seconds of one ``jaxrod`` process (``args`` + --out out --quiet) on the compile cache
+    under ``cache`` (XDG_CACHE_HOME), with ``xla_flags`` as XLA_FLAGS (None: the CLI's own)."""
     env = dict(os.environ, XDG_CACHE_HOME=cache)
     env.pop("JAX_COMPILATION_CACHE_DIR", None)
     env.pop("XLA_FLAGS", None)
@@ -38,8 +40,12 @@ def run(xla_flags, cache, out):
         env["XLA_FLAGS"] = xla_flags
     jaxrod = os.path.join(os.path.dirname(sys.executable), "jaxrod")
     t = time.perf_counter()
-    subprocess.run([jaxrod, *ARGS, "--out", out, "--quiet"], env=env, check=True, capture_output=True)
-    seconds = time.perf_counter() - t
+    subprocess.run([jaxrod, *args, "--out", out, "--quiet"], env=env, check=True, capture_output=True)
+    return time.perf_counter() - t
+
+
+def run(xla_flags, cache, out):
+    seconds = run_cli(ARGS, cache, out, xla_flags)
     with open(os.path.join(out, "critical.json")) as f:
         crit = json.load(f)
     return seconds, crit["phi_plus"], crit["phi_minus"]

@@ -19,24 +19,16 @@ import json  # noqa: E402
 import platform  # noqa: E402
 import shutil  # noqa: E402
 import statistics  # noqa: E402
-import subprocess  # noqa: E402
-import sys  # noqa: E402
 import tempfile  # noqa: E402
-import time  # noqa: E402
+
+from cli_start import ARGS, run_cli  # noqa: E402  (benchmarks/ is on the path: this script's folder)
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-ARGS = ["trefoil", "--D", "8", "--L", "292", "--N", "121", "--phi-min", "-12pi", "--phi-max", "14pi"]
 SETTINGS = {"stable only (--stable-only)": ["--stable-only"], "whole diagram (default)": []}
 
 
 def run(extra, cache, out):
-    env = dict(os.environ, XDG_CACHE_HOME=cache)
-    env.pop("JAX_COMPILATION_CACHE_DIR", None)
-    env.pop("XLA_FLAGS", None)
-    jaxrod = os.path.join(os.path.dirname(sys.executable), "jaxrod")
-    t = time.perf_counter()
-    subprocess.run([jaxrod, *ARGS, *extra, "--out", out, "--quiet"], env=env, check=True, capture_output=True)
-    seconds = time.perf_counter() - t
+    seconds = run_cli([*ARGS, *extra], cache, out)
     with open(os.path.join(out, "summary.json")) as f:
         summary = json.load(f)
     with open(os.path.join(out, "critical.json")) as f:
