@@ -47,7 +47,7 @@ from .locking import holds_output_folder
 from .atomic import savez as _savez, write_json as _write_json, write_rows as _write_rows
 
 __all__ = ["twist_study", "StudyResult", "read_table", "figures", "study_summary", "check_study_folder",
-           "study_options"]
+           "study_options", "event_marks"]
 
 
 @dataclass(frozen=True)
@@ -637,10 +637,11 @@ def study_summary(result):
     return s
 
 
-def _marks(critical, table):
-    """The branch ends to mark on the figures: each located event (kind, phi, and the writhe of the
-    unstable branch's first row, the located state) where the diagram has it, else the study's
-    bracketed estimate."""
+def event_marks(critical, table):
+    """The branch ends to mark on the figures (``plotting.plot_bifurcation``'s ``critical``): each
+    located event (kind, phi, and the writhe of the unstable branch's first row, the located state)
+    where the diagram (``jaxrod.diagram``) has it, else the study's bracketed estimate.
+    critical: critical.json's dict; table: branch.csv's columns."""
     located = {ev["instability"]: ev for ev in critical.get("events", []) if ev.get("located")}
     marks = []
     for i, c in enumerate(critical["instabilities"]):
@@ -672,7 +673,7 @@ def figures(out, title="", length_unit=None):
     table = read_table(os.path.join(out, "branch.csv"))
     with open(os.path.join(out, "critical.json")) as f:
         critical = json.load(f)
-    marks = _marks(critical, table)
+    marks = event_marks(critical, table)
     written = []
     p = os.path.join(out, "bifurcation.png")
     plotting.plot_bifurcation(table, marks, p, title=title or None)

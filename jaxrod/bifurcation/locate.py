@@ -292,6 +292,13 @@ class _Failed(Exception):
     pass
 
 
+def _norm(*parts):
+    """Euclidean norm of the concatenated parts; inf (without a RuntimeWarning) when a diverging
+    Newton iteration has overflowed them: the caller then gives up on that start."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        return float(np.sqrt(sum(np.sum(np.asarray(a, dtype=float) ** 2) for a in parts)))
+
+
 def simple_branch_point(problem, opts, u, p, v0, morse, step, tangent):
     """Newton on the unfolded system (F + beta v0, sigma, tau) = 0 from (u, p). -> Event, or None."""
     be, args = problem.backend, problem.args
@@ -300,14 +307,14 @@ def simple_branch_point(problem, opts, u, p, v0, morse, step, tangent):
     for it in range(opts.locate_max_iter + 1):
         (gu, gp), (st, F, J, Fp, w) = problem.singular_tests(u, p, args, bvec)
         G = np.asarray(F) + beta * v0
-        res, prev = float(np.sqrt(np.sum(G ** 2) + np.sum(np.asarray(st) ** 2))), res
+        res, prev = _norm(G, st), res
         if not np.isfinite(res) or _done(res, prev, opts.newton_tol) or it == opts.locate_max_iter:
             break
         D = np.array([[gp[0], 0.0], [gp[1], 0.0]])
         du, dy = be.bordered_solve(J, np.stack([Fp, v0], axis=1), np.asarray(gu).T, D, -G, -np.asarray(st))
         u, p, beta = u + np.asarray(du), p + float(dy[0]), beta + float(dy[1])
         bvec = np.asarray(w) / np.linalg.norm(w)
-    res = float(np.sqrt(np.sum(np.asarray(F) ** 2) + np.sum(np.asarray(st) ** 2)))  # beta = 0 too
+    res = _norm(F, st)  # beta = 0 too
     if not np.isfinite(res) or res > opts.event_tol:
         return None
     vals, vecs, _ = be.spectrum(J, opts.n_eig + max(morse), problem.n_zero_modes, opts.eig_rtol)
