@@ -6,6 +6,8 @@ to provide the same three methods.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -18,8 +20,10 @@ def _bordered(A, B, C, D, f, g):
     return z[: A.shape[0]], z[A.shape[0]:]
 
 
+@dataclass(frozen=True)
 class DenseBackend:
-    """Dense J from ``jax.jacfwd``; solves and eigenpairs by ``jnp.linalg``."""
+    """Dense J from ``jax.jacfwd``; solves and eigenpairs by ``jnp.linalg``. Stateless: every
+    instance is equal (a problem's jitted functions are shared per backend, see ``problem``)."""
 
     def jacobian(self, f, u):
         """J = df/du (n, n) of f: (n,) -> (n,); traceable (called inside jit)."""

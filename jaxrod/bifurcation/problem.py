@@ -5,6 +5,8 @@ J is symmetric (a Hessian), which the event tests and the branch switching use.
 """
 from __future__ import annotations
 
+import functools
+
 import jax
 import jax.numpy as jnp
 
@@ -47,7 +49,6 @@ class BifurcationProblem:
         if (energy is None) == (residual is None):
             raise ValueError("give exactly one of energy= or residual=")
         self.energy = energy
-        self.F = residual if residual is not None else jax.grad(energy, argnums=0)
         self.u0 = jnp.asarray(u0, dtype=jnp.float64).ravel()
         self.p0 = float(p0)
         self.args = args
@@ -57,13 +58,16 @@ class BifurcationProblem:
         self.update_args = update_args
         self.soft_modes = soft_modes
         self.jacobian = jacobian
-        # jit per problem: one compile, reused for every point (args traced, so a new mu is no recompile)
-        self.energy_value = _jit_in_u_p(energy) if energy is not None else None
-        self.linearise = _jit_in_u_p(self._linearise)
-        self.wjw_gradient = _jit_in_u_p(self._wjw_gradient)
-        self.singular_tests = _jit_in_u_p(self._singular_test_gradients)
-        self.hvp_derivative = _jit_in_u_p(self._hvp_derivative)
-        self.directional_derivatives = _jit_in_u_p(self._directional_derivatives)
+        # The functions of (u, p, args), jitted once per (energy, residual, jacobian, backend) and
+        # shared by every problem built from them: a rod's problems at other starts (a study's
+        # branch ends, each a new ``knot_problem``) trace and load nothing again (measured on the
+        # trefoil at N = 121: 15 s of tracing and cache loads per diagram, for 4 branch ends)
+        fns = _functions(energy, residual, jacobian, self.backend)
+        self.F, self.hvp = fns.F, fns.hvp
+        self._linearise, self._singular_tests = fns._linearise, fns._singular_tests
+        self.energy_value, self.linearise, self.wjw_gradient = fns.energy_value, fns.linearise, fns.wjw_gradient
+        self.singular_tests, self.hvp_derivative = fns.singular_tests, fns.hvp_derivative
+        self.directional_derivatives = fns.directional_derivatives
 
     def energy_at(self, u, p_args):
         """E(u, p, args) with p_args = (p, args): the form ``jaxrod.solvers.minimise`` takes."""
@@ -89,6 +93,28 @@ class BifurcationProblem:
     def jacobian_at(self, u, p_args):
         """The structured ``jacobian`` hook in ``minimise``'s form (a Hessian of energy_at)."""
         return self.jacobian(u, p_args[0], p_args[1])
+
+
+@functools.lru_cache(maxsize=64)
+def _functions(energy, residual, jacobian, backend):
+    return _Functions(energy, residual, jacobian, backend)
+
+
+class _Functions:
+    """F = grad_u E (or the residual), J and the extended systems' derivatives as functions of
+    (u, p, args), with their jitted forms (args traced, so a new mu or a new reference state is no
+    recompile)."""
+
+    def __init__(self, energy, residual, jacobian, backend):
+        self.F = residual if residual is not None else jax.grad(energy, argnums=0)
+        self.jacobian = jacobian
+        self.backend = backend
+        self.energy_value = _jit_in_u_p(energy) if energy is not None else None
+        self.linearise = _jit_in_u_p(self._linearise)
+        self.wjw_gradient = _jit_in_u_p(self._wjw_gradient)
+        self.singular_tests = _jit_in_u_p(self._singular_test_gradients)
+        self.hvp_derivative = _jit_in_u_p(self._hvp_derivative)
+        self.directional_derivatives = _jit_in_u_p(self._directional_derivatives)
 
     def hvp(self, u, p, args, w):
         """J(u, p) w (n,), by a jvp of F: never forms J."""
