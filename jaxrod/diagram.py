@@ -127,18 +127,19 @@ class Diagram:
     seconds: float = 0.0
 
 
-def follow_branch_end(scene, q, phi, sign, options=None, *, p_min=-math.inf, p_max=math.inf):
+def follow_branch_end(scene, q, phi, sign, options=None, *, p_min=-math.inf, p_max=math.inf, capacity=None):
     """Follow a stable branch from the state (q (n,) physical DOFs, phi) towards its end (phi
     growing when sign > 0, falling when sign < 0) by pseudo-arclength continuation, locate the end
     (the first fold or branch point at which the Morse index grows) and follow the unstable branch
-    beyond it for ``options.unstable_points`` points. Returns a ``BranchEnd`` (direction and
-    from_branch left empty)."""
+    beyond it for ``options.unstable_points`` points. capacity: the contact list's padded size
+    (``knot_problem``; default: the neighbourhood's own at (q, phi)). Returns a ``BranchEnd``
+    (direction and from_branch left empty)."""
     from .bifurcation import ContinuationOptions as ArclengthOptions, PseudoArclength, Result, continuation
     from .bifurcation.rods import knot_problem
 
     o = options or DiagramOptions()
     t0 = time.perf_counter()
-    rod = knot_problem(scene, np.asarray(q), float(phi))
+    rod = knot_problem(scene, np.asarray(q), float(phi), capacity=capacity)
     opts = ArclengthOptions(ds=math.copysign(min(0.05, o.ds_max), sign), ds_min=1e-6, ds_max=o.ds_max,
                             max_steps=o.chunk, newton_tol=o.newton_tol, eig_rtol=1e-13, n_eig=o.n_eig,
                             event_tol=o.event_tol, p_min=p_min, p_max=p_max)
@@ -211,7 +212,7 @@ def unstable_branches(scene, study, options=None, *, progress=None):
         say(f"{inst['direction']}: locating the end of {inst['from_branch']} (bracketed at "
             f"{inst['phi'] / math.pi:+.6f} pi) on the extended system, then its unstable branch")
         end = follow_branch_end(scene, q, phi, sign, o, p_min=min(p_min, phi) - 0.5 * math.pi,
-                                p_max=max(p_max, phi) + 0.5 * math.pi)
+                                p_max=max(p_max, phi) + 0.5 * math.pi, capacity=capacity)
         end.direction, end.from_branch = inst["direction"], inst["from_branch"]
         if end.event is None or not end.event.converged:
             say(f"{inst['direction']}: {end.message}")
@@ -235,6 +236,10 @@ def unstable_branches(scene, study, options=None, *, progress=None):
     # one end after another: run in two threads (one per direction), the ends of the trefoil at
     # N = 121 took as long in all (15.3 s against 15.5 s; the dense eigensolvers already keep the
     # two cores busy)
+    # One contact-list size for every end (the largest any end state asks for): a size is an array
+    # shape, and each new one traces and compiles every function again (measured on the trefoil at
+    # N = 61: 15 s for each of its two ends, whose default sizes differed)
+    capacity = max((scene.neighbourhood(q, phi).capacity for q, phi in filter(None, study.end_states)), default=None)
     ends = [one_end(inst, state) for inst, state in zip(instabilities, study.end_states)]
     rows, table = _unstable_rows(scene, study, ends)
     study = replace(study, table=table, critical=copy.deepcopy(study.critical))
@@ -335,7 +340,7 @@ def _unstable_rows(scene, study, ends):
         name = UNSTABLE_PREFIX + end.from_branch
         for u, phi, s, morse, iterations, grad in path:
             q = rod.q(u)
-            nbr = scene.neighbourhood(q, phi)
+            nbr = scene.neighbourhood(q, phi, capacity=rod.problem.args.nbr.capacity)
             sol = Solution(y=np.asarray(scene.to_scaled(q)), value=math.nan, grad_norm=grad, iterations=int(iterations),
                            converged=True, reason="converged", solver="pseudo-arclength", gtol=math.nan)
             e = equilibrium_from_solution(scene, phi, sol, nbr, k=k, negative_tol=negative_tol)
