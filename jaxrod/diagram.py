@@ -169,8 +169,15 @@ def follow_branch_end(scene, q, phi, sign, options=None, *, p_min=-math.inf, p_m
         opts = replace(opts, ds=math.copysign(min(max(abs(last.ds), opts.ds_min), o.ds_max), opts.ds))
     end = _first_end(events)
     if end is not None and not end.converged:
-        message = (f"the end was detected at {end.p / math.pi:+.8f} pi but not located to event_tol "
-                   f"{o.event_tol:.0e} (residual {end.residual:.1e}, eigenvalue {end.critical_eigenvalue:.1e})")
+        if end.residual <= o.event_tol and end.critical_eigenvalue <= o.event_tol:
+            # jaxrod.bifurcation.locate: the fold system converged along a soft (sliding) mode, and
+            # the shape mode whose crossing changed the Morse index was not resolved in the bracket
+            message = (f"the end was detected near {end.p / math.pi:+.8f} pi but not located: the extended system "
+                       "converged to a singular point along a sliding mode, not to the shape instability that "
+                       "changes the Morse index there")
+        else:
+            message = (f"the end was detected near {end.p / math.pi:+.8f} pi but not located to event_tol "
+                       f"{o.event_tol:.0e} (residual {end.residual:.1e}, eigenvalue {end.critical_eigenvalue:.1e})")
     elif end is not None:
         points = points[:end.step + o.unstable_points]
     return BranchEnd("", "", end, points, rod, message, time.perf_counter() - t0)
