@@ -54,15 +54,18 @@ class DiagramOptions:
     """How far and how finely each branch end's path is followed.
 
     unstable_points: points kept on the unstable branch beyond the located end; ds_max: largest
-    pseudo-arclength step (scaled DOFs and phi in rad); newton_tol: the corrector's residual (scaled
-    units); event_tol: a located end must have its residual and critical eigenvalue below this;
+    pseudo-arclength step (scaled DOFs and phi in rad); newton_tol: the corrector's and the
+    locators' residual (scaled units; roundoff is ~1e-14 at N = 121). Tight, because a branch end
+    next to another singular point is ill-conditioned: on the trefoil's tightening side at N = 121
+    (a branch point 4e-6 pi from a fold) the branch-point Newton crawls, and the located phi from
+    two different starts differed by 1.0e-8 pi at 1e-11, by 5.7e-10 pi at 1e-13; event_tol: a located end must have its residual and critical eigenvalue below this;
     max_points: points followed before the end, at most (the path starts at the study's last stable
     state, within the study's tol of the end, so a few suffice); n_eig: eigenpairs kept per point.
     """
 
     unstable_points: int = 8
     ds_max: float = 0.5
-    newton_tol: float = 1e-11
+    newton_tol: float = 1e-13
     event_tol: float = 1e-10
     max_points: int = 60
     n_eig: int = 6
