@@ -43,8 +43,9 @@ def correct(backend, lin, z_pred, t, tol, max_iter):
     res, it = np.inf, 0
     for it in range(max_iter + 1):
         G, A, a = lin(z[:-1], z[-1])
-        r = float(np.dot(z - z_pred, t))
-        res = float(np.sqrt(np.sum(np.asarray(G) ** 2) + r * r))
+        with np.errstate(over="ignore", invalid="ignore"):  # a diverging iterate: inf, a failed step
+            r = float(np.dot(z - z_pred, t))
+            res = float(np.sqrt(np.sum(np.asarray(G) ** 2) + r * r))
         if not np.isfinite(res) or res <= tol or it == max_iter:
             break
         dx, dlam = backend.bordered_solve(A, a, t[:-1], t[-1], -G, -r)
