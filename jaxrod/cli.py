@@ -63,11 +63,14 @@ _TREFOIL_HELP = f"""\
 The twisted trefoil knot of the seed paper: relax a trefoil of rod diameter D and length L at
 zero twist, then follow its stable equilibria as the joint is twisted up to --phi-max and down
 to --phi-min; where a branch ends (buckling), locate the critical twist, switch to the buckled
-branch and go on. Lengths in mm (any unit, if D and L share it), E in MPa (N/mm^2).
+branch and go on. Then the whole diagram: each branch end located exactly on the extended system
+(a fold or a branch point) and the unstable branch beyond it (--stable-only skips this). Lengths in
+mm (any unit, if D and L share it), E in MPa (N/mm^2).
 {_ANGLES}
 
-Writes into --out as it goes: branch.csv (a row per step), steps/*.npz, critical.json (phi_plus,
-phi_minus in radians), summary.json and figures. An interrupted run (Ctrl-C, kill) resumes
+Writes into --out as it goes: branch.csv (a row per step, then the unstable branches' rows),
+steps/*.npz, critical.json (phi_plus, phi_minus in radians; events: each located end), summary.json
+and figures (bifurcation.png, branch_ends.png, ...). An interrupted run (Ctrl-C, kill) resumes
 when the same command is given again, and ends with the same files as an uninterrupted run.
 
 examples:
