@@ -14,7 +14,8 @@ from .geometry import polyline_distance
 from .hessian import scaled_hessian
 from .validation import check_finite
 from .neighbourhood import Neighbourhood
-from .solvers import LBFGS, ConvergenceError, DampedNewton, Newton, Solution, StopReason, minimise
+from . import sparse_contact
+from .solvers import LBFGS, ConvergenceError, DampedNewton, HostDampedNewton, Newton, Solution, StopReason, minimise
 from .stability import CONTACT_NEGATIVE_TOL, DEFAULT_NEGATIVE_TOL, Stability, stability
 
 __all__ = ["Equilibrium", "solve_equilibrium", "relax", "relax_to_minimum", "mode_step", "TopologyChangeError", "LeftBranchError", "scaled_energy", "scaled_zero_modes",
@@ -60,7 +61,7 @@ class LeftBranchError(ConvergenceError):
 
 def relax(scene, phi=0.0, q0=None, gtol=1e-9, max_rounds=200, max_displacement=None, k=8,
           negative_tol=DEFAULT_NEGATIVE_TOL, previous=None, progress=None, with_stability=True, nbr=None,
-          guide=None, max_steps=None):
+          guide=None, max_steps=None, linear_algebra="auto"):
     """Minimise the energy of a scene (with or without self-contact) from q0 (default
     scene.q_init) without letting the rod pass through itself.
 
@@ -78,6 +79,10 @@ def relax(scene, phi=0.0, q0=None, gtol=1e-9, max_rounds=200, max_displacement=N
     a continuation step that is jumping off its branch is stopped early, not relaxed to the end.
     ``max_steps``: damped-Newton iterations allowed between two pauses (default 500); a corrector
     starting near its branch needs a few, so a small budget stops one that crawls.
+    ``linear_algebra``: "dense" (n x n Hessian, Cholesky), "sparse" (with contact: the O(n)
+    factorisations of ``jaxrod.sparse_contact`` in ``HostDampedNewton``) or "auto" (sparse for
+    rods with contact from ``sparse_contact.SPARSE_MIN_DOF`` DOFs on). The stability (if asked
+    for) follows the same choice.
 
     Returns the ``Equilibrium``; its ``neighbourhood`` is valid at the equilibrium.
     """
@@ -89,12 +94,17 @@ def relax(scene, phi=0.0, q0=None, gtol=1e-9, max_rounds=200, max_displacement=N
     else:
         cap = math.inf if max_displacement is None else float(max_displacement)
     say = progress or (lambda s: None)
-    solver = DampedNewton(
-        zero_modes=scaled_zero_modes if scene.n_zero_modes else None,
-        max_step=cap / float(scene.length_scale),
-        leave=neighbourhood_stale if has_contact else None,
-        hessian=structured_hessian,
-    )
+    sparse = has_contact and sparse_contact.use_sparse(scene, linear_algebra)
+    if sparse:
+        solver = HostDampedNewton(direction=sparse_contact.damped_newton_direction,
+                                  max_step=cap / float(scene.length_scale), leave=neighbourhood_stale)
+    else:
+        solver = DampedNewton(
+            zero_modes=scaled_zero_modes if scene.n_zero_modes else None,
+            max_step=cap / float(scene.length_scale),
+            leave=neighbourhood_stale if has_contact else None,
+            hessian=structured_hessian,
+        )
     nbr = _grown(scene, q, phi, nbr)
     wr_start = float(nbr.wr_ref)
     wr_last = wr_start if previous is None else float(previous.Wr)
@@ -127,10 +137,10 @@ def relax(scene, phi=0.0, q0=None, gtol=1e-9, max_rounds=200, max_displacement=N
         if not sol.converged:
             raise ConvergenceError(f"relaxation did not converge: {sol!r}", solution=sol, q=q)
         sol = Solution(y=sol.y, value=sol.value, grad_norm=sol.grad_norm, iterations=total,
-                       converged=True, reason=StopReason.CONVERGED, solver=f"damped_newton({round_ + 1} rounds)",
+                       converged=True, reason=StopReason.CONVERGED, solver=f"{sol.solver}({round_ + 1} rounds)",
                        gtol=sol.gtol)
         return equilibrium_from_solution(scene, phi, sol, nbr, k=k, with_stability=with_stability,
-                                         negative_tol=negative_tol)
+                                         negative_tol=negative_tol, linear_algebra="sparse" if sparse else "dense")
     raise ConvergenceError(f"relaxation needed more than {max_rounds} neighbourhood rebuilds")
 
 
@@ -325,13 +335,15 @@ def _diagnostics(scene, u, phi, nbr):
     return q, x, theta, scene.energy_terms(q, phi, nbr), scene.twist(q, phi, nbr)
 
 
-def equilibrium_from_solution(scene, phi, sol, nbr, k=8, with_stability=True, negative_tol=DEFAULT_NEGATIVE_TOL):
+def equilibrium_from_solution(scene, phi, sol, nbr, k=8, with_stability=True, negative_tol=DEFAULT_NEGATIVE_TOL,
+                              linear_algebra="auto"):
     """Wrap a solver ``Solution`` (scaled DOFs) into an ``Equilibrium`` with its diagnostics;
     ``nbr`` must be the neighbourhood built at sol.y (its writhe is the state's)."""
     q, x, theta, terms, tw = jax.device_get(_diagnostics(scene, jnp.asarray(sol.y), jnp.asarray(phi), nbr))
     terms = {k_: float(v) for k_, v in terms.items()}
     wr, tw = float(nbr.wr_ref), float(tw)
-    stab = stability(scene, q, phi, k=k, tol=negative_tol, nbr=nbr) if with_stability else None
+    stab = stability(scene, q, phi, k=k, tol=negative_tol, nbr=nbr, linear_algebra=linear_algebra) \
+        if with_stability else None
     return Equilibrium(
         q=q, x=np.asarray(x), theta=np.asarray(theta), phi=phi, energy=float(sum(terms.values())),
         energy_terms=terms, solution=sol, stability=stab, Wr=wr, Tw=tw, Lk=wr + tw, neighbourhood=nbr,

@@ -31,7 +31,7 @@ import scipy.sparse as sp
 from .contact import contact_energy
 
 __all__ = ["HessianPattern", "hessian_pattern", "scaled_hessian", "dense_autodiff_hessian",
-           "holonomy_rank_one", "project_out"]
+           "holonomy_rank_one", "project_out", "contact_blocks", "local_entries"]
 
 
 @dataclass(frozen=True)
@@ -164,6 +164,14 @@ def local_products(scene, u, phi, nbr, pat):
     return hv - w * (probes @ a)[:, None] * a[None, :], w, a
 
 
+def local_entries(scene, u, phi, nbr, pat):
+    """(rows, cols, values, w, a): the local part's non-zero entries (rows, cols static numpy
+    (nnz,), values (nnz,)) and the rank-one term w a a^T, for sparse assembly."""
+    hv, w, a = local_products(scene, u, phi, nbr, pat)
+    rows, cols = _pattern_entries(pat)
+    return rows, cols, hv[jnp.asarray(pat.colour[cols]), jnp.asarray(rows)], w, a
+
+
 def _local_block(scene, u, phi, nbr, pat):
     """The local part (n, n) dense, from coloured Hessian-vector products of the elastic energy."""
     hv, w, a = local_products(scene, u, phi, nbr, pat)
@@ -184,13 +192,16 @@ def _pattern_entries(pat):
     return pat._entries
 
 
-def _add_contact_hessian(h, scene, u, nbr, pat):
-    """h (n, n) plus the scaled Hessian blocks (12 x 12: the four nodes of the two segments) of
-    the contact pairs within reach. The energy is exactly zero beyond D (and C2 at D), so only
-    pairs whose segments may be within D carry a block: typically a few in ten of the
-    candidates. They are gathered to the front of the list and processed in chunks of fixed
-    size, as many chunks as needed (a ``while_loop``), so the cost follows the pairs in reach,
-    not the list's capacity."""
+def _contact_chunks(scene, u, nbr, pat):
+    """The contact pairs within reach, as chunks of fixed size: (count, n_chunks, chunk,
+    blocks_of(k), dofs_of(k)), where blocks_of(k) (chunk, 12, 12) are the scaled Hessian blocks
+    of chunk k (the four nodes of the two segments; zero past ``count``) and dofs_of(k)
+    (chunk, 12) their DOF indices (n, out of range, where a node is clamped).
+
+    The energy is exactly zero beyond D (and C2 at D), so only pairs whose segments may be within
+    D carry a block: typically a few in ten of the candidates. They are gathered to the front of
+    the list, so a loop over ``count`` of them costs what the pairs in reach cost, not the list's
+    capacity."""
     m = scene.material
     pairs = nbr.pairs
     n_nodes = scene.n_nodes
@@ -216,25 +227,59 @@ def _add_contact_hessian(h, scene, u, nbr, pat):
     scale = scene.length_scale**2 / scene.energy_scale
     x_dof = jnp.asarray(pat.x_dof)
 
+    def chunk_nodes(k):
+        return nodes[jax.lax.dynamic_slice(order, (k * chunk,), (chunk,))]
+
+    def blocks_of(k):
+        keep = (k * chunk + jnp.arange(chunk)) < count
+        return jax.vmap(block)(x[chunk_nodes(k)].reshape(chunk, 12)) * (scale * keep)[:, None, None]
+
+    def dofs_of(k):
+        dof = x_dof[chunk_nodes(k)].reshape(chunk, 12)
+        # clamped nodes have no DOF (-1): sent out of range (a -1 would wrap to the last DOF)
+        return jnp.where(dof < 0, pat.n, dof)
+
+    return count, n_chunks, chunk, blocks_of, dofs_of
+
+
+def _add_contact_hessian(h, scene, u, nbr, pat):
+    """h (n, n) plus the scaled Hessian blocks of the contact pairs within reach
+    (``_contact_chunks``), chunk by chunk (a ``while_loop``), dropping clamped DOFs."""
+    count, _, chunk, blocks_of, dofs_of = _contact_chunks(scene, u, nbr, pat)
+
     def more(c):
         k, _ = c
         return k * chunk < count
 
     def add_chunk(c):
         k, hh = c
-        idx = jax.lax.dynamic_slice(order, (k * chunk,), (chunk,))
-        keep = (k * chunk + jnp.arange(chunk)) < count
-        nd = nodes[idx]
-        blocks = jax.vmap(block)(x[nd].reshape(chunk, 12)) * (scale * keep)[:, None, None]
-        dof = x_dof[nd].reshape(chunk, 12)
-        # clamped nodes have no DOF (-1): sent out of range and dropped (a -1 would wrap to the
-        # last DOF)
-        dof = jnp.where(dof < 0, hh.shape[0], dof)
+        blocks, dof = blocks_of(k), dofs_of(k)
         rows = jnp.broadcast_to(dof[:, :, None], blocks.shape)
         cols = jnp.broadcast_to(dof[:, None, :], blocks.shape)
         return k + 1, hh.at[rows.ravel(), cols.ravel()].add(blocks.ravel(), mode="drop")
 
     return jax.lax.while_loop(more, add_chunk, (0, h))[1]
+
+
+def contact_blocks(scene, u, nbr, pat):
+    """The contact part as blocks, for sparse assembly: (blocks (P, 12, 12), dofs (P, 12), count),
+    the first ``count`` rows being the pairs within reach (P = the list's capacity rounded up to
+    whole chunks; rows past count are zero). dofs: n where a node is clamped (drop those)."""
+    count, n_chunks, chunk, blocks_of, dofs_of = _contact_chunks(scene, u, nbr, pat)
+    blocks = jnp.zeros((n_chunks * chunk, 12, 12), u.dtype)
+    dofs = jnp.full((n_chunks * chunk, 12), pat.n, jnp.int32)
+
+    def more(c):
+        return c[0] * chunk < count
+
+    def fill(c):
+        k, b, d = c
+        b = jax.lax.dynamic_update_slice(b, blocks_of(k), (k * chunk, 0, 0))
+        d = jax.lax.dynamic_update_slice(d, dofs_of(k).astype(jnp.int32), (k * chunk, 0))
+        return k + 1, b, d
+
+    _, blocks, dofs = jax.lax.while_loop(more, fill, (0, blocks, dofs))
+    return blocks, dofs, count
 
 
 @jax.jit

@@ -18,6 +18,7 @@ raises ``ConvergenceError`` instead of returning something that looks like an an
 from __future__ import annotations
 
 import enum
+import functools
 from dataclasses import dataclass
 from functools import partial
 
@@ -27,7 +28,7 @@ import numpy as np
 import optax
 import optax.tree_utils as otu
 
-__all__ = ["LBFGS", "Newton", "DampedNewton", "Solution", "StopReason", "ConvergenceError", "minimise",
+__all__ = ["LBFGS", "Newton", "DampedNewton", "HostDampedNewton", "Solution", "StopReason", "ConvergenceError", "minimise",
            "orthonormal_columns"]
 
 
@@ -109,6 +110,23 @@ class DampedNewton:
     leave: object = None
     max_backtracks: int = 40
     hessian: object = None
+
+
+@dataclass(frozen=True)
+class HostDampedNewton:
+    """``DampedNewton`` with its linear algebra on the host (e.g. SciPy's sparse factorisations,
+    ``jaxrod.sparse_contact``): ``direction(y, args, g, mu_prev) -> (dy, mu_used)`` gives the
+    shifted Newton step (mu_prev: the shift the last iteration used, 0 for none) and is called
+    from a Python loop; energy, gradient and ``leave`` are jitted. Same step cap, Armijo
+    backtracking, stop codes and shift schedule as ``DampedNewton``. For large sparse systems,
+    where a factorisation costs far more than the loop's dispatch; not inside ``jit``.
+    (Not ``jax.pure_callback`` inside the jitted loop: two such callbacks running at once from
+    ``twist_study``'s two threads can deadlock, see ``stability._lowest_of``.)"""
+
+    direction: object
+    max_step: float = float("inf")
+    leave: object = None
+    max_backtracks: int = 40
 
 
 @dataclass(frozen=True)
@@ -410,8 +428,12 @@ def minimise(fun, y0, args=None, solver=LBFGS(), gtol=1e-9, max_steps=None, thro
             solver.hessian,
         )
         name = "damped_newton"
+    elif isinstance(solver, HostDampedNewton):
+        steps = 500 if max_steps is None else int(max_steps)
+        y, value, gnorm, it, code = _host_damped_newton(fun, solver, y0, args, float(gtol), steps)
+        name = "damped_newton_sparse"
     else:
-        raise TypeError(f"solver must be LBFGS, Newton or DampedNewton, got {type(solver).__name__}")
+        raise TypeError(f"solver must be LBFGS, Newton, DampedNewton or HostDampedNewton, got {type(solver).__name__}")
     sol = Solution(
         y=np.asarray(y),
         value=float(value),
@@ -425,3 +447,52 @@ def minimise(fun, y0, args=None, solver=LBFGS(), gtol=1e-9, max_steps=None, thro
     if throw and not sol.converged:
         raise ConvergenceError(f"{name} did not converge: {sol!r}")
     return sol
+
+
+@functools.lru_cache(maxsize=64)
+def _host_functions(fun, leave):
+    """Jitted energy, gradient and leave test of one (fun, leave) pair, shared by every run."""
+    return jax.jit(fun), jax.jit(jax.grad(fun)), (jax.jit(leave) if leave is not None else None)
+
+
+def _host_damped_newton(fun, solver, y0, args, gtol, max_steps):
+    """The loop of ``_damped_newton_loop`` in Python around ``solver.direction``; returns
+    (y, value, grad_norm, iterations, code) with the same codes."""
+    f, grad, leave = _host_functions(fun, solver.leave)
+    y = np.asarray(y0, dtype=float)
+    fy = float(f(y, args))
+    g = np.asarray(grad(y, args))
+    gnorm = float(np.max(np.abs(g)))
+    code = 0 if (np.isfinite(gnorm) and np.isfinite(fy)) else 2
+    it, mu_prev = 0, 0.0
+    while it < max_steps and gnorm > gtol and code == 0:
+        dy, mu_prev = solver.direction(y, args, g, mu_prev)
+        dy = np.asarray(dy, dtype=float)
+        it += 1
+        if not np.all(np.isfinite(dy)):
+            code = 2  # the linear algebra failed (no shift made the system definite)
+            break
+        big = float(np.max(np.abs(dy)))
+        if big > solver.max_step:
+            dy = dy * (solver.max_step / big)
+        slope = float(g @ dy)
+        alpha, f_new = 1.0, float(f(y + dy, args))
+        k = 0
+        while k < solver.max_backtracks and not (np.isfinite(f_new) and f_new <= fy + 1e-4 * alpha * slope):
+            alpha *= 0.5
+            f_new = float(f(y + alpha * dy, args))
+            k += 1
+        accepted = np.isfinite(f_new) and f_new <= fy + 1e-4 * alpha * slope
+        if accepted:
+            y, fy = y + alpha * dy, f_new
+            g = np.asarray(grad(y, args))
+            gnorm = float(np.max(np.abs(g)))
+        left = bool(leave(y, args)) if leave is not None else False
+        code = (4 if (left and gnorm > gtol) else 0) if accepted else 3
+    if not (np.isfinite(fy) and np.isfinite(gnorm)) or code == 2:
+        code = 2
+    elif gnorm <= gtol:
+        code = 0
+    elif code == 0:
+        code = 1
+    return y, fy, gnorm, it, code

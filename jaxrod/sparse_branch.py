@@ -16,11 +16,11 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
 from . import sparse_stability as ss
+from .sparse_stability import EXTRA_PAIRS, eigenvalue_branch_derivative  # noqa: F401  (re-exported)
 from .equilibrium import _grown, equilibrium_from_solution, scaled_energy
 from .validation import check_finite
 from .solvers import ConvergenceError, Newton, minimise
@@ -83,24 +83,6 @@ def solve_equilibrium_sparse(scene, phi, q0=None, gtol=1e-9, max_steps=50, nbr=N
 # branch analysis
 
 
-@jax.jit
-def eigenvalue_branch_derivative(scene, u, phi, v, du, nbr):
-    """d lambda/d phi = v^T (dH/du[du] + dH/dphi) v along the branch, for the eigenvector v (n,)
-    and the branch tangent du (n,) (scaled DOFs): nested forward-mode jvps of the scaled energy
-    (Hellmann-Feynman plus the branch's own motion; no Hessian or third-order tensor formed)."""
-    f = lambda uu, pp: scene.scaled_energy(uu, pp, nbr)  # noqa: E731
-
-    def vhv(uu, pp):
-        first = lambda w: jax.jvp(lambda y: f(y, pp), (w,), (v,))[1]  # noqa: E731
-        return jax.jvp(first, (uu,), (v,))[1]
-
-    phi = jnp.asarray(phi, u.dtype)
-    return jax.jvp(vhv, (u, phi), (du, jnp.ones_like(phi)))[1]
-
-
-# Eigenpairs computed beyond the tracked index or the negative count where k does not reach them
-# (room for a degenerate pair crossing and the mode above it); continuation.critical_twist too.
-EXTRA_PAIRS = 4
 
 
 def sparse_branch_analysis(scene, q, phi, index, k=8, tol=DEFAULT_NEGATIVE_TOL, cluster_rtol=None, ref=None,
@@ -121,6 +103,16 @@ def sparse_branch_analysis(scene, q, phi, index, k=8, tol=DEFAULT_NEGATIVE_TOL, 
     result beyond the eigensolver's tolerance. cluster_rtol and pinv_tol are accepted for
     signature compatibility and ignored (no near-null sliding modes without contact).
     """
+    if "contact" in scene.terms:
+        from .sparse_contact import contact_branch_analysis
+
+        n_neg, lam, vec, lam_i, dlam, v, dq = contact_branch_analysis(
+            scene, q, phi, index, k=k, tol=tol, cluster_rtol=1e-4 if cluster_rtol is None else cluster_rtol, ref=ref,
+            pinv_tol=pinv_tol, nbr=nbr, guess=guess)
+        kk = min(int(k), lam.shape[0])
+        stab = Stability(eigenvalues=lam[:kk], eigenvectors=vec[:, :kk], n_negative=n_neg,
+                         n_zero_modes=int(scene.n_zero_modes), stable=n_neg == 0, tol=tol)
+        return stab, lam_i, dlam, v, dq
     u = scene.to_scaled(np.asarray(q, dtype=float))
     if nbr is None:
         nbr = scene.neighbourhood(jnp.asarray(q), phi)

@@ -21,6 +21,7 @@ import numpy as np
 from .hessian import project_out, scaled_hessian as structured_scaled_hessian
 from .validation import check_finite, refuse_knot
 from .solvers import orthonormal_columns
+from .tolerances import CONTACT_NEGATIVE_TOL, DEFAULT_NEGATIVE_TOL  # noqa: F401  (re-exported)
 
 __all__ = [
     "Stability",
@@ -37,14 +38,6 @@ __all__ = [
     "SLIDING_FRACTION",
 ]
 
-# An eigenvalue counts as negative below -DEFAULT_NEGATIVE_TOL (dimensionless units). Well below
-# the softest physical mode of the rods studied (>1e-7 for N <= 512 rings), above round-off.
-DEFAULT_NEGATIVE_TOL = 1e-10
-# Near-zero modes of a loose knot (strands sliding along each other) sit at |lambda| ~ 1e-7 in the
-# scaled units and change sign from step to step: with self-contact an eigenvalue counts as
-# negative, and enters the branch tangent, only beyond this. (Here, in the lowest layer that uses
-# it, so that equilibrium and continuation both import it from below.)
-CONTACT_NEGATIVE_TOL = 1e-6
 
 
 @dataclass(frozen=True)
@@ -174,13 +167,23 @@ def spectrum(scene, u, phi, nbr=None):
     return _spectrum(scene, u, phi, nbr)
 
 
-def stability(scene, q, phi, k=8, tol=DEFAULT_NEGATIVE_TOL, nbr=None):
+def stability(scene, q, phi, k=8, tol=DEFAULT_NEGATIVE_TOL, nbr=None, linear_algebra="auto"):
     """Stability of the state q (physical DOFs) at imposed twist phi: a ``Stability`` (the k
-    lowest eigenpairs, zero modes removed, and the count of eigenvalues below -tol)."""
+    lowest eigenpairs, zero modes removed, and the count of eigenvalues below -tol).
+
+    linear_algebra: "dense" (the n x n projected Hessian), "sparse" (rods with contact:
+    ``jaxrod.sparse_contact``, O(n), the count exact by Sylvester's law) or "auto" (sparse for
+    rods with contact from ``sparse_contact.SPARSE_MIN_DOF`` DOFs on)."""
+    from . import sparse_contact
+
     phi = check_finite("phi", phi)
     u = scene.to_scaled(np.asarray(q, dtype=float))
     if nbr is None:
         nbr = scene.neighbourhood(q, phi)
+    if "contact" in scene.terms and sparse_contact.use_sparse(scene, linear_algebra):
+        n_neg, lam, vec = sparse_contact.contact_spectrum(scene, q, phi, k=k, tol=tol, nbr=nbr)
+        return Stability(eigenvalues=lam[:k], eigenvectors=vec[:, :k], n_negative=n_neg,
+                         n_zero_modes=int(scene.n_zero_modes), stable=n_neg == 0, tol=tol)
     lam, vec, n_zero, n_neg = _lowest_spectrum(scene, u, phi, nbr, tol)
     return _stability_from_lowest(np.asarray(lam), np.asarray(vec), int(n_zero), int(n_neg), k, tol)
 

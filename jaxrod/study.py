@@ -36,6 +36,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .sparse_contact import use_sparse
 from .continuation import (CONTACT_NEGATIVE_TOL, ContinuationOptions, Observer, PathState, check_dense_memory,
                            follow_twist)
 from .continuation.options import checked_options, observed
@@ -196,7 +197,8 @@ def twist_study(scene, phi_min, phi_max, options=None, *, out=None, resume=True,
     k, max_switches = options.k, options.max_switches
     observer = observed(observer, "twist_study", ("progress", "on_point"))
     on_point = observer.on_point
-    check_dense_memory(scene)  # the dense Hessian must fit: refused before anything is compiled
+    if not ("contact" in scene.terms and use_sparse(scene, options.linear_algebra or "auto")):
+        check_dense_memory(scene)  # the dense Hessian must fit: refused before anything is compiled
     say = observer.say
     params = _study_parameters(scene, phi_min, phi_max, step, tol, k, max_switches)
     csv_path = crit_path = None

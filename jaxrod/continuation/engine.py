@@ -14,7 +14,10 @@ import jax.numpy as jnp
 from ..equilibrium import Equilibrium, LeftBranchError, TopologyChangeError, mode_step, relax, solve_equilibrium
 from ..geometry import polyline_distance
 from ..solvers import ConvergenceError
+from ..solvers import HostDampedNewton, minimise
 from ..sparse_branch import EXTRA_PAIRS, solve_equilibrium_sparse, sparse_branch_analysis
+from ..sparse_contact import SPARSE_MIN_DOF, deflated_newton_direction, use_sparse
+from ..equilibrium import equilibrium_from_solution, scaled_energy
 from ..stability import branch_analysis
 from .options import ContinuationOptions, Task
 
@@ -121,12 +124,33 @@ class _Engine:
             return self._newton_step(prev, q_pred, phi, index, ref, guess)
         return self._minimiser_step(prev, q_pred, phi)
 
+    @property
+    def linear_algebra(self):
+        return "sparse" if self.sparse else "dense"
+
     def _newton(self, phi, q_start, nbr):
+        if self.sparse and self.contact:
+            return self._deflated_newton(phi, q_start, nbr)
         if self.sparse:
             return solve_equilibrium_sparse(self.scene, phi, q_start, gtol=self.opts.gtol, nbr=nbr)
         return solve_equilibrium(self.scene, phi, q_start, method="newton", with_stability=False,
                                  near_null_tol=self.opts.negative_tol if self.contact else 0.0,
                                  gtol=self.opts.gtol, nbr=nbr)
+
+    def _deflated_newton(self, phi, q_start, nbr):
+        """Newton at O(n) with the near-null sliding modes deflated (the sparse counterpart of
+        ``solve_equilibrium(method="newton", near_null_tol=negative_tol)``), within nbr (its
+        contact list must hold at the result: checked, else ConvergenceError)."""
+        scene = self.scene
+        solver = HostDampedNewton(direction=_DeflatedDirection(self.opts.negative_tol), max_backtracks=40)
+        args = (scene, jnp.asarray(phi), nbr)
+        sol = minimise(scaled_energy, scene.to_scaled(np.asarray(q_start, dtype=float)), args, solver,
+                       self.opts.gtol, 50, throw=False)
+        q = scene.from_scaled(np.asarray(sol.y))
+        upd = nbr.update(scene, q, phi)
+        if not sol.converged or upd.drifted or bool(nbr.stale(scene.positions(jnp.asarray(q)))):
+            raise ConvergenceError(f"deflated Newton did not converge: {sol!r}")
+        return equilibrium_from_solution(scene, phi, sol, upd.nbr, with_stability=False)
 
     def _newton_step(self, prev, q_pred, phi, index, ref, guess):
         try:
@@ -143,7 +167,8 @@ class _Engine:
         x_pred = np.asarray(self.scene.positions(jnp.asarray(q_pred)))
         try:
             e = relax(self.scene, phi, q_pred, gtol=opts.gtol, previous=prev, with_stability=False,
-                      nbr=prev.neighbourhood, guide=(x_pred, opts.jump_tol), max_steps=opts.corrector_max_steps)
+                      nbr=prev.neighbourhood, guide=(x_pred, opts.jump_tol), max_steps=opts.corrector_max_steps,
+                      linear_algebra=self.linear_algebra)
         except LeftBranchError as exc:
             return _Step(None, refusal=_Refusal(StepFailure.JUMP, str(exc)))
         except TopologyChangeError as exc:
@@ -198,7 +223,7 @@ class _Engine:
                 # stopped at its first pause instead of being relaxed to the end.
                 e2 = relax(self.scene, e.phi, e.q + sgn * step, gtol=self.opts.gtol, previous=prev,
                            with_stability=False, nbr=e.neighbourhood, guide=(x_pred, jump_tol),
-                           max_steps=self.opts.corrector_max_steps)
+                           max_steps=self.opts.corrector_max_steps, linear_algebra=self.linear_algebra)
             except (ConvergenceError, TopologyChangeError):
                 continue
             if polyline_distance(e2.x, x_pred, self.closed) > jump_tol:
@@ -211,18 +236,25 @@ class _Engine:
 
 # "auto" takes the O(n) block path from this many DOFs on (N ~ 250 nodes): below it the dense
 # path is fast enough, and compiled already for most small scenes.
-_SPARSE_MIN_DOF = 1000
+_SPARSE_MIN_DOF = SPARSE_MIN_DOF
 
 
 def _use_sparse(scene, linear_algebra):
-    """Whether ``critical_twist`` uses the block path (see its ``linear_algebra``)."""
-    if linear_algebra not in ("auto", "dense", "sparse"):
-        raise ValueError(f"linear_algebra must be 'auto', 'dense' or 'sparse', got {linear_algebra!r}")
-    if linear_algebra == "sparse" and "contact" in scene.terms:
-        raise ValueError("linear_algebra='sparse' does not handle self-contact: use 'dense'")
-    if linear_algebra == "auto":
-        return "contact" not in scene.terms and scene.n_dof >= _SPARSE_MIN_DOF
-    return linear_algebra == "sparse"
+    """Whether a continuation uses the O(n) path (see ``ContinuationOptions.linear_algebra``):
+    block-tridiagonal for rods without contact (``jaxrod.sparse_branch``), SciPy's sparse
+    factorisations with contact (``jaxrod.sparse_contact``)."""
+    return use_sparse(scene, linear_algebra)
+
+
+@dataclass(frozen=True)
+class _DeflatedDirection:
+    """``sparse_contact.deflated_newton_direction`` with its near-null tolerance bound (a frozen
+    dataclass: equal for equal tolerances, so jitted pieces keyed on it are shared)."""
+
+    near_null_tol: float
+
+    def __call__(self, y, args, g, mu_prev):
+        return deflated_newton_direction(y, args, g, mu_prev, self.near_null_tol)
 
 
 K_MARGIN = EXTRA_PAIRS  # eigenpairs beyond the tracked index or the negative count (sparse path)

@@ -10,7 +10,7 @@ from dataclasses import dataclass, replace
 
 from ..equilibrium import Equilibrium, relax
 from ..validation import check_finite
-from .engine import StepFailure, _Engine, _Refusal
+from .engine import StepFailure, _Engine, _Refusal, _use_sparse
 from .ends import (_band_detail, _critical_mode, _end_trial, _hidden_refusal, _hidden_shape_modes, _locate,
                    _negative_modes, _past_zero, _warn_if_band_hides_shape_modes)
 from .memory import check_dense_memory
@@ -18,6 +18,17 @@ from .options import Task, checked_options, observed
 from .results import BranchEnd, BranchPoint, PathStop, TwistPath
 from .state import PathState, Phase, _StoredPathState
 from .switching import _next_branch_name, _switch_branch
+
+
+def _follow_engine(scene, opts):
+    """follow_twist's engine: the O(n) linear algebra of ``jaxrod.sparse_contact`` for rods with
+    contact where ``opts.linear_algebra`` asks for it (or "auto" from SPARSE_MIN_DOF DOFs on);
+    dense otherwise (rods without contact: the corrector is the dense minimiser)."""
+    return _Engine(scene, Task.FOLLOW_TWIST, opts, _sparse_follow(scene, opts.linear_algebra))
+
+
+def _sparse_follow(scene, linear_algebra):
+    return "contact" in scene.terms and _use_sparse(scene, linear_algebra)
 
 
 def follow_twist(scene, phi_start=0.0, phi_stop=None, options=None, *, start=None, observer=None, resume=None):
@@ -53,14 +64,16 @@ def follow_twist(scene, phi_start=0.0, phi_stop=None, options=None, *, start=Non
 
     The run is deterministic, so a resumed run reports exactly the points and instabilities
     that the uninterrupted one reports after that state. Returns a ``TwistPath`` (with the
-    points and instabilities of this call). A scene whose dense n x n Hessian does not fit in
-    memory is refused at once (``check_dense_memory``: ValueError naming N).
+    points and instabilities of this call). On the dense path, a scene whose n x n Hessian does
+    not fit in memory is refused at once (``check_dense_memory``: ValueError naming N); knots
+    from ``sparse_contact.SPARSE_MIN_DOF`` DOFs on take the O(n) path (``linear_algebra``).
     """
     t0 = time.perf_counter()
     phi_stop = check_finite("phi_stop", 8.0 * math.pi if phi_stop is None else phi_stop)
-    check_dense_memory(scene)  # follow_twist is dense: refuse before anything is compiled
     observer = observed(observer, "follow_twist", ("progress", "on_point", "on_instability", "on_state"))
     opts = checked_options(options)
+    if not _sparse_follow(scene, opts.linear_algebra or "auto"):
+        check_dense_memory(scene)  # the dense path: refuse before anything is compiled
     on_point, on_instability, on_state = observer.on_point, observer.on_instability, observer.on_state
     points, instabilities = [], []
     say = observer.say
@@ -89,7 +102,7 @@ def follow_twist(scene, phi_start=0.0, phi_stop=None, options=None, *, start=Non
         # the resumed run must share with the first one (pass the same phi_stop).
         stored_phi = float(resume.arrays["prev_phi"]) if isinstance(resume, _StoredPathState) else resume.prev.phi
         opts = opts.resolved(scene, Task.FOLLOW_TWIST, abs(phi_stop - stored_phi) or 1.0)
-        engine = _Engine(scene, Task.FOLLOW_TWIST, opts)
+        engine = _follow_engine(scene, opts)
         state = resume.restore(engine) if isinstance(resume, _StoredPathState) else resume
         direction = 1.0 if state.branch.endswith("+") else -1.0
     else:
@@ -99,9 +112,10 @@ def follow_twist(scene, phi_start=0.0, phi_stop=None, options=None, *, start=Non
             raise ValueError("phi_stop must differ from phi_start")
         direction = 1.0 if phi_stop > phi_start else -1.0
         opts = opts.resolved(scene, Task.FOLLOW_TWIST, abs(phi_stop - phi_start))
-        engine = _Engine(scene, Task.FOLLOW_TWIST, opts)
+        engine = _follow_engine(scene, opts)
         if not given:
-            e0 = relax(scene, phi_start, start, gtol=opts.gtol, with_stability=False)
+            e0 = relax(scene, phi_start, start, gtol=opts.gtol, with_stability=False,
+                       linear_algebra=engine.linear_algebra)
         else:
             e0 = start
             if e0.neighbourhood is None:

@@ -50,10 +50,12 @@ class ContinuationOptions:
 
     critical_twist:
     max_refine: Newton steps on the crossing eigenvalue (default MAX_REFINE = 30).
-    linear_algebra: "dense" (n x n Hessian, ``eigh``: O(n^3) per step), "sparse" (block-tridiagonal
-      Newton, inertia, eigenpairs and tangent of ``jaxrod.sparse_branch``: O(n) per step; not with
-      contact) or "auto" (the default: sparse for scenes without contact with n_dof >= 1000, else
-      dense). follow_twist is dense only (it refuses "sparse").
+    linear_algebra: "dense" (n x n Hessian, ``eigh``: O(n^3) per step), "sparse" (O(n) per step:
+      without contact the block-tridiagonal Newton, inertia, eigenpairs and tangent of
+      ``jaxrod.sparse_branch``; with contact SciPy's sparse LDL^T, ARPACK shift-invert and the
+      host damped Newton of ``jaxrod.sparse_contact``) or "auto" (the default: sparse from
+      n_dof >= 1000 on, else dense). follow_twist on rods without contact is dense only (it
+      refuses "sparse").
 
     follow_twist:
     jump_tol: a corrector further than this from the predicted shape has left the branch.
@@ -117,9 +119,9 @@ class ContinuationOptions:
                                   else check_positive("perturbation", values["perturbation"]))
         if values["linear_algebra"] not in LINEAR_ALGEBRA:
             raise ValueError(f"linear_algebra must be 'auto', 'dense' or 'sparse', got {values['linear_algebra']!r}")
-        if not critical and values["linear_algebra"] == "sparse":
-            raise ValueError("linear_algebra='sparse': follow_twist is dense only (its corrector is the damped-Newton "
-                             "minimiser of relax): use 'auto' or 'dense'")
+        if not critical and values["linear_algebra"] == "sparse" and not contact:
+            raise ValueError("linear_algebra='sparse': follow_twist on a rod without contact is dense only (its "
+                             "corrector is the dense damped-Newton minimiser of relax): use 'auto' or 'dense'")
         if values["switch"] not in (True, False):
             raise ValueError(f"switch must be True or False, got {values['switch']!r}")
         values["switch"] = bool(values["switch"])

@@ -38,7 +38,7 @@ def _switch_branch(engine, prev, dq, phi, mode, lost_eq, say):
     for label, q_start in starts:
         try:
             e = relax(scene, phi, q_start, gtol=engine.opts.gtol, previous=prev, with_stability=False,
-                      nbr=prev.neighbourhood)
+                      nbr=prev.neighbourhood, linear_algebra=engine.linear_algebra)
         except (ConvergenceError, TopologyChangeError) as exc:
             say(f"  switch from {label}: {type(exc).__name__}: {exc}")
             continue

@@ -1,0 +1,437 @@
+"""O(N) linear algebra for rods WITH self-contact (issue 18): SciPy's sparse LU in symmetric mode.
+
+The scaled Hessian of a knot is H = S + w a a^T: S sparse (the local part, ~20 entries per row,
+plus one 12 x 12 block per contact pair in reach, ``jaxrod.hessian``) and the holonomy's dense
+rank-one term, kept as the vector a. Nothing of size n x n is formed:
+
+* **Factorisation with inertia.** ``scipy.sparse.linalg.splu`` (SuperLU) with a symmetric
+  fill-reducing ordering (minimum degree on A + A^T), ``SymmetricMode`` and a diagonal pivot
+  threshold of 0 factorises P A P^T = L U with the diagonal pivots only: U = D L^T, so the signs of
+  diag(U) give the inertia of A (Sylvester's law). Checked on every factorisation: a run that
+  pivoted off the diagonal (perm_r != perm_c) is refused, never counted. Why SciPy: it is already
+  installed (jaxopt needs it), its ordering keeps the fill at ~20 n for a knot, and it factorises a
+  trefoil at N = 481 in a few ms; CHOLMOD (scikit-sparse) needs a compiled SuiteSparse that pip
+  cannot always provide, and a Cholesky alone gives definiteness, not the count.
+* **The dense columns as a border.** The 7 pinned DOFs (``sparse_stability.gauge_pins``: the
+  gauge of the rigid motions and of the material twist), the rank-one vector a and, where needed,
+  the zero modes Z and deflated eigenvectors are columns of a bordered matrix
+  [[A, E], [E^T, D]] solved by the Schur complement (one factorisation of the sparse block A,
+  r solves with E). Haynsworth: In(bordered) = In(A) + In(D - E^T A^-1 E).
+* **Counts below a shift.** With the border [pins, a, Z] the bordered matrix of H - s I has the
+  inertia of H - s I projected on Z-perp plus (7, 7) from the Z border and one negative from the
+  rank-one border (-1/w): so the number of eigenvalues of the projected Hessian below s is exact,
+  for any s, at O(N).
+* **Lowest eigenpairs.** ARPACK (``scipy.sparse.linalg.eigsh``) in shift-invert mode, the
+  inverse applied by the same bordered solve (constrained to Z-perp), at a shift proven below the
+  spectrum by the count; eigenvalues are then the Rayleigh quotients of the returned vectors.
+* **Newton steps and the branch tangent** are pinned solves (the pinned Hessian at an equilibrium
+  has the inertia of the projected one; a pinned solution differs from the minimum-norm one by a
+  zero mode, removed afterwards), the near-null sliding modes of a loose knot deflated as
+  border columns.
+
+Entry points: ``sparse_hessian`` (the parts, host CSC), ``count_below``, ``lowest_eigenpairs``,
+``contact_spectrum``, ``contact_branch_analysis`` (wrapped by ``stability.stability`` and
+``sparse_branch.sparse_branch_analysis``)
+and ``damped_newton_direction`` (the direction of ``solvers.HostDampedNewton``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spl
+
+from .hessian import _pattern_entries, contact_blocks, hessian_pattern, local_entries
+from .sparse_stability import EXTRA_PAIRS, _gauge, eigenvalue_branch_derivative, gradient_and_phi_derivative
+
+__all__ = ["SPARSE_MIN_DOF", "use_sparse", "deflated_newton_direction", "SparseHessian", "sparse_hessian", "count_below", "lowest_eigenpairs", "contact_spectrum",
+           "contact_branch_analysis", "damped_newton_direction", "FactorisationError"]
+
+
+# "auto" takes the O(n) path from this many DOFs on (N ~ 250 nodes); below it the dense path is
+# fast enough, and compiled already for most small scenes.
+SPARSE_MIN_DOF = 1000
+LINEAR_ALGEBRA = ("auto", "dense", "sparse")
+
+
+def use_sparse(scene, linear_algebra="auto"):
+    """Whether the O(n) linear algebra is used for ``scene``: "sparse", "dense", or "auto" (sparse
+    from SPARSE_MIN_DOF DOFs on). Raises ValueError naming the parameter otherwise."""
+    if linear_algebra not in LINEAR_ALGEBRA:
+        raise ValueError(f"linear_algebra must be 'auto', 'dense' or 'sparse', got {linear_algebra!r}")
+    if linear_algebra == "auto":
+        return int(scene.n_dof) >= SPARSE_MIN_DOF
+    return linear_algebra == "sparse"
+
+
+class FactorisationError(np.linalg.LinAlgError):
+    """The symmetric-mode factorisation pivoted off the diagonal or met a zero pivot: no inertia."""
+
+
+@jax.jit
+def _parts(scene, u, phi, nbr):
+    pat = hessian_pattern(scene)
+    _, _, values, w, a = local_entries(scene, u, phi, nbr, pat)
+    if "contact" in scene.terms and nbr.pairs.shape[0] > 0:
+        blocks, dofs, count = contact_blocks(scene, u, nbr, pat)
+    else:
+        blocks, dofs, count = jnp.zeros((0, 12, 12), u.dtype), jnp.zeros((0, 12), jnp.int32), jnp.asarray(0)
+    return values, w, a, blocks, dofs, count
+
+
+@jax.jit
+def _zero_basis(scene, u, phi):
+    """(Z (n, z) orthonormal zero modes, pins (7,) the gauge DOFs)."""
+    Q, pins, _ = _gauge(scene, u, phi)
+    return Q, pins
+
+
+@dataclass(frozen=True, eq=False)
+class SparseHessian:
+    """H = S + w a a^T. S: (n, n) scipy CSC (local part + contact blocks, symmetric); w: float;
+    a: (n,); Z: (n, z) orthonormal zero modes; pins: (z,) gauge DOFs (q indices)."""
+
+    S: sp.csc_matrix
+    w: float
+    a: np.ndarray
+    Z: np.ndarray
+    pins: np.ndarray
+
+    @property
+    def n(self):
+        return self.S.shape[0]
+
+    def matvec(self, x):
+        return self.S @ x + self.w * self.a * (self.a @ x)
+
+    def diagonal(self):
+        return self.S.diagonal() + self.w * self.a**2
+
+
+def sparse_hessian(scene, u, phi, nbr):
+    """The scaled Hessian of ``scene.scaled_energy`` at (u (n,), phi) as a ``SparseHessian``:
+    the local part's ~20 n entries and the contact blocks from one jitted call (O(N)), assembled
+    into CSC on the host (duplicates summed)."""
+    values, w, a, blocks, dofs, count = jax.device_get(_parts(scene, jnp.asarray(u), phi, nbr))
+    Z, pins = jax.device_get(_zero_basis(scene, jnp.asarray(u), phi))
+    pat = hessian_pattern(scene)
+    n = pat.n
+    rows, cols = _pattern_entries(pat)
+    count = int(count)
+    b, d = blocks[:count], dofs[:count]
+    r = np.broadcast_to(d[:, :, None], b.shape).ravel()
+    c = np.broadcast_to(d[:, None, :], b.shape).ravel()
+    keep = (r < n) & (c < n)
+    S = sp.csc_matrix((np.concatenate([values, b.ravel()[keep]]),
+                       (np.concatenate([rows, r[keep]]), np.concatenate([cols, c[keep]]))), shape=(n, n))
+    S = (0.5 * (S + S.T)).tocsc()
+    return SparseHessian(S=S, w=float(w), a=np.asarray(a, float), Z=np.asarray(Z, float),
+                         pins=np.asarray(pins, dtype=np.int64))
+
+
+class _Bordered:
+    """[[A, E], [E^T, D]] with A = (S + shift I) on the free (unpinned) DOFs, factorised once;
+    E (n_free, r) and D (r, r) dense. ``negative``: its count of negative eigenvalues."""
+
+    def __init__(self, hs, shift, E_cols, D):
+        free = np.ones(hs.n, bool)
+        free[hs.pins] = False
+        self.free = np.flatnonzero(free)
+        A = hs.S[self.free][:, self.free]
+        if shift != 0.0:
+            A = A + shift * sp.identity(A.shape[0], format="csc")
+        try:
+            lu = spl.splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                          options=dict(SymmetricMode=True, Equil=False))
+        except RuntimeError as exc:  # "Factor is exactly singular"
+            raise FactorisationError(str(exc)) from None
+        if not np.array_equal(lu.perm_r, lu.perm_c):
+            raise FactorisationError("the factorisation pivoted off the diagonal")
+        pivots = lu.U.diagonal()
+        if not np.all(np.isfinite(pivots)) or np.any(pivots == 0.0):
+            raise FactorisationError("zero or non-finite pivot")
+        self.lu = lu
+        self.E = np.asarray(E_cols, float).reshape(self.free.size, -1)
+        AE = lu.solve(self.E) if self.E.shape[1] else self.E
+        self.AE = AE
+        self.schur = np.asarray(D, float).reshape(self.E.shape[1], self.E.shape[1]) - self.E.T @ AE
+        self.schur = 0.5 * (self.schur + self.schur.T)
+        neg_border = int(np.sum(np.linalg.eigvalsh(self.schur) < 0.0)) if self.E.shape[1] else 0
+        self.negative = int(np.sum(pivots < 0.0)) + neg_border
+
+    def solve(self, b_free, b_border=None):
+        """(x_free, x_border) of [[A, E], [E^T, D]] [x; y] = [b_free; b_border]."""
+        y0 = self.lu.solve(np.asarray(b_free, float))
+        r = self.E.shape[1]
+        if r == 0:
+            return y0, np.zeros(0)
+        rhs = (np.zeros(r) if b_border is None else np.asarray(b_border, float)) - self.E.T @ y0
+        y = np.linalg.solve(self.schur, rhs)
+        return y0 - self.AE @ y, y
+
+
+def _projected_border(hs, shift):
+    """The bordered matrix of H + shift I with the border [pins, a, Z] (see module docstring):
+    (factorisation, count offset) so that count of projected eigenvalues below -shift =
+    factorisation.negative - offset."""
+    p = hs.pins
+    free = np.ones(hs.n, bool)
+    free[p] = False
+    f = np.flatnonzero(free)
+    S_fp = hs.S[f][:, p].toarray()
+    S_pp = hs.S[p][:, p].toarray() + shift * np.eye(p.size)
+    z = hs.Z.shape[1]
+    cols = [S_fp]
+    top = [S_pp]
+    offset = z  # the Z border adds z negatives (and z positives)
+    rank_one = hs.w != 0.0
+    if rank_one:
+        cols.append(hs.a[f, None])
+        top.append(hs.a[p, None])
+        offset += 1 if hs.w > 0.0 else 0
+    cols.append(hs.Z[f])
+    top.append(hs.Z[p])
+    E = np.concatenate(cols, axis=1)
+    r = E.shape[1]
+    D = np.zeros((r, r))
+    D[: p.size] = np.concatenate(top, axis=1)
+    D[:, : p.size] = D[: p.size].T
+    k = p.size
+    if rank_one:
+        D[k, k] = -1.0 / hs.w
+        D[k, k + 1:] = 0.0
+        D[k + 1:, k] = 0.0
+        k += 1
+    D[k:, k:] = 0.0
+    return _Bordered(hs, shift, E, D), offset, f
+
+
+def count_below(hs, s):
+    """Number of eigenvalues of the projected Hessian (zero modes removed) below s: exact
+    (Sylvester), one factorisation."""
+    fac, offset, _ = _projected_border(hs, -float(s))
+    return fac.negative - offset
+
+
+def _projected_solve(fac, f, hs, b):
+    """x (n,) on Z-perp with P (H + shift I) P x = P b, from the bordered factorisation."""
+    bp = b - hs.Z @ (hs.Z.T @ b)
+    x_f, y = fac.solve(bp[f], np.concatenate([bp[hs.pins], np.zeros(fac.E.shape[1] - hs.pins.size)]))
+    x = np.zeros(hs.n)
+    x[f] = x_f
+    x[hs.pins] = y[: hs.pins.size]
+    return x - hs.Z @ (hs.Z.T @ x)
+
+
+def _fix_signs(vec):
+    big = np.take_along_axis(vec, np.argmax(np.abs(vec), axis=0)[None, :], axis=0)
+    return vec * np.where(big < 0.0, -1.0, 1.0)
+
+
+def _start_vector(hs):
+    # Deterministic (a resumed run must reproduce the uninterrupted one bit for bit).
+    v = np.cos(0.7 * np.arange(hs.n) + 0.3) + 0.5
+    return v - hs.Z @ (hs.Z.T @ v)
+
+
+def lowest_eigenpairs(hs, m, guess=None, tol=1e-6):
+    """(values (m,) ascending, vectors (n, m) on Z-perp, shift): the m lowest eigenpairs of the
+    projected Hessian. The shift s is pushed down until ``count_below(s) == 0`` (so the pairs
+    nearest it are the lowest); ARPACK's shift-invert mode then converges in a few dozen solves.
+    guess: an estimate of the lowest eigenvalue (the previous step's), to start the shift there."""
+    m = int(min(m, hs.n - hs.Z.shape[1] - 1))
+    scale = float(np.max(np.abs(hs.diagonal()))) + 1.0
+    start = -tol if guess is None or not np.isfinite(guess) else min(float(guess), 0.0) - tol
+    s, fac = start, None
+    for _ in range(60):
+        fac, offset, f = _projected_border(hs, -s)
+        if fac.negative - offset == 0:
+            break
+        s = s - 4.0 * max(abs(s), tol) if s - 4.0 * max(abs(s), tol) > -4.0 * scale else -4.0 * scale
+    else:
+        raise FactorisationError("no shift below the spectrum found")
+    # (H - s I)^-1 on Z-perp: positive definite there, since s is below every eigenvalue.
+    n = hs.n
+    op = spl.LinearOperator((n, n), matvec=lambda b: _projected_solve(fac, f, hs, np.ravel(b)), dtype=float)
+    a_op = spl.LinearOperator((n, n), matvec=lambda x: hs.matvec(np.ravel(x)), dtype=float)
+    ncv = min(n - 1, max(2 * m + 1, 20))
+    nu, vec = spl.eigsh(a_op, k=m, sigma=s, which="LM", OPinv=op, v0=_start_vector(hs), ncv=ncv, tol=1e-13)
+    vec = vec - hs.Z @ (hs.Z.T @ vec)
+    vec, _ = np.linalg.qr(vec)
+    hv = np.column_stack([hs.matvec(vec[:, j]) for j in range(vec.shape[1])])
+    lam_small, rot = np.linalg.eigh(0.5 * (vec.T @ hv + hv.T @ vec))  # Rayleigh-Ritz on the subspace
+    vec = _fix_signs(vec @ rot)
+    return lam_small, vec, s
+
+
+def contact_spectrum(scene, q, phi, k=8, tol=1e-6, nbr=None, guess=None):
+    """What ``jaxrod.stability.stability`` reports, at O(N): (n_negative, eigenvalues (m,),
+    eigenvectors (n, m)): the exact count of the projected Hessian's eigenvalues below -tol and its
+    m >= k lowest eigenpairs (more where the count needs them)."""
+    u = scene.to_scaled(np.asarray(q, dtype=float))
+    if nbr is None:
+        nbr = scene.neighbourhood(jnp.asarray(q), phi)
+    hs = sparse_hessian(scene, u, phi, nbr)
+    n_neg = count_below(hs, -tol)
+    lam, vec, _ = lowest_eigenpairs(hs, max(int(k), n_neg + EXTRA_PAIRS), guess=guess, tol=tol)
+    return n_neg, lam, vec
+
+
+def _deflated_tangent(hs, b, skip_vecs):
+    """x = -H_def^+ b on Z-perp with the flagged eigenvectors (n, r) left out: the constrained
+    solve [[H, Z, V], [Z^T, 0, 0], [V^T, 0, 0]] (exact: V are eigenvectors of the projected
+    Hessian, so the complement is invariant)."""
+    p = hs.pins
+    free = np.ones(hs.n, bool)
+    free[p] = False
+    f = np.flatnonzero(free)
+    C = np.concatenate([hs.Z, skip_vecs], axis=1)
+    S_fp = hs.S[f][:, p].toarray()
+    cols = [S_fp]
+    top = [hs.S[p][:, p].toarray()]
+    rank_one = hs.w != 0.0
+    if rank_one:
+        cols.append(hs.a[f, None])
+        top.append(hs.a[p, None])
+    cols.append(C[f])
+    top.append(C[p])
+    E = np.concatenate(cols, axis=1)
+    r = E.shape[1]
+    D = np.zeros((r, r))
+    D[: p.size] = np.concatenate(top, axis=1)
+    D[:, : p.size] = D[: p.size].T
+    kk = p.size
+    if rank_one:
+        D[kk, kk] = -1.0 / hs.w
+        D[kk, kk + 1:] = 0.0
+        D[kk + 1:, kk] = 0.0
+        kk += 1
+    D[kk:, kk:] = 0.0
+    fac = _Bordered(hs, 0.0, E, D)
+    bp = b - C @ np.linalg.lstsq(C, b, rcond=None)[0]
+    x_f, y = fac.solve(bp[f], np.concatenate([bp[p], np.zeros(r - p.size)]))
+    x = np.zeros(hs.n)
+    x[f] = x_f
+    x[p] = y[: p.size]
+    return -(x - C @ np.linalg.lstsq(C, x, rcond=None)[0])
+
+
+def contact_branch_analysis(scene, q, phi, index, k=8, tol=1e-6, cluster_rtol=1e-4, ref=None, pinv_tol=0.0, nbr=None,
+                            guess=None):
+    """What ``jaxrod.stability.branch_analysis`` computes, for rods with contact at O(N):
+    (n_negative, eigenvalues (m,), eigenvectors (n, m), lam, dlam_dphi, v (n,) scaled DOFs,
+    dq_dphi (n,) physical DOFs), m >= k. The tracked mode is number ``index`` of the lowest
+    pairs, or with ``ref`` the one overlapping it most; the tangent leaves out the tracked mode's
+    cluster and the near-null modes |lambda| <= pinv_tol, as the dense analysis does.
+    (``sparse_branch.sparse_branch_analysis`` wraps it into the dense analysis' tuple.)"""
+    u = scene.to_scaled(np.asarray(q, dtype=float))
+    if nbr is None:
+        nbr = scene.neighbourhood(jnp.asarray(q), phi)
+    index = int(index)
+    if index < 0:
+        raise ValueError(f"index must be >= 0, got {index}")
+    hs = sparse_hessian(scene, u, phi, nbr)
+    n_neg = count_below(hs, -tol)
+    m = max(int(k), index + EXTRA_PAIRS, n_neg + EXTRA_PAIRS)
+    lam, vec, _ = lowest_eigenpairs(hs, m, guess=guess, tol=tol)
+    if ref is not None and np.any(np.asarray(ref) != 0.0):
+        index = int(np.argmax(np.abs(vec.T @ np.asarray(ref))))
+    if not index < lam.shape[0]:
+        raise ValueError(f"index {index}: only {lam.shape[0]} eigenpairs computed")
+    lam_i = lam[index]
+    skip = (np.abs(lam - lam_i) <= cluster_rtol * max(abs(lam_i), 1e-12) + 1e-14) | (np.abs(lam) <= pinv_tol)
+    _, dg = gradient_and_phi_derivative(scene, jnp.asarray(u), phi, nbr)
+    du = _deflated_tangent(hs, np.asarray(dg), vec[:, skip])
+    v = vec[:, index]
+    dlam = float(eigenvalue_branch_derivative(scene, jnp.asarray(u), jnp.asarray(phi, jnp.float64), jnp.asarray(v),
+                                              jnp.asarray(du), nbr))
+    return n_neg, lam, vec, float(lam_i), dlam, v, np.asarray(scene.from_scaled(du))
+
+
+# ------------------------------------------------------------------------------------------------
+# damped Newton
+
+
+# The shift schedule of ``solvers._damped_newton_loop`` (same constants, same meaning).
+_SHIFT_DOWN, _SHIFT_UP, _SHIFT_REFINE = 0.1, 4.0, 2
+
+
+def _pinned_definite(hs, mu):
+    """The pinned system (H + mu I) on the free DOFs, the rank-one term as a border; None if it is
+    not positive definite."""
+    p = hs.pins
+    free = np.ones(hs.n, bool)
+    free[p] = False
+    f = np.flatnonzero(free)
+    if hs.w != 0.0:
+        E, D = hs.a[f, None], np.array([[-1.0 / hs.w]])
+        expected = 1 if hs.w > 0.0 else 0
+    else:
+        E, D, expected = np.zeros((f.size, 0)), np.zeros((0, 0)), 0
+    try:
+        fac = _Bordered(hs, mu, E, D)
+    except FactorisationError:
+        return None
+    return (fac, f) if fac.negative == expected else None
+
+
+def damped_newton_direction(y, args, g, mu_prev):
+    """The step of ``solvers.HostDampedNewton`` for ``equilibrium.scaled_energy``: (H + mu I) dy =
+    -g on the gauge-pinned DOFs (dy = 0 on the 7 pins), mu just large enough for the pinned system
+    to be positive definite (inertia, not eigenvalues), chosen as the dense loop chooses it.
+    Returns (dy (n,), mu used: 0 where none was needed)."""
+    scene, phi, nbr = args
+    hs = sparse_hessian(scene, y, phi, nbr)
+    scale = float(np.max(np.abs(hs.diagonal()))) + 1.0
+    # Unlike the dense loop, the shift keeps falling by _SHIFT_DOWN per iteration while the
+    # factorisation succeeds, with no floor at 1e-6: a factorisation costs milliseconds here, and
+    # a floor above the sliding modes' curvature (~1e-8 at N = 121) makes the last iterations
+    # crawl along them (|g| shrinking by mu / (lambda + mu) ~ 0.95 per step; measured: 60 steps
+    # against 7).
+    mu0, mu1 = 1e-10 * scale, 1e-6 + 1e-10 * scale
+    mu_a = mu0 if mu_prev <= 0.0 else max(mu0, _SHIFT_DOWN * mu_prev)
+    got = _pinned_definite(hs, mu_a)
+    mu = mu_a
+    if got is None:
+        lo, hi = mu_a, max(mu1, _SHIFT_UP * mu_a)
+        for _ in range(60):
+            got = _pinned_definite(hs, hi)
+            if got is not None:
+                break
+            lo, hi = hi, _SHIFT_UP * hi
+        else:
+            return np.full(hs.n, np.nan), hi
+        for _ in range(_SHIFT_REFINE):
+            mid = float(np.sqrt(lo * hi))
+            trial = _pinned_definite(hs, mid)
+            if trial is None:
+                lo = mid
+            else:
+                hi, got = mid, trial
+        mu = hi
+    fac, f = got
+    x_f, _ = fac.solve(-np.asarray(g)[f])
+    dy = np.zeros(hs.n)
+    dy[f] = x_f
+    # Without its rigid-motion (and gauge) part: the pinned step moves the whole rod relative to
+    # the pins, which changes nothing in the energy (g is orthogonal to Z, so the slope g . dy is
+    # the same) but moves every node, and pauses the run for neighbourhood rebuilds 3x as often.
+    dy = dy - hs.Z @ (hs.Z.T @ dy)
+    mu_used = 0.0 if (mu == mu_a and mu_a <= mu0) else mu
+    return dy, mu_used
+
+
+def deflated_newton_direction(y, args, g, mu_prev, near_null_tol=1e-6):
+    """A Newton step that leaves the near-null modes alone (``Newton(near_null_tol=...)`` of the
+    dense solvers): dy = -H_def^+ g with the eigen-directions |lambda| <= near_null_tol (strands
+    of a loose knot sliding) deflated; the gradient along them stays as it is. Used where a
+    minimiser stalled on those modes next to an equilibrium (positive definite elsewhere).
+    Returns (dy, 0.0)."""
+    scene, phi, nbr = args
+    hs = sparse_hessian(scene, y, phi, nbr)
+    lam, vec, _ = lowest_eigenpairs(hs, 8, tol=near_null_tol)
+    skip = np.abs(lam) <= near_null_tol
+    return _deflated_tangent(hs, np.asarray(g), vec[:, skip]), 0.0

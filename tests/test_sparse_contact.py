@@ -1,0 +1,157 @@
+"""O(N) linear algebra with self-contact (jaxrod.sparse_contact) against the dense path, on a trefoil
+small enough for both (N = 61, n = 244), at a state with contact pairs in reach and a slightly
+negative eigenvalue."""
+import math
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+import jaxrod as jr
+from jaxrod import sparse_contact as spc
+from jaxrod.continuation import ContinuationOptions, _use_sparse, follow_twist
+from jaxrod.hessian import scaled_hessian
+from jaxrod.sparse_branch import sparse_branch_analysis
+from jaxrod.solvers import HostDampedNewton, StopReason, minimise
+from jaxrod.stability import _projected_hessian, branch_analysis, stability
+
+N = 61
+PHI = 3.0 * math.pi
+
+
+@pytest.fixture(scope="module")
+def knot():
+    scene = jr.trefoil(8.0, 292.0, N)
+    e0 = jr.relax(scene, 0.0, with_stability=False, linear_algebra="dense")
+    e = jr.relax(scene, PHI, e0.q, with_stability=False, linear_algebra="dense")
+    u = scene.to_scaled(e.q)
+    hp = np.asarray(_projected_hessian(scene, jnp.asarray(u), PHI, e.neighbourhood)[0])
+    lam = np.linalg.eigvalsh(hp)[: 4 * N - int(scene.n_zero_modes)]  # the lifted zero modes sit on top
+    return scene, e0, e, u, lam, spc.sparse_hessian(scene, u, PHI, e.neighbourhood)
+
+
+def test_sparse_hessian_equals_the_dense_structured_hessian(knot):
+    scene, _, e, u, _, hs = knot
+    dense = np.asarray(scaled_hessian(scene, jnp.asarray(u), PHI, e.neighbourhood))
+    assembled = hs.S.toarray() + hs.w * np.outer(hs.a, hs.a)
+    assert np.max(np.abs(assembled - dense)) <= 1e-12 * np.max(np.abs(dense))
+    # contact blocks are in it: entries far off the local band
+    i, j = hs.S.nonzero()
+    assert np.max(np.minimum(np.abs(i - j), hs.n - np.abs(i - j))) > 50
+    assert hs.S.nnz < 40 * hs.n  # sparse: ~20 entries per row plus the contact blocks
+
+
+def test_counts_below_any_shift_match_the_dense_spectrum(knot):
+    *_, lam, hs = knot
+    assert lam[0] < -1e-6  # the state has one negative (sliding-type) eigenvalue: the count is not trivial
+    shifts = [lam[0] - 1e-3, 0.0, -1e-6] + list(0.5 * (lam[:12] + lam[1:13]))
+    for s in shifts:
+        assert spc.count_below(hs, s) == int(np.sum(lam < s)), s
+
+
+def test_lowest_eigenpairs_match_the_dense_ones(knot):
+    scene, _, e, u, lam, hs = knot
+    values, vectors, shift = spc.lowest_eigenpairs(hs, 10)
+    assert shift < lam[0]
+    np.testing.assert_allclose(values, lam[:10], rtol=0, atol=1e-13)
+    assert np.max(np.abs(vectors.T @ hs.Z)) < 1e-12  # on Z-perp
+    residual = np.column_stack([hs.matvec(vectors[:, j]) - values[j] * vectors[:, j] for j in range(10)])
+    assert np.max(np.linalg.norm(residual, axis=0)) < 1e-10
+    st = stability(scene, e.q, PHI, k=8, tol=1e-6, nbr=e.neighbourhood, linear_algebra="sparse")
+    dense = stability(scene, e.q, PHI, k=8, tol=1e-6, nbr=e.neighbourhood, linear_algebra="dense")
+    assert st.n_negative == dense.n_negative == 1
+    np.testing.assert_allclose(st.eigenvalues, dense.eigenvalues, rtol=0, atol=1e-13)
+    overlaps = np.abs(np.sum(st.eigenvectors * dense.eigenvectors, axis=0))
+    assert np.all(overlaps[:1] > 1 - 1e-9)  # the simple lowest mode (degenerate pairs may rotate)
+
+
+def test_branch_analysis_matches_the_dense_one(knot):
+    scene, _, e, _, _, _ = knot
+    for ref_mode in (None, 2):
+        dense = branch_analysis(scene, e.q, PHI, 0, k=8, tol=1e-6, pinv_tol=1e-6, nbr=e.neighbourhood)
+        ref = None if ref_mode is None else dense[0].eigenvectors[:, ref_mode]
+        if ref is not None:
+            dense = branch_analysis(scene, e.q, PHI, 0, k=8, tol=1e-6, pinv_tol=1e-6, nbr=e.neighbourhood, ref=ref)
+        sparse = sparse_branch_analysis(scene, e.q, PHI, 0, k=8, tol=1e-6, pinv_tol=1e-6, nbr=e.neighbourhood, ref=ref)
+        assert sparse[0].n_negative == dense[0].n_negative
+        assert sparse[1] == pytest.approx(dense[1], abs=1e-13)
+        assert sparse[2] == pytest.approx(dense[2], rel=1e-8, abs=1e-14)
+        assert abs(np.dot(sparse[3], dense[3])) == pytest.approx(1.0, abs=1e-9)
+        assert np.linalg.norm(sparse[4] - dense[4]) <= 1e-9 * np.linalg.norm(dense[4])
+
+
+def _gyration(x):
+    """The principal moments of a curve's nodes (invariant under rigid motions; under a slide of
+    the nodes along the curve to within the discretisation)."""
+    xc = x - x.mean(0)
+    return np.linalg.eigvalsh(xc.T @ xc / x.shape[0])
+
+
+def test_sparse_relax_reaches_the_dense_minimum(knot):
+    scene, e0, _, _, _, _ = knot
+    es = jr.relax(scene, 0.0, linear_algebra="sparse")
+    assert es.solution.converged and es.solution.solver.startswith("damped_newton_sparse")
+    assert es.energy == pytest.approx(e0.energy, rel=1e-10)
+    # the same shape up to a rigid motion and a slide of the material along it (the two minimisers
+    # take different paths; the 3-fold knot's nodes need not land on the same material points):
+    # compared by invariants of both
+    assert es.Wr == pytest.approx(e0.Wr, abs=1e-8)
+    np.testing.assert_allclose(_gyration(es.x), _gyration(e0.x), rtol=1e-6)
+    assert es.stability.n_negative == 0
+
+
+def test_follow_twist_sparse_equals_dense(knot):
+    scene, e0, _, _, _, _ = knot
+    paths = {}
+    for la in ("dense", "sparse"):
+        opts = ContinuationOptions(step=math.pi, switch=False, linear_algebra=la)
+        paths[la] = follow_twist(scene, 0.0, 2.0 * math.pi, opts, start=e0)
+    d, s = paths["dense"].points, paths["sparse"].points
+    assert [p.equilibrium.phi for p in d] == [p.equilibrium.phi for p in s]
+    for pd, ps in zip(d, s):
+        assert ps.equilibrium.energy == pytest.approx(pd.equilibrium.energy, rel=1e-9)
+        assert ps.equilibrium.Lk == pytest.approx(pd.equilibrium.Lk, abs=1e-9)
+        assert ps.equilibrium.stability.n_negative == pd.equilibrium.stability.n_negative == 0
+        np.testing.assert_allclose(ps.equilibrium.stability.eigenvalues, pd.equilibrium.stability.eigenvalues,
+                                   rtol=0, atol=1e-9)
+
+
+def test_the_choice_is_automatic_and_stated():
+    assert not _use_sparse(jr.trefoil(8.0, 292.0, 121), "auto")
+    big = jr.trefoil(8.0, 292.0, 251)  # n_dof = 1004
+    assert _use_sparse(big, "auto") and not _use_sparse(big, "dense")
+    with pytest.raises(ValueError, match="linear_algebra"):
+        jr.relax(jr.trefoil(8.0, 292.0, 41), 0.0, linear_algebra="cholmod")
+
+
+def test_a_pivoting_factorisation_is_refused_not_counted():
+    # [[0, 1], [1, 0]] has no LDL^T without pivoting: refused, never given a (wrong) inertia.
+    hs = spc.SparseHessian(S=sp.csc_matrix(np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])), w=0.0,
+                           a=np.zeros(3), Z=np.zeros((3, 0)), pins=np.zeros(0, dtype=np.int64))
+    with pytest.raises(spc.FactorisationError):
+        spc._Bordered(hs, 0.0, np.zeros((3, 0)), np.zeros((0, 0)))
+
+
+def _double_well(y, args):
+    return (y[0] ** 2 - 1.0) ** 2 + 0.5 * args * y[1] ** 2
+
+
+def _dense_direction(y, args, g, mu_prev):
+    h = np.array([[12.0 * y[0] ** 2 - 4.0, 0.0], [0.0, float(args)]])
+    mu = 0.0
+    while np.min(np.linalg.eigvalsh(h + mu * np.eye(2))) <= 0.0:
+        mu = 1e-6 if mu == 0.0 else 4.0 * mu
+    return -np.linalg.solve(h + mu * np.eye(2), g), mu
+
+
+def test_host_damped_newton_descends_from_a_saddle_and_reports_honestly():
+    solver = HostDampedNewton(direction=_dense_direction, max_step=0.5)
+    sol = minimise(_double_well, np.array([0.05, 1.0]), 3.0, solver, gtol=1e-12)
+    assert sol.converged and sol.reason is StopReason.CONVERGED and sol.solver == "damped_newton_sparse"
+    np.testing.assert_allclose(sol.y, [1.0, 0.0], atol=1e-12)
+    short = minimise(_double_well, np.array([0.05, 1.0]), 3.0, solver, gtol=1e-12, max_steps=2, throw=False)
+    assert not short.converged and short.reason is StopReason.MAX_STEPS and short.iterations == 2
+    bad = HostDampedNewton(direction=lambda y, args, g, mu: (np.full(2, np.nan), 0.0))
+    stalled = minimise(_double_well, np.array([0.05, 1.0]), 3.0, bad, throw=False)
+    assert not stalled.converged and stalled.reason is StopReason.NONFINITE
