@@ -36,6 +36,7 @@ and ``damped_newton_direction`` (the direction of ``solvers.HostDampedNewton``).
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import jax
@@ -110,6 +111,21 @@ class SparseHessian:
     def diagonal(self):
         return self.S.diagonal() + self.w * self.a**2
 
+    @functools.cached_property
+    def free(self):
+        """(n - z,) the unpinned DOFs."""
+        mask = np.ones(self.n, bool)
+        mask[self.pins] = False
+        return np.flatnonzero(mask)
+
+    @functools.cached_property
+    def blocks(self):
+        """(S_ff CSC, S_fp dense (n_f, z), S_pp dense (z, z)): S split by free / pinned DOFs, once
+        per Hessian (every factorisation at another shift reuses them)."""
+        S = self.S.tocsr()
+        rows_f, rows_p = S[self.free], S[self.pins]
+        return (rows_f[:, self.free].tocsc(), rows_f[:, self.pins].toarray(), rows_p[:, self.pins].toarray())
+
 
 def sparse_hessian(scene, u, phi, nbr):
     """The scaled Hessian of ``scene.scaled_energy`` at (u (n,), phi) as a ``SparseHessian``:
@@ -125,9 +141,11 @@ def sparse_hessian(scene, u, phi, nbr):
     r = np.broadcast_to(d[:, :, None], b.shape).ravel()
     c = np.broadcast_to(d[:, None, :], b.shape).ravel()
     keep = (r < n) & (c < n)
-    S = sp.csc_matrix((np.concatenate([values, b.ravel()[keep]]),
-                       (np.concatenate([rows, r[keep]]), np.concatenate([cols, c[keep]]))), shape=(n, n))
-    S = (0.5 * (S + S.T)).tocsc()
+    R = np.concatenate([rows, r[keep]])
+    C = np.concatenate([cols, c[keep]])
+    V = 0.5 * np.concatenate([values, b.ravel()[keep]])
+    # (H + H^T) / 2 in one conversion (duplicates summed): exactly symmetric, as the inertia needs
+    S = sp.csc_matrix((np.concatenate([V, V]), (np.concatenate([R, C]), np.concatenate([C, R]))), shape=(n, n))
     return SparseHessian(S=S, w=float(w), a=np.asarray(a, float), Z=np.asarray(Z, float),
                          pins=np.asarray(pins, dtype=np.int64))
 
@@ -137,10 +155,8 @@ class _Bordered:
     E (n_free, r) and D (r, r) dense. ``negative``: its count of negative eigenvalues."""
 
     def __init__(self, hs, shift, E_cols, D):
-        free = np.ones(hs.n, bool)
-        free[hs.pins] = False
-        self.free = np.flatnonzero(free)
-        A = hs.S[self.free][:, self.free]
+        self.free = hs.free
+        A = hs.blocks[0]
         if shift != 0.0:
             A = A + shift * sp.identity(A.shape[0], format="csc")
         try:
@@ -177,12 +193,9 @@ def _projected_border(hs, shift):
     """The bordered matrix of H + shift I with the border [pins, a, Z] (see module docstring):
     (factorisation, count offset) so that count of projected eigenvalues below -shift =
     factorisation.negative - offset."""
-    p = hs.pins
-    free = np.ones(hs.n, bool)
-    free[p] = False
-    f = np.flatnonzero(free)
-    S_fp = hs.S[f][:, p].toarray()
-    S_pp = hs.S[p][:, p].toarray() + shift * np.eye(p.size)
+    p, f = hs.pins, hs.free
+    _, S_fp, S_pp = hs.blocks
+    S_pp = S_pp + shift * np.eye(p.size)
     z = hs.Z.shape[1]
     cols = [S_fp]
     top = [S_pp]
@@ -237,22 +250,28 @@ def _start_vector(hs):
     return v - hs.Z @ (hs.Z.T @ v)
 
 
-def lowest_eigenpairs(hs, m, guess=None, tol=1e-6):
+def lowest_eigenpairs(hs, m, guess=None, tol=1e-6, start=None):
     """(values (m,) ascending, vectors (n, m) on Z-perp, shift): the m lowest eigenpairs of the
     projected Hessian. The shift s is pushed down until ``count_below(s) == 0`` (so the pairs
     nearest it are the lowest); ARPACK's shift-invert mode then converges in a few dozen solves.
-    guess: an estimate of the lowest eigenvalue (the previous step's), to start the shift there."""
+    guess: an estimate of the lowest eigenvalue (the previous step's), to start the shift there;
+    start: (s, factorisation, free) of ``_projected_border`` already known to count 0 below s
+    (``count_below``'s own, reused: one factorisation fewer)."""
     m = int(min(m, hs.n - hs.Z.shape[1] - 1))
     scale = float(np.max(np.abs(hs.diagonal()))) + 1.0
-    start = -tol if guess is None or not np.isfinite(guess) else min(float(guess), 0.0) - tol
-    s, fac = start, None
-    for _ in range(60):
-        fac, offset, f = _projected_border(hs, -s)
-        if fac.negative - offset == 0:
+    if start is None:
+        start = -tol if guess is None or not np.isfinite(guess) else min(float(guess), 0.0) - tol
+    s, fac, f = (start, None, None) if not isinstance(start, tuple) else start
+    tries = 0
+    while fac is None:
+        trial, offset, f_trial = _projected_border(hs, -s)
+        if trial.negative - offset == 0:
+            fac, f = trial, f_trial
             break
-        s = s - 4.0 * max(abs(s), tol) if s - 4.0 * max(abs(s), tol) > -4.0 * scale else -4.0 * scale
-    else:
-        raise FactorisationError("no shift below the spectrum found")
+        tries += 1
+        if tries >= 60:
+            raise FactorisationError("no shift below the spectrum found")
+        s = max(s - 4.0 * max(abs(s), tol), -4.0 * scale)
     # (H - s I)^-1 on Z-perp: positive definite there, since s is below every eigenvalue.
     n = hs.n
     op = spl.LinearOperator((n, n), matvec=lambda b: _projected_solve(fac, f, hs, np.ravel(b)), dtype=float)
@@ -275,23 +294,27 @@ def contact_spectrum(scene, q, phi, k=8, tol=1e-6, nbr=None, guess=None):
     if nbr is None:
         nbr = scene.neighbourhood(jnp.asarray(q), phi)
     hs = sparse_hessian(scene, u, phi, nbr)
-    n_neg = count_below(hs, -tol)
-    lam, vec, _ = lowest_eigenpairs(hs, max(int(k), n_neg + EXTRA_PAIRS), guess=guess, tol=tol)
+    n_neg, start = _count_and_start(hs, tol)
+    lam, vec, _ = lowest_eigenpairs(hs, max(int(k), n_neg + EXTRA_PAIRS), guess=guess, tol=tol, start=start)
     return n_neg, lam, vec
+
+
+def _count_and_start(hs, tol):
+    """(count below -tol, the eigensolver's start): that factorisation itself when the count is 0."""
+    fac, offset, f = _projected_border(hs, tol)
+    n_neg = fac.negative - offset
+    return n_neg, ((-tol, fac, f) if n_neg == 0 else None)
 
 
 def _deflated_tangent(hs, b, skip_vecs):
     """x = -H_def^+ b on Z-perp with the flagged eigenvectors (n, r) left out: the constrained
     solve [[H, Z, V], [Z^T, 0, 0], [V^T, 0, 0]] (exact: V are eigenvectors of the projected
     Hessian, so the complement is invariant)."""
-    p = hs.pins
-    free = np.ones(hs.n, bool)
-    free[p] = False
-    f = np.flatnonzero(free)
+    p, f = hs.pins, hs.free
     C = np.concatenate([hs.Z, skip_vecs], axis=1)
-    S_fp = hs.S[f][:, p].toarray()
+    _, S_fp, S_pp = hs.blocks
     cols = [S_fp]
-    top = [hs.S[p][:, p].toarray()]
+    top = [S_pp]
     rank_one = hs.w != 0.0
     if rank_one:
         cols.append(hs.a[f, None])
@@ -334,9 +357,9 @@ def contact_branch_analysis(scene, q, phi, index, k=8, tol=1e-6, cluster_rtol=1e
     if index < 0:
         raise ValueError(f"index must be >= 0, got {index}")
     hs = sparse_hessian(scene, u, phi, nbr)
-    n_neg = count_below(hs, -tol)
+    n_neg, start = _count_and_start(hs, tol)
     m = max(int(k), index + EXTRA_PAIRS, n_neg + EXTRA_PAIRS)
-    lam, vec, _ = lowest_eigenpairs(hs, m, guess=guess, tol=tol)
+    lam, vec, _ = lowest_eigenpairs(hs, m, guess=guess, tol=tol, start=start)
     if ref is not None and np.any(np.asarray(ref) != 0.0):
         index = int(np.argmax(np.abs(vec.T @ np.asarray(ref))))
     if not index < lam.shape[0]:
@@ -362,10 +385,7 @@ _SHIFT_DOWN, _SHIFT_UP, _SHIFT_REFINE = 0.1, 4.0, 2
 def _pinned_definite(hs, mu):
     """The pinned system (H + mu I) on the free DOFs, the rank-one term as a border; None if it is
     not positive definite."""
-    p = hs.pins
-    free = np.ones(hs.n, bool)
-    free[p] = False
-    f = np.flatnonzero(free)
+    f = hs.free
     if hs.w != 0.0:
         E, D = hs.a[f, None], np.array([[-1.0 / hs.w]])
         expected = 1 if hs.w > 0.0 else 0

@@ -9,9 +9,10 @@ from jaxrod.paths import benchmark_results
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
 NOTEBOOKS = sorted((REPO / "notebooks").glob("*.ipynb"))
-# The longest notebook runs from a file of its own (test_notebook_damped_dynamics.py), so that the
-# two xdist workers, which take whole files, share the notebooks' minute between them.
-ELSEWHERE = ("damped_dynamics.ipynb",)
+# The two longest notebooks run from files of their own (test_notebook_damped_dynamics.py,
+# test_notebook_bifurcation_diagram.py), so that the two xdist workers, which take whole files,
+# share the notebooks' minutes between them.
+ELSEWHERE = ("damped_dynamics.ipynb", "bifurcation_diagram.ipynb")
 
 
 def run_notebook(path, tmp_path, monkeypatch):
