@@ -48,7 +48,7 @@ import scipy.sparse.linalg as spl
 from .hessian import _pattern_entries, contact_blocks, hessian_pattern, local_entries
 from .sparse_stability import EXTRA_PAIRS, _gauge, eigenvalue_branch_derivative, gradient_and_phi_derivative
 
-__all__ = ["SPARSE_MIN_DOF", "use_sparse", "deflated_newton_direction", "SparseHessian", "sparse_hessian", "count_below", "lowest_eigenpairs", "contact_spectrum",
+__all__ = ["hessian_parts", "assemble", "negative_count", "SPARSE_MIN_DOF", "use_sparse", "deflated_newton_direction", "SparseHessian", "sparse_hessian", "count_below", "lowest_eigenpairs", "contact_spectrum",
            "contact_branch_analysis", "damped_newton_direction", "FactorisationError"]
 
 
@@ -131,8 +131,22 @@ def sparse_hessian(scene, u, phi, nbr):
     """The scaled Hessian of ``scene.scaled_energy`` at (u (n,), phi) as a ``SparseHessian``:
     the local part's ~20 n entries and the contact blocks from one jitted call (O(N)), assembled
     into CSC on the host (duplicates summed)."""
-    values, w, a, blocks, dofs, count = jax.device_get(_parts(scene, jnp.asarray(u), phi, nbr))
+    parts = jax.device_get(_parts(scene, jnp.asarray(u), phi, nbr))
     Z, pins = jax.device_get(_zero_basis(scene, jnp.asarray(u), phi))
+    S, w, a = assemble(scene, parts)
+    return SparseHessian(S=S, w=w, a=a, Z=np.asarray(Z, float), pins=np.asarray(pins, dtype=np.int64))
+
+
+def hessian_parts(scene, u, phi, nbr):
+    """The Hessian's parts as device arrays (values (nnz,), w, a (n,), blocks (P, 12, 12), dofs
+    (P, 12), count): one jitted call, traceable (for ``assemble`` on the host)."""
+    return _parts(scene, u, phi, nbr)
+
+
+def assemble(scene, parts):
+    """(S (n, n) CSC, w, a (n,)) on the host from ``hessian_parts``: the local entries and the
+    contact blocks in reach, (H + H^T)/2 in one conversion (duplicates summed)."""
+    values, w, a, blocks, dofs, count = (np.asarray(x) for x in parts)
     pat = hessian_pattern(scene)
     n = pat.n
     rows, cols = _pattern_entries(pat)
@@ -146,8 +160,28 @@ def sparse_hessian(scene, u, phi, nbr):
     V = 0.5 * np.concatenate([values, b.ravel()[keep]])
     # (H + H^T) / 2 in one conversion (duplicates summed): exactly symmetric, as the inertia needs
     S = sp.csc_matrix((np.concatenate([V, V]), (np.concatenate([R, C]), np.concatenate([C, R]))), shape=(n, n))
-    return SparseHessian(S=S, w=float(w), a=np.asarray(a, float), Z=np.asarray(Z, float),
-                         pins=np.asarray(pins, dtype=np.int64))
+    return S, float(w), np.asarray(a, float)
+
+
+def negative_count(A, E, D):
+    """Number of negative eigenvalues of the symmetric [[A, E], [E^T, D]]: A (m, m) scipy sparse,
+    factorised with diagonal pivots only (LDL^T, Sylvester), E (m, r), D (r, r) dense (Haynsworth:
+    In = In(A) + In(D - E^T A^-1 E)). Raises FactorisationError where A has no such factorisation."""
+    try:
+        lu = spl.splu(sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                      options=dict(SymmetricMode=True, Equil=False))
+    except RuntimeError as exc:
+        raise FactorisationError(str(exc)) from None
+    if not np.array_equal(lu.perm_r, lu.perm_c):
+        raise FactorisationError("the factorisation pivoted off the diagonal")
+    pivots = lu.U.diagonal()
+    if not np.all(np.isfinite(pivots)) or np.any(pivots == 0.0):
+        raise FactorisationError("zero or non-finite pivot")
+    E = np.asarray(E, float).reshape(A.shape[0], -1)
+    if E.shape[1] == 0:
+        return int(np.sum(pivots < 0.0))
+    schur = np.asarray(D, float) - E.T @ lu.solve(E)
+    return int(np.sum(pivots < 0.0)) + int(np.sum(np.linalg.eigvalsh(0.5 * (schur + schur.T)) < 0.0))
 
 
 class _Bordered:

@@ -155,3 +155,40 @@ def test_host_damped_newton_descends_from_a_saddle_and_reports_honestly():
     bad = HostDampedNewton(direction=lambda y, args, g, mu: (np.full(2, np.nan), 0.0))
     stalled = minimise(_double_well, np.array([0.05, 1.0]), 3.0, bad, throw=False)
     assert not stalled.converged and stalled.reason is StopReason.NONFINITE
+
+
+def test_sparse_bifurcation_backend_equals_the_dense_one(knot):
+    # jaxrod.bifurcation's host backend (issue 18: the extended-system locators at O(N)) on the
+    # knot's pinned problem: solves with vector and matrix borders, the spectrum with its Morse
+    # index, and the branch-point test functions with their Jacobian, all against DenseBackend
+    from jaxrod.bifurcation.linalg import DenseBackend, SparseBackend
+    from jaxrod.bifurcation.rods import _assemble_pinned, knot_problem
+
+    scene, _, e, _, _, _ = knot
+    rods = {name: knot_problem(scene, np.asarray(e.q), PHI, backend=be)
+            for name, be in (("dense", DenseBackend()), ("sparse", SparseBackend(_assemble_pinned)))}
+    lin = {name: r.problem.linearise(r.problem.u0, PHI, r.problem.args) for name, r in rods.items()}
+    Fd, Jd, Fpd = (np.asarray(a) for a in lin["dense"])
+    Fs, Js, Fps = lin["sparse"]
+    np.testing.assert_allclose(np.asarray(Js), Jd, rtol=0, atol=1e-12 * np.max(np.abs(Jd)))
+    m = Jd.shape[0]
+    rng = np.random.default_rng(0)
+    b, c, f = rng.standard_normal((3, m))
+    for args in ((b, c, 0.3, f, 1.0), (np.stack([b, c], 1), np.stack([c, b], 1), np.eye(2), f, np.ones(2))):
+        xd, yd = DenseBackend().bordered_solve(Jd, *args)
+        xs, ys = rods["sparse"].problem.backend.bordered_solve(Js, *args)
+        np.testing.assert_allclose(xs, np.asarray(xd), rtol=1e-9, atol=1e-9 * np.max(np.abs(xd)))
+        np.testing.assert_allclose(ys, np.asarray(yd), rtol=1e-9, atol=1e-12)
+    vd, Vd, md = DenseBackend().spectrum(Jd, 6, 0, 1e-13)
+    vs, Vs, ms = rods["sparse"].problem.backend.spectrum(Js, 6, 0, 1e-13)
+    assert ms == md == int(np.sum(np.linalg.eigvalsh(Jd) < -1e-13 * np.max(np.abs(np.linalg.eigvalsh(Jd)))))
+    np.testing.assert_allclose(vs, vd, rtol=0, atol=1e-12)
+    assert abs(Vs[:, 0] @ Vd[:, 0]) == pytest.approx(1.0, abs=1e-9)
+    bvec = Vd[:, 0]
+    (gud, gpd), (std, *_) = rods["dense"].problem.singular_tests(rods["dense"].problem.u0, PHI, rods["dense"].problem.args,
+                                                                 bvec)
+    (gus, gps), (sts, *_) = rods["sparse"].problem.singular_tests(rods["sparse"].problem.u0, PHI,
+                                                                  rods["sparse"].problem.args, bvec)
+    np.testing.assert_allclose(sts, np.asarray(std), rtol=1e-8, atol=1e-14)
+    np.testing.assert_allclose(gus, np.asarray(gud), rtol=1e-7, atol=1e-9 * np.max(np.abs(gud)))
+    np.testing.assert_allclose(gps, np.asarray(gpd), rtol=1e-7, atol=1e-12)

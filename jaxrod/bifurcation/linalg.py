@@ -1,11 +1,13 @@
 """Linear-algebra backends: everything the continuation does with the Jacobian goes through one.
 
 A backend is chosen once, on the problem. ``DenseBackend`` assembles J (n, n) with ``jax.jacfwd``
-and uses ``jnp.linalg``; a structured backend (block-tridiagonal rod Hessian, pinned gauge) only has
-to provide the same three methods.
+and uses ``jnp.linalg``; ``SparseBackend`` works on the host with SciPy's sparse factorisations
+(a knot's pinned Hessian at O(n), ``bifurcation.rods.knot_problem`` for large N). Both provide the
+same three methods.
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import jax
@@ -54,3 +56,131 @@ class DenseBackend:
             vals, vecs = vals[keep], vecs[:, keep]
         scale = max(float(np.max(np.abs(vals), initial=0.0)), 1e-300)
         return vals[:n_keep], vecs[:, :n_keep], int(np.sum(vals < -rtol * scale))
+
+
+@dataclass(frozen=True, eq=False)
+class HostMatrix:
+    """A symmetric J = S + w a a^T on the host: S (m, m) scipy sparse, a (m,), w a float. Its
+    sparse LU (partial pivoting, for solves) is computed once, on first use."""
+
+    S: object
+    w: float
+    a: np.ndarray
+
+    @property
+    def shape(self):
+        return self.S.shape
+
+    def matvec(self, x):
+        return self.S @ x + self.w * self.a * (self.a @ x)
+
+    def __array__(self, dtype=None, copy=None):  # dense, for small checks (np.asarray(J))
+        dense = self.S.toarray() + self.w * np.outer(self.a, self.a)
+        return dense if dtype is None else dense.astype(dtype)
+
+    @functools.cached_property
+    def lu(self):
+        return _splu(self.S)
+
+
+def _splu(S, shift=0.0):
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spl
+
+    A = sp.csc_matrix(S)
+    if shift:
+        A = (A - shift * sp.identity(A.shape[0], format="csc")).tocsc()
+    return spl.splu(A, permc_spec="MMD_AT_PLUS_A")
+
+
+def _border_solve(lu, J, b, c, d, f, g):
+    """[[S, a, b], [a^T, -1/w, 0], [c^T, 0, d]] by the Schur complement on S's factorisation
+    (the rank-one term of J as one more border): -> (x, y) with y (k,)."""
+    B, C = np.asarray(b, float), np.asarray(c, float)
+    D, g = np.atleast_2d(np.asarray(d, float)), np.atleast_1d(np.asarray(g, float))
+    if J.w != 0.0:
+        k = B.shape[1]
+        B = np.concatenate([J.a[:, None], B], axis=1)
+        C = np.concatenate([J.a[:, None], C], axis=1)
+        D = np.block([[np.array([[-1.0 / J.w]]), np.zeros((1, k))], [np.zeros((k, 1)), D]])
+        g = np.concatenate([[0.0], g])
+    Sf = lu.solve(np.asarray(f, float))
+    if B.shape[1] == 0:
+        return Sf, np.zeros(0)
+    SB = lu.solve(B)
+    y = np.linalg.solve(D - C.T @ SB, g - C.T @ Sf)
+    x = Sf - SB @ y
+    return x, (y[1:] if J.w != 0.0 else y)
+
+
+@dataclass(frozen=True)
+class SparseBackend:
+    """The same three methods on the host, at O(n) per call, for a structured ``jacobian`` that
+    returns a pytree of parts (traceable) which ``assemble(parts, args) -> HostMatrix`` turns into
+    a sparse matrix plus a rank-one term (a knot's pinned Hessian: ``bifurcation.rods``). Solves
+    by SciPy's sparse LU with the borders through the Schur complement; the Morse index by the
+    inertia of a symmetric-mode LDL^T (``sparse_contact.negative_count``); the lowest eigenpairs by
+    ARPACK's shift-invert Lanczos at a shift that the count puts below the spectrum. Frozen and
+    hashable (``assemble`` a module-level function), so a problem's jitted functions are shared."""
+
+    assemble: object
+    host = True
+
+    def matrix(self, parts, args):
+        return self.assemble(parts, args)
+
+    def jacobian(self, f, u):
+        raise NotImplementedError("SparseBackend needs the problem's structured jacobian (parts), not autodiff")
+
+    def bordered_solve(self, A, b, c, d, f, g):
+        """As ``DenseBackend.bordered_solve``, A a ``HostMatrix``."""
+        if np.ndim(b) == 1:
+            x, y = _border_solve(A.lu, A, np.asarray(b)[:, None], np.asarray(c)[:, None], np.reshape(d, (1, 1)), f,
+                                 np.reshape(g, (1,)))
+            return x, float(y[0])
+        return _border_solve(A.lu, A, b, c, d, f, g)
+
+    def _count_below(self, J, s):
+        from ..sparse_contact import negative_count
+
+        import scipy.sparse as sp
+
+        A = (sp.csc_matrix(J.S) - s * sp.identity(J.shape[0], format="csc")).tocsc()
+        if J.w == 0.0:
+            return negative_count(A, np.zeros((J.shape[0], 0)), np.zeros((0, 0)))
+        return negative_count(A, J.a[:, None], np.array([[-1.0 / J.w]])) - (1 if J.w > 0.0 else 0)
+
+    def spectrum(self, J, n_keep, n_zero, rtol):
+        """As ``DenseBackend.spectrum`` (pinned problems: n_zero must be 0). ||J||_2 by a short
+        Lanczos run; the Morse index counts lambda < -rtol ||J||_2 exactly (Sylvester)."""
+        import scipy.sparse.linalg as spl
+
+        if n_zero:
+            raise NotImplementedError("SparseBackend: pin the gauge (n_zero_modes = 0)")
+        m = J.shape[0]
+        op = spl.LinearOperator((m, m), matvec=lambda x: J.matvec(np.ravel(x)), dtype=float)
+        v0 = np.cos(0.7 * np.arange(m) + 0.3) + 0.5  # deterministic: resumed runs repeat themselves
+        scale = float(abs(spl.eigsh(op, k=1, which="LM", v0=v0, tol=1e-6, return_eigenvectors=False)[0]))
+        morse = self._count_below(J, -rtol * scale)
+        s = -max(rtol * scale, 1e-14 * scale)
+        for _ in range(80):
+            if self._count_below(J, s) == 0:
+                break
+            s *= 4.0
+        lu = _splu(J.S, s)
+        shifted = HostMatrix(J.S, J.w, J.a)  # the same J; its solves at the shift below
+
+        def inverse(b):
+            x, _ = _border_solve(lu, shifted, np.zeros((m, 0)), np.zeros((m, 0)), np.zeros((0, 0)), np.ravel(b),
+                                 np.zeros(0))
+            return x
+
+        k = int(min(n_keep, m - 1))
+        opinv = spl.LinearOperator((m, m), matvec=inverse, dtype=float)
+        _, vec = spl.eigsh(op, k=k, sigma=s, which="LM", OPinv=opinv, v0=v0, ncv=min(m - 1, max(2 * k + 1, 20)),
+                           tol=1e-13)
+        vec, _ = np.linalg.qr(vec)
+        hv = np.column_stack([J.matvec(vec[:, j]) for j in range(k)])
+        vals, rot = np.linalg.eigh(0.5 * (vec.T @ hv + hv.T @ vec))  # Rayleigh-Ritz: accurate values
+        vec = vec @ rot
+        return vals, vec, morse

@@ -9,6 +9,7 @@ import functools
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from .linalg import DenseBackend
 
@@ -68,6 +69,10 @@ class BifurcationProblem:
         self.energy_value, self.linearise, self.wjw_gradient = fns.energy_value, fns.linearise, fns.wjw_gradient
         self.singular_tests, self.hvp_derivative = fns.singular_tests, fns.hvp_derivative
         self.directional_derivatives = fns.directional_derivatives
+        if getattr(self.backend, "host", False):
+            # J leaves the jitted linearisation as parts, assembled on the host by the backend
+            self.linearise = fns.host_linearise
+            self.singular_tests = fns.host_singular_tests
 
     def energy_at(self, u, p_args):
         """E(u, p, args) with p_args = (p, args): the form ``jaxrod.solvers.minimise`` takes."""
@@ -115,6 +120,33 @@ class _Functions:
         self.singular_tests = _jit_in_u_p(self._singular_test_gradients)
         self.hvp_derivative = _jit_in_u_p(self._hvp_derivative)
         self.directional_derivatives = _jit_in_u_p(self._directional_derivatives)
+        self.tests_gradient = _jit_in_u_p(self._tests_gradient)
+
+    def host_linearise(self, u, p, args):
+        """(F, J, F_p) with J assembled on the host by the backend (``SparseBackend``)."""
+        F, parts, Fp = self.linearise(u, p, args)
+        return F, self.backend.matrix(jax.device_get(parts), args), Fp
+
+    def host_singular_tests(self, u, p, args, b):
+        """``_singular_test_gradients`` with the bordered solves on the host backend."""
+        F, J, Fp = self.host_linearise(u, p, args)
+        w, sigma = self.backend.bordered_solve(J, b, b, 0.0, np.zeros(np.shape(b)[0]), 1.0)
+        y, _ = self.backend.bordered_solve(J, b, b, 0.0, np.asarray(Fp), 0.0)
+        gu, gp = self.tests_gradient(u, p, args, jnp.asarray(w), jnp.asarray(y))
+        st = np.array([float(sigma), float(np.dot(w, np.asarray(Fp)))])
+        return (np.asarray(gu), np.asarray(gp)), (st, F, J, Fp, np.asarray(w))
+
+    def _tests_gradient(self, u, p, args, w, y):
+        """The Jacobian in (u, p) of (sigma, tau) by the adjoint (see ``_singular_test_gradients``),
+        given the kernel vector w and the solution y of the bordered systems."""
+        def fp(x, q):
+            return jax.jvp(lambda r: self.F(x, r, args), (q,), (jnp.ones_like(q),))[1]
+
+        def tests(x, q):
+            Jw = self.hvp(x, q, args, w)
+            return jnp.stack([-jnp.dot(w, Jw), -jnp.dot(y, Jw) + jnp.dot(w, fp(x, q))])
+
+        return jax.jacrev(tests, argnums=(0, 1))(u, p)
 
     def hvp(self, u, p, args, w):
         """J(u, p) w (n,), by a jvp of F: never forms J."""
@@ -158,17 +190,9 @@ class _Functions:
         w, sigma = self.backend.bordered_solve(J, b, b, 0.0, jnp.zeros_like(u), 1.0)
         y, _ = self.backend.bordered_solve(J, b, b, 0.0, Fp, 0.0)
         w, y = jax.lax.stop_gradient(w), jax.lax.stop_gradient(y)
-
-        def fp(x, q):
-            return jax.jvp(lambda r: self.F(x, r, args), (q,), (jnp.ones_like(q),))[1]
-
-        def tests(x, q):
-            Jw = self.hvp(x, q, args, w)
-            return jnp.stack([-jnp.dot(w, Jw), -jnp.dot(y, Jw) + jnp.dot(w, fp(x, q))])
-
-        # the tests' linearisation at (u, p): the value of ``tests`` is not sigma, tau (it is
+        # the tests' linearisation at (u, p): the value of the tests is not sigma, tau (it is
         # linear in the same third derivatives); only its derivative is used
-        gu, gp = jax.jacrev(tests, argnums=(0, 1))(u, p)
+        gu, gp = self._tests_gradient(u, p, args, w, y)
         st = jnp.stack([sigma, jnp.dot(w, Fp)])
         return (gu, gp), (st, F, J, Fp, w)
 

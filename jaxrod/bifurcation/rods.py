@@ -23,7 +23,12 @@ sliding along a buckled ring, see ``benchmarks/bifurcation_michell.py`` -- and `
 then measures how exact it is (the force the extra pin holds).
 
 The exact energy (the writhe that fixes the holonomy's branch, contact over all pairs) is O(N^2)
-and J is assembled densely (``DenseBackend``): meant for N up to ~100.
+and ``pinned_problem`` assembles J densely (``DenseBackend``): meant for N up to ~100.
+``knot_problem`` evaluates through a neighbourhood (O(N)) and, from ``SPARSE_MIN_DOF`` DOFs on,
+takes ``SparseBackend`` (SciPy's sparse factorisations on the host): the fold of the trefoil at
+N = 481 is located in ~40 s (``benchmarks/sparse_fold.py``). From N ~ 250 on the knot's material
+slide is a numerically exact symmetry (pinned eigenvalue ~1e-12 at N = 481): pin one more DOF
+along it (``pins=``), or Newton's corrector steps by edge lengths along it and stalls.
 """
 from __future__ import annotations
 
@@ -42,6 +47,8 @@ from ..hessian import scaled_hessian as structured_scaled_hessian
 from ..sparse_stability import gauge_pins
 from ..stability import SLIDING_FRACTION, sliding_fields
 from ..topology import writhe
+from ..sparse_contact import assemble, hessian_parts, use_sparse
+from .linalg import DenseBackend, HostMatrix, SparseBackend
 from .problem import BifurcationProblem
 from .results import Event
 
@@ -106,6 +113,19 @@ def _pinned_structured_hessian(u_free, phi, args):
     """The structured Hessian (local blocks + contact pairs), pinned rows and columns dropped."""
     h = structured_scaled_hessian(args.scene, _embedded(u_free, args), phi, args.nbr)
     return h[args.free][:, args.free]
+
+
+def _pinned_parts(u_free, phi, args):
+    """The pinned Hessian's parts (``sparse_contact.hessian_parts`` of the embedded state), for
+    ``SparseBackend``: traceable, O(N)."""
+    return hessian_parts(args.scene, _embedded(u_free, args), phi, args.nbr)
+
+
+def _assemble_pinned(parts, args):
+    """The pinned Hessian as a ``HostMatrix`` (S restricted to the free DOFs, a restricted)."""
+    S, w, a = assemble(args.scene, parts)
+    free = np.asarray(args.free)
+    return HostMatrix(S.tocsr()[free][:, free].tocsc(), w, a[free])
 
 
 @dataclass(frozen=True, eq=False)
@@ -206,6 +226,8 @@ def knot_problem(scene, q_ref, phi0, *, pins=None, capacity=None, sliding=SLIDIN
     (what is left of it once the best sliding field plus a rigid motion is taken out) is below
     ``sliding`` (default ``jaxrod.stability.SLIDING_FRACTION``) is a soft mode, left out of the
     Morse index and of the event tests. A buckling mode changes the shape: its fraction is O(1).
+    backend: default ``SparseBackend`` (SciPy's sparse factorisations on the host, O(N)) from
+    ``sparse_contact.SPARSE_MIN_DOF`` DOFs on, else ``DenseBackend``.
     Returns a PinnedRod (its problem's args are a ``RodArgs`` with the neighbourhood).
     """
     q_ref = np.asarray(q_ref, dtype=float)
@@ -236,8 +258,11 @@ def knot_problem(scene, q_ref, phi0, *, pins=None, capacity=None, sliding=SLIDIN
         return split_sliding(scene, rod.q(u_free), free, u_ref.size, values, vectors, sliding)
 
     args = RodArgs(scene, jnp.asarray(u_ref), jnp.asarray(free), nbr0)
+    if backend is None:
+        backend = SparseBackend(_assemble_pinned) if use_sparse(scene) else DenseBackend()
+    jacobian = _pinned_parts if getattr(backend, "host", False) else _pinned_structured_hessian
     prob = BifurcationProblem(_pinned_energy, u_ref[free], phi0, args, n_zero_modes=0, backend=backend,
-                              update_args=update_args, soft_modes=soft_modes, jacobian=_pinned_structured_hessian)
+                              update_args=update_args, soft_modes=soft_modes, jacobian=jacobian)
     rod = PinnedRod(prob, scene, pins, free, u_ref)
     holder["rod"] = rod
     return rod
