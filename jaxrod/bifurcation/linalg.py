@@ -83,6 +83,15 @@ class HostMatrix:
         return _splu(self.S)
 
 
+class _Singular:
+    """Stands for the factorisation of a singular or non-finite matrix (a diverging Newton iterate):
+    its solves are NaN, as LAPACK's are for the dense backend, so the caller's non-finite-residual
+    test ends that run instead of an exception."""
+
+    def solve(self, b):
+        return np.full(np.shape(b), np.nan)
+
+
 def _splu(S, shift=0.0):
     import scipy.sparse as sp
     import scipy.sparse.linalg as spl
@@ -90,7 +99,12 @@ def _splu(S, shift=0.0):
     A = sp.csc_matrix(S)
     if shift:
         A = (A - shift * sp.identity(A.shape[0], format="csc")).tocsc()
-    return spl.splu(A, permc_spec="MMD_AT_PLUS_A")
+    if not np.all(np.isfinite(A.data)):
+        return _Singular()
+    try:
+        return spl.splu(A, permc_spec="MMD_AT_PLUS_A")
+    except RuntimeError:  # "Factor is exactly singular"
+        return _Singular()
 
 
 def _border_solve(lu, J, b, c, d, f, g):
@@ -140,6 +154,28 @@ class SparseBackend:
             return x, float(y[0])
         return _border_solve(A.lu, A, b, c, d, f, g)
 
+    def damped_step(self, J, g, mu_prev):
+        """(dy, mu): (J + mu I) dy = -g with mu just large enough for J + mu I to be positive
+        definite, found by the inertia (the shift schedule of ``solvers._damped_newton_loop``, with
+        no floor: see ``sparse_contact.damped_newton_direction``)."""
+        scale = float(np.max(np.abs(J.S.diagonal() + J.w * J.a**2))) + 1.0
+        mu0 = 1e-10 * scale
+        mu = mu0 if mu_prev <= 0.0 else max(mu0, 0.1 * mu_prev)
+        first = mu
+        for _ in range(80):
+            try:
+                if self._count_below(J, -mu) == 0:
+                    break
+            except Exception:  # no symmetric-mode factorisation at this shift: larger
+                pass
+            mu *= 4.0
+        else:
+            return np.full(J.shape[0], np.nan), mu
+        lu = _splu(J.S, -mu)
+        x, _ = _border_solve(lu, J, np.zeros((J.shape[0], 0)), np.zeros((J.shape[0], 0)), np.zeros((0, 0)), -g,
+                             np.zeros(0))
+        return x, (0.0 if (mu == first and mu <= mu0) else mu)
+
     def _count_below(self, J, s):
         from ..sparse_contact import negative_count
 
@@ -158,6 +194,9 @@ class SparseBackend:
         if n_zero:
             raise NotImplementedError("SparseBackend: pin the gauge (n_zero_modes = 0)")
         m = J.shape[0]
+        if not (np.all(np.isfinite(J.S.data)) and np.all(np.isfinite(J.a)) and np.isfinite(J.w)):
+            k = int(min(n_keep, m - 1))
+            return np.full(k, np.nan), np.full((m, k), np.nan), 0
         op = spl.LinearOperator((m, m), matvec=lambda x: J.matvec(np.ravel(x)), dtype=float)
         v0 = np.cos(0.7 * np.arange(m) + 0.3) + 0.5  # deterministic: resumed runs repeat themselves
         scale = float(abs(spl.eigsh(op, k=1, which="LM", v0=v0, tol=1e-6, return_eigenvectors=False)[0]))

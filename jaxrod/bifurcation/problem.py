@@ -82,9 +82,12 @@ class BifurcationProblem:
         """A minimum of E(., p) from u with ``args``: damped Newton (the structured ``jacobian`` if
         given, steps capped at max_step), the args refreshed by ``update_args`` at the minimum and
         the relaxation repeated while they change (at most 8 times). -> (Solution, args)."""
-        from ..solvers import DampedNewton, minimise
+        from ..solvers import DampedNewton, HostDampedNewton, minimise
 
-        solver = DampedNewton(hessian=self.jacobian_at if self.jacobian is not None else None, max_step=max_step)
+        if getattr(self.backend, "host", False):
+            solver = HostDampedNewton(direction=self._host_direction, max_step=max_step)
+        else:
+            solver = DampedNewton(hessian=self.jacobian_at if self.jacobian is not None else None, max_step=max_step)
         p = jnp.asarray(p, dtype=jnp.float64)
         y = u
         for _ in range(8):
@@ -94,6 +97,13 @@ class BifurcationProblem:
                 break
             args, y = fresh, sol.y
         return sol, args
+
+    def _host_direction(self, y, p_args, g, mu_prev):
+        """``HostDampedNewton``'s step on the host backend: J assembled from its parts, then
+        ``backend.damped_step``."""
+        p, args = p_args
+        _, J, _ = self.linearise(y, p, args)
+        return self.backend.damped_step(J, np.asarray(g), mu_prev)
 
     def jacobian_at(self, u, p_args):
         """The structured ``jacobian`` hook in ``minimise``'s form (a Hessian of energy_at)."""
