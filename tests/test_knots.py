@@ -82,7 +82,7 @@ def test_damped_newton_minimises_from_far_where_newton_stalls():
 def test_fast_stability_equals_dense_spectrum_on_knots_with_contact(relaxed):
     # Issue 7, acceptance 4 for knots: the per-step analysis takes the lowest 24 eigenpairs of the
     # projected Hessian (LAPACK dsyevr) and counts negative eigenvalues from them, falling back to
-    # the whole spectrum only when all 24 are below the threshold. Against the full eigh, on 210
+    # the whole spectrum only when all 24 are below the threshold. Against the full eigh, on 126
     # states of the N = 61 trefoil in contact: the relaxed knot and random perturbations of it
     # (0 to 60 negative eigenvalues), at twists it is not relaxed for (-12 pi ... 14 pi).
     from jaxrod.stability import _lowest_spectrum, _spectrum
@@ -94,7 +94,7 @@ def test_fast_stability_equals_dense_spectrum_on_knots_with_contact(relaxed):
     checked = 0
     for phi in np.linspace(-12.0, 14.0, 7) * np.pi:
         for amp in (0.0, 0.02, 0.1, 0.3, 0.6, 1.0):
-            for _ in range(5):
+            for _ in range(3):
                 noise = np.concatenate([amp * rng.normal(size=n_x), 0.5 * amp * rng.normal(size=scene.n_dof - n_x)])
                 q = np.asarray(eq.q) + noise
                 nbr = scene.neighbourhood(q, phi)
@@ -113,5 +113,5 @@ def test_fast_stability_equals_dense_spectrum_on_knots_with_contact(relaxed):
                 low = np.asarray(low)
                 assert np.max(np.abs(low - lam[: low.size])) <= 1e-8 * scale
                 checked += 1
-    assert checked == 210
+    assert checked == 126
     assert min(counts) == 0 and max(counts) > 24  # stable states, and the whole-spectrum fallback
