@@ -24,7 +24,7 @@ from .sparse_stability import EXTRA_PAIRS, eigenvalue_branch_derivative  # noqa:
 from .equilibrium import _grown, equilibrium_from_solution, scaled_energy
 from .validation import check_finite
 from .solvers import ConvergenceError, Newton, minimise
-from .stability import DEFAULT_NEGATIVE_TOL, Stability
+from .stability import DEFAULT_NEGATIVE_TOL, Stability, _stability_from_lowest
 
 __all__ = ["sparse_newton", "solve_equilibrium_sparse", "sparse_branch_analysis", "eigenvalue_branch_derivative"]
 
@@ -109,10 +109,7 @@ def sparse_branch_analysis(scene, q, phi, index, k=8, tol=DEFAULT_NEGATIVE_TOL, 
         n_neg, lam, vec, lam_i, dlam, v, dq = contact_branch_analysis(
             scene, q, phi, index, k=k, tol=tol, cluster_rtol=1e-4 if cluster_rtol is None else cluster_rtol, ref=ref,
             pinv_tol=pinv_tol, nbr=nbr, guess=guess)
-        kk = min(int(k), lam.shape[0])
-        stab = Stability(eigenvalues=lam[:kk], eigenvectors=vec[:, :kk], n_negative=n_neg,
-                         n_zero_modes=int(scene.n_zero_modes), stable=n_neg == 0, tol=tol)
-        return stab, lam_i, dlam, v, dq
+        return _stability_from_lowest(lam, vec, int(scene.n_zero_modes), n_neg, int(k), tol), lam_i, dlam, v, dq
     u = scene.to_scaled(np.asarray(q, dtype=float))
     if nbr is None:
         nbr = scene.neighbourhood(jnp.asarray(q), phi)

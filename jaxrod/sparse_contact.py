@@ -223,24 +223,20 @@ class _Bordered:
         return y0 - self.AE @ y, y
 
 
-def _projected_border(hs, shift):
-    """The bordered matrix of H + shift I with the border [pins, a, Z] (see module docstring):
-    (factorisation, count offset) so that count of projected eigenvalues below -shift =
-    factorisation.negative - offset."""
+def _constrained(hs, shift, C):
+    """The bordered matrix of H + shift I with the border [pins, a, C], C (n, c) constraint
+    columns (the zero modes Z, and deflated eigenvectors): its solutions are those of
+    P (H + shift I) P x = P b with x orthogonal to C (P the projector off C), the pins and the
+    rank-one term entering through the Schur complement. -> _Bordered."""
     p, f = hs.pins, hs.free
     _, S_fp, S_pp = hs.blocks
-    S_pp = S_pp + shift * np.eye(p.size)
-    z = hs.Z.shape[1]
-    cols = [S_fp]
-    top = [S_pp]
-    offset = z  # the Z border adds z negatives (and z positives)
+    cols, top = [S_fp], [S_pp + shift * np.eye(p.size)]
     rank_one = hs.w != 0.0
     if rank_one:
         cols.append(hs.a[f, None])
         top.append(hs.a[p, None])
-        offset += 1 if hs.w > 0.0 else 0
-    cols.append(hs.Z[f])
-    top.append(hs.Z[p])
+    cols.append(C[f])
+    top.append(C[p])
     E = np.concatenate(cols, axis=1)
     r = E.shape[1]
     D = np.zeros((r, r))
@@ -253,7 +249,27 @@ def _projected_border(hs, shift):
         D[k + 1:, k] = 0.0
         k += 1
     D[k:, k:] = 0.0
-    return _Bordered(hs, shift, E, D), offset, f
+    return _Bordered(hs, shift, E, D)
+
+
+def _constrained_solve(fac, hs, off, b):
+    """x (n,) from a ``_constrained`` factorisation, b and x projected off the constraint columns
+    by ``off`` (v -> v without its part along them)."""
+    bp = off(b)
+    p = hs.pins
+    x_f, y = fac.solve(bp[hs.free], np.concatenate([bp[p], np.zeros(fac.E.shape[1] - p.size)]))
+    x = np.zeros(hs.n)
+    x[hs.free] = x_f
+    x[p] = y[: p.size]
+    return off(x)
+
+
+def _projected_border(hs, shift):
+    """The bordered matrix of H + shift I with the border [pins, a, Z] (see module docstring):
+    (factorisation, count offset, free DOFs) so that the count of projected eigenvalues below
+    -shift = factorisation.negative - offset."""
+    offset = hs.Z.shape[1] + (1 if hs.w > 0.0 else 0)  # the Z border adds z negatives, -1/w one more
+    return _constrained(hs, shift, hs.Z), offset, hs.free
 
 
 def count_below(hs, s):
@@ -265,12 +281,7 @@ def count_below(hs, s):
 
 def _projected_solve(fac, f, hs, b):
     """x (n,) on Z-perp with P (H + shift I) P x = P b, from the bordered factorisation."""
-    bp = b - hs.Z @ (hs.Z.T @ b)
-    x_f, y = fac.solve(bp[f], np.concatenate([bp[hs.pins], np.zeros(fac.E.shape[1] - hs.pins.size)]))
-    x = np.zeros(hs.n)
-    x[f] = x_f
-    x[hs.pins] = y[: hs.pins.size]
-    return x - hs.Z @ (hs.Z.T @ x)
+    return _constrained_solve(fac, hs, lambda v: v - hs.Z @ (hs.Z.T @ v), b)
 
 
 def _fix_signs(vec):
@@ -344,36 +355,8 @@ def _deflated_tangent(hs, b, skip_vecs):
     """x = -H_def^+ b on Z-perp with the flagged eigenvectors (n, r) left out: the constrained
     solve [[H, Z, V], [Z^T, 0, 0], [V^T, 0, 0]] (exact: V are eigenvectors of the projected
     Hessian, so the complement is invariant)."""
-    p, f = hs.pins, hs.free
     C = np.concatenate([hs.Z, skip_vecs], axis=1)
-    _, S_fp, S_pp = hs.blocks
-    cols = [S_fp]
-    top = [S_pp]
-    rank_one = hs.w != 0.0
-    if rank_one:
-        cols.append(hs.a[f, None])
-        top.append(hs.a[p, None])
-    cols.append(C[f])
-    top.append(C[p])
-    E = np.concatenate(cols, axis=1)
-    r = E.shape[1]
-    D = np.zeros((r, r))
-    D[: p.size] = np.concatenate(top, axis=1)
-    D[:, : p.size] = D[: p.size].T
-    kk = p.size
-    if rank_one:
-        D[kk, kk] = -1.0 / hs.w
-        D[kk, kk + 1:] = 0.0
-        D[kk + 1:, kk] = 0.0
-        kk += 1
-    D[kk:, kk:] = 0.0
-    fac = _Bordered(hs, 0.0, E, D)
-    bp = b - C @ np.linalg.lstsq(C, b, rcond=None)[0]
-    x_f, y = fac.solve(bp[f], np.concatenate([bp[p], np.zeros(r - p.size)]))
-    x = np.zeros(hs.n)
-    x[f] = x_f
-    x[p] = y[: p.size]
-    return -(x - C @ np.linalg.lstsq(C, x, rcond=None)[0])
+    return -_constrained_solve(_constrained(hs, 0.0, C), hs, lambda v: v - C @ np.linalg.lstsq(C, v, rcond=None)[0], b)
 
 
 def contact_branch_analysis(scene, q, phi, index, k=8, tol=1e-6, cluster_rtol=1e-4, ref=None, pinv_tol=0.0, nbr=None,

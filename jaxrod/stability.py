@@ -182,8 +182,7 @@ def stability(scene, q, phi, k=8, tol=DEFAULT_NEGATIVE_TOL, nbr=None, linear_alg
         nbr = scene.neighbourhood(q, phi)
     if "contact" in scene.terms and sparse_contact.use_sparse(scene, linear_algebra):
         n_neg, lam, vec = sparse_contact.contact_spectrum(scene, q, phi, k=k, tol=tol, nbr=nbr)
-        return Stability(eigenvalues=lam[:k], eigenvectors=vec[:, :k], n_negative=n_neg,
-                         n_zero_modes=int(scene.n_zero_modes), stable=n_neg == 0, tol=tol)
+        return _stability_from_lowest(lam, vec, int(scene.n_zero_modes), n_neg, k, tol)
     lam, vec, n_zero, n_neg = _lowest_spectrum(scene, u, phi, nbr, tol)
     return _stability_from_lowest(np.asarray(lam), np.asarray(vec), int(n_zero), int(n_neg), k, tol)
 

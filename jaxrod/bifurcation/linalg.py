@@ -162,11 +162,13 @@ class SparseBackend:
         mu0 = 1e-10 * scale
         mu = mu0 if mu_prev <= 0.0 else max(mu0, 0.1 * mu_prev)
         first = mu
+        from ..sparse_contact import FactorisationError
+
         for _ in range(80):
             try:
                 if self._count_below(J, -mu) == 0:
                     break
-            except Exception:  # no symmetric-mode factorisation at this shift: larger
+            except FactorisationError:  # no symmetric-mode factorisation at this shift: a larger one
                 pass
             mu *= 4.0
         else:
