@@ -282,3 +282,28 @@ def test_cli_xla_flags_are_added_unless_the_user_set_them():
     assert empty["XLA_FLAGS"] == "--xla_cpu_use_fusion_emitters=false"
     code = "import jaxrod.cli; from jax._src import xla_bridge; print(len(xla_bridge._backends))"
     assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip() == "0"
+
+
+def test_a_users_compile_cache_keeps_every_program(monkeypatch, tmp_path):
+    """With the user's own JAX_COMPILATION_CACHE_DIR, JAX by default keeps only compilations over
+    1 s: command 1's second run then compiled 51 of its ~90 programs again. The CLI lowers that
+    threshold to 0 unless the user set one; its own cache (~/.cache/jaxrod) likewise."""
+    import argparse
+
+    import jax
+
+    from jaxrod.cli import _enable_compilation_cache
+
+    before = jax.config.jax_persistent_cache_min_compile_time_secs
+    try:
+        monkeypatch.setenv("JAX_COMPILATION_CACHE_DIR", str(tmp_path / "user"))
+        monkeypatch.delenv("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", raising=False)
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
+        assert _enable_compilation_cache(argparse.Namespace()) is None  # the user's folder, kept
+        assert jax.config.jax_persistent_cache_min_compile_time_secs == 0.0
+        monkeypatch.setenv("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "2")  # the user's choice stays
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 2.0)
+        _enable_compilation_cache(argparse.Namespace())
+        assert jax.config.jax_persistent_cache_min_compile_time_secs == 2.0
+    finally:
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", before)
