@@ -237,13 +237,50 @@ def polyline_distance(a, b, closed=True):
     """
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
+    if a.shape[0] * b.shape[0] <= 40_000:  # small rods: every node against every segment
+        return float(np.max(_point_polyline_distances(a, np.arange(a.shape[0]), b, None, closed)))
+    # Large rods, O(N log N) instead of O(N M) (17 ms a step at N = 481, 70 ms at 961): the segment
+    # nearest to a node has an end within d + h/2 of it, where d is the distance to the nearest node
+    # of b (at least the distance to the polyline) and h the longest segment; only the segments
+    # next to the nodes of b within that radius are measured, so the result is exact.
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(b)
+    nearest, _ = tree.query(a)
+    m = b.shape[0]
+    seg_count = m if closed else m - 1
+    h = float(np.max(np.linalg.norm(np.diff(np.concatenate([b, b[:1]]) if closed else b, axis=0), axis=1)))
+    near = tree.query_ball_point(a, nearest + 0.5 * h * (1.0 + 1e-9) + 1e-300)
+    node = np.concatenate([np.asarray(js, dtype=np.int64) for js in near])
+    point = np.repeat(np.arange(a.shape[0]), [len(js) for js in near])
+    # the segments on either side of each near node (j - 1 -> j and j -> j + 1)
+    seg = np.concatenate([node, node - 1])
+    point = np.concatenate([point, point])
+    if closed:
+        seg %= m
+    else:
+        ok = (seg >= 0) & (seg < seg_count)
+        seg, point = seg[ok], point[ok]
+    d = _point_polyline_distances(a, point, b, seg, closed)
+    per_point = np.full(a.shape[0], np.inf)
+    np.minimum.at(per_point, point, d)
+    return float(np.max(per_point))
+
+
+def _point_polyline_distances(a, point, b, seg, closed):
+    """Distances from the nodes a[point] to segments seg of polyline b ((K,) each); seg None:
+    every node of a (point = all of them) against every segment, the minimum per node."""
     b1 = np.roll(b, -1, axis=0) if closed else b[1:]
     b0 = b if closed else b[:-1]
-    seg = b1 - b0  # (M,3)
-    rel = a[:, None, :] - b0[None, :, :]  # (N,M,3)
-    t = np.clip(np.sum(rel * seg, axis=-1) / np.maximum(np.sum(seg * seg, axis=-1), 1e-300), 0.0, 1.0)
-    d = np.linalg.norm(rel - t[..., None] * seg, axis=-1)
-    return float(np.max(np.min(d, axis=1)))
+    if seg is None:
+        s0, sv = b0[None, :, :], (b1 - b0)[None, :, :]  # (1, M, 3)
+        rel = a[point][:, None, :] - s0
+    else:
+        s0, sv = b0[seg], b1[seg] - b0[seg]
+        rel = a[point] - s0
+    t = np.clip(np.sum(rel * sv, axis=-1) / np.maximum(np.sum(sv * sv, axis=-1), 1e-300), 0.0, 1.0)
+    d = np.linalg.norm(rel - t[..., None] * sv, axis=-1)
+    return np.min(d, axis=1) if seg is None else d
 
 
 def segment_distances(p0, p1, q0, q1):

@@ -40,6 +40,33 @@ def test_sparse_hessian_equals_the_dense_structured_hessian(knot):
     i, j = hs.S.nonzero()
     assert np.max(np.minimum(np.abs(i - j), hs.n - np.abs(i - j))) > 50
     assert hs.S.nnz < 40 * hs.n  # sparse: ~20 entries per row plus the contact blocks
+    # exactly symmetric (the inertia needs it), and the COO -> CSC reference assembly to roundoff:
+    # the contact blocks summed per node pair first must lose no entry and count none twice
+    assert (hs.S - hs.S.T).count_nonzero() == 0
+    values, w, a, blocks, dofs, count = (np.asarray(x) for x in spc.hessian_parts(scene, jnp.asarray(u), PHI,
+                                                                                   e.neighbourhood))
+    assert int(count) > 50
+    rows, cols = spc._pattern_entries(spc.hessian_pattern(scene))
+    b, d = blocks[: int(count)], dofs[: int(count)]
+    r, c = (np.broadcast_to(d[:, :, None], b.shape).ravel(), np.broadcast_to(d[:, None, :], b.shape).ravel())
+    R, C, V = np.concatenate([rows, r]), np.concatenate([cols, c]), np.concatenate([values, b.ravel()])
+    reference = sp.coo_matrix((V, (R, C)), shape=(hs.n, hs.n)).toarray()
+    assert np.max(np.abs(hs.S.toarray() - 0.5 * (reference + reference.T))) <= 1e-14 * np.max(np.abs(reference))
+
+
+def test_polyline_distance_is_exact_on_large_rods():
+    """The KD-tree path of ``polyline_distance`` (large rods, O(N log N)) gives exactly the
+    all-pairs value: the candidate radius d + h/2 keeps every segment that can be nearest."""
+    from jaxrod.geometry import _point_polyline_distances, polyline_distance
+
+    rng = np.random.default_rng(1)
+    t = np.linspace(0.0, 2 * np.pi, 400, endpoint=False)
+    b = np.stack([np.sin(t) + 2 * np.sin(2 * t), np.cos(t) - 2 * np.cos(2 * t), -np.sin(3 * t)], axis=1)
+    for closed in (True, False):
+        for scale in (0.0, 1e-3, 0.05, 1.0):
+            a = (np.roll(b, 3, axis=0) + scale * rng.normal(size=b.shape))[:390]
+            brute = np.max(_point_polyline_distances(a, np.arange(len(a)), b, None, closed))
+            assert polyline_distance(a, b, closed) == brute
 
 
 def test_counts_below_any_shift_match_the_dense_spectrum(knot):
