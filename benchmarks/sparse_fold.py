@@ -4,11 +4,11 @@ in one process per N (issue 18, acceptance 1: phi* equal to 1e-8 pi wherever bot
 
 For each N: the stable-only engine follows the symmetric branch to 6 pi; from there the
 pseudo-arclength continuation (ds_max = 4, newton_tol = 1e-10, eig_rtol = 1e-13) runs up to the
-fold and past it, once per backend, with the gauge pinned and, from N = 241 on, one extra pin on
-the material slide: at these N the slide is a numerically exact symmetry (its eigenvalue ~1e-12 in
-scaled units at N = 481, against ~1e-7 at N = 121), along which Newton's corrector would otherwise
-step by edge lengths and stall (residual ~6e-8, with either backend). ``full_gradient`` at the
-fold measures the force that pin holds (~1e-12: none).
+fold and past it, once per backend, with the gauge pinned and, where ``knot_problem`` finds the
+material slide to be a numerically exact symmetry (its eigenvalue ~1e-12 in scaled units at
+N = 481, against ~1e-7 at N = 121; ``EXACT_SLIDE_TOL``), one extra pin on it, along which Newton's
+corrector would otherwise step by edge lengths and stall (residual ~6e-8, with either backend).
+``full_gradient`` at the fold measures the force that pin holds (~1e-12: none).
 
     python benchmarks/sparse_fold.py                 # N = 121, 481 (both backends), 961 (sparse)
 
@@ -44,17 +44,13 @@ def child(N, backends):
     path = jr.follow_twist(scene, 0.0, 6.3 * PI, jr.ContinuationOptions(step=2 * PI, max_switches=0))
     follow_s = time.perf_counter() - t
     e = [p.equilibrium for p in path.points if abs(p.equilibrium.phi / PI - 6.0) < 1e-9][0]
-    pins = None
-    if N >= 241:  # the slide: the free DOF moving most along the softest mode of the pinned Hessian
-        rod0 = knot_problem(scene, np.asarray(e.q), e.phi, backend=SparseBackend(_assemble_pinned))
-        _, J, _ = rod0.problem.linearise(np.asarray(rod0.problem.u0), rod0.problem.p0, rod0.problem.args)
-        vals, vecs, _ = rod0.problem.backend.spectrum(J, 3, 0, 1e-13)
-        free = np.asarray(rod0.free)
-        cand = np.where(free < 3 * N)[0]
-        extra = int(free[cand[np.argmax(np.abs(vecs[cand, 0]))]])
-        pins = np.append(np.asarray(rod0.pins), extra)
-        print(f"N = {N}: softest pinned eigenvalue {vals[0]:.2e} (next {vals[1]:.2e}): slide pinned at DOF {extra}",
-              file=sys.stderr, flush=True)
+    # The gauge pins, and one more on the material slide where it is a numerically exact symmetry:
+    # ``knot_problem`` decides (its eigenvalue below EXACT_SLIDE_TOL), once, with the sparse backend,
+    # and both backends then get the same pins.
+    rod0 = knot_problem(scene, np.asarray(e.q), e.phi, backend=SparseBackend(_assemble_pinned))
+    pins = np.asarray(rod0.pins) if rod0.slide_pin is not None else None
+    print(f"N = {N}: slide pinned at DOF {rod0.slide_pin}" if pins is not None else f"N = {N}: no exact slide",
+          file=sys.stderr, flush=True)
     opts = ContinuationOptions(ds=0.05, ds_min=1e-6, ds_max=4.0, max_steps=120, newton_tol=1e-10, eig_rtol=1e-13,
                                n_eig=6, p_max=7.0 * PI)
     for name in backends:

@@ -271,6 +271,8 @@ def _event_dict(end, index):
               "iterations": int(ev.iterations), "multiplicity": int(ev.multiplicity),
               "morse_before": int(ev.morse_before), "morse_after": int(ev.morse_after),
               "full_gradient": end.rod.full_gradient(ev.u, ev.p), "within_bracket": end.within_bracket,
+              # the DOF pinned along an exact material slide (large N; full_gradient: its force), or None
+              "slide_pin": end.rod.slide_pin,
               "unstable_branch": UNSTABLE_PREFIX + end.from_branch})
     return d
 

@@ -35,7 +35,7 @@ from __future__ import annotations
 import copy
 import functools
 import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, NamedTuple
 
 import jax
@@ -143,6 +143,7 @@ class PinnedRod:
     pins: np.ndarray
     free: np.ndarray
     u_ref: np.ndarray
+    slide_pin: object = None  # the DOF pinned along an exact slide (``knot_problem``), or None
 
     def embed(self, u_free):
         """Full scaled DOFs (n,) from the free ones (n - k,): pinned entries from u_ref. Traceable."""
@@ -209,7 +210,16 @@ def _build(scene, u_ref, phi0, pins, backend):
     return PinnedRod(prob, scene, pins, free, u_ref)
 
 
-def knot_problem(scene, q_ref, phi0, *, pins=None, capacity=None, sliding=SLIDING_FRACTION, backend=None):
+# A soft mode of the pinned Hessian that slides (``split_sliding``) with |lambda| at most this, in
+# scaled units, is a numerically exact symmetry of the discrete knot: the trefoil (8, 292) has
+# ~1e-7 at N = 121 and -2.3e-12 at N = 481. Along such a mode Newton's corrector steps by edge
+# lengths and stalls at a residual of ~6e-8, above newton_tol (measured with either backend at
+# N = 481 and 961; benchmarks/sparse_fold.py); ``knot_problem`` then pins it like a gauge.
+EXACT_SLIDE_TOL = 1e-9
+
+
+def knot_problem(scene, q_ref, phi0, *, pins=None, capacity=None, sliding=SLIDING_FRACTION, backend=None,
+                 slide_tol=EXACT_SLIDE_TOL):
     """A knot (a closed rod with soft self-contact) as a BifurcationProblem, at O(N) per energy.
 
     As ``pinned_problem`` (7 gauge DOFs pinned at the state q_ref (n,), physical DOFs, at phi0),
@@ -228,12 +238,26 @@ def knot_problem(scene, q_ref, phi0, *, pins=None, capacity=None, sliding=SLIDIN
     Morse index and of the event tests. A buckling mode changes the shape: its fraction is O(1).
     backend: default ``SparseBackend`` (SciPy's sparse factorisations on the host, O(N)) from
     ``sparse_contact.SPARSE_MIN_DOF`` DOFs on, else ``DenseBackend``.
+    Exact slides: with ``pins`` None, if the softest sliding mode of the gauge-pinned Hessian at
+    q_ref has |lambda| <= ``slide_tol`` (default ``EXACT_SLIDE_TOL``; 0 never pins), it is a
+    numerically exact symmetry (large N), which stalls the corrector; it is then fixed like the
+    gauge by one more pin, the free node coordinate that moves most along it (``PinnedRod.slide_pin``;
+    check ``full_gradient`` at the results: the force that pin holds, ~roundoff when the symmetry
+    is exact).
     Returns a PinnedRod (its problem's args are a ``RodArgs`` with the neighbourhood).
     """
     q_ref = np.asarray(q_ref, dtype=float)
     u_ref = np.asarray(scene.to_scaled(q_ref), dtype=float)
     if pins is None:
         pins, _ = gauge_pins(scene, jnp.asarray(u_ref), float(phi0))
+        if slide_tol > 0.0:
+            rod = knot_problem(scene, q_ref, phi0, pins=pins, capacity=capacity, sliding=sliding, backend=backend)
+            extra = _exact_slide_pin(rod, q_ref, sliding, slide_tol)
+            if extra is None:
+                return rod
+            rod = knot_problem(scene, q_ref, phi0, pins=np.append(np.asarray(pins), extra), capacity=capacity,
+                               sliding=sliding, backend=rod.problem.backend)
+            return replace(rod, slide_pin=extra)
     pins = np.unique(np.asarray(pins, dtype=np.int64).ravel())
     free = np.setdiff1d(np.arange(u_ref.size), pins)
     nbr0 = scene.neighbourhood(q_ref, float(phi0), capacity=capacity)
@@ -266,6 +290,21 @@ def knot_problem(scene, q_ref, phi0, *, pins=None, capacity=None, sliding=SLIDIN
     rod = PinnedRod(prob, scene, pins, free, u_ref)
     holder["rod"] = rod
     return rod
+
+
+def _exact_slide_pin(rod, q_ref, sliding, slide_tol):
+    """The DOF to pin along an exactly soft slide of ``rod`` at its reference state, or None."""
+    prob = rod.problem
+    _, J, _ = prob.linearise(np.asarray(prob.u0), prob.p0, prob.args)
+    values, vectors, _ = prob.backend.spectrum(J, 4, 0, 1e-13)
+    if not np.all(np.isfinite(values)):
+        return None
+    values, vectors, soft = split_sliding(rod.scene, q_ref, rod.free, rod.u_ref.size, values, vectors, sliding)
+    if not soft.any() or abs(float(values[soft][0])) > slide_tol:
+        return None
+    free = np.asarray(rod.free)
+    nodes = np.flatnonzero(free < 3 * int(rod.scene.n_nodes))  # node coordinates (a slide moves nodes)
+    return int(free[nodes[np.argmax(np.abs(vectors[nodes, np.flatnonzero(soft)[0]]))]])
 
 
 def split_sliding(scene, q, free, n_full, values, vectors, threshold=SLIDING_FRACTION):
