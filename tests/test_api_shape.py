@@ -29,9 +29,6 @@ EXCEPTIONS = {
                    "stiffness, Lk0), not knobs",
     "jaxrod.bifurcation.BifurcationProblem": "a problem's definition (energy, state, parameter, args and its "
                                              "hooks), as BifurcationKit's BifurcationProblem",
-    "jaxrod.bifurcation.fold_curve": "the pseudo-arclength engine's two-parameter entry: one over (throw, "
-                                     "observer, at after the options); to do",
-    "jaxrod.bifurcation.branch_point_curve": "as fold_curve: one over; to do",
 }
 OLD_KEYWORDS = ("step", "tol", "k", "negative_tol", "gtol", "jump_tol", "max_refine", "linear_algebra", "branch",
                 "switch", "max_switches", "perturbation", "progress", "on_point", "on_step", "on_state",

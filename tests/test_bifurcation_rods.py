@@ -117,8 +117,9 @@ def test_branch_point_curve_in_nu_equals_critical_twist(ring, buckled):
     IFT slope is phi*(0.5)/1.5 all along."""
     scene, cp, _, _ = ring
     rod8, ev8, _, _ = buckled
-    opts = ContinuationOptions(ds=-0.5, ds_max=2.0, newton_tol=5e-11, p_min=-0.01, p_max=0.51, max_steps=100)
-    curve = branch_point_curve(rod8.problem, ev8, set_poisson_ratio, 0.5, ALG, opts, at=(0.0, 0.25))
+    opts = ContinuationOptions(ds=-0.5, ds_max=2.0, newton_tol=5e-11, p_min=-0.01, p_max=0.51, max_steps=100,
+                               report_at=(0.0, 0.25))
+    curve = branch_point_curve(rod8.problem, ev8, set_poisson_ratio, 0.5, ALG, opts)
     assert curve.result is Result.BOUNDARY and curve.mu[-1] < 0.0 and np.max(curve.residual) <= 5e-11
     for nu in (0.0, 0.25, 0.5):
         (k,) = np.flatnonzero(curve.mu == nu)

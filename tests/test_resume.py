@@ -21,46 +21,71 @@ PI = math.pi
 RANGE = (-0.5 * PI, 7.5 * PI)  # the opening side's fold at 6.60 pi, a switch, the buckled branch
 STEP = 1.0 * PI  # 7 steps to the fold: the sixth step file is written before the bisection starts
 
-# The subprocess: a study whose hook kills the process (SIGKILL: no cleanup, no finally).
+# The subprocess: imports jaxrod once (which starts no XLA backend and no thread, so forking is
+# safe), then for each moment read from stdin forks a child that runs the study with a hook that
+# kills it (SIGKILL: no cleanup, no finally), and prints the child's wait status. The children
+# skip Python's start and JaxRod's import (~3 s each); each still starts its own XLA backend.
 SCRIPT = textwrap.dedent("""
     import math, os, signal, sys
     import jaxrod as jr
     import jaxrod.study as study
 
-    out, moment = sys.argv[1], sys.argv[2]
-    kill = lambda: os.kill(os.getpid(), signal.SIGKILL)
-    saves = [0]
-    real_savez = study._savez
+    out = sys.argv[1]
 
-    def savez(path, **arrays):
-        # mid-row: the 6th step file, after its row of branch.csv; a partial temporary file is
-        # left where the atomic write would have renamed it.
-        if moment == "mid-row" and os.sep + "steps" + os.sep in path:
-            saves[0] += 1
-            if saves[0] == 6:
-                folder, name = os.path.split(path)
-                with open(os.path.join(folder, ".tmp-" + name), "wb") as f:
-                    f.write(b"PK\\x03\\x04 half a zip")
+    def killed_study(moment):
+        kill = lambda: os.kill(os.getpid(), signal.SIGKILL)
+        saves = [0]
+        real_savez = study._savez
+
+        def savez(path, **arrays):
+            # mid-row: the 6th step file, after its row of branch.csv; a partial temporary file is
+            # left where the atomic write would have renamed it.
+            if moment == "mid-row" and os.sep + "steps" + os.sep in path:
+                saves[0] += 1
+                if saves[0] == 6:
+                    folder, name = os.path.split(path)
+                    with open(os.path.join(folder, ".tmp-" + name), "wb") as f:
+                        f.write(b"PK\\x03\\x04 half a zip")
+                    kill()
+            real_savez(path, **arrays)
+
+        study._savez = savez
+
+        def progress(message):
+            if moment == "mid-bisection" and " refused (" in message:
                 kill()
-        real_savez(path, **arrays)
+            if moment == "after-switch" and message.startswith("[buckled+] phi"):
+                kill()
 
-    study._savez = savez
+        scene = jr.trefoil(D=8.0, L=292.0, N=61)
+        study.twist_study(scene, %r, %r, jr.ContinuationOptions(step=%r, tol=1e-3 * math.pi), out=out,
+                          observer=jr.Observer(progress=progress))
 
-    def progress(message):
-        if moment == "mid-bisection" and " refused (" in message:
-            kill()
-        if moment == "after-switch" and message.startswith("[buckled+] phi"):
-            kill()
-
-    scene = jr.trefoil(D=8.0, L=292.0, N=61)
-    study.twist_study(scene, %r, %r, jr.ContinuationOptions(step=%r, tol=1e-3 * math.pi), out=out,
-                  observer=jr.Observer(progress=progress))
+    for line in sys.stdin:
+        moment = line.strip()
+        pid = os.fork()
+        if pid == 0:
+            try:
+                killed_study(moment)
+            finally:
+                os._exit(3)  # not killed: the test fails on the status
+        _, status = os.waitpid(pid, 0)
+        print(moment, status, flush=True)
 """ % (RANGE + (STEP,)))
 
 
-def _run(script, out, moment):
-    return subprocess.run([sys.executable, str(script), str(out), moment], capture_output=True, text=True,
-                          timeout=600)
+def _killer(script, out):
+    return subprocess.Popen([sys.executable, str(script), str(out)], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+
+
+def _kill_at(killer, moment):
+    """Run the study in a forked child until ``moment``; its wait status."""
+    killer.stdin.write(moment + "\n")
+    killer.stdin.flush()
+    line = killer.stdout.readline()
+    assert line.split()[:1] == [moment], (moment, line, killer.poll())
+    return int(line.split()[1])
 
 
 def _arrays(path):
@@ -77,15 +102,18 @@ def test_sigkill_at_three_moments_resumes_to_the_uninterrupted_files(tmp_path):
     script = tmp_path / "killed_study.py"
     script.write_text(SCRIPT)
     cut = tmp_path / "cut"
+    killer = _killer(script, cut)
     for moment in ("mid-row", "mid-bisection", "after-switch"):
-        run = _run(script, cut, moment)
-        assert run.returncode == -signal.SIGKILL, (moment, run.returncode, run.stderr[-2000:])
+        status = _kill_at(killer, moment)
+        assert os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGKILL, (moment, status)
         if moment == "mid-row":
             assert any(name.startswith(".tmp-") for name in os.listdir(cut / "steps"))
         if moment == "after-switch":
             # Killed right after the buckled branch's first row: the instability is on file.
             crit = json.loads((cut / "critical.json").read_text())
             assert crit["phi_plus"] == ref.critical["phi_plus"]
+    killer.stdin.close()
+    assert killer.wait(timeout=60) == 0, killer.stderr.read()[-2000:]
     # The last resumption runs here, in this process (its code is compiled already).
     said = []
     twist_study(scene, *RANGE, jr.ContinuationOptions(step=STEP, tol=1e-3 * PI), out=str(cut),

@@ -31,6 +31,10 @@ class ContinuationOptions:
     size, so that nearly coincident events fall into separate brackets; a crossing that is still
     multiple at that size is a multiple event (a symmetric double branch point), located as one.
     A refused step counts towards max_steps.
+
+    report_at: values of the continued parameter at which a two-parameter curve (``fold_curve``,
+    ``branch_point_curve``: values of mu) also gives a point exactly, corrected on the hyperplane
+    mu = value from the chord of the step that crosses it.
     """
 
     ds: float = 0.05
@@ -50,6 +54,7 @@ class ContinuationOptions:
     slide_dp: float = 1e-3
     slide_kick: float = 1e-2
     resolve_crossings: float = 0.0
+    report_at: tuple = ()
 
     def __post_init__(self):
         if self.soft_folds not in ("slide", "follow"):
@@ -62,6 +67,9 @@ class ContinuationOptions:
             raise ValueError("resolve_crossings must be 0 (off) or >= ds_min")
         if not self.p_min < self.p_max:
             raise ValueError("need p_min < p_max")
+        object.__setattr__(self, "report_at", tuple(float(v) for v in self.report_at))
+        if not all(math.isfinite(v) for v in self.report_at):
+            raise ValueError(f"report_at: finite values, got {self.report_at}")
         if self.max_steps < 1 or self.newton_max_iter < 1 or self.n_eig < 1:
             raise ValueError("max_steps, newton_max_iter and n_eig must be >= 1")
 

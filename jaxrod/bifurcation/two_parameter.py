@@ -133,7 +133,7 @@ def fold_sensitivity(problem, fold, set_mu, mu0):
     return dp
 
 
-def fold_curve(problem, fold, set_mu, mu0, alg, opts, *, throw=True, observer=None, at=()):
+def fold_curve(problem, fold, set_mu, mu0, alg, opts, *, throw=True, observer=None):
     """Continue the fold Event ``fold`` of ``problem`` (whose args hold mu = mu0) in mu.
 
     set_mu(args, mu) -> args must be traceable, and set mu absolutely (not add to it): the args are
@@ -142,8 +142,8 @@ def fold_curve(problem, fold, set_mu, mu0, alg, opts, *, throw=True, observer=No
     the problem's ``update_args`` hook (if any) is called with the args at that point's mu (a
     knot's neighbourhood rebuilt when it went stale, or when the diameter grew past its skin),
     and the curve goes on from those args. observer(i, mu, p, residual), if given, is called
-    after each point (progress). at: values of mu at which the curve also gives a point exactly
-    (corrected on the hyperplane mu = value from the chord of the step that crosses it).
+    after each point (progress). opts.report_at: values of mu at which the curve also gives a
+    point exactly (corrected on the hyperplane mu = value from the chord of the step that crosses it).
     """
     be, n = problem.backend, problem.n
     base = [problem.args]
@@ -164,7 +164,7 @@ def fold_curve(problem, fold, set_mu, mu0, alg, opts, *, throw=True, observer=No
     t0 = np.zeros(n + 2)
     t0[-1] = np.sign(opts.ds)
     c = correct(be, lin, np.concatenate([fold.u, [fold.p, mu0]]), t0, opts.newton_tol, opts.newton_max_iter)
-    return _follow(be, lin, c, t0, record, rows, opts, alg, throw, "fold", at)
+    return _follow(be, lin, c, t0, record, rows, opts, alg, throw, "fold")
 
 
 @functools.partial(jax.jit, static_argnames=("problem", "set_mu"))
@@ -188,7 +188,7 @@ def _branch_point_system(problem, set_mu, args0, u, p, beta, mu, v0, b):
     return G, A, jnp.concatenate([Fmu, gm]), w
 
 
-def branch_point_curve(problem, event, set_mu, mu0, alg, opts, *, throw=True, observer=None, at=()):
+def branch_point_curve(problem, event, set_mu, mu0, alg, opts, *, throw=True, observer=None):
     """Continue the simple branch point ``event`` of ``problem`` (whose args hold mu = mu0) in mu.
 
     The branch point is the root of the unfolded system (locate.py, Moore 1980)
@@ -230,10 +230,10 @@ def branch_point_curve(problem, event, set_mu, mu0, alg, opts, *, throw=True, ob
     t0[-1] = np.sign(opts.ds)
     z0 = np.concatenate([np.asarray(event.u), [float(event.p), 0.0, float(mu0)]])
     c = correct(be, lin, z0, t0, opts.newton_tol, opts.newton_max_iter)
-    return _follow(be, lin, c, t0, record, rows, opts, alg, throw, "branch point", at)
+    return _follow(be, lin, c, t0, record, rows, opts, alg, throw, "branch point")
 
 
-def _follow(be, lin, c, t0, record, rows, opts, alg, throw, what, at=()):
+def _follow(be, lin, c, t0, record, rows, opts, alg, throw, what):
     """The pseudo-arclength loop of a two-parameter curve from its first correction c."""
     result, message = Result.MAX_STEPS, f"stopped after max_steps = {opts.max_steps} steps"
     if not c.converged:
@@ -247,7 +247,7 @@ def _follow(be, lin, c, t0, record, rows, opts, alg, throw, what, at=()):
                 result = Result.CORRECTOR_FAILED
                 message = f"the {what}-curve corrector failed down to ds_min = {opts.ds_min:g} at mu = {z[-1]:.12g}"
                 break
-            for target in [m for m in at if min(z[-1], step.z[-1]) < m < max(z[-1], step.z[-1])]:
+            for target in [m for m in opts.report_at if min(z[-1], step.z[-1]) < m < max(z[-1], step.z[-1])]:
                 # a point exactly at this mu: corrected from the chord on the hyperplane mu = target
                 s_frac = (target - z[-1]) / (step.z[-1] - z[-1])
                 e_mu = np.zeros_like(z)
