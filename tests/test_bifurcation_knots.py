@@ -339,3 +339,22 @@ def test_a_located_end_outside_the_studys_bracket_does_not_replace_phi_star():
         _summarise(critical)
         assert critical["phi_minus"] == expected
         assert ("phi_minus_located" in critical) == within
+
+
+def test_an_end_that_changes_the_morse_index_by_more_than_its_multiplicity_is_flagged(on_file):
+    """A located fold that takes the Morse index 0 -> 2 (the trefoil's opening end at N = 961, a fold
+    meeting a crossing pair) is flagged as a near-double event, in a warning and in critical.json's
+    ``morse_jump``; the simple fold at N = 121 is not."""
+    from types import SimpleNamespace
+
+    from jaxrod.diagram import extra_crossings
+
+    out, _, diagram = on_file
+    (end,) = diagram.ends
+    assert extra_crossings(end.event) == ""
+    (event,) = json.load(open(os.path.join(out, "critical.json")))["events"]
+    assert event["morse_jump"] == 1
+    double = SimpleNamespace(kind="fold", p=6.4196 * PI, morse_before=0, morse_after=2, multiplicity=1)
+    assert "changes the Morse index by 2 (0 -> 2)" in extra_crossings(double)
+    bp2 = SimpleNamespace(kind="branch_point", p=1.0, morse_before=0, morse_after=2, multiplicity=2)
+    assert extra_crossings(bp2) == ""  # a double branch point: 2 is its multiplicity
