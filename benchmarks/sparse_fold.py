@@ -51,8 +51,10 @@ def child(N, backends):
     pins = np.asarray(rod0.pins) if rod0.slide_pin is not None else None
     print(f"N = {N}: slide pinned at DOF {rod0.slide_pin}" if pins is not None else f"N = {N}: no exact slide",
           file=sys.stderr, flush=True)
+    # resolve_crossings: a step across which the Morse index jumps by more than 1 is halved, so that a
+    # fold and a crossing next to it are located apart (N = 961: a branch point 2.4e-5 pi before the fold)
     opts = ContinuationOptions(ds=0.05, ds_min=1e-6, ds_max=4.0, max_steps=120, newton_tol=1e-10, eig_rtol=1e-13,
-                               n_eig=6, p_max=7.0 * PI)
+                               n_eig=6, p_max=7.0 * PI, resolve_crossings=1e-5)
     for name in backends:
         backend = SparseBackend(_assemble_pinned) if name == "sparse" else DenseBackend()
         t = time.perf_counter()
