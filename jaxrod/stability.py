@@ -21,7 +21,7 @@ import numpy as np
 from .hessian import project_out, scaled_hessian as structured_scaled_hessian
 from .validation import check_finite, refuse_knot
 from .solvers import orthonormal_columns
-from .tolerances import CONTACT_NEGATIVE_TOL, DEFAULT_NEGATIVE_TOL  # noqa: F401  (re-exported)
+from .tolerances import CONTACT_NEGATIVE_TOL, DEFAULT_NEGATIVE_TOL, scaled_negative_tol  # noqa: F401  (re-exported)
 
 __all__ = [
     "Stability",
@@ -433,12 +433,17 @@ def sliding_fraction(scene, q, vectors):
     return out
 
 
-def shape_modes_in_band(scene, e, negative_tol, strict_tol=DEFAULT_NEGATIVE_TOL):
+def shape_modes_in_band(scene, e, negative_tol, strict_tol=None):
     """[(eigenvalue, sliding fraction)] of the equilibrium e's computed modes whose eigenvalue lies
     in the near-zero band [-negative_tol, -strict_tol) kept for the sliding modes of loose knots,
     but which do not slide (``sliding_fraction`` above SLIDING_FRACTION): negative eigenvalues of
     shape-changing modes that the band counts as zero (issue 17: at N = 481 a pair crossing zero
-    at -11.09 pi stayed inside the band down to -12.18 pi). Empty without a band."""
+    at -11.09 pi stayed inside the band down to -12.18 pi). Empty without a band. strict_tol:
+    default ``tolerances.scaled_negative_tol(scene)``, 1e-10 up to N ~ 600 and falling as N^-4
+    beyond, with the shape modes themselves (the trefoil's sit at ~3e-9 at N = 961, where a fixed
+    1e-10 would let a shape mode crossing zero at ~3e-9 per rad pass unseen for ~0.01 pi)."""
+    if strict_tol is None:
+        strict_tol = scaled_negative_tol(scene)
     lam = np.asarray(e.stability.eigenvalues)
     band = np.nonzero((lam >= -negative_tol) & (lam < -strict_tol))[0]
     if band.size == 0 or int(scene.n_free_nodes) != int(scene.n_nodes):

@@ -8,3 +8,19 @@ DEFAULT_NEGATIVE_TOL = 1e-10
 # scaled units and change sign from step to step: with self-contact an eigenvalue counts as
 # negative, and enters the branch tangent, only beyond this.
 CONTACT_NEGATIVE_TOL = 1e-6
+
+# Long rods: their softest modes go like N^-4 in the scaled units (the bending scale (2 pi l / L)^4,
+# l the edge length; a ring's sit at 7.2 (2 pi / N)^4, the trefoil (8, 292)'s shape modes at ~3e-9
+# at N = 961), so a fixed 1e-10 is no longer "well below the softest physical mode" past N ~ 600.
+# The strict tolerance is then NEGATIVE_TOL_FRACTION times that scale; rods of N <= 628 nodes keep
+# DEFAULT_NEGATIVE_TOL.
+NEGATIVE_TOL_FRACTION = 1e-2
+
+
+def scaled_negative_tol(scene):
+    """DEFAULT_NEGATIVE_TOL, or NEGATIVE_TOL_FRACTION (2 pi l / L)^4 where that is smaller (long
+    rods, whose softest modes go like N^-4 in the scaled units)."""
+    import math
+
+    ratio = 2.0 * math.pi * float(scene.length_scale) / float(scene.length)
+    return min(DEFAULT_NEGATIVE_TOL, NEGATIVE_TOL_FRACTION * ratio**4)

@@ -55,3 +55,27 @@ def test_critical_twist_derivative_with_respect_to_material():
     assert dB == pytest.approx(fd, rel=1e-5)
     with pytest.raises(ValueError, match="parameter"):
         critical_twist_derivative(scene, cp, "Q")
+
+
+def test_the_shape_band_scales_with_N_like_the_shape_modes():
+    """A shape mode counts as negative inside the contact band (``shape_modes_in_band``) below
+    -scaled_negative_tol: 1e-10 up to N ~ 600, then 0.01 (2 pi / N)^4, as the knot's shape modes
+    themselves fall like N^-4 (the trefoil's sit at ~3e-9 at N = 961, where -5e-11 is a real
+    crossing that a fixed 1e-10 let pass); slides are never counted, whatever their sign."""
+    from types import SimpleNamespace
+
+    import jaxrod as jr
+    from jaxrod.stability import shape_modes_in_band
+    from jaxrod.tolerances import DEFAULT_NEGATIVE_TOL, scaled_negative_tol
+
+    rng = np.random.default_rng(3)
+    for N, counted in ((121, False), (961, True)):
+        knot = jr.trefoil(8.0, 292.0, N)
+        expected = DEFAULT_NEGATIVE_TOL if N == 121 else 0.01 * (2 * np.pi / N) ** 4
+        assert scaled_negative_tol(knot) == pytest.approx(expected, rel=1e-12)
+        shape = rng.normal(size=(knot.n_dof, 1))  # a random field of node motions changes the shape
+        e = SimpleNamespace(q=np.asarray(knot.q_init), stability=SimpleNamespace(
+            eigenvalues=np.array([-5e-11]), eigenvectors=shape / np.linalg.norm(shape)))
+        found = shape_modes_in_band(knot, e, 1e-6)
+        assert (len(found) == 1) is counted, (N, found)
+        assert shape_modes_in_band(knot, e, 1e-6, strict_tol=DEFAULT_NEGATIVE_TOL) == []  # the fixed band

@@ -7,7 +7,8 @@ import enum
 import math
 from dataclasses import dataclass, fields, replace
 
-from ..stability import CONTACT_NEGATIVE_TOL, DEFAULT_NEGATIVE_TOL
+from ..stability import CONTACT_NEGATIVE_TOL
+from ..tolerances import NEGATIVE_TOL_FRACTION, scaled_negative_tol  # noqa: F401  (re-exported)
 from ..validation import check_int_at_least, check_positive
 
 # Damped-Newton iterations a continuation corrector may take between two neighbourhood pauses.
@@ -136,16 +137,8 @@ class ContinuationOptions:
 # below DEFAULT_NEGATIVE_TOL. A fixed 1e-10 is far above those eigenvalues for N >~ 2000: the count
 # changed a whole pi after the crossing (a ring of N = 2000 reported 6.27 pi for 5.20 pi) or all k
 # eigenpairs computed were "near zero" (N >= 5800: "index 8 outside the 8 eigenpairs computed").
-# Rods of N <= 628 nodes keep 1e-10.
-NEGATIVE_TOL_FRACTION = 1e-2
-
-
-def default_negative_tol(scene):
-    """The continuations' negative tolerance for a scene without contact: DEFAULT_NEGATIVE_TOL,
-    or NEGATIVE_TOL_FRACTION (2 pi l / L)^4 where that is smaller (long rods, whose softest modes
-    go like N^-4 in the scaled units)."""
-    ratio = 2.0 * math.pi * float(scene.length_scale) / float(scene.length)
-    return min(DEFAULT_NEGATIVE_TOL, NEGATIVE_TOL_FRACTION * ratio**4)
+# Rods of N <= 628 nodes keep 1e-10. (``tolerances.scaled_negative_tol``.)
+default_negative_tol = scaled_negative_tol
 
 
 def _jump_tolerance(scene):
