@@ -212,20 +212,28 @@ def _node_pair_entries(blocks, dofs, n):
     return R, C, V
 
 
-def negative_count(A, E, D):
-    """Number of negative eigenvalues of the symmetric [[A, E], [E^T, D]]: A (m, m) scipy sparse,
-    factorised with diagonal pivots only (LDL^T, Sylvester), E (m, r), D (r, r) dense (Haynsworth:
-    In = In(A) + In(D - E^T A^-1 E)). Raises FactorisationError where A has no such factorisation."""
+def _ldlt(A):
+    """(SuperLU factorisation, pivots (m,)) of the symmetric sparse A with diagonal pivots only, i.e.
+    an LDL^T whose pivots' signs give A's inertia (Sylvester). Raises FactorisationError where A
+    has no such factorisation (exactly singular, a pivot off the diagonal, a zero or non-finite pivot)."""
     try:
         lu = spl.splu(sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                       options=dict(SymmetricMode=True, Equil=False))
-    except RuntimeError as exc:
+    except RuntimeError as exc:  # "Factor is exactly singular"
         raise FactorisationError(str(exc)) from None
     if not np.array_equal(lu.perm_r, lu.perm_c):
         raise FactorisationError("the factorisation pivoted off the diagonal")
     pivots = lu.U.diagonal()
     if not np.all(np.isfinite(pivots)) or np.any(pivots == 0.0):
         raise FactorisationError("zero or non-finite pivot")
+    return lu, pivots
+
+
+def negative_count(A, E, D):
+    """Number of negative eigenvalues of the symmetric [[A, E], [E^T, D]]: A (m, m) scipy sparse,
+    factorised with diagonal pivots only (LDL^T, Sylvester), E (m, r), D (r, r) dense (Haynsworth:
+    In = In(A) + In(D - E^T A^-1 E)). Raises FactorisationError where A has no such factorisation."""
+    lu, pivots = _ldlt(A)
     E = np.asarray(E, float).reshape(A.shape[0], -1)
     if E.shape[1] == 0:
         return int(np.sum(pivots < 0.0))
@@ -242,16 +250,7 @@ class _Bordered:
         A = hs.blocks[0]
         if shift != 0.0:
             A = A + shift * sp.identity(A.shape[0], format="csc")
-        try:
-            lu = spl.splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                          options=dict(SymmetricMode=True, Equil=False))
-        except RuntimeError as exc:  # "Factor is exactly singular"
-            raise FactorisationError(str(exc)) from None
-        if not np.array_equal(lu.perm_r, lu.perm_c):
-            raise FactorisationError("the factorisation pivoted off the diagonal")
-        pivots = lu.U.diagonal()
-        if not np.all(np.isfinite(pivots)) or np.any(pivots == 0.0):
-            raise FactorisationError("zero or non-finite pivot")
+        lu, pivots = _ldlt(A)
         self.lu = lu
         self.E = np.asarray(E_cols, float).reshape(self.free.size, -1)
         AE = lu.solve(self.E) if self.E.shape[1] else self.E
