@@ -45,7 +45,7 @@ def main(argv):
 
     sizes = [int(a) for a in argv] or [2, 4, 8]
     knot = jr.trefoil(D=8.0, L=292.0, N=61)
-    start = jr.relax(knot, 0.0, with_stability=False)
+    start = jr.relax(knot, 0.0, options=jr.RelaxOptions(with_stability=False))
     nbr = start.neighbourhood
     u0 = jnp.asarray(knot.to_scaled(start.q))
     dt = jr.dynamics.stable_time_step(knot, start.q, 0.0)

@@ -40,7 +40,7 @@ def main(argv):
     N = int(argv[0]) if argv else 61
     rates = [float(a) for a in argv[1:]] or [1e-2, 3e-3, 1e-3]
     knot = jr.trefoil(D=D, L=L, N=N)
-    start = jr.relax(knot, 0.0, with_stability=False)
+    start = jr.relax(knot, 0.0, options=jr.RelaxOptions(with_stability=False))
     t0 = time.perf_counter()
     path = jr.follow_twist(knot, 0.0, 7.5 * PI, jr.ContinuationOptions(step=0.5 * PI, switch=False), start=start)
     t_cont = time.perf_counter() - t0
@@ -49,8 +49,8 @@ def main(argv):
     dt = jr.dynamics.stable_time_step(knot, start.q, 0.0)
     rows, traces = [], []
     for rate in rates:
-        r = jr.damped_dynamics(knot, 0.0, PHI_STOP, rate, q0=start.q, temperature=1e-8, dt=dt, chunk=200,
-                               stop_at_transition=False)
+        r = jr.damped_dynamics(knot, 0.0, PHI_STOP, rate, start.q,
+                               jr.DynamicsOptions(temperature=1e-8, dt=dt, chunk=200, stop_at_transition=False))
         left = np.flatnonzero(r.Wr - r.Wr[0] > LEFT_BRANCH)
         phi_left = float(r.phi[left[0] - 1]) if left.size else math.nan
         rows.append({"N": N, "rate": rate, "dt": r.dt, "steps": r.steps, "seconds": r.seconds,

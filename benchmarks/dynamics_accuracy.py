@@ -89,8 +89,8 @@ def run(N=121, rates=(1e-2, 3e-3, 1e-3)):
             key = (N, side, "dynamics", f"{rate:g}", "")
             if key in done:
                 continue
-            r = jr.damped_dynamics(knot, 0.0, stop, rate, q0=start.q, temperature=1e-8, dt=dt, chunk=200,
-                                   departure=DEPARTURE)
+            r = jr.damped_dynamics(knot, 0.0, stop, rate, start.q,
+                                   jr.DynamicsOptions(temperature=1e-8, dt=dt, chunk=200, departure=DEPARTURE))
             seconds = r.seconds + t_relax
             phi = r.transition_phi
             _append({"N": N, "side": side, "method": "dynamics", "rate": f"{rate:g}", "tol": "",

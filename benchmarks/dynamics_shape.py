@@ -75,16 +75,17 @@ def main(argv):
         for seed in SEEDS:
             t0 = time.perf_counter()
             phi0 = end.phi + 0.1 * PI
-            r = jr.damped_dynamics(knot, phi0, phi0 + 0.02 * PI, 2e-5, q0=last.q, temperature=T, dt=dt,
-                                   stop_at_transition=False, seed=seed)
+            r = jr.damped_dynamics(knot, phi0, phi0 + 0.02 * PI, 2e-5, last.q,
+                                   jr.DynamicsOptions(temperature=T, dt=dt, stop_at_transition=False, seed=seed))
             settled("damped dynamics, released at phi* + 0.1 pi", T, seed, r.q, float(r.phi[-1]), t0)
     # A ramp (the paper's protocol) at the given rate: where it leaves the branch, 0.5 pi more.
     t0 = time.perf_counter()
-    r = jr.damped_dynamics(knot, 0.0, 14.0 * PI, rate, q0=start.q, temperature=temperatures[-1], dt=dt,
-                           departure=0.15, seed=SEEDS[0])
+    r = jr.damped_dynamics(knot, 0.0, 14.0 * PI, rate, start.q,
+                           jr.DynamicsOptions(temperature=temperatures[-1], dt=dt, departure=0.15, seed=SEEDS[0]))
     phi = float(r.phi[-1])
-    more = jr.damped_dynamics(knot, phi, phi + 0.5 * PI, rate, q0=r.q, temperature=temperatures[-1], dt=dt,
-                              stop_at_transition=False, seed=SEEDS[0] + 100)
+    more = jr.damped_dynamics(knot, phi, phi + 0.5 * PI, rate, r.q,
+                              jr.DynamicsOptions(temperature=temperatures[-1], dt=dt, stop_at_transition=False,
+                                                 seed=SEEDS[0] + 100))
     settled(f"damped dynamics, ramp {rate:g}", temperatures[-1], SEEDS[0], more.q, float(more.phi[-1]), t0)
     os.makedirs(RESULTS, exist_ok=True)
     with open(os.path.join(RESULTS, "dynamics_shape.csv"), "w", newline="") as f:

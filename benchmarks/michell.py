@@ -20,7 +20,9 @@ import platform  # noqa: E402
 import time  # noqa: E402
 
 import jaxrod  # noqa: E402
-from jaxrod import critical_twist, michell_critical_twist, michell_ring, solve_equilibrium  # noqa: E402
+from jaxrod import EquilibriumOptions, critical_twist, michell_critical_twist, michell_ring, solve_equilibrium  # noqa: E402,E501
+
+NEWTON_EXACT_COUNT = EquilibriumOptions(method="newton", negative_tol=0.0)
 from jaxrod.plotting import plot_convergence  # noqa: E402
 
 NU = 0.5
@@ -41,17 +43,17 @@ def bisection(scene, analytic):
     An eigenvalue counts as negative below 0 exactly (any threshold -t would bias the result by
     t / |d lambda / d phi|: with jaxrod's default t = 1e-10 that is 1e-5 pi at N = 128)."""
     step = analytic / 8
-    eq = solve_equilibrium(scene, 0.0, method="auto", negative_tol=0.0)
+    eq = solve_equilibrium(scene, 0.0, options=EquilibriumOptions(negative_tol=0.0))
     count0, evals = eq.stability.n_negative, 1
     lo = eq
     while True:
-        hi = solve_equilibrium(scene, lo.phi + step, lo.q, method="newton", negative_tol=0.0)
+        hi = solve_equilibrium(scene, lo.phi + step, lo.q, NEWTON_EXACT_COUNT)
         evals += 1
         if hi.stability.n_negative != count0:
             break
         lo = hi
     while hi.phi - lo.phi > TOL:
-        mid = solve_equilibrium(scene, 0.5 * (lo.phi + hi.phi), lo.q, method="newton", negative_tol=0.0)
+        mid = solve_equilibrium(scene, 0.5 * (lo.phi + hi.phi), lo.q, NEWTON_EXACT_COUNT)
         evals += 1
         if mid.stability.n_negative == count0:
             lo = mid

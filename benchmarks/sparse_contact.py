@@ -46,7 +46,7 @@ def child(N, engines):
     scene = jr.trefoil(8.0, 292.0, N)
     for engine in engines:
         t = time.perf_counter()
-        start = jr.relax(scene, 0.0, linear_algebra=engine)
+        start = jr.relax(scene, 0.0, options=jr.RelaxOptions(linear_algebra=engine))
         relax_s = time.perf_counter() - t
         opts = ContinuationOptions(tol=1e-3 * math.pi, switch=False, linear_algebra=engine)
         for side, stop in SIDES.items():

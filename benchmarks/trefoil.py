@@ -63,7 +63,7 @@ def case(study, N, D, stiffness=100.0, step=PI, tol=1e-3 * PI, span=(-16.0 * PI,
             continue
         t0 = time.perf_counter()
         if start is None:
-            start = jr.relax(scene, 0.0, gtol=1e-9, with_stability=False)
+            start = jr.relax(scene, 0.0, options=jr.RelaxOptions(with_stability=False))
         path = jr.follow_twist(scene, 0.0, stop, jr.ContinuationOptions(step=step, tol=tol, switch=False), start=start,
                                observer=jr.Observer(progress=lambda s: print("   ", s, flush=True)))
         seconds = time.perf_counter() - t0

@@ -34,12 +34,14 @@ from .scenes import (  # noqa: E402
 )
 from .solvers import LBFGS, ConvergenceError, DampedNewton, Newton, Solution, StopReason, minimise  # noqa: E402
 from .stability import Stability, critical_twist_derivative, eigenvalue_phi_derivative, stability  # noqa: E402
-from .equilibrium import Equilibrium, TopologyChangeError, relax, relax_to_minimum, solve_equilibrium  # noqa: E402
+from .equilibrium import (  # noqa: E402
+    Equilibrium, EquilibriumOptions, RelaxOptions, TopologyChangeError, relax, relax_to_minimum, solve_equilibrium,
+)
 from .continuation import (  # noqa: E402
     BranchPoint, ContinuationOptions, CriticalPoint, Instability, NoCrossingError, Observer, PathStop, TwistPath,
     critical_twist, follow_twist,
 )
-from .dynamics import DynamicsResult, damped_dynamics  # noqa: E402
+from .dynamics import DynamicsOptions, DynamicsResult, damped_dynamics  # noqa: E402
 from . import contact, topology  # noqa: E402
 from . import endloads  # noqa: E402  (rods under end loads: jaxrod.endloads)
 
@@ -82,7 +84,9 @@ __all__ = [
     "critical_twist_derivative",
     "Equilibrium",
     "solve_equilibrium",
+    "EquilibriumOptions",
     "relax",
+    "RelaxOptions",
     "relax_to_minimum",
     "TopologyChangeError",
     "DampedNewton",
@@ -104,5 +108,6 @@ __all__ = [
     "torus_knot",
     "knot",
     "damped_dynamics",
+    "DynamicsOptions",
     "DynamicsResult",
 ]

@@ -34,7 +34,7 @@ import numpy as np
 from .equilibrium import TopologyChangeError
 from .validation import check_finite, check_int_at_least, check_positive
 
-__all__ = ["damped_dynamics", "DynamicsResult", "stable_time_step"]
+__all__ = ["damped_dynamics", "DynamicsOptions", "DynamicsResult", "stable_time_step"]
 
 
 @dataclass(frozen=True)
@@ -125,41 +125,71 @@ def _writhe_jump(phi, wr, jump, window):
     return int(far[0]) if far.size else -1
 
 
-def damped_dynamics(scene, phi_start, phi_stop, rate, q0=None, gamma=1.0, temperature=0.0, dt=None, chunk=200,
-                    jump=0.3, window=0.1 * math.pi, seed=0, stop_at_transition=True, progress=None, departure=None):
+@dataclass(frozen=True)
+class DynamicsOptions:
+    """The knobs of ``damped_dynamics`` (checked on construction; a ValueError names the wrong
+    field).
+
+    gamma: damping rate (> 0, default 1); temperature: noise temperature T >= 0 in the scaled
+    energy units (default 0: deterministic); dt: time step (None: ``stable_time_step`` at the
+    start); chunk: steps per jitted chunk and between records (default 200); jump, window: a
+    writhe change of more than ``jump`` (default 0.3) within a twist interval ``window`` (rad,
+    default 0.1 pi; at least one record) is the transition; departure: instead, the transition is
+    the last record before the writhe first differs from its starting value by more than
+    ``departure`` (a state that has left its branch, for a knot that falls off slowly; default
+    None: the jump test); seed: of the noise (default 0); stop_at_transition: stop at the first
+    one (default True; else run to phi_stop).
+    """
+
+    gamma: float = 1.0
+    temperature: float = 0.0
+    dt: float | None = None
+    chunk: int = 200
+    jump: float = 0.3
+    window: float = 0.1 * math.pi
+    departure: float | None = None
+    seed: int = 0
+    stop_at_transition: bool = True
+
+    def __post_init__(self):
+        check_positive("gamma", self.gamma)
+        if not (math.isfinite(self.temperature) and self.temperature >= 0.0):
+            raise ValueError(f"temperature must be finite and >= 0, got {self.temperature!r}")
+        if self.dt is not None:
+            check_positive("dt", self.dt)
+        check_int_at_least("chunk", self.chunk, 1)
+        check_positive("jump", self.jump)
+        check_positive("window", self.window)
+        if self.departure is not None:
+            check_positive("departure", self.departure)
+        check_int_at_least("seed", self.seed, 0)
+
+
+def damped_dynamics(scene, phi_start, phi_stop, rate, q0=None, options=None, *, progress=None):
     """Ramp the twist from phi_start to phi_stop at ``rate`` (rad per unit of scaled time) under
     damped, optionally noisy, bead dynamics, and detect the transition as the seed paper did.
 
     scene: any scene; q0: initial state (default scene.q_init; start from a relaxed state);
-    gamma: damping rate (> 0); temperature: noise temperature T >= 0 in the scaled energy units
-    (0: deterministic); dt: time step (default ``stable_time_step`` at the start); chunk: steps
-    per jitted chunk and between records; jump, window: a writhe change of more than ``jump``
-    within a twist interval ``window`` (rad; at least one record) is the transition; the
-    transition; departure: instead, the transition is the last record before the writhe first
-    differs from its starting value by more than ``departure`` (a state that has left its
-    branch, for a knot that falls off slowly); seed: of the noise; stop_at_transition: stop at
-    the first one (else run to phi_stop); progress: optional callable(str), a line every 50
-    records.
+    options: a ``DynamicsOptions`` (damping, temperature, time step, chunk, transition test,
+    seed); progress: optional callable(str), a line every 50 records.
     Returns a ``DynamicsResult``.
     """
     t0 = time.perf_counter()
+    if options is None:
+        options = DynamicsOptions()
+    elif not isinstance(options, DynamicsOptions):
+        raise TypeError(f"options must be a DynamicsOptions, got {options!r}")
+    gamma, temperature, chunk, jump, window = (float(options.gamma), float(options.temperature), int(options.chunk),
+                                               float(options.jump), float(options.window))
+    departure, seed, stop_at_transition = options.departure, options.seed, options.stop_at_transition
     phi_start = check_finite("phi_start", phi_start)
     phi_stop = check_finite("phi_stop", phi_stop)
     rate = check_positive("rate", abs(check_finite("rate", rate))) * (1.0 if phi_stop >= phi_start else -1.0)
-    gamma = check_positive("gamma", gamma)
-    temperature = check_finite("temperature", temperature)
-    if temperature < 0.0:
-        raise ValueError(f"temperature must be >= 0, got {temperature!r}")
-    chunk = check_int_at_least("chunk", chunk, 1)
-    jump = check_positive("jump", jump)
-    window = check_positive("window", window)
-    if departure is not None:
-        departure = check_positive("departure", departure)
     say = progress or (lambda s: None)
     q = np.asarray(scene.q_init if q0 is None else q0, dtype=float)
     if q.shape != (scene.n_dof,) or not np.all(np.isfinite(q)):
         raise ValueError(f"q0 must be a finite array of shape ({scene.n_dof},)")
-    dt = stable_time_step(scene, q, phi_start) if dt is None else check_positive("dt", dt)
+    dt = stable_time_step(scene, q, phi_start) if options.dt is None else float(options.dt)
     sigma = math.sqrt(2.0 * gamma * temperature * dt)
     u = jnp.asarray(scene.to_scaled(q))
     v = jnp.zeros_like(u)

@@ -12,13 +12,13 @@ import numpy as np
 
 from .geometry import polyline_distance
 from .hessian import scaled_hessian
-from .validation import check_finite
+from .validation import check_finite, check_int_at_least, check_positive
 from .neighbourhood import Neighbourhood
 from . import sparse_contact
 from .solvers import LBFGS, ConvergenceError, DampedNewton, HostDampedNewton, Newton, Solution, StopReason, minimise
 from .stability import CONTACT_NEGATIVE_TOL, DEFAULT_NEGATIVE_TOL, Stability, stability
 
-__all__ = ["Equilibrium", "solve_equilibrium", "relax", "relax_to_minimum", "mode_step", "TopologyChangeError", "LeftBranchError", "scaled_energy", "scaled_zero_modes",
+__all__ = ["Equilibrium", "EquilibriumOptions", "RelaxOptions", "solve_equilibrium", "relax", "relax_to_minimum", "mode_step", "TopologyChangeError", "LeftBranchError", "scaled_energy", "scaled_zero_modes",
            "structured_hessian"]
 
 
@@ -59,15 +59,111 @@ class LeftBranchError(ConvergenceError):
     state is jumping to another branch (raised early, before the jump is complete)."""
 
 
-def relax(scene, phi=0.0, q0=None, gtol=1e-9, max_rounds=200, max_displacement=None, k=8,
-          negative_tol=DEFAULT_NEGATIVE_TOL, previous=None, progress=None, with_stability=True, nbr=None,
-          guide=None, max_steps=None, linear_algebra="auto"):
+def _options(options, kind):
+    """``options`` (None: the defaults) checked to be a ``kind``: a float passed where the options
+    go (the old positional gtol, say) is refused by name, not misread."""
+    if options is None:
+        return kind()
+    if not isinstance(options, kind):
+        raise TypeError(f"options must be a {kind.__name__}, got {options!r}")
+    return options
+
+
+def _check_common(opts):
+    """The knobs RelaxOptions and EquilibriumOptions share, each error naming its field."""
+    check_positive("gtol", opts.gtol)
+    if opts.max_steps is not None:
+        check_int_at_least("max_steps", opts.max_steps, 0)
+    check_int_at_least("k", opts.k, 1)
+    if opts.negative_tol is not None and not (math.isfinite(opts.negative_tol) and opts.negative_tol >= 0.0):
+        raise ValueError(f"negative_tol must be finite and >= 0, got {opts.negative_tol!r}")
+    if not isinstance(opts.with_stability, bool):
+        raise ValueError(f"with_stability must be True or False, got {opts.with_stability!r}")
+
+
+@dataclass(frozen=True)
+class RelaxOptions:
+    """How ``relax`` and ``relax_to_minimum`` run (every field checked on construction; a
+    ValueError names the wrong one).
+
+    gtol: the result's max |gradient| of the scaled energy (default 1e-9).
+    max_rounds: neighbourhood rebuilds allowed before giving up (default 200).
+    max_steps: damped-Newton iterations between two rebuilds (None: 500); a continuation
+      corrector starting near its branch needs a few, so a small budget stops one that crawls.
+    max_displacement: the cap on every node's step (physical length; None: D/4 with contact, so
+      no strand can jump across another between two energy evaluations, else none).
+    k: eigenpairs kept in the result's stability (default 8).
+    with_stability: compute the result's stability (default True).
+    negative_tol: an eigenvalue counts as negative below -negative_tol. None: 1e-10
+      (``DEFAULT_NEGATIVE_TOL``) in ``relax``; in ``relax_to_minimum``, whose saddle test must not
+      be fooled by strands sliding along each other (|lambda| ~ 1e-7), ``CONTACT_NEGATIVE_TOL`` =
+      1e-6 with self-contact.
+    linear_algebra: "dense" (n x n Hessian, Cholesky), "sparse" (with contact: the O(n)
+      factorisations of ``jaxrod.sparse_contact`` in ``HostDampedNewton``) or "auto" (sparse for
+      rods with contact from ``sparse_contact.SPARSE_MIN_DOF`` DOFs on). The stability follows
+      the same choice.
+    """
+
+    gtol: float = 1e-9
+    max_rounds: int = 200
+    max_steps: int | None = None
+    max_displacement: float | None = None
+    k: int = 8
+    with_stability: bool = True
+    negative_tol: float | None = None
+    linear_algebra: str = "auto"
+
+    def __post_init__(self):
+        _check_common(self)
+        check_int_at_least("max_rounds", self.max_rounds, 1)
+        if self.max_displacement is not None:
+            check_positive("max_displacement", self.max_displacement)
+        if self.linear_algebra not in sparse_contact.LINEAR_ALGEBRA:
+            raise ValueError(f"linear_algebra must be one of {sparse_contact.LINEAR_ALGEBRA}, got "
+                             f"{self.linear_algebra!r}")
+
+
+@dataclass(frozen=True)
+class EquilibriumOptions:
+    """How ``solve_equilibrium`` runs (every field checked on construction; a ValueError names
+    the wrong one).
+
+    method: 'newton' (exact Hessian; converges to the nearest stationary point, stable or not:
+      use it as a continuation corrector), 'lbfgs' (minimiser), or 'auto' (the default: L-BFGS
+      to 1e-5, then Newton to ``gtol``: global and fast).
+    gtol: the result's max |gradient| of the scaled energy (default 1e-9).
+    max_steps: iterations allowed (None: the solver's default).
+    k: eigenpairs kept in the result's stability (default 8).
+    with_stability: compute the result's stability (default True).
+    negative_tol: an eigenvalue counts as negative below -negative_tol (default 1e-10,
+      ``DEFAULT_NEGATIVE_TOL``).
+    near_null_tol: Newton leaves eigen-directions with |lambda| below it alone (see ``Newton``;
+      default 0).
+    """
+
+    method: str = "auto"
+    gtol: float = 1e-9
+    max_steps: int | None = None
+    k: int = 8
+    with_stability: bool = True
+    negative_tol: float = DEFAULT_NEGATIVE_TOL
+    near_null_tol: float = 0.0
+
+    def __post_init__(self):
+        if self.method not in ("newton", "lbfgs", "auto"):
+            raise ValueError(f"method must be 'newton', 'lbfgs' or 'auto', got {self.method!r}")
+        _check_common(self)
+        if not (math.isfinite(self.near_null_tol) and self.near_null_tol >= 0.0):
+            raise ValueError(f"near_null_tol must be finite and >= 0, got {self.near_null_tol!r}")
+
+
+def relax(scene, phi=0.0, q0=None, options=None, *, previous=None, nbr=None, guide=None, progress=None):
     """Minimise the energy of a scene (with or without self-contact) from q0 (default
-    scene.q_init) without letting the rod pass through itself.
+    scene.q_init) without letting the rod pass through itself; ``options``: a ``RelaxOptions``
+    (tolerance, budgets, step cap, stability, linear algebra).
 
     Damped Newton (exact structured Hessian, shifted positive definite) with every node's step
-    capped at ``max_displacement`` (default D/4 with contact, so no strand can jump across
-    another between two energy evaluations); the run pauses whenever a node has moved more than
+    capped at ``options.max_displacement``; the run pauses whenever a node has moved more than
     skin/2 since the neighbourhood (contact candidates, writhe) was built, the neighbourhood is
     rebuilt, and the run resumes. After every pause the writhe is compared with the last one: a
     jump of 1 or more (strand passage changes it by ~2) raises ``TopologyChangeError``.
@@ -77,15 +173,14 @@ def relax(scene, phi=0.0, q0=None, gtol=1e-9, max_rounds=200, max_displacement=N
     ``guide``: (x_guide (N,3), distance): raise ``LeftBranchError`` as soon as, at a pause, the
     shape is further than ``distance`` from x_guide (``polyline_distance``, blind to sliding):
     a continuation step that is jumping off its branch is stopped early, not relaxed to the end.
-    ``max_steps``: damped-Newton iterations allowed between two pauses (default 500); a corrector
-    starting near its branch needs a few, so a small budget stops one that crawls.
-    ``linear_algebra``: "dense" (n x n Hessian, Cholesky), "sparse" (with contact: the O(n)
-    factorisations of ``jaxrod.sparse_contact`` in ``HostDampedNewton``) or "auto" (sparse for
-    rods with contact from ``sparse_contact.SPARSE_MIN_DOF`` DOFs on). The stability (if asked
-    for) follows the same choice.
+    ``progress``: optional callable(str), a line per round.
 
     Returns the ``Equilibrium``; its ``neighbourhood`` is valid at the equilibrium.
     """
+    opts = _options(options, RelaxOptions)
+    gtol, max_steps, max_displacement, linear_algebra = opts.gtol, opts.max_steps, opts.max_displacement, \
+        opts.linear_algebra
+    negative_tol = DEFAULT_NEGATIVE_TOL if opts.negative_tol is None else opts.negative_tol
     phi = check_finite("phi", phi)
     q = np.asarray(scene.q_init if q0 is None else q0, dtype=float)
     has_contact = "contact" in scene.terms
@@ -114,7 +209,7 @@ def relax(scene, phi=0.0, q0=None, gtol=1e-9, max_rounds=200, max_displacement=N
             "the step passed the rod through itself"
         )
     total = 0
-    for round_ in range(max_rounds):
+    for round_ in range(opts.max_rounds):
         u0 = scene.to_scaled(np.asarray(q, dtype=float))
         sol = minimise(scaled_energy, u0, (scene, jnp.asarray(phi), nbr), solver, gtol, max_steps, throw=False)
         total += sol.iterations
@@ -139,9 +234,9 @@ def relax(scene, phi=0.0, q0=None, gtol=1e-9, max_rounds=200, max_displacement=N
         sol = Solution(y=sol.y, value=sol.value, grad_norm=sol.grad_norm, iterations=total,
                        converged=True, reason=StopReason.CONVERGED, solver=f"{sol.solver}({round_ + 1} rounds)",
                        gtol=sol.gtol)
-        return equilibrium_from_solution(scene, phi, sol, nbr, k=k, with_stability=with_stability,
+        return equilibrium_from_solution(scene, phi, sol, nbr, k=opts.k, with_stability=opts.with_stability,
                                          negative_tol=negative_tol, linear_algebra="sparse" if sparse else "dense")
-    raise ConvergenceError(f"relaxation needed more than {max_rounds} neighbourhood rebuilds")
+    raise ConvergenceError(f"relaxation needed more than {opts.max_rounds} neighbourhood rebuilds")
 
 
 def mode_step(scene, scaled_mode, distance):
@@ -178,22 +273,24 @@ def warn_if_twisted_at_zero(scene, eq):
     return True
 
 
-def relax_to_minimum(scene, phi=0.0, q0=None, gtol=1e-9, negative_tol=None, push=None, max_pushes=4, k=8,
-                     progress=None):
-    """``relax``, then make sure the result is a minimum: a symmetric starting shape (a torus
-    knot drawn with its p-fold symmetry, say) can relax onto a saddle that the minimiser, which
-    keeps the symmetry, never leaves. While the equilibrium has a negative eigenvalue (below
-    -negative_tol; default 1e-6 with contact, where sliding modes sit at ~1e-7, else 1e-10),
-    the state is pushed both ways along the most negative eigenvector (by ``push``, default D/2
-    at the node that moves most) and relaxed again; the lower-energy result with the same
-    writhe branch is kept. Returns a stable ``Equilibrium``; raises ``ConvergenceError`` if
-    ``max_pushes`` pushes leave it unstable."""
+def relax_to_minimum(scene, phi=0.0, q0=None, options=None, *, push=None, max_pushes=4, progress=None):
+    """``relax`` (with ``options``, a ``RelaxOptions``), then make sure the result is a minimum:
+    a symmetric starting shape (a torus knot drawn with its p-fold symmetry, say) can relax onto a
+    saddle that the minimiser, which keeps the symmetry, never leaves. While the equilibrium has a
+    negative eigenvalue (below -options.negative_tol; default 1e-6 with contact, where sliding
+    modes sit at ~1e-7, else 1e-10), the state is pushed both ways along the most negative
+    eigenvector (by ``push``, default D/2 at the node that moves most) and relaxed again; the
+    lower-energy result with the same writhe branch is kept. Returns a stable ``Equilibrium``
+    (its stability computed whatever ``options.with_stability`` says: it is the point); raises
+    ``ConvergenceError`` if ``max_pushes`` pushes leave it unstable."""
 
-    has_contact = "contact" in scene.terms
-    if negative_tol is None:
-        negative_tol = CONTACT_NEGATIVE_TOL if has_contact else DEFAULT_NEGATIVE_TOL
+    opts = _options(options, RelaxOptions)
+    if opts.negative_tol is None:
+        opts = replace(opts, negative_tol=CONTACT_NEGATIVE_TOL if "contact" in scene.terms else DEFAULT_NEGATIVE_TOL)
+    opts = replace(opts, with_stability=True)
+    check_int_at_least("max_pushes", max_pushes, 0)
     say = progress or (lambda s: None)
-    e = relax(scene, phi, q0, gtol=gtol, k=k, negative_tol=negative_tol)
+    e = relax(scene, phi, q0, opts)
     if phi == 0.0:
         warn_if_twisted_at_zero(scene, e)
     if push is None:
@@ -206,8 +303,7 @@ def relax_to_minimum(scene, phi=0.0, q0=None, gtol=1e-9, negative_tol=None, push
         found = []
         for sign in (1.0, -1.0):
             try:
-                found.append(relax(scene, phi, e.q + sign * step, gtol=gtol, k=k, negative_tol=negative_tol,
-                                   previous=e, nbr=e.neighbourhood))
+                found.append(relax(scene, phi, e.q + sign * step, opts, previous=e, nbr=e.neighbourhood))
             except (ConvergenceError, TopologyChangeError) as exc:
                 say(f"  push {'+' if sign > 0 else '-'}: {type(exc).__name__}: {exc}")
         if not found:
@@ -255,41 +351,25 @@ class Equilibrium:
         )
 
 
-def solve_equilibrium(
-    scene,
-    phi=0.0,
-    q0=None,
-    method="auto",
-    gtol=1e-9,
-    max_steps=None,
-    k=8,
-    with_stability=True,
-    negative_tol=DEFAULT_NEGATIVE_TOL,
-    throw=True,
-    near_null_tol=0.0,
-    nbr=None,
-):
-    """Equilibrium of ``scene`` at imposed twist ``phi`` starting from ``q0`` (default scene.q_init).
+def solve_equilibrium(scene, phi=0.0, q0=None, options=None, *, nbr=None, throw=True):
+    """Equilibrium of ``scene`` at imposed twist ``phi`` starting from ``q0`` (default
+    scene.q_init); ``options``: an ``EquilibriumOptions`` (method, tolerance, budget, stability).
 
-    method: 'newton' (exact Hessian; converges to the nearest stationary point, stable or not:
-    use it as a continuation corrector), 'lbfgs' (minimiser), or 'auto' (L-BFGS to 1e-5, then
-    Newton to ``gtol``: global and fast). gtol bounds the max-abs gradient of the scaled energy.
-    near_null_tol: Newton leaves eigen-directions with |lambda| below it alone (see ``Newton``).
     nbr: a ``Neighbourhood`` to reuse (its capacity is kept); it is rebuilt around q0 and, if
     the state moved out of it (contact list stale, writhe drifted), around the result, and the
     solve repeated. The result carries its stability (k lowest eigenvalues, negative count)
-    unless ``with_stability`` is False. Raises ``ConvergenceError`` if the solver fails and
-    ``throw``.
+    unless ``options.with_stability`` is False. Raises ``ConvergenceError`` if the solver fails
+    and ``throw``.
     """
+    opts = _options(options, EquilibriumOptions)
+    method, gtol, max_steps = opts.method, opts.gtol, opts.max_steps
     phi = check_finite("phi", phi)
     q0 = np.asarray(scene.q_init if q0 is None else q0, dtype=float)
     if q0.shape != (scene.n_dof,):
         raise ValueError(f"q0 must have shape ({scene.n_dof},), got {q0.shape}")
     if not np.all(np.isfinite(q0)):
         raise ValueError("q0 must be finite")
-    if method not in ("newton", "lbfgs", "auto"):
-        raise ValueError(f"method must be 'newton', 'lbfgs' or 'auto', got {method!r}")
-    newton = Newton(zero_modes=scaled_zero_modes if scene.n_zero_modes else None, near_null_tol=float(near_null_tol),
+    newton = Newton(zero_modes=scaled_zero_modes if scene.n_zero_modes else None, near_null_tol=float(opts.near_null_tol),
                     hessian=structured_hessian)
     q = q0
     nbr = _grown(scene, q, phi, nbr)
@@ -325,7 +405,7 @@ def solve_equilibrium(
             break
     if throw and not sol.converged:
         raise ConvergenceError(f"{sol.solver} did not converge: {sol!r}")
-    return equilibrium_from_solution(scene, phi, sol, nbr, k, with_stability, negative_tol)
+    return equilibrium_from_solution(scene, phi, sol, nbr, opts.k, opts.with_stability, opts.negative_tol)
 
 
 @jax.jit

@@ -191,10 +191,10 @@ def relax_knot(scene, phi, q0, previous=None, gtol=1e-7, k=6):
 
     from .contact import contact_count  # noqa: PLC0415
     from .stability import CONTACT_NEGATIVE_TOL  # noqa: PLC0415
-    from .equilibrium import relax  # noqa: PLC0415
+    from .equilibrium import RelaxOptions, relax  # noqa: PLC0415
 
-    e = relax(scene, phi, q0, gtol=gtol, k=k, negative_tol=CONTACT_NEGATIVE_TOL, previous=previous,
-              max_rounds=400)
+    e = relax(scene, phi, q0, RelaxOptions(gtol=gtol, k=k, negative_tol=CONTACT_NEGATIVE_TOL, max_rounds=400),
+              previous=previous)
     loads = end_loads(scene, e.q, phi, e.neighbourhood)
     nbr = e.neighbourhood
     nc = int(contact_count(jnp.asarray(e.x), nbr.pairs, nbr.mask, False, float(scene.material.D)))

@@ -266,7 +266,7 @@ def twist_study(scene, phi_min, phi_max, options=None, *, out=None, resume=True,
     if any(state is None for _, _, state in todo):
         say("relaxing the knot at phi = 0")
         # A minimum, not a saddle: a symmetric drawing (a torus knot) can relax onto a saddle.
-        start = relax_to_minimum(scene, 0.0, None, gtol=1e-9, progress=say)
+        start = relax_to_minimum(scene, 0.0, None, progress=say)
 
     def run_direction(direction, target, state):
         counter = 0 if state is None else int(state.arrays["n_points"])

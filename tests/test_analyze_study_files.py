@@ -39,7 +39,7 @@ def states():
     scene = jaxrod.trefoil(D=8, L=292, N=61)
     out, q = {}, None
     for k in TURNS:
-        eq = jaxrod.relax(scene, phi=k * PI, q0=q, with_stability=False)
+        eq = jaxrod.relax(scene, k * PI, q, jaxrod.RelaxOptions(with_stability=False))
         q = eq.q
         row, extra = step_record(scene, eq, branch="symmetric")
         out[k] = (row, extra, float(eq.phi), np.asarray(eq.q))

@@ -15,14 +15,6 @@ MAX_PARAMETERS = 7
 # off this list by ``test_the_continuation_entries_are_not_exceptions``. The list may only
 # shrink: ``test_every_exception_is_still_needed`` fails once an entry is brought under the limit.
 EXCEPTIONS = {
-    "jaxrod.solve_equilibrium": "equilibrium solver: its knobs (gtol, max_steps, k, negative_tol) and the "
-                                "continuation's hooks (nbr) are not in an options object yet (to do)",
-    "jaxrod.relax": "equilibrium solver: its knobs and the continuation's hooks (previous, nbr, guide, "
-                    "max_steps) are not in an options object yet (to do)",
-    "jaxrod.relax_to_minimum": "equilibrium solver: its knobs (gtol, negative_tol, push, max_pushes, k) are not "
-                               "in an options object yet (to do)",
-    "jaxrod.damped_dynamics": "the ramp's knobs (gamma, temperature, dt, chunk, jump, window, seed) are not in an "
-                              "options object yet (to do)",
     "jaxrod.torus_knot": "a scene constructor: the knot's physical description (p, q, D, L, N, E, nu, radii, "
                          "contact stiffness), not knobs",
     "jaxrod.knot": "a scene constructor: the knot's physical description (name, D, L, N, E, nu, contact "
@@ -131,3 +123,35 @@ def test_options_and_observer_are_checked():
         jr.critical_twist(ring, 0.0, 1.0, observer=jr.Observer(on_point=print))
     with pytest.raises(ValueError, match="observer.on_step"):
         jr.follow_twist(ring, 0.0, 1.0, observer=jr.Observer(on_step=print))
+
+
+@pytest.mark.parametrize("entry, kind", [(jr.relax, jr.RelaxOptions), (jr.relax_to_minimum, jr.RelaxOptions),
+                                         (jr.solve_equilibrium, jr.EquilibriumOptions)])
+def test_the_equilibrium_solvers_take_their_knobs_in_one_options_object(entry, kind):
+    ring = jr.michell_ring(24)
+    params = inspect.signature(entry).parameters
+    assert "options" in params and not {"gtol", "k", "negative_tol", "max_steps", "method"} & set(params)
+    with pytest.raises(TypeError, match="gtol"):  # an old keyword
+        entry(ring, 0.0, gtol=1e-9)
+    with pytest.raises(TypeError, match=kind.__name__):  # a float where the options go: refused, not misread
+        entry(ring, 0.0, None, 1e-9)
+    with pytest.raises(TypeError, match=kind.__name__):  # the other solver's options
+        entry(ring, 0.0, None, (jr.EquilibriumOptions if kind is jr.RelaxOptions else jr.RelaxOptions)())
+
+
+@pytest.mark.parametrize("kind, field, value", [
+    (jr.RelaxOptions, "gtol", 0.0), (jr.RelaxOptions, "max_rounds", 0), (jr.RelaxOptions, "k", 0),
+    (jr.RelaxOptions, "negative_tol", -1e-9), (jr.RelaxOptions, "max_displacement", -1.0),
+    (jr.RelaxOptions, "max_steps", -1), (jr.EquilibriumOptions, "near_null_tol", float("nan")),
+    (jr.EquilibriumOptions, "gtol", float("inf")), (jr.DynamicsOptions, "seed", -1),
+    (jr.DynamicsOptions, "window", 0.0), (jr.DynamicsOptions, "departure", -0.1)])
+def test_a_bad_option_is_named(kind, field, value):
+    with pytest.raises(ValueError, match=field):
+        kind(**{field: value})
+
+
+def test_damped_dynamics_takes_its_knobs_in_one_options_object():
+    params = inspect.signature(jr.damped_dynamics).parameters
+    assert "options" in params and not {"gamma", "temperature", "dt", "seed", "chunk"} & set(params)
+    with pytest.raises(TypeError, match="DynamicsOptions"):
+        jr.damped_dynamics(jr.michell_ring(24), 0.0, 1.0, 1e-2, None, 1.0)

@@ -120,7 +120,7 @@ def test_relax_to_minimum_leaves_the_saddle_of_a_symmetric_drawing():
     negative eigenvalue); relax_to_minimum pushes off it to a stable state of lower energy, and
     follow_twist refuses to start from the saddle."""
     scene = jr.knot("5_1", D=8.0, L=292.0, N=61)
-    saddle = jr.relax(scene, 0.0, negative_tol=1e-6)
+    saddle = jr.relax(scene, 0.0, options=jr.RelaxOptions(negative_tol=1e-6))
     assert saddle.stability.n_negative == 1
     minimum = jr.relax_to_minimum(scene, 0.0)
     assert minimum.stability.stable and minimum.energy < saddle.energy

@@ -169,7 +169,7 @@ API_CASES = [
     ("curve in 2D", lambda: jr.closed_curve(CIRCLE[:, :2], MAT), ValueError, "points"),
     ("phi=nan", lambda: jr.solve_equilibrium(_ring(), phi=NAN), ValueError, "phi"),
     ("q0 shape", lambda: jr.solve_equilibrium(_ring(), q0=np.zeros(3)), ValueError, "q0"),
-    ("method", lambda: jr.solve_equilibrium(_ring(), method="bfgs"), ValueError, "method"),
+    ("method", lambda: jr.EquilibriumOptions(method="bfgs"), ValueError, "method"),
     ("phi_stop = phi_start", lambda: jr.critical_twist(_ring(), 1.0, 1.0), ValueError, "phi_stop"),
     ("critical tol<0", lambda: jr.critical_twist(_ring(), 0.0, 10.0, jr.ContinuationOptions(tol=-1.0)), ValueError, "tol"),
     ("critical_twist on a knot", lambda: jr.critical_twist(_knot(), 0.0, 7.5 * math.pi), ValueError,

@@ -36,7 +36,8 @@ def shortened():
     rod = replace(rod, x_clamped=jnp.asarray(c), q_init=jnp.asarray(q0))
     states = {}
     for turns in (0, 1, 2):
-        e = jr.solve_equilibrium(rod, 2 * math.pi * turns, q0=q0, method="lbfgs" if turns == 0 else "auto")
+        e = jr.solve_equilibrium(rod, 2 * math.pi * turns, q0,
+                                jr.EquilibriumOptions(method="lbfgs" if turns == 0 else "auto"))
         states[turns], q0 = e, np.asarray(e.q)
     return rod, states
 

@@ -5,7 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxrod import Material, clamped_rod, closed_curve, ring, solve_equilibrium, topology
+from jaxrod import EquilibriumOptions, Material, clamped_rod, closed_curve, ring, solve_equilibrium, topology
 from jaxrod.geometry import signed_angle
 from helpers import MAT, trefoil_points, wobbly_loop
 
@@ -14,7 +14,7 @@ TWO_PI = 2 * math.pi
 
 def test_straight_clamped_rod_twisted_by_plus_two_pi_has_Tw_plus_one():
     scene = clamped_rod(16, 1.0, MAT, axis=(0.3, -0.2, 1.0))
-    eq = solve_equilibrium(scene, TWO_PI, method="newton")
+    eq = solve_equilibrium(scene, TWO_PI, options=EquilibriumOptions(method="newton"))
     assert eq.Tw == pytest.approx(1.0, abs=1e-12)
     assert eq.Wr == pytest.approx(0.0, abs=1e-12)
     # Independently of the energy's bookkeeping: the material director d1 turns about the tangent
@@ -83,7 +83,7 @@ def test_ring_equilibrium_at_forty_pi_keeps_its_linking_number(turns):
     phi = TWO_PI * turns
     mat = Material.from_ratio(B=1.0, nu=0.5, D=0.02)
     scene = ring(48, mat)
-    eq = solve_equilibrium(scene, phi, method="newton")
+    eq = solve_equilibrium(scene, phi, options=EquilibriumOptions(method="newton"))
     assert eq.solution.converged
     assert eq.Lk == pytest.approx(turns, abs=1e-8)
     assert eq.Wr == pytest.approx(0.0, abs=1e-10)

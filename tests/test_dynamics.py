@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import jaxrod as jr
-from jaxrod.dynamics import damped_dynamics, stable_time_step
+from jaxrod.dynamics import DynamicsOptions, damped_dynamics, stable_time_step
 
 
 @pytest.fixture(scope="module")
@@ -23,7 +23,8 @@ def test_ramped_dynamics_buckles_after_phi_star_and_overshoots_less_when_slower(
     scene, cp, start = ring
     found = []
     for rate in (3e-2, 1e-2, 3e-3):
-        r = damped_dynamics(scene, start.phi, 1.6 * cp.phi, rate, q0=start.q, temperature=1e-8, chunk=100)
+        r = damped_dynamics(scene, start.phi, 1.6 * cp.phi, rate, start.q,
+                            DynamicsOptions(temperature=1e-8, chunk=100))
         assert r.stop == "transition" and r.transition_index >= 0
         assert abs(r.Wr[-1] - r.Wr[r.transition_index]) > 0.3  # the planar ring (Wr = 0) writhes as it buckles
         found.append(r.transition_phi)
@@ -36,11 +37,12 @@ def test_ramped_dynamics_buckles_after_phi_star_and_overshoots_less_when_slower(
 
 def test_noise_is_reproducible_and_zero_temperature_stays_on_the_stable_branch(ring):
     scene, cp, start = ring
-    a = damped_dynamics(scene, start.phi, 1.6 * cp.phi, 1e-2, q0=start.q, temperature=1e-8, chunk=100, seed=3)
-    b = damped_dynamics(scene, start.phi, 1.6 * cp.phi, 1e-2, q0=start.q, temperature=1e-8, chunk=100, seed=3)
+    NOISY = DynamicsOptions(temperature=1e-8, chunk=100, seed=3)
+    a = damped_dynamics(scene, start.phi, 1.6 * cp.phi, 1e-2, start.q, NOISY)
+    b = damped_dynamics(scene, start.phi, 1.6 * cp.phi, 1e-2, start.q, NOISY)
     assert a.transition_phi == b.transition_phi and np.array_equal(a.Wr, b.Wr)
     # Below phi*, without noise: the planar ring, followed closely (the ramp lags a little).
-    slow = damped_dynamics(scene, 0.5 * cp.phi, 0.8 * cp.phi, 1e-2, temperature=0.0, chunk=100)
+    slow = damped_dynamics(scene, 0.5 * cp.phi, 0.8 * cp.phi, 1e-2, options=DynamicsOptions(chunk=100))
     assert slow.stop == "phi_stop" and math.isnan(slow.transition_phi)
     assert np.max(np.abs(slow.Wr)) < 1e-6
     eq = jr.solve_equilibrium(scene, phi=float(slow.phi[-1]))
@@ -57,4 +59,4 @@ def test_bad_dynamics_input_names_the_parameter(ring, bad, name):
     kwargs = dict(rate=1e-2) | bad
     rate = kwargs.pop("rate")
     with pytest.raises(ValueError, match=name):
-        damped_dynamics(scene, 0.0, 1.0, rate, **kwargs)
+        damped_dynamics(scene, 0.0, 1.0, rate, options=DynamicsOptions(**kwargs))

@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxrod import Material, clamped_rod, free_rod, ring, solve_equilibrium
+from jaxrod import EquilibriumOptions, Material, clamped_rod, free_rod, ring, solve_equilibrium
 from helpers import MAT, random_clamped_state, random_closed_state, random_free_state
 
 BUILDERS = {
@@ -85,7 +85,7 @@ def test_twisted_straight_clamped_rod_energy_is_exact():
     L = 2.0
     s = clamped_rod(20, L, MAT)
     for phi in (2 * math.pi, -9.0 * math.pi):
-        eq = solve_equilibrium(s, phi, method="newton", with_stability=False)
+        eq = solve_equilibrium(s, phi, options=EquilibriumOptions(method="newton", with_stability=False))
         assert eq.energy == pytest.approx(MAT.C * phi**2 / (2 * L), rel=1e-10)
 
 

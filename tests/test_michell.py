@@ -56,7 +56,7 @@ def test_crossing_eigenvalue_and_its_derivative(series):
     assert abs(cp.eigenvalue) < 1e-9
     assert cp.dlambda_dphi < 0
     # Finite-difference check of the autodiff derivative along the branch.
-    from jaxrod import eigenvalue_phi_derivative, solve_equilibrium
+    from jaxrod import EquilibriumOptions, eigenvalue_phi_derivative, solve_equilibrium
 
     scene = michell_ring(64, nu=0.5)
     # h = 1e-2: eigenvalues ~5e-7 apart, round-off (~1e-13) and truncation (~h^2 lambda''' ~ 1e-12)
@@ -64,7 +64,7 @@ def test_crossing_eigenvalue_and_its_derivative(series):
     h = 1e-2
     lam = []
     for phi in (cp.phi - h, cp.phi + h):
-        eq = solve_equilibrium(scene, phi, cp.equilibrium.q, method="newton")
+        eq = solve_equilibrium(scene, phi, cp.equilibrium.q, EquilibriumOptions(method="newton"))
         lam.append(eigenvalue_phi_derivative(scene, eq.q, phi, 0)[0])
     fd = (lam[1] - lam[0]) / (2 * h)
     assert cp.dlambda_dphi == pytest.approx(fd, rel=1e-5)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from jaxrod import LBFGS, ConvergenceError, DampedNewton, Material, Newton, clamped_critical_twist, clamped_rod
-from jaxrod import ContinuationOptions, critical_twist, minimise, solve_equilibrium, closed_curve
+from jaxrod import ContinuationOptions, EquilibriumOptions, critical_twist, minimise, solve_equilibrium, closed_curve
 from helpers import wobbly_loop
 
 
@@ -68,7 +68,7 @@ def test_relaxation_lbfgs_then_newton_gives_the_stable_circle():
     mat = Material.from_engineering(E=1.0, nu=0.5, D=0.05)
     n = 40
     scene = closed_curve(wobbly_loop(n, seed=5, amp=0.07), mat, length=2 * math.pi)
-    eq = solve_equilibrium(scene, 0.0, method="auto", gtol=1e-9)
+    eq = solve_equilibrium(scene, 0.0, options=EquilibriumOptions(method="auto", gtol=1e-9))
     assert eq.solution.converged and eq.solution.grad_norm <= 1e-9
     assert eq.stability.n_zero_modes == 7
     assert eq.stable

@@ -23,8 +23,8 @@ PHI = 3.0 * math.pi
 @pytest.fixture(scope="module")
 def knot():
     scene = jr.trefoil(8.0, 292.0, N)
-    e0 = jr.relax(scene, 0.0, with_stability=False, linear_algebra="dense")
-    e = jr.relax(scene, PHI, e0.q, with_stability=False, linear_algebra="dense")
+    e0 = jr.relax(scene, 0.0, options=jr.RelaxOptions(with_stability=False, linear_algebra="dense"))
+    e = jr.relax(scene, PHI, e0.q, jr.RelaxOptions(with_stability=False, linear_algebra="dense"))
     u = scene.to_scaled(e.q)
     hp = np.asarray(_projected_hessian(scene, jnp.asarray(u), PHI, e.neighbourhood)[0])
     lam = np.linalg.eigvalsh(hp)[: 4 * N - int(scene.n_zero_modes)]  # the lifted zero modes sit on top
@@ -117,7 +117,7 @@ def _gyration(x):
 
 def test_sparse_relax_reaches_the_dense_minimum(knot):
     scene, e0, _, _, _, _ = knot
-    es = jr.relax(scene, 0.0, linear_algebra="sparse")
+    es = jr.relax(scene, 0.0, options=jr.RelaxOptions(linear_algebra="sparse"))
     assert es.solution.converged and es.solution.solver.startswith("damped_newton_sparse")
     assert es.energy == pytest.approx(e0.energy, rel=1e-10)
     # the same shape up to a rigid motion and a slide of the material along it (the two minimisers
@@ -149,7 +149,7 @@ def test_the_choice_is_automatic_and_stated():
     big = jr.trefoil(8.0, 292.0, 251)  # n_dof = 1004
     assert _use_sparse(big, "auto") and not _use_sparse(big, "dense")
     with pytest.raises(ValueError, match="linear_algebra"):
-        jr.relax(jr.trefoil(8.0, 292.0, 41), 0.0, linear_algebra="cholmod")
+        jr.RelaxOptions(linear_algebra="cholmod")
 
 
 def test_a_pivoting_factorisation_is_refused_not_counted():

@@ -60,7 +60,7 @@ class State:
 
 
 def ring_state(scene, phi):
-    eq = jr.solve_equilibrium(scene, phi, method="newton")
+    eq = jr.solve_equilibrium(scene, phi, options=jr.EquilibriumOptions(method="newton"))
     assert eq.solution.converged
     return State(scene, phi, eq.q, eq.neighbourhood, eq.stability)
 
@@ -258,10 +258,11 @@ def test_pinned_newton_converges_to_the_dense_equilibrium():
         u = u + d
     assert norms[-1] < 1e-11, norms
     assert len(norms) <= 12, norms
-    eq = jr.solve_equilibrium(scene, phi, q0=q0, method="newton")
+    eq = jr.solve_equilibrium(scene, phi, q0, jr.EquilibriumOptions(method="newton"))
     # The energy of our state through the same (compiled) diagnostics: a Newton solve from it
     # has nothing left to do.
-    ours = jr.solve_equilibrium(scene, phi, q0=np.asarray(scene.from_scaled(u)), method="newton", with_stability=False)
+    ours = jr.solve_equilibrium(scene, phi, np.asarray(scene.from_scaled(u)),
+                                jr.EquilibriumOptions(method="newton", with_stability=False))
     assert ours.solution.iterations == 0
     assert ours.energy == pytest.approx(eq.energy, rel=1e-12)
     assert not np.allclose(np.asarray(u), np.asarray(u0))

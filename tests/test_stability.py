@@ -6,12 +6,14 @@ import numpy as np
 import pytest
 
 from jaxrod import Material, clamped_rod, critical_twist, critical_twist_derivative, michell_critical_twist
-from jaxrod import ContinuationOptions, michell_ring, ring, solve_equilibrium, stability
+from jaxrod import ContinuationOptions, EquilibriumOptions, michell_ring, ring, solve_equilibrium, stability
+
+NEWTON = EquilibriumOptions(method="newton")
 
 
 def test_zero_modes_removed_and_counted():
     scene = ring(24, Material(1.0, 0.7, 1e3))
-    eq = solve_equilibrium(scene, math.pi, method="newton")
+    eq = solve_equilibrium(scene, math.pi, options=NEWTON)
     st = eq.stability
     assert st.n_zero_modes == 7 and st.stable and st.n_negative == 0
     # Without removal the raw Hessian has 7 eigenvalues ~0 (3 translations, 3 rotations, twist shift).
@@ -26,8 +28,8 @@ def test_zero_modes_removed_and_counted():
 
 def test_negative_count_beyond_michell():
     scene = michell_ring(32)
-    below = solve_equilibrium(scene, 5.0 * math.pi, method="newton").stability
-    above = solve_equilibrium(scene, 5.6 * math.pi, method="newton").stability
+    below = solve_equilibrium(scene, 5.0 * math.pi, options=NEWTON).stability
+    above = solve_equilibrium(scene, 5.6 * math.pi, options=NEWTON).stability
     assert below.n_negative == 0 and above.n_negative == 2
 
 

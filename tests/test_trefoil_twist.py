@@ -112,8 +112,8 @@ def test_mirror_knot_has_the_mirrored_energy():
     right = jr.trefoil(D=8.0, L=292.0, N=61, chirality="right")
     left = jr.trefoil(D=8.0, L=292.0, N=61, chirality="left")
     assert left.Lk0 == -3 and right.Lk0 == 3
-    er = jr.relax(right, 2.0 * PI, with_stability=False)
-    el = jr.relax(left, -2.0 * PI, with_stability=False)
+    er = jr.relax(right, 2.0 * PI, options=jr.RelaxOptions(with_stability=False))
+    el = jr.relax(left, -2.0 * PI, options=jr.RelaxOptions(with_stability=False))
     assert el.energy == pytest.approx(er.energy, rel=1e-8)
     assert el.Wr == pytest.approx(-er.Wr, abs=1e-8)
     assert el.Lk == pytest.approx(-er.Lk, abs=1e-8)

@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from ..equilibrium import relax, solve_equilibrium
+from ..equilibrium import EquilibriumOptions, RelaxOptions, relax, solve_equilibrium
 from ..solvers import ConvergenceError
 from ..sparse_branch import solve_equilibrium_sparse
 from ..validation import check_finite, refuse_knot
@@ -69,13 +69,13 @@ def critical_twist(scene, phi_start=0.0, phi_stop=None, options=None, *, q0=None
     k_scan = k  # eigenvalues kept per scan entry (the engine may compute more)
 
     if contact:
-        relaxed = relax(scene, phi_start, q0, with_stability=False, gtol=gtol)
+        relaxed = relax(scene, phi_start, q0, RelaxOptions(gtol=gtol, with_stability=False))
     elif sparse and scene.n_dof >= _SPARSE_MIN_DOF:
         # Large n: no dense relaxation (O(n^3) per step); Newton from q0 (for rings and straight
         # clamped rods the initial shape already is the equilibrium, up to the twist angles).
         relaxed = solve_equilibrium_sparse(scene, phi_start, q0, gtol=gtol)
     else:
-        relaxed = solve_equilibrium(scene, phi_start, q0, method="auto", with_stability=False, gtol=gtol)
+        relaxed = solve_equilibrium(scene, phi_start, q0, EquilibriumOptions(gtol=gtol, with_stability=False))
     start = engine.analysed(relaxed)
     while True:
         count0 = int(start.equilibrium.stability.n_negative)

@@ -11,7 +11,9 @@ import numpy as np
 
 import jax.numpy as jnp
 
-from ..equilibrium import Equilibrium, LeftBranchError, TopologyChangeError, mode_step, relax, solve_equilibrium
+from ..equilibrium import (
+    Equilibrium, EquilibriumOptions, LeftBranchError, RelaxOptions, TopologyChangeError, mode_step, relax, solve_equilibrium,
+)
 from ..geometry import polyline_distance
 from ..solvers import ConvergenceError
 from ..solvers import HostDampedNewton, minimise
@@ -128,14 +130,22 @@ class _Engine:
     def linear_algebra(self):
         return "sparse" if self.sparse else "dense"
 
+    @property
+    def corrector_options(self):
+        """The minimiser corrector's ``RelaxOptions``: the continuation's gtol, a small budget
+        between pauses (a step that crawls is not near its branch), no stability (the engine
+        analyses the state itself), the engine's linear algebra."""
+        return RelaxOptions(gtol=self.opts.gtol, max_steps=self.opts.corrector_max_steps, with_stability=False,
+                            linear_algebra=self.linear_algebra)
+
     def _newton(self, phi, q_start, nbr):
         if self.sparse and self.contact:
             return self._deflated_newton(phi, q_start, nbr)
         if self.sparse:
             return solve_equilibrium_sparse(self.scene, phi, q_start, gtol=self.opts.gtol, nbr=nbr)
-        return solve_equilibrium(self.scene, phi, q_start, method="newton", with_stability=False,
-                                 near_null_tol=self.opts.negative_tol if self.contact else 0.0,
-                                 gtol=self.opts.gtol, nbr=nbr)
+        newton = EquilibriumOptions(method="newton", gtol=self.opts.gtol, with_stability=False,
+                                    near_null_tol=self.opts.negative_tol if self.contact else 0.0)
+        return solve_equilibrium(self.scene, phi, q_start, newton, nbr=nbr)
 
     def _deflated_newton(self, phi, q_start, nbr):
         """Newton at O(n) with the near-null sliding modes deflated (the sparse counterpart of
@@ -166,9 +176,8 @@ class _Engine:
         opts = self.opts
         x_pred = np.asarray(self.scene.positions(jnp.asarray(q_pred)))
         try:
-            e = relax(self.scene, phi, q_pred, gtol=opts.gtol, previous=prev, with_stability=False,
-                      nbr=prev.neighbourhood, guide=(x_pred, opts.jump_tol), max_steps=opts.corrector_max_steps,
-                      linear_algebra=self.linear_algebra)
+            e = relax(self.scene, phi, q_pred, self.corrector_options, previous=prev, nbr=prev.neighbourhood,
+                      guide=(x_pred, opts.jump_tol))
         except LeftBranchError as exc:
             return _Step(None, refusal=_Refusal(StepFailure.JUMP, str(exc)))
         except TopologyChangeError as exc:
@@ -221,9 +230,8 @@ class _Engine:
             try:
                 # Guided: a push along a real buckling mode runs off the predicted shape and is
                 # stopped at its first pause instead of being relaxed to the end.
-                e2 = relax(self.scene, e.phi, e.q + sgn * step, gtol=self.opts.gtol, previous=prev,
-                           with_stability=False, nbr=e.neighbourhood, guide=(x_pred, jump_tol),
-                           max_steps=self.opts.corrector_max_steps, linear_algebra=self.linear_algebra)
+                e2 = relax(self.scene, e.phi, e.q + sgn * step, self.corrector_options, previous=prev,
+                           nbr=e.neighbourhood, guide=(x_pred, jump_tol))
             except (ConvergenceError, TopologyChangeError):
                 continue
             if polyline_distance(e2.x, x_pred, self.closed) > jump_tol:

@@ -114,8 +114,7 @@ def follow_twist(scene, phi_start=0.0, phi_stop=None, options=None, *, start=Non
         opts = opts.resolved(scene, Task.FOLLOW_TWIST, abs(phi_stop - phi_start))
         engine = _follow_engine(scene, opts)
         if not given:
-            e0 = relax(scene, phi_start, start, gtol=opts.gtol, with_stability=False,
-                       linear_algebra=engine.linear_algebra)
+            e0 = relax(scene, phi_start, start, replace(engine.corrector_options, max_steps=None))
         else:
             e0 = start
             if e0.neighbourhood is None:

@@ -3,6 +3,7 @@ along the critical mode (``_switch_branch``) and name the new branch (``_next_br
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -37,8 +38,8 @@ def _switch_branch(engine, prev, dq, phi, mode, lost_eq, say):
     best = None
     for label, q_start in starts:
         try:
-            e = relax(scene, phi, q_start, gtol=engine.opts.gtol, previous=prev, with_stability=False,
-                      nbr=prev.neighbourhood, linear_algebra=engine.linear_algebra)
+            e = relax(scene, phi, q_start, replace(engine.corrector_options, max_steps=None), previous=prev,
+                      nbr=prev.neighbourhood)
         except (ConvergenceError, TopologyChangeError) as exc:
             say(f"  switch from {label}: {type(exc).__name__}: {exc}")
             continue
