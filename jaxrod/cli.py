@@ -252,6 +252,7 @@ def _build_parser():
     cc.add_argument("--span", type=_angle, default=16.0 * math.pi,
                     help="search each side's first end up to +-span (default 16pi)")
     cc.add_argument("--out", default="results/critical_curve", help="output folder (default results/critical_curve)")
+    cc.add_argument("--fresh", action="store_true", help="start over even if --out holds an interrupted curve")
     cc.add_argument("--json", action="store_true", help="print the result as one JSON object")
     cc.add_argument("--quiet", action="store_true", help="no progress on stderr")
     cc.add_argument("--no-cache", action="store_true", help="do not keep compiled code in ~/.cache/jaxrod")
@@ -918,7 +919,9 @@ pseudo-arclength run in phi). Each row gives the event's kind, Morse index acros
 eigenvalue, residual and dphi*/d(D/L) from the implicit function theorem.
 
 Writes into --out: critical_curve.csv (a row per point, as they come), critical_curve.json and
-critical_curve.png (with Michell's ring line and its double).
+critical_curve.png (with Michell's ring line and its double). Each point is also kept whole
+(points/, legs/, start_*.npz): an interrupted run given the same command goes on from its last
+point; --fresh starts over.
 
 examples:
   jaxrod critical-curve --ratios 0.008:0.045:0.001 --N 128 --out results/critical_curve
@@ -952,7 +955,7 @@ def _critical_curve(args):
 
     say(args.compile_notice)
     try:
-        result = critical_twist_curve(args.knot, args.N, ratios, opts, out=args.out, progress=say)
+        result = critical_twist_curve(args.knot, args.N, ratios, opts, out=args.out, progress=say, fresh=args.fresh)
     finally:
         bar.close()
     for key, leg in result["legs"].items():

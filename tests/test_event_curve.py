@@ -1,7 +1,10 @@
 """event_curve: the first instability of a branch followed in a second parameter, on analytic
 systems with known answers (a fold curve p* = mu^2; a first instability that changes kind, from a
 branch point to a fold, where the two event curves cross)."""
+import csv
 import math
+import os
+from dataclasses import replace
 
 import jax.numpy as jnp
 import numpy as np
@@ -84,3 +87,87 @@ def test_ratio_range_parsing():
 
     np.testing.assert_allclose(check_ratio_range("0.008:0.010:0.001"), [0.008, 0.009, 0.010])
     np.testing.assert_allclose(check_ratio_range("0.03, 0.01,0.02"), [0.01, 0.02, 0.03])
+
+
+def test_a_curve_resumed_from_its_last_point_goes_on_as_the_whole_run():
+    # Interrupted after mu = 0.2 (on the branch-point part) and resumed from the last point on file:
+    # the same events, slopes and predictions as the run that was never interrupted, across the
+    # change of kind at mu = 0.25.
+    def run(mus, resume=None):
+        prob = BifurcationProblem(_crossing_energy, jnp.array([1.0, 0.0]), 1.0, jnp.asarray(0.0))
+        start = resume if resume is not None else (np.array([1.0, 0.0]), 1.0)
+        return event_curve(prob, start, _set_mu, 0.0, mus, EventCurveOptions(OPTS, 0.05))
+
+    whole = run([0.1, 0.2, 0.3, 0.4])
+    first = run([0.1, 0.2])
+    rest = run([0.3, 0.4], resume=first.points[-1])
+    assert rest.result.name == "BOUNDARY" and [q.mu for q in rest.points] == [0.3, 0.4]
+    joined = first.points + rest.points
+    for name in ("p", "kind", "dp_dmu", "critical_eigenvalue", "anchor_p"):
+        assert [getattr(q, name) for q in joined] == [getattr(q, name) for q in whole.points], name
+    np.testing.assert_array_equal([q.predicted for q in joined], [q.predicted for q in whole.points])  # nan first
+    with pytest.raises(ValueError, match="anchor"):
+        run([0.3], resume=replace(first.points[-1], anchor_u=None))
+
+
+def _stub_rods(monkeypatch):
+    """critical_twist_curve on the analytic crossing system instead of a knot (mu = 10 D/L: its
+    change of kind at D/L = 0.025), so that its files and resume are tested in seconds; the knot
+    machinery it drives is tested on rods elsewhere (test_bifurcation_knots.py)."""
+    from types import SimpleNamespace
+
+    import jaxrod.bifurcation.rods as rods
+    import jaxrod.continuation as continuation
+
+    def follow_twist(scene, phi_start, phi_stop, options):
+        state = SimpleNamespace(branch="symmetric", equilibrium=SimpleNamespace(phi=-0.5, q=np.zeros(scene.n_dof)))
+        return SimpleNamespace(instabilities=[SimpleNamespace(phi=-1.0)], points=[state], reason="")
+
+    def knot_problem(scene, q, phi):
+        energy = lambda u, p, ratio: _crossing_energy(u, p, 10.0 * ratio)  # noqa: E731
+        return SimpleNamespace(problem=BifurcationProblem(energy, jnp.array([1.0, 0.0]), 1.0, jnp.asarray(0.02)))
+
+    monkeypatch.setattr(continuation, "follow_twist", follow_twist)
+    monkeypatch.setattr(rods, "knot_problem", knot_problem)
+    monkeypatch.setattr(rods, "set_diameter", _set_mu)
+
+
+def test_an_interrupted_critical_curve_resumes_to_the_files_of_a_whole_run(tmp_path, monkeypatch):
+    import jaxrod.critical_curve as cc
+
+    _stub_rods(monkeypatch)
+    ratios = [0.01, 0.02, 0.03, 0.04]
+    opts = cc.CriticalCurveOptions(sides=("minus",), start_ratio=0.02, delta=0.05, ds_max=0.05, span=2.0)
+    whole = cc.critical_twist_curve("3_1", 101, ratios, opts, out=str(tmp_path / "whole"))
+    assert [r["kind"] for r in whole["rows"]] == ["branch_point"] * 2 + ["fold"] * 2
+    np.testing.assert_allclose([r["phi_star"] for r in whole["rows"]], [0.4, 0.3, 0.3, 0.4], atol=1e-10)
+
+    real_save, saved = cc._save_point, []
+
+    def save_then_die(path, point, recorded):
+        real_save(path, point, recorded)
+        saved.append(path)
+        if len(saved) == 2:  # killed with the up leg half done (0.02 and 0.03 on file, 0.04 not)
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(cc, "_save_point", save_then_die)
+    cut = str(tmp_path / "cut")
+    with pytest.raises(KeyboardInterrupt):
+        cc.critical_twist_curve("3_1", 101, ratios, opts, out=cut)
+    monkeypatch.setattr(cc, "_save_point", real_save)
+    said = []
+    resumed = cc.critical_twist_curve("3_1", 101, ratios, opts, out=cut, progress=said.append)
+    assert resumed["resumed_points"] == 2 and any("going on from D/L = 0.03000" in m for m in said), said
+    timeless = lambda rows: [{k: v for k, v in r.items() if k != "seconds"} for r in rows]  # noqa: E731
+    assert timeless(resumed["rows"]) == timeless(whole["rows"]) and resumed["legs"] == whole["legs"]
+    # the CSV as a whole run writes it: the same rows in the same order, digit for digit
+    read = lambda folder: timeless(csv.DictReader(open(os.path.join(folder, "critical_curve.csv"))))  # noqa: E731
+    assert read(cut) == read(tmp_path / "whole") and len(read(cut)) == 4
+    # run again on the finished folder: nothing computed, the same rows
+    again = cc.critical_twist_curve("3_1", 101, ratios, opts, out=cut)
+    assert again["resumed_points"] == 4 and timeless(again["rows"]) == timeless(whole["rows"])
+    # another setting on the same folder is refused by name; fresh starts over
+    with pytest.raises(ValueError, match="ratios"):
+        cc.critical_twist_curve("3_1", 101, ratios[:3], opts, out=cut)
+    fresh = cc.critical_twist_curve("3_1", 101, ratios[:3], opts, out=cut, fresh=True)
+    assert fresh["resumed_points"] == 0 and len(fresh["rows"]) == 3

@@ -207,6 +207,9 @@ def event_curve(problem, start, set_mu, mu0, mus, options, *, observer=None, pro
     of mu to visit, in order (each step from the previous one; start them next to mu0).
     options: an ``EventCurveOptions``. observer(EventCurvePoint), if given, after each point;
     progress(str), if given, a line per try that found no event (why, and what comes next).
+    To resume, give as ``start`` an ``EventCurvePoint`` of an earlier run of the same curve (its
+    last point on file): the run goes on from it as the earlier run would have (its anchor state,
+    event and slope) over ``mus``, the values after it; mu0 is then not visited again.
 
     Returns an EventCurve; a mu at which no event is found (or the start cannot be corrected) ends
     the curve there, with ``result`` and ``message`` saying why.
@@ -215,9 +218,18 @@ def event_curve(problem, start, set_mu, mu0, mus, options, *, observer=None, pro
     chunk, max_points = options.chunk, options.max_points
     direction = 1.0 if opts.ds > 0 else -1.0
     curve = EventCurve()
-    u_b, p_b = np.asarray(start[0], dtype=float), float(start[1])
-    mu_prev, slope, p_star = float(mu0), 0.0, float("nan")
-    for mu in [float(mu0)] + [float(m) for m in mus]:
+    resume = start if isinstance(start, EventCurvePoint) else None
+    if resume is None:
+        u_b, p_b = np.asarray(start[0], dtype=float), float(start[1])
+        mu_prev, slope, p_star = float(mu0), 0.0, float("nan")
+        todo = [float(mu0)] + [float(m) for m in mus]
+    else:
+        if resume.anchor_u is None or not np.isfinite(resume.anchor_p):
+            raise ValueError("resume: the point has no anchor state (anchor_u, anchor_p) to go on from")
+        u_b, p_b = np.asarray(resume.anchor_u, dtype=float), float(resume.anchor_p)
+        mu_prev, slope, p_star = float(resume.mu), float(resume.dp_dmu), float(resume.p)
+        todo = [float(m) for m in mus]
+    for mu in todo:
         t = time.perf_counter()
         shift = (mu - mu_prev) * slope  # the event moves by this much: keep the gap to it
         ev = None
