@@ -7,7 +7,10 @@ ratios asked for. D varies at fixed L, N, E and nu (B, C ~ D^4, EA ~ D^2, contac
 ``jaxrod.bifurcation.rods.set_diameter``), so N must be at least L/D over the whole range.
 
 Every row says which event it is (a fold or a simple branch point, with the Morse index across
-it), its critical eigenvalue and residual, and dphi*/d(D/L) from the implicit function theorem.
+it), its critical eigenvalue and residual, dphi*/d(D/L) from the implicit function theorem, and
+which predictor found its start ("ift": that slope at the previous ratio; "secant": the last two
+events, where the slope threw the start off the branch, as at a nearly degenerate branch point;
+"none").
 With ``out`` the rows go to ``critical_curve.csv`` as they are found, then
 ``critical_curve.json`` (settings, how each leg ended) and ``critical_curve.png``. The run is
 resumable: each point is also kept whole (``points/<side>_<leg>_<k>.npz``: its event, slope and
@@ -36,7 +39,7 @@ __all__ = ["CriticalCurveOptions", "critical_twist_curve", "CSV_COLUMNS"]
 
 SIDE_SIGNS = {"plus": 1.0, "minus": -1.0}
 CSV_COLUMNS = ("side", "D_over_L", "phi_star", "phi_star_over_pi", "kind", "morse_before", "morse_after",
-               "critical_eigenvalue", "residual", "dphi_dratio", "seconds")
+               "critical_eigenvalue", "residual", "dphi_dratio", "predictor", "seconds")
 
 
 @dataclass(frozen=True)
@@ -136,7 +139,7 @@ def _row(side, point):
     return dict(side=side, D_over_L=point.mu, phi_star=point.p, phi_star_over_pi=point.p / math.pi,
                 kind=point.kind, morse_before=point.morse_before, morse_after=point.morse_after,
                 critical_eigenvalue=point.critical_eigenvalue, residual=point.residual,
-                dphi_dratio=point.dp_dmu, seconds=point.seconds)
+                dphi_dratio=point.dp_dmu, predictor=point.predictor, seconds=point.seconds)
 
 
 def critical_twist_curve(knot, N, ratios, options=None, *, out=None, progress=None, fresh=False):
@@ -253,7 +256,7 @@ def critical_twist_curve(knot, N, ratios, options=None, *, out=None, progress=No
                 if recorded:
                     record(side, point)
 
-            curve = event_curve(prob, (prob.u0, prob.p0) if last is None else last, set_diameter, start, values,
+            curve = event_curve(prob, (prob.u0, prob.p0) if last is None else [q for q, _ in done], set_diameter, start, values,
                                 curve_opts, observer=observer, progress=lambda m, side=side: say(f"[{side}]   {m}"))
             legs[key] = dict(result=curve.result.value, message=curve.message, points=counter[0])
             if leg_file is not None:

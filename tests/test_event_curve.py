@@ -64,6 +64,33 @@ def test_first_instability_changes_kind_where_two_event_curves_cross():
     assert all(q.critical_eigenvalue <= 1e-10 and q.residual <= 1e-10 for q in curve.points)
 
 
+def _steep_energy(u, p, mu):
+    # a pitchfork (y) at p = g(mu), g falling by 0.2 within ~0.004 of mu = 0.25 (dp*/dmu = -50 there), and
+    # a fold (x) at p = -1 below it; going down in p the first instability is the branch point
+    x, y = u[0], u[1]
+    g = 0.4 - 0.1 * jnp.tanh((mu - 0.25) / 0.002)
+    return x**3 / 3.0 - (p + 1.0) * x + 0.5 * (p - g) * y**2 + 0.25 * y**4
+
+
+def test_a_slope_that_throws_the_start_off_falls_back_to_the_secant():
+    # At mu = 0.25 the implicit function theorem's slope (-50) holds over ~0.002 of mu only: its shift to
+    # mu = 0.3 (-2.5) puts the start below the fold at p = -1, and every back-off keeps that shift. The
+    # secant of the last two events puts it delta above the event, which is then located as before.
+    prob = BifurcationProblem(_steep_energy, jnp.array([1.5, 0.0]), 1.25, jnp.asarray(0.0))
+    mus = [0.2, 0.25, 0.3, 0.4]
+    said = []
+    curve = event_curve(prob, (np.array([1.5, 0.0]), 1.25), _set_mu, 0.1, mus, EventCurveOptions(OPTS, 0.05),
+                        progress=said.append)
+    assert curve.result.name == "BOUNDARY", curve.message
+    mu = curve.mu
+    np.testing.assert_allclose(curve.p, 0.4 - 0.1 * np.tanh((mu - 0.25) / 0.002), atol=1e-10)
+    assert curve.kind == ["branch_point"] * 5
+    assert curve.dp_dmu[2] == pytest.approx(-50.0, rel=1e-8)
+    predictors = [q.predictor for q in curve.points]
+    assert predictors == ["none", "ift", "ift", "secant", "ift"], predictors
+    assert curve.points[3].back_offs == 4 and sum("(ift predictor)" in m for m in said) == 4, said
+
+
 def test_delta_must_be_positive():
     with pytest.raises(ValueError, match="delta"):
         EventCurveOptions(OPTS, -math.pi)
@@ -95,19 +122,19 @@ def test_a_curve_resumed_from_its_last_point_goes_on_as_the_whole_run():
     # change of kind at mu = 0.25.
     def run(mus, resume=None):
         prob = BifurcationProblem(_crossing_energy, jnp.array([1.0, 0.0]), 1.0, jnp.asarray(0.0))
-        start = resume if resume is not None else (np.array([1.0, 0.0]), 1.0)
+        start = resume if resume is not None else (np.array([1.0, 0.0]), 1.0)  # resume: the points on file
         return event_curve(prob, start, _set_mu, 0.0, mus, EventCurveOptions(OPTS, 0.05))
 
     whole = run([0.1, 0.2, 0.3, 0.4])
     first = run([0.1, 0.2])
-    rest = run([0.3, 0.4], resume=first.points[-1])
+    rest = run([0.3, 0.4], resume=first.points)
     assert rest.result.name == "BOUNDARY" and [q.mu for q in rest.points] == [0.3, 0.4]
     joined = first.points + rest.points
     for name in ("p", "kind", "dp_dmu", "critical_eigenvalue", "anchor_p"):
         assert [getattr(q, name) for q in joined] == [getattr(q, name) for q in whole.points], name
     np.testing.assert_array_equal([q.predicted for q in joined], [q.predicted for q in whole.points])  # nan first
     with pytest.raises(ValueError, match="anchor"):
-        run([0.3], resume=replace(first.points[-1], anchor_u=None))
+        run([0.3], resume=[replace(first.points[-1], anchor_u=None)])
 
 
 def _stub_rods(monkeypatch):

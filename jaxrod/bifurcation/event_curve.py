@@ -85,7 +85,9 @@ class EventCurvePoint:
     theorem, u (n,) the located state, predicted: the p the curve's predictor gave, seconds: wall
     time for this point, back_offs: how often the start had to back off, points: continuation
     points computed; anchor_u (n,), anchor_p: the stable state before the event from which the
-    next mu starts (a start for a point study next to this one).
+    next mu starts (a start for a point study next to this one); predictor: what moved the start
+    to this mu: "ift" (the last point's dp*/dmu), "secant" (the last two points' p*) or "none"
+    (the last point's anchor as it is: the first point, or the two others failed).
     """
 
     mu: float
@@ -103,6 +105,7 @@ class EventCurvePoint:
     points: int = 0
     anchor_u: np.ndarray = None
     anchor_p: float = float("nan")
+    predictor: str = "none"
 
 
 @dataclass
@@ -197,6 +200,29 @@ def _run_to_event(problem, alg, opts, u, p, direction, chunk, max_points):
     return None, points, points[0].morse_index, f"no event within {max_points} points"
 
 
+def _tries(history, mu, mu_prev, slope, delta):
+    """The starts tried at a new mu, in order: (predictor, shift in p, gap back from it, shorter
+    steps). First the implicit function theorem's shift (mu - mu_prev) dp*/dmu, that keeps the gap to
+    the event, backed off 3 delta, then with shorter steps, then 15 delta back. Where the event's
+    system is nearly singular (a branch point of a nearly degenerate pair: the slope measured -7570
+    pi on the trefoil's tightening side at D/L = 0.039, N = 128) that shift throws the start far off
+    the branch and every back-off keeps it; then the secant of the last two events, then no shift
+    at all (the last anchor, delta before the last event), each backed off 15 delta with short steps
+    if it fails as well."""
+    h = mu - mu_prev
+    first = "ift" if h != 0.0 else "none"  # the first mu: its own start, nothing to predict
+    tries = [(first, h * slope, 0.0, False), (first, h * slope, 3.0 * delta, False),
+             (first, h * slope, 3.0 * delta, True), (first, h * slope, 15.0 * delta, True)]
+    if len(history) >= 2:
+        a, b = history[-2], history[-1]
+        if b.mu != a.mu:
+            secant = h * (b.p - a.p) / (b.mu - a.mu)
+            tries += [("secant", secant, 0.0, False), ("secant", secant, 15.0 * delta, True)]
+    if h != 0.0:
+        tries += [("none", 0.0, 0.0, False), ("none", 0.0, 15.0 * delta, True)]
+    return tries
+
+
 def event_curve(problem, start, set_mu, mu0, mus, options, *, observer=None, progress=None):
     """The first instability of the branch through ``start`` followed over the values ``mus``.
 
@@ -207,8 +233,9 @@ def event_curve(problem, start, set_mu, mu0, mus, options, *, observer=None, pro
     of mu to visit, in order (each step from the previous one; start them next to mu0).
     options: an ``EventCurveOptions``. observer(EventCurvePoint), if given, after each point;
     progress(str), if given, a line per try that found no event (why, and what comes next).
-    To resume, give as ``start`` an ``EventCurvePoint`` of an earlier run of the same curve (its
-    last point on file): the run goes on from it as the earlier run would have (its anchor state,
+    To resume, give as ``start`` the ``EventCurvePoint`` list of an earlier run of the same curve
+    (its points on file, in order; at least the last, and the one before it for the secant
+    predictor): the run goes on from the last as the earlier run would have (its anchor state,
     event and slope) over ``mus``, the values after it; mu0 is then not visited again.
 
     Returns an EventCurve; a mu at which no event is found (or the start cannot be corrected) ends
@@ -218,7 +245,10 @@ def event_curve(problem, start, set_mu, mu0, mus, options, *, observer=None, pro
     chunk, max_points = options.chunk, options.max_points
     direction = 1.0 if opts.ds > 0 else -1.0
     curve = EventCurve()
-    resume = start if isinstance(start, EventCurvePoint) else None
+    if isinstance(start, EventCurvePoint):
+        start = [start]
+    history = list(start) if start and all(isinstance(q, EventCurvePoint) for q in start) else []
+    resume = history[-1] if history else None
     if resume is None:
         u_b, p_b = np.asarray(start[0], dtype=float), float(start[1])
         mu_prev, slope, p_star = float(mu0), 0.0, float("nan")
@@ -231,9 +261,8 @@ def event_curve(problem, start, set_mu, mu0, mus, options, *, observer=None, pro
         todo = [float(m) for m in mus]
     for mu in todo:
         t = time.perf_counter()
-        shift = (mu - mu_prev) * slope  # the event moves by this much: keep the gap to it
         ev = None
-        for back_offs, gap in enumerate((0.0, 3.0 * delta, 3.0 * delta, 15.0 * delta)):
+        for back_offs, (predictor, shift, gap, shorter) in enumerate(_tries(history, mu, mu_prev, slope, delta)):
             p_start = p_b + shift - direction * gap
             problem.args = set_mu(problem.args, jnp.asarray(mu))
             u_start = _relaxed(problem, u_b, p_start)
@@ -244,12 +273,13 @@ def event_curve(problem, start, set_mu, mu0, mus, options, *, observer=None, pro
             # a try that found no event (not located next to a slide, or none within max_points) is
             # repeated from a start further back, then with shorter steps: another path to the
             # same event, through other brackets
-            ev, points, morse0, message = _run_to_event(problem, alg, opts if back_offs < 2 else _shorter(opts),
+            ev, points, morse0, message = _run_to_event(problem, alg, _shorter(opts) if shorter else opts,
                                                          u_start, p_start, direction, chunk, max_points)
             if ev is not None:
                 break
             if progress is not None:
-                progress(f"mu = {mu:.9g}, start p = {p_start:.9g}: {message} ({len(points)} points); backing off")
+                progress(f"mu = {mu:.9g}, start p = {p_start:.9g} ({predictor} predictor): {message} "
+                         f"({len(points)} points); backing off")
         if ev is None:
             curve.result = Result.CORRECTOR_FAILED if morse0 is None else Result.LOCATION_FAILED
             curve.message = f"at mu = {mu:.12g}: {message}"
@@ -262,9 +292,11 @@ def event_curve(problem, start, set_mu, mu0, mus, options, *, observer=None, pro
         u_b, p_b = np.asarray(anchor.u), float(anchor.p)
         row = EventCurvePoint(mu, float(ev.p), ev.kind, int(ev.morse_before), int(ev.morse_after),
                               float(ev.critical_eigenvalue), float(ev.residual), float(slope), np.asarray(ev.u),
-                              p_star + shift, time.perf_counter() - t, back_offs, len(points), u_b.copy(), p_b)
+                              p_star + shift, time.perf_counter() - t, back_offs, len(points), u_b.copy(), p_b,
+                              predictor)
         p_star = float(ev.p)
         curve.points.append(row)
+        history.append(row)
         if observer is not None:
             observer(row)
         mu_prev = mu
