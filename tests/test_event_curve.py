@@ -137,6 +137,10 @@ def test_a_curve_resumed_from_its_last_point_goes_on_as_the_whole_run():
         run([0.3], resume=[replace(first.points[-1], anchor_u=None)])
 
 
+def _ratio_crossing_energy(u, p, ratio):
+    return _crossing_energy(u, p, 10.0 * ratio)  # one function for every leg: compiled once
+
+
 def _stub_rods(monkeypatch):
     """critical_twist_curve on the analytic crossing system instead of a knot (mu = 10 D/L: its
     change of kind at D/L = 0.025), so that its files and resume are tested in seconds; the knot
@@ -151,8 +155,8 @@ def _stub_rods(monkeypatch):
         return SimpleNamespace(instabilities=[SimpleNamespace(phi=-1.0)], points=[state], reason="")
 
     def knot_problem(scene, q, phi):
-        energy = lambda u, p, ratio: _crossing_energy(u, p, 10.0 * ratio)  # noqa: E731
-        return SimpleNamespace(problem=BifurcationProblem(energy, jnp.array([1.0, 0.0]), 1.0, jnp.asarray(0.02)))
+        return SimpleNamespace(problem=BifurcationProblem(_ratio_crossing_energy, jnp.array([1.0, 0.0]), 1.0,
+                                                          jnp.asarray(0.02)))
 
     monkeypatch.setattr(continuation, "follow_twist", follow_twist)
     monkeypatch.setattr(rods, "knot_problem", knot_problem)
