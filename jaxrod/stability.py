@@ -35,6 +35,8 @@ __all__ = [
     "sliding_fraction",
     "sliding_fields",
     "shape_modes_in_band",
+    "band_shape_modes",
+    "split_slide",
     "SLIDING_FRACTION",
 ]
 
@@ -433,6 +435,81 @@ def sliding_fraction(scene, q, vectors):
     return out
 
 
+# The stable-only engine splits a slide off its computed eigenpairs only when the span holds one
+# this clean (a pure slide leaves < 1e-3, see SLIDING_FRACTION) and near-null (inside the band kept
+# for the sliding modes): on the trefoil's buckled+ branch at N = 121 the direction of least
+# sliding in the span mixed the slide with a mode at 2.3e-6 and with the buckling mode crossing
+# zero at +7.041 pi, and splitting it off took the crossing with it.
+CLEAN_SLIDE_FRACTION = 5e-3
+
+
+def split_slide(scene, q, values, vectors, threshold=SLIDING_FRACTION, max_value=None):
+    """Split the material-sliding direction off the span of a knot's lowest eigenvectors.
+
+    values (m,), vectors (n, m) orthonormal, in the rod's scaled DOFs (all of them; a pinned
+    problem embeds its free DOFs first: ``jaxrod.bifurcation.rods.split_sliding``); q: the state.
+    The sliding fraction (``sliding_fraction``: 0 for a pure slide of the material along the
+    centreline, O(1) for a change of shape) is a quadratic form; its minimiser within the span is
+    the slide, whatever the mixing of nearly degenerate eigenvectors (next to a crossing or a fold
+    the critical mode and the slide are both near zero and their eigenvectors mix: on the trefoil
+    at N = 121, 0.004 pi before its tightening branch point, the lowest eigenvector was half slide,
+    half buckling mode). If its fraction is below ``threshold`` it is one soft direction, with its
+    Rayleigh quotient, and the rest of the span are Ritz pairs (ascending with it).
+    max_value: a slide is near-null; a direction whose Rayleigh quotient exceeds this in modulus is
+    not split off (None: no bound).
+    Returns (values (m,), coefficients C (m, m): the new vectors are ``vectors @ C``, soft (m,)
+    bool: the slide); the input unchanged (C = I, no soft direction) when nothing slides."""
+    V = np.asarray(vectors, dtype=float)
+    lam = np.asarray(values, dtype=float)
+    m = lam.size
+    n = int(scene.n_nodes)
+    perp, rigid = sliding_fields(scene, q)
+    # the part of each vector's node motion that is no slide: off the tangents, rigid motions out
+    B = np.einsum("nij,njm->nim", perp, V[:3 * n].reshape(n, 3, -1)).reshape(3 * n, -1)
+    basis, _ = np.linalg.qr(rigid)
+    B -= basis @ (basis.T @ B)
+    ft = V[3 * n:]
+    G = B.T @ B + ft.T @ ft  # (m, m): the fraction's numerator on the span (V orthonormal)
+    g, C = np.linalg.eigh(0.5 * (G + G.T))
+    if m == 0 or g[0] >= threshold:
+        return lam, np.eye(m), np.zeros(m, dtype=bool)
+    c, rest = C[:, 0], C[:, 1:]
+    if max_value is not None and abs(float(c @ (lam * c))) > max_value:
+        return lam, np.eye(m), np.zeros(m, dtype=bool)
+    K = rest.T @ (lam[:, None] * rest)
+    ritz, R = np.linalg.eigh(0.5 * (K + K.T))
+    vals = np.concatenate([[float(c @ (lam * c))], ritz])
+    coef = np.concatenate([c[:, None], rest @ R], axis=1)
+    order = np.argsort(vals, kind="stable")
+    soft = np.zeros(m, dtype=bool)
+    soft[0] = True
+    return vals[order], coef[:, order], soft[order]
+
+
+def band_shape_modes(scene, e, negative_tol, strict_tol=None):
+    """(values (k,), fractions (k,), vectors (n, k)) of the equilibrium e's modes that change the
+    shape and lie in the near-zero band [-negative_tol, -strict_tol) kept for the sliding modes of
+    loose knots: its computed eigenpairs with the slide split off their span first
+    (``split_slide``), so that a buckling mode mixed with the slide next to its crossing is judged
+    by its own eigenvalue, then each remaining direction whose sliding fraction is above
+    SLIDING_FRACTION (see ``shape_modes_in_band``). Empty arrays without a band."""
+    if strict_tol is None:
+        strict_tol = scaled_negative_tol(scene)
+    lam = np.asarray(e.stability.eigenvalues)
+    vec = np.asarray(e.stability.eigenvectors)
+    empty = (np.zeros(0), np.zeros(0), np.zeros((vec.shape[0], 0)))
+    if not np.any((lam >= -negative_tol) & (lam < -strict_tol)) or int(scene.n_free_nodes) != int(scene.n_nodes):
+        return empty
+    vals, coef, soft = split_slide(scene, e.q, lam, vec, CLEAN_SLIDE_FRACTION, negative_tol)
+    vecs = vec @ coef
+    band = np.nonzero((vals >= -negative_tol) & (vals < -strict_tol) & ~soft)[0]
+    if band.size == 0:
+        return empty
+    frac = sliding_fraction(scene, e.q, vecs[:, band])
+    keep = frac > SLIDING_FRACTION
+    return vals[band][keep], frac[keep], vecs[:, band][:, keep]
+
+
 def shape_modes_in_band(scene, e, negative_tol, strict_tol=None):
     """[(eigenvalue, sliding fraction)] of the equilibrium e's computed modes whose eigenvalue lies
     in the near-zero band [-negative_tol, -strict_tol) kept for the sliding modes of loose knots,
@@ -442,11 +519,5 @@ def shape_modes_in_band(scene, e, negative_tol, strict_tol=None):
     default ``tolerances.scaled_negative_tol(scene)``, 1e-10 up to N ~ 600 and falling as N^-4
     beyond, with the shape modes themselves (the trefoil's sit at ~3e-9 at N = 961, where a fixed
     1e-10 would let a shape mode crossing zero at ~3e-9 per rad pass unseen for ~0.01 pi)."""
-    if strict_tol is None:
-        strict_tol = scaled_negative_tol(scene)
-    lam = np.asarray(e.stability.eigenvalues)
-    band = np.nonzero((lam >= -negative_tol) & (lam < -strict_tol))[0]
-    if band.size == 0 or int(scene.n_free_nodes) != int(scene.n_nodes):
-        return []
-    frac = sliding_fraction(scene, e.q, np.asarray(e.stability.eigenvectors)[:, band])
-    return [(float(lam[i]), float(f)) for i, f in zip(band, frac) if f > SLIDING_FRACTION]
+    values, fractions, _ = band_shape_modes(scene, e, negative_tol, strict_tol)
+    return [(float(v), float(f)) for v, f in zip(values, fractions)]

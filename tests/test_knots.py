@@ -115,3 +115,50 @@ def test_fast_stability_equals_dense_spectrum_on_knots_with_contact(relaxed):
                 checked += 1
     assert checked == 126
     assert min(counts) == 0 and max(counts) > 24  # stable states, and the whole-spectrum fallback
+
+
+def _mixed_state(eq, scene, mu_slide, mu_shape, angle, third=None):
+    """The relaxed trefoil's state with a fabricated low spectrum: its slide s and its lowest shape
+    mode v (both real eigenvectors there) mixed by ``angle`` into two eigenpairs (mu_slide, w1),
+    (mu_shape, w2), as nearly degenerate modes come out of an eigensolver next to a crossing; with
+    ``third`` = (value, weight) the slide is instead mixed into a mode at that value as well."""
+    from types import SimpleNamespace
+
+    from jaxrod.stability import sliding_fraction
+
+    vec = np.asarray(eq.stability.eigenvectors)
+    frac = sliding_fraction(scene, eq.q, vec)
+    s, v = vec[:, int(np.argmin(frac))], vec[:, int(np.argmax(frac))]
+    c, si = np.cos(angle), np.sin(angle)
+    w1, w2 = c * s + si * v, -si * s + c * v
+    values, vectors = [mu_slide, mu_shape], [w1, w2]
+    if third is not None:
+        others = [j for j in range(vec.shape[1]) if j not in (int(np.argmin(frac)), int(np.argmax(frac)))]
+        u = vec[:, others[0]]
+        a = third[1]
+        values, vectors = [mu_shape, third[0]], [np.sqrt(1 - a * a) * v + a * s, -a * v + np.sqrt(1 - a * a) * s]
+        values, vectors = values + [third[0] * 2], vectors + [u]
+    stab = SimpleNamespace(eigenvalues=np.array(values), eigenvectors=np.stack(vectors, axis=1))
+    return SimpleNamespace(q=eq.q, stability=stab), float(frac.min()), float(frac.max())
+
+
+def test_a_buckling_mode_mixed_with_the_slide_is_judged_by_its_own_eigenvalue(relaxed):
+    # Next to the trefoil's tightening branch point (N = 121, --step 0.25pi) the lowest eigenvector
+    # was half slide, half buckling mode, at -1.9e-7: judged as one mode it looked like a buckling
+    # mode negative inside the sliding band, and the study ended 0.074 pi early. With the slide split
+    # off the span, the buckling direction's own Ritz value (here +8.75e-8) decides.
+    from jaxrod.stability import band_shape_modes, shape_modes_in_band
+
+    eq, scene = relaxed
+    e, slide_frac, shape_frac = _mixed_state(eq, scene, -2.5e-7, 2.0e-7, np.pi / 6)
+    assert slide_frac < 1e-3 and shape_frac > 0.37
+    assert shape_modes_in_band(scene, e, 1e-6) == []
+    e, _, _ = _mixed_state(eq, scene, -2.5e-7, -1.0e-7, np.pi / 6)  # the buckling mode itself negative
+    values, fractions, vectors = band_shape_modes(scene, e, 1e-6)
+    assert values.size == 1 and values[0] == pytest.approx(0.25 * -2.5e-7 + 0.75 * -1.0e-7, rel=1e-9)
+    assert fractions[0] > 0.37
+    # A slide mixed into a mode far above the band (2.3e-6) is no near-null slide: not split off,
+    # and the buckling mode crossing zero (-6.8e-8, mixed with it by 0.3) still counts (the trefoil's
+    # buckled+ branch point at +7.041 pi).
+    e, _, _ = _mixed_state(eq, scene, None, -6.8e-8, 0.0, third=(2.3e-6, 0.3))
+    assert [round(v, 12) for v, _ in shape_modes_in_band(scene, e, 1e-6)] == [-6.8e-8]

@@ -45,7 +45,7 @@ import numpy as np
 from ..geometry import closest_approach
 from ..hessian import scaled_hessian as structured_scaled_hessian
 from ..sparse_stability import gauge_pins
-from ..stability import SLIDING_FRACTION, sliding_fields
+from ..stability import SLIDING_FRACTION, split_slide
 from ..topology import writhe
 from ..sparse_contact import assemble, hessian_parts, use_sparse
 from .linalg import DenseBackend, HostMatrix, SparseBackend
@@ -308,41 +308,18 @@ def _exact_slide_pin(rod, q_ref, sliding, slide_tol):
 
 
 def split_sliding(scene, q, free, n_full, values, vectors, threshold=SLIDING_FRACTION):
-    """Split the material-sliding direction off the span of the lowest eigenvectors of a knot.
+    """Split the material-sliding direction off the span of the lowest eigenvectors of a pinned
+    knot (``jaxrod.stability.split_slide`` on the vectors embedded in all n_full DOFs).
 
     values (m,), vectors (n_free, m): the lowest eigenpairs of the pinned Hessian; q: the state.
-    The sliding fraction (``jaxrod.stability.sliding_fraction``: 0 for a pure slide of the material
-    along the centreline, O(1) for a change of shape) is a quadratic form; its minimiser s within
-    the span is the slide, whatever the mixing of nearly degenerate eigenvectors (near a fold the
-    critical mode and the slide are both near zero and their eigenvectors mix). If its fraction is
-    below ``threshold`` it is returned as the one soft direction, with its Rayleigh quotient, and
-    the rest of the span as Ritz pairs of the Hessian (ascending). Returns (values, vectors, soft).
+    Returns (values, vectors, soft): the slide, if its fraction is below ``threshold``, as one
+    soft direction with its Rayleigh quotient, and the rest of the span as Ritz pairs (ascending).
     """
     V = np.asarray(vectors, dtype=float)
-    lam = np.asarray(values, dtype=float)
-    n = int(scene.n_nodes)
     full = np.zeros((n_full, V.shape[1]))
     full[np.asarray(free)] = V
-    perp, rigid = sliding_fields(scene, q)
-    # the part of each vector's node motion that is no slide: off the tangents, rigid motions out
-    B = np.einsum("nij,njm->nim", perp, full[:3 * n].reshape(n, 3, -1)).reshape(3 * n, -1)
-    basis, _ = np.linalg.qr(rigid)
-    B -= basis @ (basis.T @ B)
-    ft = full[3 * n:]
-    G = B.T @ B + ft.T @ ft  # (m, m): the fraction's numerator on the span (V orthonormal)
-    g, C = np.linalg.eigh(0.5 * (G + G.T))
-    if g[0] >= threshold:
-        return lam, V, np.zeros(lam.shape, dtype=bool)
-    c, rest = C[:, 0], C[:, 1:]
-    K = rest.T @ (lam[:, None] * rest)
-    ritz, R = np.linalg.eigh(0.5 * (K + K.T))
-    W = V @ (rest @ R)
-    vals = np.concatenate([[float(c @ (lam * c))], ritz])
-    vecs = np.concatenate([(V @ c)[:, None], W], axis=1)
-    order = np.argsort(vals, kind="stable")
-    soft = np.zeros(vals.shape, dtype=bool)
-    soft[0] = True
-    return vals[order], vecs[:, order], soft[order]
+    vals, coef, soft = split_slide(scene, q, values, full, threshold)
+    return vals, V @ coef, soft
 
 
 def sliding_slice(rod, event, *, candidates=None):

@@ -152,6 +152,11 @@ class _Follower:
     record: object
     say: object
 
+    @property
+    def _knot(self):
+        """The scene, where its modes' sliding is judged (``_past_zero``): a rod with contact."""
+        return self.engine.scene if self.engine.contact else None
+
     def advance(self, state):
         return {Phase.FOLLOW: self._follow, Phase.LOCATE: self._locate, Phase.CONFIRM: self._confirm,
                 Phase.END: self._end}[state.phase](state)
@@ -184,8 +189,8 @@ class _Follower:
         # where bisection needs ~log2(step/tol) ~ 11).
         self.say(f"[{state.branch}] lost at phi = {phi_next / math.pi:+.5f} pi ({s.refusal}); locating the end")
         critical = hidden[1] if hidden is not None else self._critical_modes(s, None)
-        lam = _past_zero(critical, prev)
-        if lam is not None and state.older is not None and _past_zero(critical, state.older) is None:
+        lam = _past_zero(critical, prev, self._knot, self.engine.opts.negative_tol)
+        if lam is not None and state.older is not None and _past_zero(critical, state.older, self._knot, self.engine.opts.negative_tol) is None:
             # The last accepted state already has the critical eigenvalue below zero (inside the
             # near-zero band, so the stability test let it pass): the end lies between the state
             # before it and it. Locate it there, from the state before.
@@ -218,7 +223,7 @@ class _Follower:
         near-zero band (``_hidden_shape_modes``)."""
         if not s.ok:
             return s
-        lam = _past_zero(state.critical_modes, s.equilibrium)
+        lam = _past_zero(state.critical_modes, s.equilibrium, self._knot, self.engine.opts.negative_tol)
         if lam is not None:
             return replace(s, refusal=_Refusal(StepFailure.UNSTABLE, _band_detail(lam)))
         hidden = _hidden_shape_modes(self.engine, s.equilibrium)
