@@ -118,6 +118,7 @@ def _instability_dict(inst, scene, out, direction, index):
         "Wr_after": None if after is None else after.Wr,
         "Tw_after": None if after is None else after.Tw,
         "energy_after": None if after is None else after.energy,
+        "switch": inst.switch,
     }
     if out:
         name = f"critical_mode_{direction}_{index}.npz"

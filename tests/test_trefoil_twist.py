@@ -68,6 +68,13 @@ def test_branch_ends_switches_and_goes_on(opening):
     # Continued beyond, on the buckled branch, up to phi_stop.
     branches = [p.branch for p in path.points]
     assert branches[-1] == "buckled+" and path.points[-1].equilibrium.phi == pytest.approx(7.5 * PI)
+    # The choice of the buckled branch is stated: the rule, the start that won, what each start reached.
+    choice = inst.switch
+    assert choice["rule"].startswith("relaxed from the predicted state") and len(choice["candidates"]) == 3
+    assert [c["start"] for c in choice["candidates"]] == ["+mode", "-mode", "jumped"]
+    kept = [c for c in choice["candidates"] if c.get("kept")]
+    won = min(kept, key=lambda c: c["energy"])
+    assert choice["chosen"] == won["start"] and won["energy"] == after.energy and won["Wr"] == after.Wr
 
 
 def test_every_step_keeps_lk_and_is_stable(opening):

@@ -274,7 +274,9 @@ class _Follower:
             state = self.record(state, inst)
             return replace(state, phase=Phase.DONE, stop=PathStop.BRANCH_ENDED,
                            reason=f"branch ended at phi = {inst.phi:.8g} ({kind})")
-        found = _switch_branch(engine, prev, state.tangent, lost_phi, inst.mode, state.lost_equilibrium, self.say)
+        found, choice = _switch_branch(engine, prev, state.tangent, lost_phi, inst.mode, state.lost_equilibrium,
+                                       self.say)
+        inst = replace(inst, switch=choice)
         if found is None:
             state = self.record(replace(state, switches=state.switches + 1), inst)
             return replace(state, phase=Phase.DONE, stop=PathStop.NO_STABLE_BRANCH,

@@ -88,7 +88,9 @@ class Instability:
     dlambda_dphi, mode: the critical eigenvalue at the last stable state, its derivative along
     the branch and its eigenvector (scaled DOFs); equilibrium: that last stable state;
     from_branch / to_branch: branch names (to_branch None if no switch was made); jumped_to:
-    the first state of the new branch (or None).
+    the first state of the new branch (or None); switch: how that branch was chosen (a dict: the
+    rule, the start chosen, what each start reached; ``switching.SWITCH_RULE``), None where no
+    switch was tried.
     """
 
     phi: float
@@ -105,6 +107,7 @@ class Instability:
     negative_tol: float = 0.0
     dlambda_dphi_secant: float = math.nan
     jumped_to: Equilibrium | None = field(default=None, repr=False)
+    switch: dict | None = field(default=None, repr=False)
 
 
 class PathStop(_ValueEnum):

@@ -23,10 +23,23 @@ def _next_branch_name(name):
 
 
 
+# How the stable-only engine picks the branch it goes on with past an end (named in each
+# instability's ``switch`` record, critical.json): the relaxations from the three starts are
+# deterministic, and of the states they reach, those that are stable, left the old branch and keep
+# Lk, the lowest in energy is taken. Which one that is can change with the code that relaxes them
+# (the README once showed Wr 3.64, then 3.71); the record says which start won and what the others
+# reached, so the choice is stated, not a lottery. Following the unstable branch instead is
+# ``jaxrod.diagram`` (the unstable branches beyond each located end).
+SWITCH_RULE = ("relaxed from the predicted state pushed +-perturbation along the critical mode and from the "
+               "state the corrector jumped to; of the stable states that left the old branch with Lk kept, "
+               "the lowest in energy")
+
+
 def _switch_branch(engine, prev, dq, phi, mode, lost_eq, say):
     """Relax from the predicted state pushed both ways along the critical mode (and from the
     state the corrector itself jumped to, if any); keep stable states away from the old branch
-    with the right Lk; return the lowest in energy as an analysed _Step, or None."""
+    with the right Lk. Returns (the lowest in energy as an analysed _Step, or None; the choice:
+    a dict with the rule (SWITCH_RULE), the start chosen and what each start reached)."""
     scene, closed, jump_tol = engine.scene, engine.closed, engine.opts.jump_tol
     q_pred = prev.q + dq * (phi - prev.phi)
     x_pred = np.asarray(scene.unpack(jnp.asarray(q_pred), phi)[0])
@@ -35,13 +48,14 @@ def _switch_branch(engine, prev, dq, phi, mode, lost_eq, say):
     # Where the corrector itself goes when left alone (it was stopped early while locating the
     # end, so that state is computed here, once).
     starts.append(("jumped", np.asarray(lost_eq.q) if lost_eq is not None else q_pred))
-    best = None
+    best, chosen, candidates = None, None, []
     for label, q_start in starts:
         try:
             e = relax(scene, phi, q_start, replace(engine.corrector_options, max_steps=None), previous=prev,
                       nbr=prev.neighbourhood)
         except (ConvergenceError, TopologyChangeError) as exc:
             say(f"  switch from {label}: {type(exc).__name__}: {exc}")
+            candidates.append({"start": label, "failed": f"{type(exc).__name__}: {exc}"})
             continue
         moved = polyline_distance(e.x, x_pred, closed)
         s = engine.analysed(e)
@@ -49,8 +63,11 @@ def _switch_branch(engine, prev, dq, phi, mode, lost_eq, say):
         lk_ok = (not closed) or abs(e.Lk - (engine.lk0 + phi / (2.0 * math.pi))) <= 1e-6
         say(f"  switch from {label}: E = {e.energy:.8g}, Wr = {e.Wr:.4f}, moved {moved:.3g}, "
             f"{e.stability.n_negative} negative, Lk ok: {lk_ok}")
-        if moved <= jump_tol or not e.stability.stable or not lk_ok:
+        kept = bool(moved > jump_tol and e.stability.stable and lk_ok)
+        candidates.append({"start": label, "energy": float(e.energy), "Wr": float(e.Wr), "moved": float(moved),
+                           "n_negative": int(e.stability.n_negative), "Lk_ok": bool(lk_ok), "kept": kept})
+        if not kept:
             continue
         if best is None or e.energy < best.equilibrium.energy:
-            best = s
-    return best
+            best, chosen = s, label
+    return best, {"rule": SWITCH_RULE, "chosen": chosen, "candidates": candidates}
