@@ -26,6 +26,14 @@ levels do not converge monotonically (the differences change sign) or the measur
 outside (0.5, 4), the sequence is not in its asymptotic range: ``asymptotic`` is False and the
 error is the last difference itself, which the refinement loop then keeps reducing.
 
+Each level's phi* is itself known only to its bracket (``follow_twist`` locates a branch end to
+tol): with ``errors`` given, their propagation through the extrapolation, sum_i of how far the value
+moves when level i moves by +-e_i (the order measured again each time; with two levels the exact
+(1 + c) e_2 + c e_1, c = 1 / (r^p - 1)), is added to the discretisation error
+(``Extrapolation.level_error``). On the trefoil's tightening side (levels 61,
+121, 241) the discretisation part alone was 1.6e-3 pi where the extrapolation of the N = 481 and 961
+ends lay 1.9e-3 pi away; the levels' brackets add 4.6e-4 pi.
+
 ``converged_critical_twists`` runs N_0, 2 N_0 - 1, 4 N_0 - 3, ... (so every node of a level is a
 node of the next, 61, 121, 241, 481 by default for the trefoil), each level started from the
 previous one's solution resampled: the state a little before the previous level's branch end
@@ -62,7 +70,8 @@ class Extrapolation:
     """value: the extrapolated limit N -> infinity; error: its estimated discretisation error
     (see the module docstring); order: the order p used (measured from the three finest levels,
     or THEORETICAL_ORDER with two); order_measured: whether p was measured; asymptotic: the
-    levels converge monotonically with a plausible order; N, values: the levels used."""
+    levels converge monotonically with a plausible order; N, values: the levels used;
+    level_error: the part of ``error`` that the levels' own errors (brackets) contribute."""
 
     value: float
     error: float
@@ -71,10 +80,12 @@ class Extrapolation:
     asymptotic: bool
     N: tuple
     values: tuple
+    level_error: float = 0.0
 
     def as_json(self):
         return {"value": self.value, "error": self.error, "order": self.order, "order_measured": self.order_measured,
-                "asymptotic": self.asymptotic, "N": list(self.N), "values": list(self.values)}
+                "asymptotic": self.asymptotic, "N": list(self.N), "values": list(self.values),
+                "level_error": self.level_error}
 
 
 def _extrapolate(h_coarse, h_fine, v_coarse, v_fine, p):
@@ -115,25 +126,39 @@ def _three_level(h, v):
     return _extrapolate(h[1], h[2], v[1], v[2], p), p
 
 
-def richardson(N, values):
+def _propagated(h_coarse, h_fine, e_coarse, e_fine, p):
+    """The error of ``_extrapolate``'s value from errors of its two inputs (at fixed p)."""
+    c = 1.0 / ((h_coarse / h_fine) ** p - 1.0)
+    return (1.0 + c) * e_fine + c * e_coarse
+
+
+def richardson(N, values, errors=None):
     """Extrapolate ``values`` (one per resolution) to N -> infinity. N: increasing node counts
-    (h = 1/N, the rod's length fixed), at least 2. Returns an ``Extrapolation``."""
+    (h = 1/N, the rod's length fixed), at least 2. errors: optional, each value's own error (a
+    branch end's bracket), propagated into the result's error (``level_error``). Returns an
+    ``Extrapolation``."""
     N = [check_int_at_least("N", n, 2) for n in N]
     values = [check_finite("values", float(v)) for v in values]
     if len(N) != len(values) or len(N) < 2:
         raise ValueError(f"richardson needs at least 2 levels, one value each (got N={N}, values={values})")
     if any(b <= a for a, b in zip(N, N[1:])):
         raise ValueError(f"N must increase, got {N}")
+    if errors is None:
+        errors = [0.0] * len(N)
+    errors = [abs(check_finite("errors", float(e))) for e in errors]
+    if len(errors) != len(N):
+        raise ValueError(f"errors: one per level, got {len(errors)} for {len(N)} levels")
     h = [1.0 / n for n in N]
     if len(N) == 2:
         value = _extrapolate(h[0], h[1], values[0], values[1], THEORETICAL_ORDER)
-        return Extrapolation(value, TWO_LEVEL_SAFETY * abs(value - values[1]), THEORETICAL_ORDER, False, True,
-                             tuple(N), tuple(values))
+        level = _propagated(h[0], h[1], errors[0], errors[1], THEORETICAL_ORDER)
+        return Extrapolation(value, TWO_LEVEL_SAFETY * abs(value - values[1]) + level, THEORETICAL_ORDER, False, True,
+                             tuple(N), tuple(values), level)
     value, p = _three_level(h[-3:], values[-3:])
     if value is None or not ORDER_RANGE[0] < p < ORDER_RANGE[1]:
         # not in the asymptotic range: the finest value is the answer, its last change the error
-        return Extrapolation(values[-1], abs(values[-1] - values[-2]), math.nan if p is None else p, p is not None,
-                             False, tuple(N), tuple(values))
+        return Extrapolation(values[-1], abs(values[-1] - values[-2]) + errors[-1], math.nan if p is None else p,
+                             p is not None, False, tuple(N), tuple(values), errors[-1])
     if len(N) == 3:
         previous = _extrapolate(h[0], h[1], values[0], values[1], THEORETICAL_ORDER)
     else:
@@ -142,7 +167,19 @@ def richardson(N, values):
             previous = values[-2]
     ratio = h[-2] / h[-1]
     error = THREE_LEVEL_SAFETY * abs(value - previous) / (ratio ** p - 1.0)
-    return Extrapolation(value, error, p, True, True, tuple(N), tuple(values))
+    # each of the three finest levels moved by its error both ways, the order measured again: the
+    # value's spread (the order itself depends on the levels, so a fixed-p formula falls short)
+    level = 0.0
+    for i in range(1, 4):
+        if errors[-i] > 0.0:
+            spread = []
+            for sign in (1.0, -1.0):
+                moved = list(values[-3:])
+                moved[-i] += sign * errors[-i]
+                v, _ = _three_level(h[-3:], moved)
+                spread.append(math.inf if v is None else abs(v - value))
+            level += max(spread)
+    return Extrapolation(value, error + level, p, True, True, tuple(N), tuple(values), level)
 
 
 # ---------------------------------------------------------------------- the refinement study
@@ -327,7 +364,7 @@ def _side(scene, side, accuracy, N_levels, span, step, tol, say, cancel, store):
             if store is not None:
                 store.save(side, level)
         if len(levels) >= 2:
-            ext = richardson([lv.N for lv in levels], [lv.phi_star for lv in levels])
+            ext = richardson([lv.N for lv in levels], [lv.phi_star for lv in levels], [lv.phi_error for lv in levels])
             say(f"{side}: extrapolated phi* = {ext.value / math.pi:+.6f} pi +- {ext.error / math.pi:.1e} pi "
                 f"(order {ext.order:.2f}{'' if ext.order_measured else ' assumed'}"
                 f"{'' if ext.asymptotic else ', not in the asymptotic range'})")
@@ -507,6 +544,7 @@ def coarse_companion(scene, out, critical, span=16 * math.pi, step=0.5 * math.pi
         if not first:
             continue
         phi_star, branch = first[0]["phi"], first[0]["from_branch"]
+        phi_error = float(first[0].get("phi_error", 0.0))
         target = abs(phi_star) - margin
         best = None
         for path in sorted(glob.glob(os.path.join(out, "steps", f"{side}_*.npz"))):
@@ -524,5 +562,5 @@ def coarse_companion(scene, out, critical, span=16 * math.pi, step=0.5 * math.pi
         if level is None:
             say(f"{side}: no estimate from N = {N_c}: {reason}")
             continue
-        found[side] = (level, richardson([N_c, N], [level.phi_star, phi_star]))
+        found[side] = (level, richardson([N_c, N], [level.phi_star, phi_star], [level.phi_error, phi_error]))
     return found

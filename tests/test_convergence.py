@@ -4,6 +4,7 @@ limit is known (2 pi sqrt(3)(1 + nu))."""
 import json
 import math
 
+import numpy as np
 import pytest
 
 import jaxrod as jr
@@ -45,6 +46,31 @@ def test_trefoil_levels_of_the_committed_convergence_study():
     assert abs(plus.order - 2) < 0.1 and abs(minus.order - 2) < 0.1
     assert abs(plus.value - 6.418) < 0.002 and plus.error < 0.01
     assert abs(minus.value + 11.089) < 0.002 and minus.error < 0.01
+
+
+def test_the_levels_brackets_are_carried_into_the_error():
+    # Each level known to +-e (a branch end's bracket): the extrapolation moves by as much as the
+    # levels moving within their errors make it (the order re-measured), which the error now
+    # includes. Levels of an exact second-order sequence, each pushed by its whole error in every
+    # combination of signs (the trefoil's ratio: e ~ 0.4 % of the last difference): the limit lies
+    # within the error each time, and without the errors given it does not always.
+    N, limit = [61, 121, 241], 6.418
+    exact = [limit + 2.0 / n ** 2 for n in N]
+    e = 0.004 * (exact[1] - exact[2])
+    missed = 0
+    for signs in np.ndindex(2, 2, 2):
+        values = [v + (1 - 2 * s) * e for v, s in zip(exact, signs)]
+        ext = richardson(N, values, [e, e, e])
+        assert e < ext.level_error < 10 * e
+        assert abs(ext.value - limit) <= ext.error, (signs, ext)
+        bare = richardson(N, values)
+        missed += abs(bare.value - limit) > bare.error
+    assert missed > 0
+    two = richardson([121, 241], exact[1:], [e, e])
+    c = 1.0 / ((241 / 121) ** 2 - 1.0)
+    assert two.level_error == pytest.approx((1 + c) * e + c * e, rel=1e-12)
+    with pytest.raises(ValueError, match="errors"):
+        richardson(N, exact, [e, e])
 
 
 def test_non_monotone_levels_are_not_asymptotic():
