@@ -256,8 +256,9 @@ def critical_twist_curve(knot, N, ratios, options=None, *, out=None, progress=No
                 if recorded:
                     record(side, point)
 
-            curve = event_curve(prob, (prob.u0, prob.p0) if last is None else [q for q, _ in done], set_diameter, start, values,
-                                curve_opts, observer=observer, progress=lambda m, side=side: say(f"[{side}]   {m}"))
+            first = (prob.u0, prob.p0) if last is None else [q for q, _ in done]  # a resumed leg: its points
+            curve = event_curve(prob, first, set_diameter, start, values, curve_opts, observer=observer,
+                                progress=lambda m, side=side: say(f"[{side}]   {m}"))
             legs[key] = dict(result=curve.result.value, message=curve.message, points=counter[0])
             if leg_file is not None:
                 write_json(leg_file, legs[key])

@@ -18,7 +18,8 @@ from . import sparse_contact
 from .solvers import LBFGS, ConvergenceError, DampedNewton, HostDampedNewton, Newton, Solution, StopReason, minimise
 from .stability import CONTACT_NEGATIVE_TOL, DEFAULT_NEGATIVE_TOL, Stability, stability
 
-__all__ = ["Equilibrium", "EquilibriumOptions", "RelaxOptions", "solve_equilibrium", "relax", "relax_to_minimum", "mode_step", "TopologyChangeError", "LeftBranchError", "scaled_energy", "scaled_zero_modes",
+__all__ = ["Equilibrium", "EquilibriumOptions", "RelaxOptions", "solve_equilibrium", "relax", "relax_to_minimum",
+           "mode_step", "TopologyChangeError", "LeftBranchError", "scaled_energy", "scaled_zero_modes",
            "structured_hessian"]
 
 
@@ -369,7 +370,8 @@ def solve_equilibrium(scene, phi=0.0, q0=None, options=None, *, nbr=None, throw=
         raise ValueError(f"q0 must have shape ({scene.n_dof},), got {q0.shape}")
     if not np.all(np.isfinite(q0)):
         raise ValueError("q0 must be finite")
-    newton = Newton(zero_modes=scaled_zero_modes if scene.n_zero_modes else None, near_null_tol=float(opts.near_null_tol),
+    newton = Newton(zero_modes=scaled_zero_modes if scene.n_zero_modes else None,
+                    near_null_tol=float(opts.near_null_tol),
                     hessian=structured_hessian)
     q = q0
     nbr = _grown(scene, q, phi, nbr)

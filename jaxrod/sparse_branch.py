@@ -1,5 +1,6 @@
 """O(N) continuation steps: the sparse counterparts of the dense Newton corrector
-(``solve_equilibrium(..., method="newton")``) and of ``jaxrod.stability.branch_analysis``.
+(``solve_equilibrium(..., EquilibriumOptions(method="newton"))``) and of
+``jaxrod.stability.branch_analysis``.
 
 Built on ``jaxrod.sparse_stability`` (block-tridiagonal Hessian + rank one, gauge pinning), so no
 n x n array is ever formed: every piece costs O(N). Scope as there: scenes WITHOUT the "contact"
@@ -8,7 +9,8 @@ term. Used by ``jaxrod.critical_twist(..., ContinuationOptions(linear_algebra="s
 * :func:`sparse_newton`: ``minimise`` with ``Newton(direction=...)``: the solvers' jitted Newton
   loop (backtracking on |grad|^2) with the pinned block solve as its step, returning a ``Solution``.
 * :func:`solve_equilibrium_sparse`: the same wrapped into an ``Equilibrium`` (with its
-  neighbourhood, no stability), like ``solve_equilibrium(..., with_stability=False)``.
+  neighbourhood, no stability), like ``solve_equilibrium`` with
+  ``EquilibriumOptions(with_stability=False)``.
 * :func:`sparse_branch_analysis`: (Stability, lam_index, dlam_dphi, v_index, dq_dphi), the tuple of
   ``branch_analysis``.
 """
@@ -51,7 +53,8 @@ def sparse_newton(scene, u0, phi, nbr, gtol=1e-9, max_steps=50, max_backtracks=4
 
 
 def solve_equilibrium_sparse(scene, phi, q0=None, gtol=1e-9, max_steps=50, nbr=None, throw=True):
-    """``solve_equilibrium(scene, phi, q0, method="newton", with_stability=False)`` in O(N).
+    """``solve_equilibrium(scene, phi, q0, EquilibriumOptions(method="newton", with_stability=False))``
+    in O(N).
 
     q0: (n,) physical DOFs (default scene.q_init). The neighbourhood (frozen writhe) is rebuilt
     around the result and the solve repeated if the writhe drifted out of it, as in the dense

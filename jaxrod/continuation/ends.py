@@ -74,8 +74,8 @@ def _past_zero(critical_modes, e, scene=None, band=None):
     unstable is not one of them, and where it crosses zero is where the branch ends (issue 16:
     a critical eigenvalue of slope -1.2e-5 per rad passes -1e-6 only 0.085 rad after zero).
     With ``scene`` (a knot with contact) and ``band`` (the near-zero band's width) the slide is
-    split off e's eigenpairs first (``stability.split_slide``): critical modes captured where the buckling mode and the slide
-    were mixed must not find the slide itself negative at the next state and call it past the
+    split off e's eigenpairs first (``stability.split_slide``): critical modes captured where the
+    buckling mode and the slide were mixed must not find the slide itself negative at the next state and call it past the
     end (the trefoil at N = 121 with --step 0.25pi: its tightening end came out at -11.10996 pi,
     0.074 pi before the branch point that the other steps and the extended system locate)."""
     if critical_modes is None or e is None or e.stability is None:

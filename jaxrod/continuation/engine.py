@@ -12,7 +12,8 @@ import numpy as np
 import jax.numpy as jnp
 
 from ..equilibrium import (
-    Equilibrium, EquilibriumOptions, LeftBranchError, RelaxOptions, TopologyChangeError, mode_step, relax, solve_equilibrium,
+    Equilibrium, EquilibriumOptions, LeftBranchError, RelaxOptions, TopologyChangeError, mode_step, relax,
+    solve_equilibrium,
 )
 from ..geometry import polyline_distance
 from ..solvers import ConvergenceError
@@ -149,8 +150,8 @@ class _Engine:
 
     def _deflated_newton(self, phi, q_start, nbr):
         """Newton at O(n) with the near-null sliding modes deflated (the sparse counterpart of
-        ``solve_equilibrium(method="newton", near_null_tol=negative_tol)``), within nbr (its
-        contact list must hold at the result: checked, else ConvergenceError)."""
+        ``solve_equilibrium`` with ``EquilibriumOptions(method="newton", near_null_tol=negative_tol)``),
+        within nbr (its contact list must hold at the result: checked, else ConvergenceError)."""
         scene = self.scene
         solver = HostDampedNewton(direction=_DeflatedDirection(self.opts.negative_tol), max_backtracks=40)
         args = (scene, jnp.asarray(phi), nbr)

@@ -189,8 +189,9 @@ class _Follower:
         # where bisection needs ~log2(step/tol) ~ 11).
         self.say(f"[{state.branch}] lost at phi = {phi_next / math.pi:+.5f} pi ({s.refusal}); locating the end")
         critical = hidden[1] if hidden is not None else self._critical_modes(s, None)
-        lam = _past_zero(critical, prev, self._knot, self.engine.opts.negative_tol)
-        if lam is not None and state.older is not None and _past_zero(critical, state.older, self._knot, self.engine.opts.negative_tol) is None:
+        band = self.engine.opts.negative_tol
+        lam = _past_zero(critical, prev, self._knot, band)
+        if lam is not None and state.older is not None and _past_zero(critical, state.older, self._knot, band) is None:
             # The last accepted state already has the critical eigenvalue below zero (inside the
             # near-zero band, so the stability test let it pass): the end lies between the state
             # before it and it. Locate it there, from the state before.
