@@ -916,7 +916,9 @@ to near its branch end, the first instability is located on its extended system 
 branch point), then followed in D up and down the ratios (jaxrod.bifurcation.event_curve: the
 implicit function theorem predicts it at the next D, and it is located again there on a short
 pseudo-arclength run in phi). Each row gives the event's kind, Morse index across it, critical
-eigenvalue, residual and dphi*/d(D/L) from the implicit function theorem.
+eigenvalue, residual and dphi*/d(D/L) from the implicit function theorem, checked at the end
+against the secant of its neighbours (secant_slope, slope_disagreement; a line names the points
+where they differ by more than 50 %: a nearly degenerate event, whose slope holds only locally).
 
 Writes into --out: critical_curve.csv (a row per point, as they come), critical_curve.json and
 critical_curve.png (with Michell's ring line and its double). Each point is also kept whole

@@ -169,9 +169,15 @@ def test_an_interrupted_critical_curve_resumes_to_the_files_of_a_whole_run(tmp_p
     _stub_rods(monkeypatch)
     ratios = [0.01, 0.02, 0.03, 0.04]
     opts = cc.CriticalCurveOptions(sides=("minus",), start_ratio=0.02, delta=0.05, ds_max=0.05, span=2.0)
-    whole = cc.critical_twist_curve("3_1", 101, ratios, opts, out=str(tmp_path / "whole"))
+    said = []
+    monkeypatch.setattr(cc, "SLOPE_DOUBT", 0.4)  # the kink below is a mild one: flag it
+    whole = cc.critical_twist_curve("3_1", 101, ratios, opts, out=str(tmp_path / "whole"), progress=said.append)
     assert [r["kind"] for r in whole["rows"]] == ["branch_point"] * 2 + ["fold"] * 2
     np.testing.assert_allclose([r["phi_star"] for r in whole["rows"]], [0.4, 0.3, 0.3, 0.4], atol=1e-10)
+    # each slope checked against its neighbours' secant: exact at the ends (straight pieces), off by half
+    # next to the kink at D/L = 0.025 where two event curves cross (slopes -10 / +10, secants -5 / +5)
+    np.testing.assert_allclose([r["slope_disagreement"] for r in whole["rows"]], [0.0, 0.5, 0.5, 0.0], atol=1e-7)
+    assert any("minus D/L = 0.02000, minus D/L = 0.03000" in m and "disagrees with the secant" in m for m in said)
 
     real_save, saved = cc._save_point, []
 
