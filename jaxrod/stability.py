@@ -37,6 +37,7 @@ __all__ = [
     "shape_modes_in_band",
     "band_shape_modes",
     "split_slide",
+    "without_slide",
     "SLIDING_FRACTION",
 ]
 
@@ -486,6 +487,18 @@ def split_slide(scene, q, values, vectors, threshold=SLIDING_FRACTION, max_value
     return vals[order], coef[:, order], soft[order]
 
 
+def without_slide(scene, q, values, vectors, band):
+    """The computed eigenpairs (values (m,), vectors (n, m)) of a knot at q with a clean, near-null
+    slide (fraction below CLEAN_SLIDE_FRACTION, Rayleigh quotient within +-band) split off their
+    span: (values (m'), vectors (n, m')) of the rest, Ritz pairs ascending; unchanged where nothing
+    slides so, or where the rod has clamped nodes (it cannot slide)."""
+    lam, vec = np.asarray(values, dtype=float), np.asarray(vectors, dtype=float)
+    if not lam.size or int(scene.n_free_nodes) != int(scene.n_nodes):
+        return lam, vec
+    vals, coef, soft = split_slide(scene, q, lam, vec, CLEAN_SLIDE_FRACTION, band)
+    return vals[~soft], (vec @ coef)[:, ~soft]
+
+
 def band_shape_modes(scene, e, negative_tol, strict_tol=None):
     """(values (k,), fractions (k,), vectors (n, k)) of the equilibrium e's modes that change the
     shape and lie in the near-zero band [-negative_tol, -strict_tol) kept for the sliding modes of
@@ -500,9 +513,8 @@ def band_shape_modes(scene, e, negative_tol, strict_tol=None):
     empty = (np.zeros(0), np.zeros(0), np.zeros((vec.shape[0], 0)))
     if not np.any((lam >= -negative_tol) & (lam < -strict_tol)) or int(scene.n_free_nodes) != int(scene.n_nodes):
         return empty
-    vals, coef, soft = split_slide(scene, e.q, lam, vec, CLEAN_SLIDE_FRACTION, negative_tol)
-    vecs = vec @ coef
-    band = np.nonzero((vals >= -negative_tol) & (vals < -strict_tol) & ~soft)[0]
+    vals, vecs = without_slide(scene, e.q, lam, vec, negative_tol)
+    band = np.nonzero((vals >= -negative_tol) & (vals < -strict_tol))[0]
     if band.size == 0:
         return empty
     frac = sliding_fraction(scene, e.q, vecs[:, band])

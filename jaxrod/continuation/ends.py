@@ -9,7 +9,7 @@ import warnings
 
 import numpy as np
 
-from ..stability import CLEAN_SLIDE_FRACTION, DEFAULT_NEGATIVE_TOL, band_shape_modes, shape_modes_in_band, split_slide
+from ..stability import DEFAULT_NEGATIVE_TOL, band_shape_modes, shape_modes_in_band, without_slide
 from .engine import StepFailure, _Refusal
 from .results import Instability
 
@@ -74,18 +74,16 @@ def _past_zero(critical_modes, e, scene=None, band=None):
     unstable is not one of them, and where it crosses zero is where the branch ends (issue 16:
     a critical eigenvalue of slope -1.2e-5 per rad passes -1e-6 only 0.085 rad after zero).
     With ``scene`` (a knot with contact) and ``band`` (the near-zero band's width) the slide is
-    split off e's eigenpairs first (``stability.split_slide``): critical modes captured where the
-    buckling mode and the slide were mixed must not find the slide itself negative at the next state and call it past the
-    end (the trefoil at N = 121 with --step 0.25pi: its tightening end came out at -11.10996 pi,
+    split off e's eigenpairs first (``stability.without_slide``): critical modes captured where the
+    buckling mode and the slide were mixed must not find the slide itself negative at the next
+    state and call it past the end (the trefoil at N = 121 with --step 0.25pi: its tightening end came out at -11.10996 pi,
     0.074 pi before the branch point that the other steps and the extended system locate)."""
     if critical_modes is None or e is None or e.stability is None:
         return None
     st = e.stability
     lam, vec = np.asarray(st.eigenvalues), np.asarray(st.eigenvectors)
-    if scene is not None and lam.size and int(scene.n_free_nodes) == int(scene.n_nodes):
-        lam, coef, soft = split_slide(scene, e.q, lam, vec, CLEAN_SLIDE_FRACTION, band)
-        vec = (vec @ coef)[:, ~soft]
-        lam = lam[~soft]
+    if scene is not None:
+        lam, vec = without_slide(scene, e.q, lam, vec, band)
     for j in np.nonzero(lam < 0.0)[0]:
         if np.linalg.norm(critical_modes.T @ vec[:, j]) > _CRITICAL_OVERLAP:
             return float(lam[j])
