@@ -241,7 +241,7 @@ def critical_twist_curve(knot, N, ratios, options=None, *, out=None, progress=No
             done = stored(side, leg)
             last = done[-1][0] if done else None
             if last is not None:  # go on after the last point on file
-                values = [v for v in values if sign_of(leg) * (v - last.mu) > 0]
+                values = [v for v in values if _leg_sign(leg) * (v - last.mu) > 0]
                 say(f"[{side}] {leg}: {len(done)} points on file, going on from D/L = {last.mu:.5f}")
             rod = knot_problem(scene, q_start, phi_start)
             prob = rod.problem
@@ -307,7 +307,7 @@ def _slope_checks(rows):
     return out
 
 
-def sign_of(leg):
+def _leg_sign(leg):
     """+1 for the leg going up in D/L, -1 for the one going down."""
     return 1.0 if leg == "up" else -1.0
 
