@@ -358,3 +358,28 @@ def test_an_unlocated_event_says_why():
     soft = _not_located(event(3.1e-14, 1.1e-14), 1e-10)
     assert "sliding mode's singular point" in soft and "Morse 1 -> 2" in soft and "> event_tol" not in soft
     assert _not_located(event(1e-6, 1e-14), 1e-10).endswith("> event_tol = 1e-10")
+
+
+@pytest.mark.parametrize("n_zero", [0, 3])
+def test_the_dense_backends_lowest_pairs_equal_the_full_decomposition(n_zero):
+    # DenseBackend.spectrum takes only the lowest eigenpairs from PARTIAL_MIN_SIZE on; the Morse
+    # index (with an eigenvalue just inside and one just outside the band -rtol ||J||_2) and the
+    # gauge modes' removal must be those of the full decomposition
+    from jaxrod.bifurcation.linalg import PARTIAL_MIN_SIZE, DenseBackend, _lowest_pairs
+
+    n, rtol = PARTIAL_MIN_SIZE + 40, 1e-6
+    rng = np.random.default_rng(3)
+    lam = np.concatenate([[-2.0, -0.5, -0.9e-6 * 7.0, -1.1e-6 * 7.0], [0.0] * n_zero,
+                          np.linspace(0.01, 7.0, n - 4 - n_zero)])  # ||J||_2 = 7
+    q, _ = np.linalg.qr(rng.standard_normal((n, n)))
+    J = (q * lam) @ q.T
+    J = 0.5 * (J + J.T)
+    vals, vecs, morse = DenseBackend().spectrum(J, 6, n_zero, rtol)
+    full = np.linalg.eigvalsh(J)
+    full = np.sort(full[np.sort(np.argsort(np.abs(full))[n_zero:])])
+    assert _lowest_pairs(J, 6, n_zero, rtol) is not None  # the partial path was taken
+    assert morse == int(np.sum(full < -rtol * np.max(np.abs(full)))) == 3
+    np.testing.assert_allclose(vals, full[:6], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(J @ vecs, vecs * vals, rtol=0, atol=1e-10)
+    # a J unstable beyond the lowest pairs falls back to the full decomposition
+    assert _lowest_pairs(-np.abs(J) - 10.0 * np.eye(n), 6, 0, rtol) is None
