@@ -596,7 +596,7 @@ def _trefoil(args):
     from .scenes import DEFAULT_CONTACT_STIFFNESS, IDEAL_ROPELENGTH, MIN_TREFOIL_NODES
     from .locking import folder_lock
     from .continuation import ContinuationOptions, Observer
-    from .study import check_study_folder, figures, study_summary, twist_study
+    from .study import check_study_folder, state_figures, study_summary, twist_study
 
     D, L = check_positive("D", args.D), check_positive("L", args.L)
     knot_name = "3_1" if args.command == "trefoil" else args.name
@@ -659,28 +659,51 @@ def _trefoil(args):
     finally:
         bar.close()
     summary = study_summary(result)
-    if not args.stable_only and result.end_states:
-        from .diagram import unstable_branches
-
-        t_diagram = time.perf_counter()
-        result = unstable_branches(scene, result, progress=say).study
-        summary = study_summary(result)
-        summary["seconds_diagram"] = time.perf_counter() - t_diagram
-    summary.update({"D": args.D, "L": args.L, "N": args.N, "nu": args.nu, "contact_stiffness": stiffness,
-                    "out": args.out})
+    title = f"{scene.name}, D/L = {args.D / args.L:.4f}, N = {args.N}"
+    drawn = None
+    if not args.no_figures and not args.serial:
+        # the states' figures need only the step files: drawn while the diagram runs
+        drawn = _Background(lambda cancel: state_figures(args.out, title=title, length_unit="mm"))
+    companion = None
     if not args.no_extrapolation and (summary["phi_plus"] is not None or summary["phi_minus"] is not None):
         from .convergence import coarse_companion
 
         say(f"estimating the discretisation error of phi*: each end again at N = {(args.N + 1) // 2}")
-        t_extra = time.perf_counter()
-        companion = coarse_companion(scene, args.out, result.critical, span=max(-args.phi_min, args.phi_max),
-                                     step=args.step, tol=args.tol, progress=say)
-        for side, (level, ext) in companion.items():
+        study_critical = result.critical
+
+        def estimate(cancel=None):
+            t_extra = time.perf_counter()
+            found = coarse_companion(scene, args.out, study_critical, span=max(-args.phi_min, args.phi_max),
+                                     step=args.step, tol=args.tol, progress=say, cancel=cancel)
+            return found, time.perf_counter() - t_extra
+
+        # The estimate needs only the study's step files and its bracketed ends, so it runs while
+        # the diagram locates the ends (one thread each; measured on the trefoil at N = 121: the
+        # second core otherwise idles through the diagram's Python)
+        companion = estimate if args.serial else _Background(estimate)
+    try:
+        if not args.stable_only and result.end_states:
+            from .diagram import unstable_branches
+
+            t_diagram = time.perf_counter()
+            result = unstable_branches(scene, result, progress=say).study
+            summary = study_summary(result)
+            summary["seconds_diagram"] = time.perf_counter() - t_diagram
+    except BaseException:
+        for job in (companion, drawn):
+            if isinstance(job, _Background):
+                job.stop()
+        raise
+    summary.update({"D": args.D, "L": args.L, "N": args.N, "nu": args.nu, "contact_stiffness": stiffness,
+                    "out": args.out})
+    if companion is not None:
+        found, seconds_extrapolation = companion.result() if isinstance(companion, _Background) else companion()
+        for side, (level, ext) in found.items():
             summary[f"phi_{side}_extrapolated"] = {"value": ext.value, "value_over_pi": ext.value / math.pi,
                                                    "error": ext.error, "error_over_pi": ext.error / math.pi,
                                                    "N": list(ext.N), "values": list(ext.values),
                                                    "order": ext.order, "order_measured": ext.order_measured}
-        summary["seconds_extrapolation"] = time.perf_counter() - t_extra
+        summary["seconds_extrapolation"] = seconds_extrapolation
     if args.command == "trefoil":
         summary["chirality"] = args.chirality
     else:
@@ -688,8 +711,12 @@ def _trefoil(args):
     with open(os.path.join(args.out, "summary.json"), "w") as f:
         json.dump(summary, f, indent=2)
     if not args.no_figures:
-        for path in figures(args.out, title=f"{scene.name}, D/L = {args.D / args.L:.4f}, N = {args.N}",
-                            length_unit="mm"):
+        from .study import branch_figures
+
+        # pyplot's figure registry is shared: the states' figures are finished before these start
+        states = drawn.result() if drawn is not None else state_figures(args.out, title=title, length_unit="mm")
+        paths = branch_figures(args.out, title=title) + states
+        for path in paths:
             say(f"wrote {path}")
     if args.vtk:
         from .export import export_study_vtk
@@ -713,6 +740,45 @@ def _trefoil(args):
             side = "neither (the two sides are mirror images within round-off)"
         print(f"tightening side: {side}; time {summary['seconds']:.1f} s{resumed}; data in {args.out}/")
     return 0
+
+
+class _Background:
+    """fn(cancel) run in a daemon thread; ``result()`` waits for it (in short waits, so that
+    Ctrl-C still reaches the main thread) and returns its value or raises its exception;
+    ``stop()`` sets ``cancel`` (fn stops at its next point) and waits until the thread has left
+    XLA, so that no thread computes while the interpreter shuts down."""
+
+    def __init__(self, fn):
+        import threading
+
+        self._cancel, self._done = threading.Event(), threading.Event()
+        self._value, self._error = None, None
+
+        def target():
+            try:
+                self._value = fn(self._cancel)
+            except BaseException as exc:  # noqa: BLE001 -- handed to the main thread
+                self._error = exc
+            finally:
+                self._done.set()
+
+        threading.Thread(target=target, daemon=True).start()
+
+    def result(self):
+        try:
+            while not self._done.wait(0.2):
+                pass
+        except BaseException:  # Ctrl-C while waiting: stop the thread first
+            self.stop()
+            raise
+        if self._error is not None:
+            raise self._error
+        return self._value
+
+    def stop(self):
+        self._cancel.set()
+        while not self._done.wait(0.2):
+            pass
 
 
 def _accuracy(args, scene, stiffness):

@@ -514,14 +514,18 @@ class _LevelStore:
 
 
 def coarse_companion(scene, out, critical, span=16 * math.pi, step=0.5 * math.pi, tol=None, margin=0.5 * math.pi,
-                     progress=None):
+                     progress=None, cancel=None):
     """An error estimate for a finished twist study (``jaxrod.study.twist_study`` in ``out``, of the
     closed rod ``scene`` at N nodes): each side's first branch end found again at the coarser
     N_c = (N + 1) / 2 (every coarse node a node of the study's rod), started from the study's own
     state ``margin`` before its end, resampled; then Richardson on the two levels, the order
     assumed (2) and Roache's factor 3 on the difference. Cheap (a few continuation steps at N_c)
     and deliberately rough: it says how far the study's phi* may be from the converged value, not
-    that value (``converged_critical_twists`` measures the order). Returns {side: (Level,
+    that value (``converged_critical_twists`` measures the order). cancel: an optional
+    threading.Event; once set, the run stops at its next continuation point (raising
+    ``jaxrod.study._Cancelled``). It reads only the study's step files and ``critical``'s
+    instabilities (their bracketed phi), so it may run while ``jaxrod.diagram`` works on the same
+    study (the CLI runs the two at once). Returns {side: (Level,
     Extrapolation)} for the sides with an end; {} when N_c is below the rod's resolution (8
     nodes; a knot: 24, and L/D)."""
     import glob
@@ -558,7 +562,7 @@ def coarse_companion(scene, out, critical, span=16 * math.pi, step=0.5 * math.pi
         q0 = np.array(coarse.q_init)
         q0[3 * N_c:] += phi_start * np.arange(N_c) / N_c
         start = relax_to_minimum(coarse, phi_start, q0=q0)
-        level, reason, _ = _level(coarse, side, phi_start, start, span, step, tol or 1e-3 * math.pi, say, None)
+        level, reason, _ = _level(coarse, side, phi_start, start, span, step, tol or 1e-3 * math.pi, say, cancel)
         if level is None:
             say(f"{side}: no estimate from N = {N_c}: {reason}")
             continue

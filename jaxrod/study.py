@@ -664,14 +664,13 @@ def figures(out, title="", length_unit=None):
     branch_ends.png (with the diagram's located events, ``jaxrod.diagram``),
     profiles.png, snapshots.png (the knot as a tube of the rod's diameter, seen along its
     symmetry axis; axes in ``length_unit``, e.g. 'mm'). Returns the list of files written."""
-    from . import plotting
+    return branch_figures(out, title) + state_figures(out, title, length_unit)
 
-    diameter = None
-    try:
-        with open(os.path.join(out, "run.json")) as f:
-            diameter = json.load(f)["scene"]["D"]
-    except (OSError, ValueError, KeyError, TypeError):
-        pass
+
+def branch_figures(out, title=""):
+    """bifurcation.png, linking.png and branch_ends.png of the study in ``out`` (``figures``):
+    drawn from branch.csv and critical.json, so after the diagram. Returns the files written."""
+    from . import plotting
 
     table = read_table(os.path.join(out, "branch.csv"))
     with open(os.path.join(out, "critical.json")) as f:
@@ -689,6 +688,21 @@ def figures(out, title="", length_unit=None):
         p = os.path.join(out, "branch_ends.png")
         plotting.plot_branch_ends(table, located, p, title=title or None)
         written.append(p)
+    return written
+
+
+def state_figures(out, title="", length_unit=None):
+    """profiles.png and snapshots.png of the study in ``out`` (``figures``): drawn from the step
+    files alone, so they may be drawn while the diagram runs. Returns the files written."""
+    from . import plotting
+
+    diameter = None
+    try:
+        with open(os.path.join(out, "run.json")) as f:
+            diameter = json.load(f)["scene"]["D"]
+    except (OSError, ValueError, KeyError, TypeError):
+        pass
+    written = []
     # States shown: phi = 0, the last state before each instability and the first one after it.
     steps = {}
     for direction in ("plus", "minus"):
