@@ -21,7 +21,7 @@ beta (Moore 1980): for a simple branch point, Newton on
     F(u, p) + beta v0 = 0,  sigma(u, p) = 0,  tau = w^T F_p = 0      in (u, p, beta)
 (n+2 equations; beta = 0 at the solution), which is regular when the two branches cross
 transversally (transcritical, or a Z2 pitchfork), with a doubly bordered Newton matrix
-[[J, (F_p, v0)], [(sigma_u, tau_u)^T, ...]] whose derivative rows come from the adjoint of the
+[[J, (F_p, v0)], [(sigma_u, tau_u)^T, ...]] whose derivative rows come from reverse mode through the
 bordered solve (``problem.singular_tests``). It starts from the bracket end with the smaller
 crossing eigenvalue. Fallback, and the method for k > 1 eigenvalues crossing at once (symmetric
 double branch points, where the unfolded system would need 2x2 singularity blocks): the followed

@@ -66,39 +66,13 @@ class BifurcationProblem:
         fns = _functions(energy, residual, jacobian, self.backend)
         self.F, self.hvp = fns.F, fns.hvp
         self._linearise, self._singular_tests = fns._linearise, fns._singular_tests
-        self.energy_value, self.linearise = fns.energy_value, fns.linearise
-        self.hvp_derivative, self.directional_derivatives = fns.hvp_derivative, fns.directional_derivatives
+        self.energy_value, self.linearise, self.wjw_gradient = fns.energy_value, fns.linearise, fns.wjw_gradient
+        self.singular_tests, self.hvp_derivative = fns.singular_tests, fns.hvp_derivative
+        self.directional_derivatives = fns.directional_derivatives
         if getattr(self.backend, "host", False):
             # J leaves the jitted linearisation as parts, assembled on the host by the backend
             self.linearise = fns.host_linearise
-        self.tests_gradient = fns.tests_gradient
-
-    def wjw_gradient(self, u, p, args, w):
-        """Gradient of w^T J(u, p) w in (u, p): (E'''[w, w, .] (n,), w^T J_p w); exact, by JAX (the
-        first row of ``tests_gradient``, negated: one jitted function for both locators)."""
-        gu, gp = self.tests_gradient(u, p, args, jnp.asarray(w), jnp.zeros_like(jnp.asarray(w)))
-        return -np.asarray(gu)[0], -float(np.asarray(gp)[0])
-
-    def singular_tests(self, u, p, args, b):
-        """The branch-point test functions (sigma, tau) of [[J, b], [b^T, 0]] and their Jacobian in
-        (u, p): -> ((gu (2, n), gp (2,)), (value (2,), F, J, F_p, w)).
-
-        With M = [[J, b], [b^T, 0]] symmetric, M [w; sigma] = [0; 1] and M [y; eta] = [F_p; 0]:
-        d sigma = -w^T dJ w and d tau = -y^T dJ w + w^T dF_p (differentiate M [w; sigma] and use
-        w^T J = -sigma b^T, b^T dw = 0). Both are gradients of third derivatives of E contracted
-        with fixed vectors (``tests_gradient``): a jvp of the Hessian-vector product, O(n) per
-        gradient, where reverse mode through the assembled J costs n passes (measured on the
-        trefoil at N = 121, n = 719: ~3 s per Newton iteration of the branch-point locator).
-        Composed of the problem's linearisation, the backend's bordered solves and the jitted
-        ``tests_gradient``, which the fold locator shares (``wjw_gradient``): one traced function
-        fewer per rod (~1 s of tracing at N = 121)."""
-        F, J, Fp = self.linearise(u, p, args)
-        be = self.backend
-        w, sigma = be.bordered_solve(J, b, b, 0.0, np.zeros(np.shape(b)[0]), 1.0)
-        y, _ = be.bordered_solve(J, b, b, 0.0, np.asarray(Fp), 0.0)
-        gu, gp = self.tests_gradient(u, p, args, jnp.asarray(w), jnp.asarray(y))
-        st = np.array([float(sigma), float(np.dot(np.asarray(w), np.asarray(Fp)))])
-        return (np.asarray(gu), np.asarray(gp)), (st, F, J, Fp, np.asarray(w))
+            self.singular_tests = fns.host_singular_tests
 
     def energy_at(self, u, p_args):
         """E(u, p, args) with p_args = (p, args): the form ``jaxrod.solvers.minimise`` takes."""
@@ -152,6 +126,8 @@ class _Functions:
         self.backend = backend
         self.energy_value = _jit_in_u_p(energy) if energy is not None else None
         self.linearise = _jit_in_u_p(self._linearise)
+        self.wjw_gradient = _jit_in_u_p(self._wjw_gradient)
+        self.singular_tests = _jit_in_u_p(self._singular_test_gradients)
         self.hvp_derivative = _jit_in_u_p(self._hvp_derivative)
         self.directional_derivatives = _jit_in_u_p(self._directional_derivatives)
         self.tests_gradient = _jit_in_u_p(self._tests_gradient)
@@ -161,9 +137,18 @@ class _Functions:
         F, parts, Fp = self.linearise(u, p, args)
         return F, self.backend.matrix(jax.device_get(parts), args), Fp
 
+    def host_singular_tests(self, u, p, args, b):
+        """``_singular_test_gradients`` with the bordered solves on the host backend."""
+        F, J, Fp = self.host_linearise(u, p, args)
+        w, sigma = self.backend.bordered_solve(J, b, b, 0.0, np.zeros(np.shape(b)[0]), 1.0)
+        y, _ = self.backend.bordered_solve(J, b, b, 0.0, np.asarray(Fp), 0.0)
+        gu, gp = self.tests_gradient(u, p, args, jnp.asarray(w), jnp.asarray(y))
+        st = np.array([float(sigma), float(np.dot(w, np.asarray(Fp)))])
+        return (np.asarray(gu), np.asarray(gp)), (st, F, J, Fp, np.asarray(w))
+
     def _tests_gradient(self, u, p, args, w, y):
-        """The Jacobian in (u, p) of (sigma, tau) by the adjoint (see ``BifurcationProblem.singular_tests``),
-        given the kernel vector w and the solution y of the bordered systems: ((2, n), (2,))."""
+        """The Jacobian in (u, p) of (sigma, tau) by the adjoint (see ``_singular_test_gradients``),
+        given the kernel vector w and the solution y of the bordered systems."""
         def fp(x, q):
             return jax.jvp(lambda r: self.F(x, r, args), (q,), (jnp.ones_like(q),))[1]
 
@@ -195,11 +180,37 @@ class _Functions:
             return F, self.jacobian(u, p, args), Fp
         return F, self.backend.jacobian(lambda x: self.F(x, p, args), u), Fp
 
+    def _wjw_gradient(self, u, p, args, w):
+        """Gradient of w^T J(u, p) w in (u, p): (E'''[w, w, .] (n,), w^T J_p w); exact, by JAX."""
+        return jax.grad(lambda x, q: jnp.dot(w, self.hvp(x, q, args, w)), argnums=(0, 1))(u, p)
+
+    def _singular_test_gradients(self, u, p, args, b):
+        """The Jacobian of ``_singular_tests`` in (u, p), ((2, n), (2,)), with aux (value (2,), F, J,
+        F_p, w), by the adjoint of the bordered system instead of reverse mode through it.
+
+        With M = [[J, b], [b^T, 0]] symmetric, M [w; sigma] = [0; 1] and M [y; eta] = [F_p; 0]:
+        d sigma = -w^T dJ w and d tau = -y^T dJ w + w^T dF_p (differentiate M [w; sigma] and use
+        w^T J = -sigma b^T, b^T dw = 0). Both are gradients of third derivatives of E contracted
+        with fixed vectors: a jvp of the Hessian-vector product, O(n) per gradient, where reverse
+        mode through the assembled J costs n passes (measured on the trefoil at N = 121, n = 719:
+        ~3 s per Newton iteration of the branch-point locator)."""
+        F, Fp = jax.jvp(lambda q: self.F(u, q, args), (p,), (jnp.ones_like(p),))
+        J = self.jacobian(u, p, args) if self.jacobian is not None else \
+            self.backend.jacobian(lambda x: self.F(x, p, args), u)
+        w, sigma = self.backend.bordered_solve(J, b, b, 0.0, jnp.zeros_like(u), 1.0)
+        y, _ = self.backend.bordered_solve(J, b, b, 0.0, Fp, 0.0)
+        w, y = jax.lax.stop_gradient(w), jax.lax.stop_gradient(y)
+        # the tests' linearisation at (u, p): the value of the tests is not sigma, tau (it is
+        # linear in the same third derivatives); only its derivative is used
+        gu, gp = self._tests_gradient(u, p, args, w, y)
+        st = jnp.stack([sigma, jnp.dot(w, Fp)])
+        return (gu, gp), (st, F, J, Fp, w)
+
     def _singular_tests(self, u, p, args, b):
         """(sigma, tau) (2,): sigma from [[J, b], [b^T, 0]] [w; sigma] = [0; 1] vanishes iff J is
         singular; tau = w^T F_p also vanishes at a branch point (F_p orthogonal to the kernel).
-        Traceable, with aux = (value (2,), F, J, F_p, w): a two-parameter system differentiates it
-        in reverse mode through the bordered solve (``two_parameter``)."""
+        ``singular_tests`` is its Jacobian ((2, n), (2,)) by reverse mode through the bordered
+        solve (exact), with aux = (value (2,), F, J, F_p, w)."""
         # J by autodiff here even where a structured ``jacobian`` is given: this function is
         # differentiated in reverse mode, which a structured assembly (loops) may not support
         F, Fp = jax.jvp(lambda q: self.F(u, q, args), (p,), (jnp.ones_like(p),))
