@@ -349,6 +349,7 @@ def _enable_compilation_cache(args):
         # 51 of command 1's ~95 programs to be compiled again by every later run.
         if not os.environ.get("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS"):
             jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+        args.programs = os.path.join(os.environ["JAX_COMPILATION_CACHE_DIR"], "jaxrod-programs")
         return
 
     base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
@@ -360,6 +361,9 @@ def _enable_compilation_cache(args):
     jax.config.update("jax_compilation_cache_dir", path)
     # Every compilation, also the many small ones under the default 1 s threshold.
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+    # The heaviest functions' exported programs (``jaxrod.aot``): a later run loads them instead
+    # of tracing and lowering them again (kept for the command's duration, see ``_main``)
+    args.programs = os.path.join(base, "jaxrod", "programs")
     return path
 
 
@@ -1285,6 +1289,10 @@ def _main(argv):
         args.compile_notice = _compile_notice(args, _enable_compilation_cache(args))
         with warnings.catch_warnings(), contextlib.ExitStack() as held:
             warnings.showwarning = _warn_in_one_line  # a warning is one line, not a source quote
+            if getattr(args, "programs", None):
+                from . import aot
+
+                held.enter_context(aot.kept_in(args.programs))
             args.hold = held.enter_context  # the --out folder's lock, until the command ends
             if args.command == "michell":
                 return _michell(args)

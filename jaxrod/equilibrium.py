@@ -10,6 +10,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .aot import cached_jit
 from .geometry import polyline_distance
 from .hessian import scaled_hessian
 from .validation import check_finite, check_int_at_least, check_positive
@@ -410,7 +411,7 @@ def solve_equilibrium(scene, phi=0.0, q0=None, options=None, *, nbr=None, throw=
     return equilibrium_from_solution(scene, phi, sol, nbr, opts.k, opts.with_stability, opts.negative_tol)
 
 
-@jax.jit
+@cached_jit
 def _diagnostics(scene, u, phi, nbr):
     q = scene.from_scaled(u)
     x, theta = scene.unpack(q, phi, nbr)

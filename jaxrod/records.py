@@ -20,6 +20,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .aot import cached_jit
 from .geometry import radius_of_gyration
 from .topology import is_whole_turns, linking_number
 
@@ -84,7 +85,7 @@ def vertex_profiles(scene, eq):
     return np.asarray(s), np.asarray(kappa), np.asarray(tau)
 
 
-@jax.jit
+@cached_jit
 def _profiles(scene, q, phi, nbr):
     from .geometry import curvature_binormals, edges
 
@@ -99,7 +100,7 @@ def _profiles(scene, q, phi, nbr):
     return s / L, jnp.linalg.norm(kb, axis=1) / vor * L, m / vor * L
 
 
-@jax.jit
+@cached_jit
 def _record_arrays(scene, q, phi, nbr):
     """Everything a record needs from JAX in one compiled call: eccentric line (N,3), profiles,
     contact count, Gauss linking number of centreline and eccentric line."""

@@ -28,6 +28,8 @@ import numpy as np
 import optax
 import optax.tree_utils as otu
 
+from .aot import cached_jit
+
 __all__ = ["LBFGS", "Newton", "DampedNewton", "HostDampedNewton", "Solution", "StopReason", "ConvergenceError", "minimise",
            "orthonormal_columns"]
 
@@ -291,7 +293,7 @@ def _newton_loop(fun, zero_modes, y0, args, gtol, max_steps, max_backtracks, nea
 _SHIFT_DOWN, _SHIFT_UP, _SHIFT_REFINE = 0.1, 4.0, 2
 
 
-@partial(jax.jit, static_argnames=("fun", "zero_modes", "leave", "max_backtracks", "hessian"))
+@cached_jit(static_argnames=("fun", "zero_modes", "leave", "max_backtracks", "hessian"))
 def _damped_newton_loop(fun, zero_modes, leave, y0, args, gtol, max_step, max_steps, max_backtracks, hessian=None):
     f = lambda y: fun(y, args)  # noqa: E731
     grad = jax.grad(f)

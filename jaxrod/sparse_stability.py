@@ -64,6 +64,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .aot import cached_jit
 from . import banded
 from .hessian import _kind, _pattern, local_products
 from .solvers import orthonormal_columns
@@ -281,7 +282,7 @@ def block_hessian(scene, u, phi, nbr):
 # gauge
 
 
-@jax.jit
+@cached_jit
 def _gauge(scene, u, phi):
     """(Q (n, z) orthonormal symmetry generators, pins (7,) q indices or (0,), s)."""
     lay = block_layout(scene)

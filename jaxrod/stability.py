@@ -18,6 +18,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .aot import cached_jit
 from .hessian import project_out, scaled_hessian as structured_scaled_hessian
 from .validation import check_finite, refuse_knot
 from .solvers import orthonormal_columns
@@ -133,7 +134,7 @@ def _lowest_of(hp, tol):
 # (the largest piece to compile, ~1.7 s per scene shape) is compiled once and shared by
 # ``stability``, ``spectrum`` and ``branch_analysis``; the eigen-solvers depend on the matrix
 # size only. One jit around each analysis compiled the Hessian into each of them.
-@jax.jit
+@cached_jit
 def _projected_hessian(scene, u, phi, nbr):
     """(H with the zero modes projected out and lifted to the top, z (n, k) their orthonormal
     basis, n_zero)."""
@@ -276,7 +277,7 @@ def _branch_analysis(scene, u, phi, index, ref, cluster_rtol, pinv_tol, nbr, tol
     return lam, vec, n_zero, n_neg, dlam, du, index
 
 
-@jax.jit
+@cached_jit
 def _branch_tangent(scene, u, phi, index, ref, cluster_rtol, pinv_tol, nbr, hp, z, n_zero, lam, vec):
     """The tracked mode (by index, or by overlap with ref), its eigenvalue's phi-derivative along
     the branch and the branch tangent du/dphi (deflated solve), from the lowest eigenpairs."""

@@ -11,6 +11,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..aot import cached_jit
 from .linalg import DenseBackend
 
 
@@ -115,6 +116,48 @@ def _functions(energy, residual, jacobian, backend):
     return _Functions(energy, residual, jacobian, backend)
 
 
+def _in_u_p(program, statics):
+    """program(u, p, *rest, **statics) with u and p as float64 arrays (u (n,), p ()): a Python
+    float p would be traced weakly typed and a jnp one strongly, two programs for one function."""
+    def call(u, p, *rest):
+        return program(jnp.asarray(u, dtype=jnp.float64), jnp.asarray(p, dtype=jnp.float64), *rest, **statics)
+
+    return call
+
+
+_STATICS = ("energy", "residual", "jacobian", "backend")
+
+
+@cached_jit(static_argnames=_STATICS)
+def _linearise_program(u, p, args, energy, residual, jacobian, backend):
+    return _functions(energy, residual, jacobian, backend)._linearise(u, p, args)
+
+
+@cached_jit(static_argnames=_STATICS)
+def _wjw_gradient_program(u, p, args, w, energy, residual, jacobian, backend):
+    return _functions(energy, residual, jacobian, backend)._wjw_gradient(u, p, args, w)
+
+
+@cached_jit(static_argnames=_STATICS)
+def _singular_tests_program(u, p, args, b, energy, residual, jacobian, backend):
+    return _functions(energy, residual, jacobian, backend)._singular_test_gradients(u, p, args, b)
+
+
+@cached_jit(static_argnames=_STATICS)
+def _hvp_derivative_program(u, p, args, w, du, dp, energy, residual, jacobian, backend):
+    return _functions(energy, residual, jacobian, backend)._hvp_derivative(u, p, args, w, du, dp)
+
+
+@cached_jit(static_argnames=_STATICS)
+def _directional_derivatives_program(u, p, args, h, energy, residual, jacobian, backend):
+    return _functions(energy, residual, jacobian, backend)._directional_derivatives(u, p, args, h)
+
+
+@cached_jit(static_argnames=_STATICS)
+def _tests_gradient_program(u, p, args, w, y, energy, residual, jacobian, backend):
+    return _functions(energy, residual, jacobian, backend)._tests_gradient(u, p, args, w, y)
+
+
 class _Functions:
     """F = grad_u E (or the residual), J and the extended systems' derivatives as functions of
     (u, p, args), with their jitted forms (args traced, so a new mu or a new reference state is no
@@ -125,12 +168,16 @@ class _Functions:
         self.jacobian = jacobian
         self.backend = backend
         self.energy_value = _jit_in_u_p(energy) if energy is not None else None
-        self.linearise = _jit_in_u_p(self._linearise)
-        self.wjw_gradient = _jit_in_u_p(self._wjw_gradient)
-        self.singular_tests = _jit_in_u_p(self._singular_test_gradients)
-        self.hvp_derivative = _jit_in_u_p(self._hvp_derivative)
-        self.directional_derivatives = _jit_in_u_p(self._directional_derivatives)
-        self.tests_gradient = _jit_in_u_p(self._tests_gradient)
+        # Each jitted form is one module-level program whose static arguments name the problem's
+        # functions: ``jaxrod.aot`` can then keep it across processes (a rod's functions are
+        # module-level, so they key it), where a jit of a bound method could only be traced anew
+        statics = {"energy": energy, "residual": residual, "jacobian": jacobian, "backend": backend}
+        self.linearise = _in_u_p(_linearise_program, statics)
+        self.wjw_gradient = _in_u_p(_wjw_gradient_program, statics)
+        self.singular_tests = _in_u_p(_singular_tests_program, statics)
+        self.hvp_derivative = _in_u_p(_hvp_derivative_program, statics)
+        self.directional_derivatives = _in_u_p(_directional_derivatives_program, statics)
+        self.tests_gradient = _in_u_p(_tests_gradient_program, statics)
 
     def host_linearise(self, u, p, args):
         """(F, J, F_p) with J assembled on the host by the backend (``SparseBackend``)."""

@@ -42,6 +42,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..aot import cached_jit
 from ..geometry import closest_approach
 from ..hessian import scaled_hessian as structured_scaled_hessian
 from ..sparse_stability import gauge_pins
@@ -180,7 +181,7 @@ class PinnedRod:
 _writhe = jax.jit(functools.partial(writhe, closed=True))
 
 
-@jax.jit
+@cached_jit
 def _scaled_gradient(scene, u, phi):
     return jax.grad(scene.scaled_energy)(u, phi)
 
