@@ -1289,7 +1289,7 @@ def _main(argv):
         args.compile_notice = _compile_notice(args, _enable_compilation_cache(args))
         with warnings.catch_warnings(), contextlib.ExitStack() as held:
             warnings.showwarning = _warn_in_one_line  # a warning is one line, not a source quote
-            if getattr(args, "programs", None):
+            if getattr(args, "programs", None) and os.environ.get("JAXROD_PROGRAMS", "1") != "0":
                 from . import aot
 
                 held.enter_context(aot.kept_in(args.programs))

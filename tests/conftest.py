@@ -11,6 +11,10 @@ os.environ.setdefault("JAX_COMPILATION_CACHE_DIR", tempfile.mkdtemp(prefix="jaxr
 # Cache every compilation, not only those over 1 s: the notebook and CLI subprocesses then
 # recompile nothing that a test compiled before them.
 os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0")
+# The CLI's exported programs (jaxrod.aot) are lowered inside a wrapper: their compiled code is not
+# the library tests' code, so CLI runs in the suite would compile it all again. Off here; the
+# mechanism itself is tested in test_aot.py.
+os.environ.setdefault("JAXROD_PROGRAMS", "0")
 
 # Most of the suite's time is XLA compiling several hundred distinct programs, most of which then
 # run for milliseconds. These flags change how the machine code is generated and scheduled, not the
