@@ -690,7 +690,7 @@ def _trefoil(args):
             from .diagram import unstable_branches
 
             t_diagram = time.perf_counter()
-            result = unstable_branches(scene, result, progress=say).study
+            result = unstable_branches(scene, result, progress=say, parallel=not args.serial).study
             summary = study_summary(result)
             summary["seconds_diagram"] = time.perf_counter() - t_diagram
     except BaseException:

@@ -31,6 +31,7 @@ import copy
 import csv
 import math
 import os
+import threading
 import time
 import warnings
 from dataclasses import dataclass, field, replace
@@ -46,7 +47,7 @@ from .equilibrium import equilibrium_from_solution
 from .records import step_record
 from .solvers import Solution
 from .stability import DEFAULT_NEGATIVE_TOL
-from .study import UNSTABLE_PREFIX, _final_header, _is_unstable, _summarise, read_table
+from .study import UNSTABLE_PREFIX, _Cancelled, _final_header, _is_unstable, _run_all, _summarise, read_table
 
 
 @dataclass(frozen=True)
@@ -135,13 +136,15 @@ class Diagram:
 RESOLVE_CROSSINGS = 1e-5
 
 
-def follow_branch_end(scene, q, phi, sign, options=None, *, p_min=-math.inf, p_max=math.inf, capacity=None):
+def follow_branch_end(scene, q, phi, sign, options=None, *, p_min=-math.inf, p_max=math.inf, capacity=None,
+                      observer=None):
     """Follow a stable branch from the state (q (n,) physical DOFs, phi) towards its end (phi
     growing when sign > 0, falling when sign < 0) by pseudo-arclength continuation, locate the end
     (the first fold or branch point at which the Morse index grows) and follow the unstable branch
     beyond it for ``options.unstable_points`` points. capacity: the contact list's padded size
-    (``knot_problem``; default: the neighbourhood's own at (q, phi)). Returns a ``BranchEnd``
-    (direction and from_branch left empty)."""
+    (``knot_problem``; default: the neighbourhood's own at (q, phi)). observer(point): called after
+    each accepted point (``jaxrod.bifurcation.continuation``; an exception raised there stops the
+    run). Returns a ``BranchEnd`` (direction and from_branch left empty)."""
     from .bifurcation import ContinuationOptions as ArclengthOptions, PseudoArclength, Result, continuation
     from .bifurcation.rods import knot_problem
 
@@ -158,7 +161,7 @@ def follow_branch_end(scene, q, phi, sign, options=None, *, p_min=-math.inf, p_m
                             resolve_crossings=RESOLVE_CROSSINGS)
     points, events, start, message = [], [], None, ""
     while True:
-        br = continuation(rod.problem, PseudoArclength(), opts, start=start, throw=False)
+        br = continuation(rod.problem, PseudoArclength(), opts, start=start, throw=False, observer=observer)
         offset = len(points) - (1 if points else 0)
         if points:  # a chunk restarts its arclength at 0: carry it on from the last point
             s0 = points[-1].arclength
@@ -222,13 +225,14 @@ def _first_end(events):
     return next((e for e in events if e.kind in ("fold", "branch_point") and e.morse_after > e.morse_before), None)
 
 
-def unstable_branches(scene, study, options=None, *, progress=None):
+def unstable_branches(scene, study, options=None, *, progress=None, parallel=True):
     """Locate each branch end of a twist study exactly and follow the unstable branch beyond it.
 
     scene: the study's scene; study: its ``StudyResult`` (``jaxrod.study.twist_study``), whose
     ``end_states`` hold the last stable state before each instability; options: ``DiagramOptions``;
-    progress: optional callable(str). With ``study.out`` writes the files described in the module
-    docstring. Returns a ``Diagram`` (``Diagram.study``: the study with the diagram; ``study``
+    progress: optional callable(str); parallel: the two directions' ends in two threads (each
+    direction's ends one after another; the results are the same). With ``study.out`` writes the
+    files described in the module docstring. Returns a ``Diagram`` (``Diagram.study``: the study with the diagram; ``study``
     itself is left as it was).
     """
     o = options or DiagramOptions()
@@ -237,6 +241,12 @@ def unstable_branches(scene, study, options=None, *, progress=None):
     instabilities = study.critical.get("instabilities", [])
     phis = np.asarray(study.table.get("phi", [0.0]), dtype=float)
     p_min, p_max = float(np.min(phis)), float(np.max(phis))
+    cancel = threading.Event()
+
+    def stop_if_cancelled(point):
+        if cancel.is_set():
+            raise _Cancelled()
+
     def one_end(inst, state):
         if state is None:
             return BranchEnd(inst["direction"], inst["from_branch"], None, [], None, "no state on file")
@@ -246,7 +256,8 @@ def unstable_branches(scene, study, options=None, *, progress=None):
         say(f"{inst['direction']}: locating the end of {inst['from_branch']} (bracketed at "
             f"{inst['phi'] / math.pi:+.6f} pi) on the extended system, then its unstable branch")
         end = follow_branch_end(scene, q, phi, sign, o, p_min=min(p_min, phi) - 0.5 * math.pi,
-                                p_max=max(p_max, phi) + 0.5 * math.pi, capacity=capacity)
+                                p_max=max(p_max, phi) + 0.5 * math.pi, capacity=capacity,
+                                observer=stop_if_cancelled)
         end.direction, end.from_branch = inst["direction"], inst["from_branch"]
         if end.event is None or not end.event.converged:
             say(f"{inst['direction']}: {end.message}")
@@ -270,14 +281,23 @@ def unstable_branches(scene, study, options=None, *, progress=None):
                 warnings.warn(message, stacklevel=3)
         return end
 
-    # one end after another: run in two threads (one per direction), the ends of the trefoil at
-    # N = 121 took as long in all (15.3 s against 15.5 s; the dense eigensolvers already keep the
-    # two cores busy)
     # One contact-list size for every end (the largest any end state asks for): a size is an array
     # shape, and each new one traces and compiles every function again (measured on the trefoil at
     # N = 61: 15 s for each of its two ends, whose default sizes differed)
     capacity = max((scene.neighbourhood(q, phi).capacity for q, phi in filter(None, study.end_states)), default=None)
-    ends = [one_end(inst, state) for inst, state in zip(instabilities, study.end_states)]
+    # Each direction's ends one after another, the two directions in two threads (as the study
+    # runs them): the ends' work is mostly XLA and LAPACK, which release the GIL. Ctrl-C stops
+    # both at their next point (``study._run_all``).
+    ends = [None] * len(instabilities)
+    todo = {}
+    for i, (inst, state) in enumerate(zip(instabilities, study.end_states)):
+        todo.setdefault(inst["direction"], []).append((i, inst, state))
+
+    def run_direction(items):
+        for i, inst, state in items:
+            ends[i] = one_end(inst, state)
+
+    _run_all(run_direction, [(items,) for items in todo.values()], parallel, cancel)
     rows, table = _unstable_rows(scene, study, ends)
     study = replace(study, table=table, critical=copy.deepcopy(study.critical))
     _write_events(study, ends)
