@@ -58,8 +58,8 @@ class ContactList:
 
 
 def _segment_endpoints(x, closed):
-    if closed:
-        return x, jnp.roll(x, -1, axis=0)
+    if closed:  # numpy for host arrays (no eager JAX program), jax.numpy when traced
+        return x, (np if isinstance(x, np.ndarray) else jnp).roll(x, -1, axis=0)
     return x[:-1], x[1:]
 
 

@@ -75,8 +75,14 @@ class Neighbourhood:
         since this one was built. Returns a ``NeighbourhoodUpdate``; each caller keeps its own
         policy (repeat the solve, refuse a strand passage, keep the old pairs)."""
         new = scene.neighbourhood(q, phi, capacity=self.capacity)
-        x = scene.positions(jnp.asarray(q))
-        return NeighbourhoodUpdate(new, bool(self.stale(x, grown)), float(new.wr_ref) - float(self.wr_ref))
+        # ``stale`` on the host, in numpy: the same test without a handful of eager JAX programs
+        # (each one more executable for every process to load)
+        stale = False
+        if self.pairs.shape[0] > 0:
+            x = np.asarray(scene.positions(np.asarray(q, dtype=float)))
+            moved = float(np.max(np.linalg.norm(x - np.asarray(self.x_built), axis=1)))
+            stale = moved > 0.5 * (float(self.skin) - grown)
+        return NeighbourhoodUpdate(new, stale, float(new.wr_ref) - float(self.wr_ref))
 
 
 @dataclass(frozen=True)

@@ -48,7 +48,7 @@ def correct(backend, lin, z_pred, t, tol, max_iter):
             res = float(np.sqrt(np.sum(np.asarray(G) ** 2) + r * r))
         if not np.isfinite(res) or res <= tol or it == max_iter:
             break
-        dx, dlam = backend.bordered_solve(A, a, t[:-1], t[-1], -G, -r)
+        dx, dlam = backend.bordered_solve(A, a, t[:-1], t[-1], -np.asarray(G), -r)
         z = z + np.append(np.asarray(dx), float(dlam))
     return Correction(z, it, bool(res <= tol), res, (G, A, a))
 

@@ -37,10 +37,15 @@ class DenseBackend:
         A (m, m); b, c (m,) with d, g scalars (y scalar), or b, c (m, k) with d (k, k), g (k,)
         (y (k,)). Traceable. The bordered matrix is regular at a fold, where A alone is singular.
         """
+        # On the host the borders are shaped with numpy (no eager JAX programs, each one more
+        # executable for every process to load); inside a trace with jax.numpy
+        host = not any(isinstance(v, jax.core.Tracer) for v in (A, b, c, d, f, g))
+        xp = np if host else jnp
         if jnp.ndim(b) == 1:
-            x, y = _bordered(A, b[:, None], c[:, None], jnp.reshape(d, (1, 1)), f, jnp.reshape(g, (1,)))
-            return x, y[0]
-        return _bordered(A, b, c, jnp.asarray(d), f, jnp.asarray(g))
+            x, y = _bordered(A, xp.asarray(b)[:, None], xp.asarray(c)[:, None], xp.reshape(xp.asarray(d), (1, 1)), f,
+                             xp.reshape(xp.asarray(g), (1,)))
+            return x, (np.asarray(y)[0] if host else y[0])
+        return _bordered(A, b, c, xp.asarray(d), f, xp.asarray(g))
 
     def spectrum(self, J, n_keep, n_zero, rtol):
         """(values (n_keep,), vectors (n, n_keep), Morse index) of the symmetric J.

@@ -282,7 +282,7 @@ def _fold_newton(problem, opts, u, p, b, args=None):
         res, prev = float(np.sqrt(np.sum(np.asarray(F) ** 2) + float(sigma) ** 2)), res
         if not np.isfinite(res) or _done(res, prev, opts.newton_tol) or it == opts.locate_max_iter:
             break
-        du, dp = be.bordered_solve(J, Fp, -gu, -gp, -F, -sigma)
+        du, dp = be.bordered_solve(J, Fp, -np.asarray(gu), -float(gp), -np.asarray(F), -float(sigma))
         u, p = u + np.asarray(du), p + float(dp)
         b = np.asarray(w) / np.linalg.norm(w)
     return u, p, J, Fp, res, it
@@ -310,6 +310,7 @@ def simple_branch_point(problem, opts, u, p, v0, morse, step, tangent):
         res, prev = _norm(G, st), res
         if not np.isfinite(res) or _done(res, prev, opts.newton_tol) or it == opts.locate_max_iter:
             break
+        gp = np.asarray(gp)
         D = np.array([[gp[0], 0.0], [gp[1], 0.0]])
         du, dy = be.bordered_solve(J, np.stack([Fp, v0], axis=1), np.asarray(gu).T, D, -G, -np.asarray(st))
         u, p, beta = u + np.asarray(du), p + float(dy[0]), beta + float(dy[1])
