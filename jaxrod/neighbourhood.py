@@ -61,9 +61,14 @@ class Neighbourhood:
         """True (a JAX bool) when some node of x (N, 3) has moved more than skin/2 from x_built:
         a pair could then be closer than D without being a candidate. Without contact pairs the
         list never goes stale. grown: how much the diameter has grown since the list was built
-        (a fold curve in D), which uses up that much of the skin."""
+        (a fold curve in D), which uses up that much of the skin. For a numpy x the test runs in
+        numpy (a Python bool): eager JAX operations would be a handful more executables for
+        every process to load."""
         if self.pairs.shape[0] == 0:
             return jnp.asarray(False)
+        if isinstance(x, np.ndarray):
+            moved = float(np.max(np.linalg.norm(x - np.asarray(self.x_built), axis=1)))
+            return moved > 0.5 * (float(self.skin) - grown)
         moved = jnp.max(jnp.linalg.norm(x - self.x_built, axis=1))
         return moved > 0.5 * (self.skin - grown)
 
@@ -75,14 +80,8 @@ class Neighbourhood:
         since this one was built. Returns a ``NeighbourhoodUpdate``; each caller keeps its own
         policy (repeat the solve, refuse a strand passage, keep the old pairs)."""
         new = scene.neighbourhood(q, phi, capacity=self.capacity)
-        # ``stale`` on the host, in numpy: the same test without a handful of eager JAX programs
-        # (each one more executable for every process to load)
-        stale = False
-        if self.pairs.shape[0] > 0:
-            x = np.asarray(scene.positions(np.asarray(q, dtype=float)))
-            moved = float(np.max(np.linalg.norm(x - np.asarray(self.x_built), axis=1)))
-            stale = moved > 0.5 * (float(self.skin) - grown)
-        return NeighbourhoodUpdate(new, stale, float(new.wr_ref) - float(self.wr_ref))
+        x = np.asarray(scene.positions(np.asarray(q, dtype=float)))  # on the host: ``stale`` in numpy
+        return NeighbourhoodUpdate(new, bool(self.stale(x, grown)), float(new.wr_ref) - float(self.wr_ref))
 
 
 @dataclass(frozen=True)

@@ -16,14 +16,8 @@ from .linalg import DenseBackend
 
 
 def _jit_in_u_p(fn):
-    """jit(fn) called with u and p as float64 arrays (u (n,), p ()): a Python float p would be
-    traced weakly typed and a jnp one strongly, two programs compiled for one function."""
-    compiled = jax.jit(fn)
-
-    def call(u, p, *rest):
-        return compiled(jnp.asarray(u, dtype=jnp.float64), jnp.asarray(p, dtype=jnp.float64), *rest)
-
-    return call
+    """jit(fn) called with u and p as float64 arrays (``_in_u_p``)."""
+    return _in_u_p(jax.jit(fn), {})
 
 
 class BifurcationProblem:

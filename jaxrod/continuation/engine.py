@@ -159,7 +159,7 @@ class _Engine:
                        self.opts.gtol, 50, throw=False)
         q = scene.from_scaled(np.asarray(sol.y))
         upd = nbr.update(scene, q, phi)
-        if not sol.converged or upd.drifted or bool(nbr.stale(scene.positions(jnp.asarray(q)))):
+        if not sol.converged or upd.drifted or bool(nbr.stale(scene.positions(np.asarray(q, dtype=float)))):
             raise ConvergenceError(f"deflated Newton did not converge: {sol!r}")
         return equilibrium_from_solution(scene, phi, sol, upd.nbr, with_stability=False)
 
