@@ -125,6 +125,63 @@ def test_the_path_goes_through_the_fold_onto_the_unstable_branch(paths):
         assert all(q.tangent[-1] < 0 for q in after[:5])
 
 
+def test_only_a_clean_slide_is_split_off():
+    """The soft direction split off a pinned knot's lowest eigenpairs must be a slide, not the least
+    sliding mix of its span: on the trefoil at N = 241 (slide pinned) the least sliding direction of
+    the 6 lowest modes had fraction 0.04 (81 % a stiff mode at 1e-5, 13 % the nearly degenerate
+    buckling pair at -3.8e-9 / 1.8e-9); split off with the old threshold 0.05, it turned the pair's
+    Ritz values into +3.4e-10 / 1.3e-6 and reported the unstable states past the fold as stable.
+    The hook splits only a clean slide (fraction below CLEAN_SLIDE_FRACTION); else it returns the
+    computed eigenpairs unchanged."""
+    import inspect
+
+    from jaxrod.bifurcation.rods import split_sliding
+    from jaxrod.stability import CLEAN_SLIDE_FRACTION
+
+    threshold = inspect.signature(knot_problem).parameters["sliding"].default
+    assert threshold == CLEAN_SLIDE_FRACTION < 0.05
+    scene = jr.trefoil(D=8.0, L=292.0, N=61)
+    q = np.asarray(scene.q_init)
+    n, n_full = scene.n_nodes, q.size
+    x = q[:3 * n].reshape(n, 3)
+    t = np.roll(x, -1, axis=0) - np.roll(x, 1, axis=0)
+    slide = np.concatenate([(t / np.linalg.norm(t, axis=1, keepdims=True)).ravel(), np.zeros(n_full - 3 * n)])
+    rng = np.random.default_rng(0)
+    shape = rng.standard_normal((n_full, 6))
+    def fraction(v):
+        full = np.zeros((n_full, 1))
+        full[:, 0] = v
+        return float(sliding_fraction(scene, q, full)[0])
+
+    def span(mix, order):
+        # e0, e1: the buckling pair; e2: a slide mixed with a shape mode; e3..e5: stiffer shape modes;
+        # orthonormalised in the given order (e2 first: it keeps its fraction; last: it takes in some
+        # of the pair, as on the knot, where the pair's modes share shape with it)
+        cols = [shape[:, 0], shape[:, 1], np.cos(mix) * slide / np.linalg.norm(slide) +
+                np.sin(mix) * shape[:, 2] / np.linalg.norm(shape[:, 2]), shape[:, 3], shape[:, 4], shape[:, 5]]
+        V, _ = np.linalg.qr(np.stack([cols[i] for i in order], axis=1))
+        return V[:, np.argsort(order)]
+
+    values = np.array([-3.8e-9, 1.8e-9, 1e-5, 2.5e-5, 4e-5, 5.4e-5])
+    free = np.arange(n_full)
+    # a stiff mode that is 4 % shape: not a slide, nothing split off, the values are the computed ones
+    mix = 0.22
+    V = span(mix, [0, 1, 2, 3, 4, 5])
+    assert 0.01 < fraction(V[:, 2]) < 0.05
+    vals, vecs, soft = split_sliding(scene, q, free, n_full, values, V, threshold)
+    assert not soft.any() and np.array_equal(vals, values) and np.allclose(vecs, V)
+    assert int(np.sum(vals[~soft] < 0)) == 1  # the negative buckling mode is counted
+    # what the old threshold did: it split the mix off and moved the pair's upper value 80-fold
+    old, _, old_soft = split_sliding(scene, q, free, n_full, values, V, 0.05)
+    assert old_soft.any() and old[~old_soft][1] > 50 * values[1]
+    # a clean slide (fraction ~1e-4) is split off, the rest keep their values
+    V = span(0.01, [2, 0, 1, 3, 4, 5])
+    assert fraction(V[:, 2]) < 1e-3
+    vals, vecs, soft = split_sliding(scene, q, free, n_full, values, V, threshold)
+    assert soft.sum() == 1 and abs(vals[soft][0] - 1e-5) < 1e-7
+    assert np.allclose(vals[~soft], np.delete(values, 2), rtol=1e-3, atol=1e-12)
+
+
 def test_sliding_modes_are_soft_and_make_no_events(paths):
     scene, runs = paths
     rod, br = runs[6.0, 1.0]
