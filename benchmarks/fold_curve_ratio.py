@@ -48,6 +48,13 @@ SIDES = {"plus": dict(sign=1.0, below=6.35, name="opening"), "minus": dict(sign=
 DELTA = 0.03 * PI
 MAX_JUMP = 2.0  # scaled units (edge lengths): a start that relaxed further has left the branch
 H_REL = 1e-3
+# The curves from D0 end before the grid's ends (the opening fold at a cusp near D/L = 0.0425, the
+# tightening event where its curve turns back in D/L near 0.039); past them the first instability is
+# another event (point studies at 0.044: opening 7.818 pi, tightening -12.679 pi). That event is
+# followed as a second segment, from a point study at HIGH_START down to HIGH_LOW (``... high SIDE``).
+HIGH_START, HIGH_LOW = 0.045, 0.030
+HIGH_BELOW = {"plus": 7.2, "minus": -12.0}
+HIGH_JSON = "fold_curve_ratio_high.json"
 HERE = os.path.dirname(os.path.abspath(__file__))
 OUT = os.path.join(HERE, "results")
 ALG = PseudoArclength()
@@ -110,6 +117,31 @@ def run_side(side, summary, save):
             rod = start_state(D0, cfg["below"] * PI)
 
 
+def run_high(side, high, save):
+    """The second segment: the first event at D/L = HIGH_START (from a state on the symmetric branch
+    at HIGH_BELOW) followed down the grid to HIGH_LOW; rows with stage "high"."""
+    sign = SIDES[side]["sign"]
+    D = HIGH_START * L
+    t0 = time.perf_counter()
+    rod = start_state(D, HIGH_BELOW[side] * PI)
+    high["start_seconds"][side] = time.perf_counter() - t0
+
+    def obs(r):
+        high["curve"].append(row_of(side, r, "high"))
+        print(f"[{side} high] D/L {r.mu / L:.4f}: {r.kind} {r.p / PI:+.9f} pi, lambda {r.critical_eigenvalue:.1e}, "
+              f"residual {r.residual:.1e}, dphi*/d(D/L) {r.dp_dmu * L / PI:+.3f} pi, {r.seconds:.1f} s", flush=True)
+        save()
+
+    problem = rod.problem
+    t = time.perf_counter()
+    curve = event_curve(problem, (problem.u0, problem.p0), set_diameter, D,
+                        [g * L for g in GRID[::-1] if HIGH_LOW - 1e-9 <= g < HIGH_START - 1e-9],
+                        options(sign, 300), observer=obs, progress=lambda m: print(f"  [{side} high] {m}", flush=True))
+    high["curve_seconds"][f"{side}_high"] = time.perf_counter() - t
+    high["curve_result"][f"{side}_high"] = [curve.result.value, curve.message]
+    save()
+
+
 def checks(side, curve_rows, summary, save):
     """Point studies at CHECKS: a new scene at D from phi = 0, its event located on its own; then
     dphi*/d(D/L) of that point study (IFT) against central differences of two more point studies
@@ -151,8 +183,33 @@ def checks(side, curve_rows, summary, save):
         save()
 
 
+def main_high(sides):
+    path = os.path.join(OUT, HIGH_JSON)
+    high = dict(curve=[], start_seconds={}, curve_seconds={}, curve_result={})
+    if os.path.exists(path):
+        with open(path) as f:
+            old = json.load(f)
+        high["curve"] = [r for r in old["curve"] if r["side"] not in sides]
+        for key in ("start_seconds", "curve_seconds", "curve_result"):
+            high[key] = {k: v for k, v in old.get(key, {}).items() if not any(k.startswith(s) for s in sides)}
+
+    def save():
+        tmp = path + ".tmp"
+        with open(tmp, "w") as f:
+            json.dump(high, f, indent=1)
+        os.replace(tmp, path)
+
+    for side in sides:
+        run_high(side, high, save)
+    with open(os.path.join(OUT, "fold_curve_ratio.json")) as f:
+        report(json.load(f))
+
+
 def main():
     os.makedirs(OUT, exist_ok=True)
+    if sys.argv[1:2] == ["high"]:
+        main_high(sys.argv[2:] or ["plus", "minus"])
+        return
     only_checks = sys.argv[1:2] == ["checks"]
     sides = sys.argv[2:] if only_checks else (sys.argv[1:] or ["plus", "minus"])
     path = os.path.join(OUT, "fold_curve_ratio.json")
