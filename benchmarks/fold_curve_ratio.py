@@ -278,12 +278,36 @@ def report(s):
                      f"{c['derivative_rel_diff']:.1e}")
         lines.append(f"| {c['side']} | {c['D_over_L']:.3f} | {c['curve_over_pi']:+.10f} ({c['curve_kind']}) | "
                      f"{c['study_over_pi']:+.10f} ({c['study_kind']}) | {c['difference_over_pi']:.1e} | {deriv} |")
+    high = _high_rows()
+    if high["curve"]:
+        lines += ["", f"Second segment: the first event at D/L = {HIGH_START} (a point study, from a state on the symmetric "
+                  f"branch at {HIGH_BELOW['plus']} pi / {HIGH_BELOW['minus']} pi) followed down to D/L = {HIGH_LOW} "
+                  "(`python benchmarks/fold_curve_ratio.py high`). Where both segments exist, the first instability is the "
+                  "event of smaller |phi*|.", ""]
+        for key, seconds in high["curve_seconds"].items():
+            res = high["curve_result"].get(key, ["", ""])
+            n = len([r for r in high["curve"] if f"{r['side']}_{r['stage']}" == key])
+            lines.append(f"- {key}: {n} points in {seconds:.0f} s ({res[0]}{': ' + res[1] if res[1] else ''})")
+        lines += ["", "| side | D/L | phi* / pi | kind | Morse | critical eigenvalue | residual | dphi*/d(D/L) / pi |",
+                  "|---|---|---|---|---|---|---|---|"]
+        for r in sorted(high["curve"], key=lambda r: (r["side"], r["D_over_L"])):
+            lines.append(f"| {r['side']} | {r['D_over_L']:.4f} | {r['phi_star_over_pi']:+.9f} | {r['kind']} | "
+                         f"{r['morse_before']} -> {r['morse_after']} | {r['critical_eigenvalue']:.1e} | "
+                         f"{r['residual']:.1e} | {r['dphi_dratio_over_pi']:+.3f} |")
     with open(os.path.join(OUT, "fold_curve_ratio.md"), "w") as f:
         f.write("\n".join(lines) + "\n")
-    plot(rows, s)
+    plot(rows, s, sorted(high["curve"], key=lambda r: (r["side"], r["D_over_L"])))
 
 
-def plot(rows, s):
+def _high_rows():
+    path = os.path.join(OUT, HIGH_JSON)
+    if not os.path.exists(path):
+        return dict(curve=[], curve_seconds={}, curve_result={})
+    with open(path) as f:
+        return json.load(f)
+
+
+def plot(rows, s, high=()):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -301,6 +325,11 @@ def plot(rows, s):
             if m.any():
                 ax.plot(x[m], y[m], marker, color=colour, ms=3.5, ls="none",
                         label=f"  {kind.replace('_', ' ')}s")
+    for side, colour in (("plus", "C0"), ("minus", "C3")):
+        rr = [r for r in high if r["side"] == side]
+        if rr:
+            ax.plot([r["D_over_L"] for r in rr], [r["phi_star_over_pi"] for r in rr], "-", color=colour, lw=1.2,
+                    marker=".", ms=4, alpha=0.6, label=f"{SIDES[side]['name']} side: second segment (from D/L = {HIGH_START})")
     for c in s["checks"]:
         if c.get("study_over_pi") is not None:
             ax.plot(c["D_over_L"], c["study_over_pi"], "ks", mfc="none", ms=8)
