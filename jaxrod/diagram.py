@@ -50,6 +50,10 @@ from .stability import DEFAULT_NEGATIVE_TOL
 from .study import UNSTABLE_PREFIX, _Cancelled, _final_header, _is_unstable, _run_all, _summarise, read_table
 
 
+# points kept past the event where a followed unstable branch restabilises (DiagramOptions.until_restable)
+RESTABLE_KEEP = 3
+
+
 @dataclass(frozen=True)
 class DiagramOptions:
     """How far and how finely each branch end's path is followed.
@@ -62,6 +66,12 @@ class DiagramOptions:
     two different starts differed by 1.0e-8 pi at 1e-11, by 5.7e-10 pi at 1e-13; event_tol: a located end must have its residual and critical eigenvalue below this;
     max_points: points followed before the end, at most (the path starts at the study's last stable
     state, within the study's tol of the end, so a few suffice); n_eig: eigenpairs kept per point.
+    until_restable: instead of ``unstable_points`` points, follow the unstable branch until it
+    restabilises (a fold or branch point where the Morse index comes back to 0; RESTABLE_KEEP
+    points kept past it, ``BranchEnd.restabilised``) or for at most ``max_unstable_points`` points:
+    where the unstable branch itself leads, a stated alternative to the study's relaxation along the
+    critical mode (on the trefoil at N = 121 the opening side's restabilises at a branch point at
+    5.6159 pi, below the end: ``benchmarks/restabilise_trefoil.py``).
     """
 
     unstable_points: int = 8
@@ -71,9 +81,13 @@ class DiagramOptions:
     max_points: int = 60
     n_eig: int = 6
     chunk: int = 10
+    until_restable: bool = False
+    max_unstable_points: int = 400
 
     def __post_init__(self):
-        for name in ("unstable_points", "max_points", "n_eig", "chunk"):
+        if not isinstance(self.until_restable, (bool, np.bool_)):
+            raise ValueError(f"until_restable must be True or False, got {self.until_restable!r}")
+        for name in ("unstable_points", "max_points", "n_eig", "chunk", "max_unstable_points"):
             value = getattr(self, name)
             if not (isinstance(value, (int, np.integer)) and value >= 1):
                 raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
@@ -102,6 +116,7 @@ class BranchEnd:
     message: str = ""
     seconds: float = 0.0
     within_bracket: bool | None = None  # whether the located end lies in the study's bracket
+    restabilised: object = None  # with until_restable: the Event where the unstable branch regains stability
 
     @property
     def kind(self):
@@ -145,7 +160,8 @@ def follow_branch_end(scene, q, phi, sign, options=None, *, p_min=-math.inf, p_m
     (``knot_problem``; default: the neighbourhood's own at (q, phi)). observer(point): called after
     each accepted point (``jaxrod.bifurcation.continuation``; an exception raised there stops the
     run). Returns a ``BranchEnd`` (direction and from_branch left empty)."""
-    from .bifurcation import ContinuationOptions as ArclengthOptions, PseudoArclength, Result, continuation
+    from .bifurcation import ContinuationOptions as ArclengthOptions, PseudoArclength, continuation_until, \
+        restabilisation
     from .bifurcation.rods import knot_problem
 
     o = options or DiagramOptions()
@@ -159,30 +175,20 @@ def follow_branch_end(scene, q, phi, sign, options=None, *, p_min=-math.inf, p_m
                             # trefoil at N = 961 the opening 'fold' (index 0 -> 2 in one step) is a branch
                             # point at 6.4195886275 pi and a fold 2.4e-5 pi later
                             resolve_crossings=RESOLVE_CROSSINGS)
-    points, events, start, message = [], [], None, ""
-    while True:
-        br = continuation(rod.problem, PseudoArclength(), opts, start=start, throw=False, observer=observer)
-        offset = len(points) - (1 if points else 0)
-        if points:  # a chunk restarts its arclength at 0: carry it on from the last point
-            s0 = points[-1].arclength
-            points += [replace(pt, arclength=pt.arclength + s0) for pt in br.points[1:]]
-        else:
-            points += br.points
-        events += [replace(e, step=e.step + offset) for e in br.events]
+    def stop(points, events):
         end = _first_end(events)
-        if br.result is not Result.MAX_STEPS:
-            message = br.message or br.result.value
-            break
-        if end is not None and len(points) - end.step >= o.unstable_points:
-            message = "followed past the end"
-            break
-        if end is None and len(points) >= o.max_points:
-            message = f"no fold or branch point within {len(points)} points"
-            break
-        last = points[-1]
-        start = (last.u, last.p, last.tangent)
-        # the next chunk's first step: the step the path had reached (not ds again)
-        opts = replace(opts, ds=math.copysign(min(max(abs(last.ds), opts.ds_min), o.ds_max), opts.ds))
+        if end is None:
+            return f"no fold or branch point within {len(points)} points" if len(points) >= o.max_points else ""
+        past = len(points) - end.step
+        if o.until_restable:
+            back = restabilisation(events, end.step)
+            if back is not None and len(points) - back.step >= RESTABLE_KEEP:
+                return f"followed past the end until it restabilised at {back.p / math.pi:+.8f} pi ({back.kind})"
+            return f"still unstable {past} points past the end" if past >= o.max_unstable_points else ""
+        return "followed past the end" if past >= o.unstable_points else ""
+
+    br = continuation_until(rod.problem, PseudoArclength(), opts, stop, observer=observer)
+    points, events, message = br.points, br.events, br.message
     end = _first_end(events)
     if end is not None and not end.converged:
         if end.residual <= o.event_tol and end.critical_eigenvalue <= o.event_tol:
@@ -195,7 +201,12 @@ def follow_branch_end(scene, q, phi, sign, options=None, *, p_min=-math.inf, p_m
             message = (f"the end was detected near {end.p / math.pi:+.8f} pi but not located to event_tol "
                        f"{o.event_tol:.0e} (residual {end.residual:.1e}, eigenvalue {end.critical_eigenvalue:.1e})")
     elif end is not None:
-        points = points[:end.step + o.unstable_points]
+        back = restabilisation(events, end.step) if o.until_restable else None
+        if back is not None:  # (a later chunk may have ended otherwise, e.g. at a soft fold past it)
+            message = f"followed past the end until it restabilised at {back.p / math.pi:+.8f} pi ({back.kind})"
+        points = points[:back.step + RESTABLE_KEEP] if back is not None else points[:end.step + (
+            o.max_unstable_points if o.until_restable else o.unstable_points)]
+        return BranchEnd("", "", end, points, rod, message, time.perf_counter() - t0, restabilised=back)
     return BranchEnd("", "", end, points, rod, message, time.perf_counter() - t0)
 
 
@@ -368,11 +379,18 @@ def _write_events(study, ends):
 def _diagram_dict(diagram, options):
     from dataclasses import asdict
 
-    return {"options": asdict(options), "seconds": diagram.seconds,
-            "ends": [{"direction": e.direction, "from_branch": e.from_branch, "kind": e.kind,
-                      "phi_over_pi": None if e.phi is None else e.phi / math.pi, "points": len(e.points),
-                      "unstable_points": len(e.unstable), "message": e.message, "seconds": e.seconds}
-                     for e in diagram.ends]}
+    def end(e):
+        row = {"direction": e.direction, "from_branch": e.from_branch, "kind": e.kind,
+               "phi_over_pi": None if e.phi is None else e.phi / math.pi, "points": len(e.points),
+               "unstable_points": len(e.unstable), "message": e.message, "seconds": e.seconds}
+        if options.until_restable:
+            back = e.restabilised
+            row["restabilised"] = None if back is None else {
+                "kind": back.kind, "phi_over_pi": float(back.p) / math.pi, "morse_before": int(back.morse_before),
+                "critical_eigenvalue": float(np.max(np.abs(back.critical_eigenvalue))), "residual": float(back.residual)}
+        return row
+
+    return {"options": asdict(options), "seconds": diagram.seconds, "ends": [end(e) for e in diagram.ends]}
 
 
 def _unstable_rows(scene, study, ends):

@@ -383,3 +383,33 @@ def test_the_dense_backends_lowest_pairs_equal_the_full_decomposition(n_zero):
     np.testing.assert_allclose(J @ vecs, vecs * vals, rtol=0, atol=1e-10)
     # a J unstable beyond the lowest pairs falls back to the full decomposition
     assert _lowest_pairs(-np.abs(J) - 10.0 * np.eye(n), 6, 0, rtol) is None
+
+
+# 9. Restabilisation: E = x^4/4 - x^2/2 - p x + y^2/2, the S-curve p = x^3 - x. From the stable branch
+# x < -1/sqrt(3), p growing: a fold at x = -1/sqrt(3) (Morse 0 -> 1), the unstable middle branch back
+# down in p, a fold at x = +1/sqrt(3), p = -2/(3 sqrt(3)) (1 -> 0), where the branch becomes stable again.
+def s_curve_energy(u, p, args):
+    x, y = u
+    return x ** 4 / 4 - x ** 2 / 2 - p * x + y ** 2 / 2
+
+
+def test_an_unstable_branch_is_followed_until_it_restabilises():
+    from jaxrod.bifurcation import until_stable
+
+    x0 = -1.2
+    prob = BifurcationProblem(s_curve_energy, [x0, 0.0], x0 ** 3 - x0)
+    opts = ContinuationOptions(ds=0.1, ds_max=0.2, max_steps=5, n_eig=1, p_min=-3.0, p_max=3.0)
+    br, back = until_stable(prob, ALG, opts, max_points=200, keep=3)
+    r = 1 / np.sqrt(3)
+    lost, = [e for e in br.events if e.morse_after > e.morse_before]
+    check_located(lost, "fold", 2 * r / 3, [-r, 0.0])
+    check_located(back, "fold", -2 * r / 3, [r, 0.0])
+    assert (back.morse_before, back.morse_after) == (1, 0) and br.result is Result.STOPPED
+    assert "restabilised" in br.message
+    # chunks of 5 steps: the path is continuous, three points kept past the restabilisation
+    assert len(br.points) == back.step + 3 and all(q.morse_index == 0 and q.u[0] > r for q in br.points[-3:])
+    s = np.array([q.arclength for q in br.points])
+    assert np.all(np.diff(s) > 0) and np.max(np.abs(br.u[:, 0] ** 3 - br.u[:, 0] - br.p)) <= 1e-10
+    # not restabilised within max_points: stopped, saying so
+    br, back = until_stable(prob, ALG, opts, max_points=8)
+    assert back is None and br.result is Result.STOPPED and "not restabilised" in br.message

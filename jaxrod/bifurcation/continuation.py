@@ -1,5 +1,9 @@
-"""The entry point: ``continuation(problem, algorithm, options)`` -> Branch."""
+"""The entry point: ``continuation(problem, algorithm, options)`` -> Branch; and
+``continuation_until(problem, algorithm, options, stop)``, the same in chunks until a rule says stop."""
 from __future__ import annotations
+
+import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -105,6 +109,64 @@ def continuation(problem, alg, opts, *, observer=None, start=None, throw=True):
         result = Result.LOCATION_FAILED
         message = "; ".join(_not_located(e, opts.event_tol) for e in failed)
     return _finish(Branch(points, events, result, message, slides=slides), throw)
+
+
+def continuation_until(problem, alg, opts, stop, *, start=None, observer=None):
+    """``continuation`` in chunks of ``opts.max_steps`` steps, until ``stop(points, events)``
+    returns a message (a non-empty str; checked after each chunk) or a chunk ends otherwise
+    (boundary, corrector failure, an event not located). Each chunk starts from the last point with
+    its tangent and the step it had reached; arclengths, event steps and slides are those of the
+    whole path. start: as for ``continuation``. Returns a Branch: ``result`` is Result.STOPPED with
+    stop's message, or the last chunk's result and message. Never raises for a failed chunk."""
+    points, events, slides = [], [], []
+    while True:
+        br = continuation(problem, alg, opts, start=start, throw=False, observer=observer)
+        offset = len(points) - (1 if points else 0)
+        if points:  # a chunk restarts its arclength at 0: carry it on from the last point
+            s0 = points[-1].arclength
+            points += [replace(pt, arclength=pt.arclength + s0) for pt in br.points[1:]]
+        else:
+            points += br.points
+        events += [replace(e, step=e.step + offset) for e in br.events]
+        slides += [replace(sl, step=sl.step + offset) for sl in br.slides]
+        if br.result is not Result.MAX_STEPS:
+            return Branch(points, events, br.result, br.message or br.result.value, slides=slides)
+        message = stop(points, events)
+        if message:
+            return Branch(points, events, Result.STOPPED, message, slides=slides)
+        last = points[-1]
+        start = (last.u, last.p, last.tangent)
+        # the next chunk's first step: the step the path had reached (not ds again)
+        opts = replace(opts, ds=math.copysign(min(max(abs(last.ds), opts.ds_min), opts.ds_max), opts.ds))
+
+
+def restabilisation(events, after=0):
+    """The first event past step ``after`` at which the Morse index comes back to 0 from above (a
+    fold or branch point where the followed unstable branch regains its stability), or None."""
+    return next((e for e in events if e.step > after and e.kind in ("fold", "branch_point")
+                 and e.morse_after == 0 < e.morse_before), None)
+
+
+def until_stable(problem, alg, opts, *, start=None, max_points=400, keep=3, observer=None):
+    """Follow an unstable branch until it restabilises: ``continuation_until`` stopped at the first
+    fold or branch point where the Morse index returns to 0 (``restabilisation``), ``keep`` points
+    past it, or after ``max_points`` points. This is one stated answer to "where does a knot go past
+    its branch end": the unstable branch itself, followed until it becomes stable again (or meets
+    another branch, which shows as a branch point); the other, relaxation along the critical mode,
+    is ``jaxrod.continuation``'s branch switching. Returns (Branch, the restabilising Event or None)."""
+    def stop(points, events):
+        e = restabilisation(events)
+        if e is not None and len(points) - 1 - e.step >= keep - 1:
+            return f"restabilised at p = {e.p:.12g} ({e.kind}, Morse {e.morse_before} -> 0)"
+        if len(points) >= max_points:
+            return f"not restabilised within {len(points)} points (max_points)"
+        return ""
+
+    br = continuation_until(problem, alg, opts, stop, start=start, observer=observer)
+    e = restabilisation(br.events)
+    if e is not None:
+        br.points = br.points[:e.step + keep]
+    return br, e
 
 
 def _not_located(event, tol):

@@ -14,6 +14,7 @@ class Result(enum.Enum):
     MAX_STEPS = "max_steps reached"
     CORRECTOR_FAILED = "corrector failed with a step below ds_min"
     LOCATION_FAILED = "an event was detected but not located to event_tol"
+    STOPPED = "stopped by the caller's rule (``continuation_until``)"
 
 
 class ContinuationError(RuntimeError):
