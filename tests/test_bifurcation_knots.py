@@ -7,10 +7,10 @@ The paper's rod (D, L) = (8, 292) at N = 121 (command 1's resolution): today's e
 +- 5e-5 pi (README), as the bracket between the last stable state and the first refused trial;
 here it is the root of an extended system, to roundoff, whatever the step and the start.
 
-N = 61 is not used (its path through the end costs ~30 s). There the opening end used to show as a
-near-double event (a branch point at ~6.6022 pi and a fold 2e-4 pi later) that the locators did not
-resolve; with only clean slides split off (``test_only_a_clean_slide_is_split_off``) it is one fold,
-0 -> 1, at 6.6007045227 pi, located in 3 Newton iterations (measured 2026-12-03 from 6.4 pi).
+N = 61 is not used (its path through the end costs ~30 s). There the opening end depends on the
+family of the discretised knot the path follows: from 6.3 pi (ds_max 0.25) a branch point at
+6.6023492081 pi next to an unlocated fold along the slide; from 6.4 pi (ds_max 0.5) one fold, 0 -> 1,
+at 6.6007045227 pi (measured 2026-12-03).
 """
 import csv
 import filecmp
