@@ -280,6 +280,11 @@ def report(s):
                      f"{c['study_over_pi']:+.10f} ({c['study_kind']}) | {c['difference_over_pi']:.1e} | {deriv} |")
     high = _high_rows()
     if high["curve"]:
+        with open(os.path.join(OUT, "fold_curve_ratio_high.csv"), "w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(keys)
+            for r in sorted(high["curve"], key=lambda r: (r["side"], r["D_over_L"])):
+                w.writerow([r[k] if not isinstance(r[k], float) else f"{r[k]:.12g}" for k in keys])
         lines += ["", f"Second segment: the first event at D/L = {HIGH_START} (a point study, from a state on the symmetric "
                   f"branch at {HIGH_BELOW['plus']} pi / {HIGH_BELOW['minus']} pi) followed down to D/L = {HIGH_LOW} "
                   "(`python benchmarks/fold_curve_ratio.py high`). Where both segments exist, the first instability is the "
