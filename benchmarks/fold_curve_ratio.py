@@ -183,6 +183,16 @@ def checks(side, curve_rows, summary, save):
         save()
 
 
+def _saver(path, data):
+    """save() -> None: ``data`` written to ``path`` as JSON atomically (after every point)."""
+    def save():
+        tmp = path + ".tmp"
+        with open(tmp, "w") as f:
+            json.dump(data, f, indent=1)
+        os.replace(tmp, path)
+    return save
+
+
 def main_high(sides):
     path = os.path.join(OUT, HIGH_JSON)
     high = dict(curve=[], start_seconds={}, curve_seconds={}, curve_result={})
@@ -193,11 +203,7 @@ def main_high(sides):
         for key in ("start_seconds", "curve_seconds", "curve_result"):
             high[key] = {k: v for k, v in old.get(key, {}).items() if not any(k.startswith(s) for s in sides)}
 
-    def save():
-        tmp = path + ".tmp"
-        with open(tmp, "w") as f:
-            json.dump(high, f, indent=1)
-        os.replace(tmp, path)
+    save = _saver(path, high)
 
     for side in sides:
         run_high(side, high, save)
@@ -224,11 +230,7 @@ def main():
             summary[key] = {k: v for k, v in old.get(key, {}).items()
                             if only_checks or not any(k.startswith(s) for s in sides)}
 
-    def save():
-        tmp = path + ".tmp"
-        with open(tmp, "w") as f:
-            json.dump(summary, f, indent=1)
-        os.replace(tmp, path)
+    save = _saver(path, summary)
 
     for side in sides:
         if not only_checks:
@@ -240,27 +242,12 @@ def main():
 
 def report(s):
     rows = sorted(s["curve"], key=lambda r: (r["side"], r["D_over_L"]))
-    with open(os.path.join(OUT, "fold_curve_ratio.csv"), "w", newline="") as f:
-        w = csv.writer(f)
-        keys = ["side", "D_over_L", "phi_star_over_pi", "kind", "morse_before", "morse_after", "critical_eigenvalue",
-                "residual", "dphi_dratio_over_pi", "predicted_over_pi", "seconds"]
-        w.writerow(keys)
-        for r in rows:
-            w.writerow([r[k] if not isinstance(r[k], float) else f"{r[k]:.12g}" for k in keys])
+    _write_csv("fold_curve_ratio.csv", rows)
     lines = ["# The trefoil's critical twists against D/L: event curves against point studies", "",
              f"L = {s['L']:g} mm, N = {s['N']}, nu = {s['nu']}, D varied at fixed E (B, C ~ D^4), contact at D; "
              f"`benchmarks/fold_curve_ratio.py`. Each side's first instability followed in D/L by "
              f"`jaxrod.bifurcation.event_curve` from D/L = {s['D0'] / s['L']:.4f} up and down.", ""]
-    for key, seconds in s["curve_seconds"].items():
-        res = s["curve_result"].get(key, ["", ""])
-        n = len([r for r in s["curve"] if f"{r['side']}_{r['stage']}" == key])
-        lines.append(f"- {key}: {n} points in {seconds:.0f} s ({res[0]}{': ' + res[1] if res[1] else ''})")
-    lines += ["", "| side | D/L | phi* / pi | kind | Morse | critical eigenvalue | residual | dphi*/d(D/L) / pi |",
-              "|---|---|---|---|---|---|---|---|"]
-    for r in rows:
-        lines.append(f"| {r['side']} | {r['D_over_L']:.4f} | {r['phi_star_over_pi']:+.9f} | {r['kind']} | "
-                     f"{r['morse_before']} -> {r['morse_after']} | {r['critical_eigenvalue']:.1e} | {r['residual']:.1e} | "
-                     f"{r['dphi_dratio_over_pi']:+.3f} |")
+    lines += _curve_lines(s, rows)
     lines += ["", "Point studies (a new scene at that D, from phi = 0; its event located on its own) and, for each, "
               "dphi*/d(D/L) from the IFT against central differences of two more point studies at D +- h (h = 1e-3 D, "
               "each from the point study's stable state before its event):", "",
@@ -280,28 +267,43 @@ def report(s):
                      f"{c['study_over_pi']:+.10f} ({c['study_kind']}) | {c['difference_over_pi']:.1e} | {deriv} |")
     high = _high_rows()
     if high["curve"]:
-        with open(os.path.join(OUT, "fold_curve_ratio_high.csv"), "w", newline="") as f:
-            w = csv.writer(f)
-            w.writerow(keys)
-            for r in sorted(high["curve"], key=lambda r: (r["side"], r["D_over_L"])):
-                w.writerow([r[k] if not isinstance(r[k], float) else f"{r[k]:.12g}" for k in keys])
+        _write_csv("fold_curve_ratio_high.csv", sorted(high["curve"], key=lambda r: (r["side"], r["D_over_L"])))
         lines += ["", f"Second segment: the first event at D/L = {HIGH_START} (a point study, from a state on the symmetric "
                   f"branch at {HIGH_BELOW['plus']} pi / {HIGH_BELOW['minus']} pi) followed down to D/L = {HIGH_LOW} "
                   "(`python benchmarks/fold_curve_ratio.py high`). Where both segments exist, the first instability is the "
                   "event of smaller |phi*|.", ""]
-        for key, seconds in high["curve_seconds"].items():
-            res = high["curve_result"].get(key, ["", ""])
-            n = len([r for r in high["curve"] if f"{r['side']}_{r['stage']}" == key])
-            lines.append(f"- {key}: {n} points in {seconds:.0f} s ({res[0]}{': ' + res[1] if res[1] else ''})")
-        lines += ["", "| side | D/L | phi* / pi | kind | Morse | critical eigenvalue | residual | dphi*/d(D/L) / pi |",
-                  "|---|---|---|---|---|---|---|---|"]
-        for r in sorted(high["curve"], key=lambda r: (r["side"], r["D_over_L"])):
-            lines.append(f"| {r['side']} | {r['D_over_L']:.4f} | {r['phi_star_over_pi']:+.9f} | {r['kind']} | "
-                         f"{r['morse_before']} -> {r['morse_after']} | {r['critical_eigenvalue']:.1e} | "
-                         f"{r['residual']:.1e} | {r['dphi_dratio_over_pi']:+.3f} |")
+        lines += _curve_lines(high, sorted(high["curve"], key=lambda r: (r["side"], r["D_over_L"])))
     with open(os.path.join(OUT, "fold_curve_ratio.md"), "w") as f:
         f.write("\n".join(lines) + "\n")
     plot(rows, s, sorted(high["curve"], key=lambda r: (r["side"], r["D_over_L"])))
+
+
+CSV_KEYS = ["side", "D_over_L", "phi_star_over_pi", "kind", "morse_before", "morse_after", "critical_eigenvalue",
+            "residual", "dphi_dratio_over_pi", "predicted_over_pi", "seconds"]
+
+
+def _write_csv(name, rows):
+    with open(os.path.join(OUT, name), "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(CSV_KEYS)
+        for r in rows:
+            w.writerow([r[k] if not isinstance(r[k], float) else f"{r[k]:.12g}" for k in CSV_KEYS])
+
+
+def _curve_lines(run, rows):
+    """Markdown: a line per leg of ``run`` (points, seconds, how it ended), then the table of ``rows``."""
+    lines = []
+    for key, seconds in run["curve_seconds"].items():
+        res = run["curve_result"].get(key, ["", ""])
+        n = len([r for r in run["curve"] if f"{r['side']}_{r['stage']}" == key])
+        lines.append(f"- {key}: {n} points in {seconds:.0f} s ({res[0]}{': ' + res[1] if res[1] else ''})")
+    lines += ["", "| side | D/L | phi* / pi | kind | Morse | critical eigenvalue | residual | dphi*/d(D/L) / pi |",
+              "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['side']} | {r['D_over_L']:.4f} | {r['phi_star_over_pi']:+.9f} | {r['kind']} | "
+                     f"{r['morse_before']} -> {r['morse_after']} | {r['critical_eigenvalue']:.1e} | {r['residual']:.1e} | "
+                     f"{r['dphi_dratio_over_pi']:+.3f} |")
+    return lines
 
 
 def _high_rows():
