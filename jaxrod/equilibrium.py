@@ -202,7 +202,14 @@ def relax(scene, phi=0.0, q0=None, options=None, *, previous=None, nbr=None, gui
             leave=neighbourhood_stale if has_contact else None,
             hessian=structured_hessian,
         )
-    nbr = _grown(scene, q, phi, nbr)
+    if not (has_contact and nbr is not None and not nbr.stale(np.asarray(scene.positions(q)))):
+        nbr = _grown(scene, q, phi, nbr)
+    # else the given neighbourhood still holds at q0 (a continuation's predictor, a small push):
+    # no node moved more than skin/2 = D/4 since it was built, so no two strands (D apart where
+    # they touch) can have passed through each other on the way, and the O(N^2) writhe at q0
+    # (12 ms at N = 481, half of those a continuation computes) is not needed. Its reference
+    # writhe serves the holonomy lift; the drift test after the round below repeats the round if
+    # the writhe moved too far from it.
     wr_start = float(nbr.wr_ref)
     wr_last = wr_start if previous is None else float(previous.Wr)
     if abs(wr_start - wr_last) >= 1.0:

@@ -160,6 +160,25 @@ def test_a_pivoting_factorisation_is_refused_not_counted():
         spc._Bordered(hs, 0.0, np.zeros((3, 0)), np.zeros((0, 0)))
 
 
+def test_ldlt_gives_the_inertia_and_falls_back_to_superlu(monkeypatch):
+    # A random sparse symmetric indefinite matrix: QDLDL's pivots count the negative eigenvalues,
+    # its solves solve, for one and for several right-hand sides.
+    rng = np.random.default_rng(3)
+    m = 300
+    R = sp.random(m, m, density=0.02, random_state=rng, format="csc")
+    A = (R + R.T + sp.diags(rng.uniform(-3.0, 3.0, m))).tocsc()
+    negatives = int(np.sum(np.linalg.eigvalsh(A.toarray()) < 0.0))
+    assert 0 < negatives < m
+    fac, pivots = spc._ldlt(A)
+    assert isinstance(fac, spc._QDLDL) and int(np.sum(pivots < 0.0)) == negatives
+    B = rng.standard_normal((m, 3))
+    assert np.allclose(A @ fac.solve(B), B, atol=1e-8) and np.allclose(A @ fac.solve(B[:, 0]), B[:, 0], atol=1e-8)
+    # Without QDLDL (or where it refuses) SuperLU in symmetric mode gives the same count.
+    monkeypatch.setattr(spc, "_qdldl", None)
+    fac, pivots = spc._ldlt(A)
+    assert not isinstance(fac, spc._QDLDL) and int(np.sum(pivots < 0.0)) == negatives
+
+
 def _double_well(y, args):
     return (y[0] ** 2 - 1.0) ** 2 + 0.5 * args * y[1] ** 2
 
