@@ -30,7 +30,7 @@ import numpy as np
 
 from .geometry import safe_norm
 
-__all__ = ["ContactList", "all_pairs", "candidate_pairs", "contact_energy", "contact_count"]
+__all__ = ["ContactList", "all_pairs", "candidate_pairs", "contact_energy", "contact_count", "contact_pair_hessian"]
 
 _GAUSS = {
     1: (np.array([0.5]), np.array([1.0])),
@@ -157,3 +157,62 @@ def contact_count(x, pairs, mask, closed, D, n_gauss=2):
     r, _ = _pair_quadrature(x, jnp.asarray(pairs), closed, n_gauss)
     touching = jnp.any(r < D, axis=(1, 2)) & jnp.asarray(mask)
     return jnp.sum(touching)
+
+
+def contact_pair_hessian(y, D, B, stiffness, n_gauss=2):
+    """Exact Hessians of the contact energy of single segment pairs, in closed form.
+
+    y: (P, 12), per pair the nodes a0, a1 (segment a) and b0, b1 (segment b) -> (P, 12, 12), each
+    the Hessian of ``contact_energy`` of that pair alone (the same quadrature). Equal to
+    ``jax.hessian`` of it (tested to roundoff) at a third of the cost (at the trefoil's N = 481,
+    3072 pairs: 3.0 ms against 9.0 ms); the knot Hessians' contact blocks (``jaxrod.hessian``) are
+    these.
+
+    How: E = k la lb F with k = stiffness B / D^3, la, lb the segment lengths and
+    F = sum_ij w_i w_j phi(r_ij) over the Gauss points p_i of a and q_j of b. Each point pair
+    contributes c c^T (x) [phi'' n n^T + phi'/r (I - n n^T)] to the Hessian of F (c: the point
+    pair's weights on the four nodes, n the unit vector from q_j to p_i), and the product rule
+    adds the lengths' gradients and Hessians ((I - t t^T)/l on a segment's two nodes)."""
+    g, w = (jnp.asarray(v) for v in _GAUSS[n_gauss])
+    P = y.shape[0]
+    a0, a1, b0, b1 = y[:, 0:3], y[:, 3:6], y[:, 6:9], y[:, 9:12]
+    da, db = a1 - a0, b1 - b0
+    la, lb = jnp.linalg.norm(da, axis=1), jnp.linalg.norm(db, axis=1)
+    ta, tb = da / la[:, None], db / lb[:, None]
+    p = a0[:, None, :] + g[None, :, None] * da[:, None, :]  # (P, g, 3)
+    q = b0[:, None, :] + g[None, :, None] * db[:, None, :]
+    d = p[:, :, None, :] - q[:, None, :, :]  # (P, g, g, 3)
+    r = jnp.sqrt(jnp.sum(d * d, axis=-1))
+    rs = jnp.where(r > 0.0, r, 1.0)  # coincident points: no direction, phi' n taken as 0
+    s = jnp.where(r < D, 1.0 - r / D, 0.0)
+    ww = w[:, None] * w[None, :]
+    f0, f1, f2 = ww * s**3, ww * (-3.0 / D) * s**2, ww * (6.0 / D**2) * s  # phi, phi', phi'' weighted
+    n = d / rs[..., None]
+    k = g.size
+    c = jnp.stack([jnp.broadcast_to((1.0 - g)[:, None], (k, k)), jnp.broadcast_to(g[:, None], (k, k)),
+                   -jnp.broadcast_to((1.0 - g)[None, :], (k, k)), -jnp.broadcast_to(g[None, :], (k, k))], -1)
+    F = jnp.sum(f0, axis=(1, 2))
+    grad_F = jnp.einsum("ijk,Pij,Pija->Pka", c, f1, n).reshape(P, 12)
+    eye = jnp.eye(3)
+    nn = n[..., :, None] * n[..., None, :]
+    h_point = f2[..., None, None] * nn + jnp.where(r > 0.0, f1 / rs, 0.0)[..., None, None] * (eye - nn)
+    hess_F = jnp.einsum("ijk,ijl,Pijab->Pkalb", c, c, h_point).reshape(P, 12, 12)
+    z = jnp.zeros((P, 3))
+    grad_la = jnp.concatenate([-ta, ta, z, z], 1)
+    grad_lb = jnp.concatenate([z, z, -tb, tb], 1)
+    two_nodes = jnp.array([[1.0, -1.0], [-1.0, 1.0]])
+
+    def length_hessian(t, l):  # (P, 6, 6): Hessian of |x1 - x0| in (x0, x1)
+        m = (eye - t[:, :, None] * t[:, None, :]) / l[:, None, None]
+        return jnp.einsum("kl,Pab->Pkalb", two_nodes, m).reshape(P, 6, 6)
+
+    hess_la = jnp.zeros((P, 12, 12), y.dtype).at[:, 0:6, 0:6].set(length_hessian(ta, la))
+    hess_lb = jnp.zeros((P, 12, 12), y.dtype).at[:, 6:12, 6:12].set(length_hessian(tb, lb))
+
+    def sym(u, v):
+        return u[:, :, None] * v[:, None, :] + v[:, :, None] * u[:, None, :]
+
+    col = (lambda v: v[:, None, None])
+    h = (col(la * lb) * hess_F + col(lb * F) * hess_la + col(la * F) * hess_lb + col(F) * sym(grad_la, grad_lb)
+         + col(lb) * sym(grad_la, grad_F) + col(la) * sym(grad_lb, grad_F))
+    return (stiffness * B / D**3) * h

@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxrod.contact import all_pairs, candidate_pairs, contact_count, contact_energy
+from jaxrod.contact import all_pairs, candidate_pairs, contact_count, contact_energy, contact_pair_hessian
 from jaxrod.neighbourhood import build_neighbourhood
 from helpers import trefoil_points
 
@@ -68,6 +68,29 @@ def test_gradient_and_hessian_match_central_differences():
     h_fd = jnp.stack([(gf(v + step * e_) - gf(v - step * e_)) / (2 * step) for e_ in eye], axis=1)
     assert float(jnp.linalg.norm(g - g_fd) / jnp.linalg.norm(g)) < 1e-6
     assert float(jnp.linalg.norm(h - h_fd) / jnp.linalg.norm(h)) < 1e-6
+
+
+@pytest.mark.parametrize("n_gauss", [1, 2, 3])
+def test_closed_form_pair_hessian_equals_autodiff(n_gauss):
+    # Pairs at every depth: deep overlap, near activation (r ~ D), beyond reach (zero), nearly
+    # parallel and crossing; the closed form must equal jax.hessian of the pair's energy.
+    rng = np.random.default_rng(n_gauss)
+    P, D, B, k = 400, 1.3, 0.7, 50.0
+    a0 = rng.normal(size=(P, 3))
+    a1 = a0 + rng.normal(size=(P, 3)) * 0.2 + np.array([0.5, 0.0, 0.0])
+    b0 = a0 + rng.normal(size=(P, 3)) * rng.uniform(0.1, 1.5, (P, 1))
+    b1 = b0 + rng.normal(size=(P, 3)) * 0.2 + np.array([0.0, 0.5, 0.0])
+    y = jnp.asarray(np.concatenate([a0, a1, b0, b1], axis=1))
+
+    def pair_energy(v):
+        return contact_energy(v.reshape(4, 3), np.array([[0, 2]]), np.array([True]), False, D, B, k, n_gauss)
+
+    reference = jax.vmap(jax.hessian(pair_energy))(y)
+    closed_form = contact_pair_hessian(y, D, B, k, n_gauss)
+    energies = jax.vmap(pair_energy)(y)
+    assert int(jnp.sum(energies > 0.0)) > P // 4 and int(jnp.sum(energies == 0.0)) > 10  # both kinds met
+    scale = float(jnp.max(jnp.abs(reference)))
+    assert float(jnp.max(jnp.abs(closed_form - reference))) <= 1e-13 * scale
 
 
 def test_candidate_list_matches_all_pairs_on_a_knot():

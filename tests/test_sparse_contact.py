@@ -52,6 +52,14 @@ def test_sparse_hessian_equals_the_dense_structured_hessian(knot):
     R, C, V = np.concatenate([rows, r]), np.concatenate([cols, c]), np.concatenate([values, b.ravel()])
     reference = sp.coo_matrix((V, (R, C)), shape=(hs.n, hs.n)).toarray()
     assert np.max(np.abs(hs.S.toarray() - 0.5 * (reference + reference.T))) <= 1e-14 * np.max(np.abs(reference))
+    # node pairs numbered by sorting (many nodes) instead of by the table: the same entries
+    table, saved = spc._node_pair_entries(b, d, hs.n), spc._NODE_TABLE_MAX
+    try:
+        spc._NODE_TABLE_MAX = 0
+        sorted_ = spc._node_pair_entries(b, d, hs.n)
+    finally:
+        spc._NODE_TABLE_MAX = saved
+    assert all(np.array_equal(x, y) for x, y in zip(table, sorted_))
 
 
 def test_polyline_distance_is_exact_on_large_rods():
