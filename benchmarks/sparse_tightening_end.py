@@ -10,6 +10,7 @@ and the material slide where ``knot_problem`` finds it exact). The first event a
 index grows is the branch end; both backends' values are compared.
 
     python benchmarks/sparse_tightening_end.py          # N = 121 and 241, both backends
+    python benchmarks/sparse_tightening_end.py --N 481  # add (or redo) N = 481, the other rows kept
     python benchmarks/sparse_tightening_end.py --report-only
 
 Writes benchmarks/results/sparse_tightening_end.{json,md}.
@@ -70,11 +71,19 @@ def main():
     if len(sys.argv) > 2 and sys.argv[1] == "--child":
         child(int(sys.argv[2]))
         return
-    rows = []
+    path = os.path.join(RESULTS, "sparse_tightening_end.json")
+    old = []
+    if os.path.exists(path):
+        with open(path) as fh:
+            old = json.load(fh)
     if sys.argv[1:] == ["--report-only"]:
-        with open(os.path.join(RESULTS, "sparse_tightening_end.json")) as fh:
-            rows = json.load(fh)
-    for N in CASES if not rows else ():
+        rows, todo = old, ()
+    elif sys.argv[1:2] == ["--N"]:  # these N again, the other rows kept
+        todo = tuple(int(a) for a in sys.argv[2:])
+        rows = [r for r in old if r["N"] not in todo]
+    else:
+        rows, todo = [], CASES
+    for N in todo:
         out = subprocess.run([sys.executable, __file__, "--child", str(N)], capture_output=True, text=True)
         for line in out.stdout.splitlines():
             if line.startswith("ROW "):
@@ -102,7 +111,7 @@ def main():
                      f"{r['iterations']} | {r['full_gradient']:.1e} | {r['seconds']:.1f} |")
     by = {(r["N"], r["backend"]): r for r in rows}
     lines.append("")
-    for N in CASES:
+    for N in sorted({r["N"] for r in rows}):
         a, b = by.get((N, "sparse")), by.get((N, "dense"))
         if a and b and a["phi_over_pi"] is not None and b["phi_over_pi"] is not None:
             lines.append(f"- N = {N}: |sparse - dense| = {abs(a['phi_over_pi'] - b['phi_over_pi']):.1e} pi; time "
