@@ -413,3 +413,28 @@ def test_an_unstable_branch_is_followed_until_it_restabilises():
     # not restabilised within max_points: stopped, saying so
     br, back = until_stable(prob, ALG, opts, max_points=8)
     assert back is None and br.result is Result.STOPPED and "not restabilised" in br.message
+
+
+# 10. A small S: E = x^4/4 - eps x^2/2 - p x + y^2/2, p = x^3 - eps x, folds at x = -+sqrt(eps/3),
+# 0.2 apart for eps = 0.03. A point just past the first fold (x = -0.09) and a step across the
+# second (to x ~ +0.11): Newton from the nearer end (x = -0.09) converges to the first fold, which
+# lies outside the step. It must not be reported again (the trefoil at N = 61 gave the same fold at
+# 6.2160202871 pi twice, steps 55 and 56): the fold in the step is the second one.
+def small_s_energy(u, p, eps):
+    x, y = u
+    return x ** 4 / 4 - eps * x ** 2 / 2 - p * x + y ** 2 / 2
+
+
+def test_a_fold_outside_the_step_is_not_reported_again():
+    eps = 0.03
+    r = np.sqrt(eps / 3)
+    x0 = -0.09
+    p0 = x0 ** 3 - eps * x0
+    prob = BifurcationProblem(small_s_energy, [x0, 0.0], p0, eps)
+    t = np.array([1.0, 0.0, 3 * x0 ** 2 - eps])  # along the curve, x growing
+    opts = ContinuationOptions(ds=0.2, ds_max=0.2, max_steps=1, n_eig=1, p_min=-1.0, p_max=1.0)
+    br = continuation(prob, ALG, opts, start=([x0, 0.0], p0, t), throw=False)
+    assert br.points[0].u[0] > -r and br.points[1].u[0] > r  # the step crosses the second fold only
+    (e,) = br.events
+    check_located(e, "fold", -2 * eps / 3 * r, [r, 0.0])
+    assert (e.morse_before, e.morse_after) == (1, 0)

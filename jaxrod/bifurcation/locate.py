@@ -64,17 +64,24 @@ def locate_fold(problem, opts, starts, morse, step):
     if isinstance(starts, Point):
         starts = (starts,)
     ends = sorted(starts, key=lambda q: q.arclength)  # in path order
-    found, start = None, starts[0]
+    found, start, elsewhere = None, starts[0], False
     for start in starts:
         found = _fold_from(problem, opts, start, morse)
+        if found is not None and found.ok and not _turn_in_step(found.p, ends):
+            # converged to a turn of p outside this step: two folds close together (a small S) with a
+            # point between them, and Newton from it found the previous step's fold again
+            found, elsewhere = None, True
+            continue
         # a soft critical mode where the Morse index changed: Newton found the slide's singular
         # point next to the shape fold (the two nearly coincide); try from the other end
         if found is not None and not (found.ok and found.soft and morse[0] != morse[1]):
             break
     same_morse = morse[0] == morse[1]
-    if (found is None or not found.ok) and not same_morse and len(ends) == 2 and problem.soft_modes is not None:
+    if (found is None or not found.ok) and not same_morse and len(ends) == 2 and (problem.soft_modes is not None
+                                                                                   or elsewhere):
         # Newton diverged or stalled from both ends (the critical mode mixed with a near-null slide:
-        # the trefoil at N = 128, D/L = 0.031): the shape fold by its own eigenvalue's root along the bracket
+        # the trefoil at N = 128, D/L = 0.031), or found only a turn outside the step: the shape
+        # fold by its own eigenvalue's root along the bracket
         found = _fold_by_bracket(problem, opts, ends[0], ends[1], morse) or found
     if (found is None or not found.ok) and same_morse and len(ends) == 2 and problem.soft_modes is not None:
         # not located from either end: a turn along a soft mode that Newton did not converge to?
@@ -117,6 +124,19 @@ def locate_fold(problem, opts, starts, morse, step):
         return fold
     bp = simple_branch_point(problem, opts, found.u, found.p, v, morse, step, tangent)
     return fold if bp is None else bp
+
+
+def _turn_in_step(p, ends):
+    """Whether p can be the turning point of the path between the Points ends (path order): where
+    p rises and then falls along the step, the turn is a maximum, at least the larger end's p;
+    where it falls and then rises, a minimum. (A single Point: no bracket to check.)"""
+    if len(ends) != 2:
+        return True
+    a, b = ends
+    slack = 1e-12 * max(1.0, abs(a.p), abs(b.p))
+    if a.tangent[-1] > 0.0:
+        return p >= max(a.p, b.p) - slack
+    return p <= min(a.p, b.p) + slack
 
 
 class _FoldTry(NamedTuple):
@@ -255,6 +275,8 @@ def _fold_by_bracket(problem, opts, a, b, morse, along_soft=False):
     c, (vals, vecs, _, soft_vecs) = at(s)
     border = soft_vecs[:, 0] if along_soft else vecs[:, lo]
     found = _classified(problem, opts, morse, *_fold_newton(problem, opts, c.z[:-1], float(c.z[-1]), border))
+    if found is not None and found.ok and not _turn_in_step(found.p, (a, b)):
+        found = None  # Newton left the bracket for another turn: the root below is this step's fold
     if (found is None or not found.ok) and not along_soft:
         # Newton on the fold system did not converge from the root either (a near-null slide next
         # to the critical mode): the root itself is the fold, a point of the branch (F = 0 to the
