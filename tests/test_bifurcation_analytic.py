@@ -438,3 +438,24 @@ def test_a_fold_outside_the_step_is_not_reported_again():
     (e,) = br.events
     check_located(e, "fold", -2 * eps / 3 * r, [r, 0.0])
     assert (e.morse_before, e.morse_after) == (1, 0)
+
+
+# 11. Two branch points close together on a trivial branch: E = x^4/4 + p (p - 0.1) x^2/2 + y^2/2,
+# lambda = p (p - 0.1) crosses zero at p = 0 (Morse 0 -> 1) and p = 0.1 (1 -> 0). A step from
+# p = 0.02 to 0.15 holds only the second; the unfolded system from its nearer end (|lambda| smaller
+# at 0.02) converges to the first. The event of this step must be the branch point at 0.1 (the
+# trefoil at N = 61 reported its 2 -> 1 crossing near 6.2332 pi as not located, Newton having
+# found the 1 -> 2 one at 6.3152 pi, and the hyperplane corrector failing next to the root).
+def two_crossings_energy(u, p, args):
+    x, y = u
+    return x ** 4 / 4 + p * (p - 0.1) * x ** 2 / 2 + y ** 2 / 2
+
+
+def test_a_branch_point_outside_the_step_is_not_taken_for_its_own():
+    prob = BifurcationProblem(two_crossings_energy, [0.0, 0.0], 0.02)
+    opts = ContinuationOptions(ds=0.13, ds_max=0.13, max_steps=1, n_eig=2, p_min=-1.0, p_max=1.0)
+    br = continuation(prob, ALG, opts, throw=False)
+    assert [q.morse_index for q in br.points] == [1, 0] and br.points[1].p > 0.1
+    (e,) = br.events
+    check_located(e, "branch_point", 0.1, [0.0, 0.0])
+    assert (e.morse_before, e.morse_after) == (1, 0)

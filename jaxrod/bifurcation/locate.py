@@ -347,6 +347,14 @@ def simple_branch_point(problem, opts, u, p, v0, morse, step, tangent):
     return Event("branch_point", p, u, vecs[:, [k]], vals[[k]], res, it, 1, morse[0], morse[1], step, tangent, True)
 
 
+def _shape_index(point, rank):
+    """Index, among a Point's computed eigenpairs, of its rank-th shape mode (soft modes skipped)."""
+    if point.soft is None or not np.any(point.soft):
+        return rank
+    shape = np.flatnonzero(~np.asarray(point.soft, dtype=bool))
+    return int(shape[min(rank, shape.size - 1)])
+
+
 def locate_branch_points(problem, opts, a, b, step):
     """Branch point(s) between Points a and b (Morse index differs, no fold). -> [Event]."""
     lo, k = min(a.morse_index, b.morse_index), abs(a.morse_index - b.morse_index)
@@ -356,22 +364,46 @@ def locate_branch_points(problem, opts, a, b, step):
     # the Morse index is: a slide's eigenvalue must not be taken for the crossing one
     at, sb = _on_bracket(problem, opts, a, b, lo + k)
 
+    morse = (a.morse_index, b.morse_index)
+
+    def simple_from(u, p, v, tangent):
+        """simple_branch_point from (u, p) along v, kept only if it lies in this step (no fold in
+        it, so p runs monotonically from a.p to b.p): Newton may converge to a neighbouring step's."""
+        e = simple_branch_point(problem, opts, u, p, v, morse, step, tangent)
+        slack = 1e-12 * max(1.0, abs(a.p), abs(b.p))
+        return e if e is not None and min(a.p, b.p) - slack <= e.p <= max(a.p, b.p) + slack else None
+
     if k == 1:
-        start = a if abs(a.eigenvalues[lo]) <= abs(b.eigenvalues[lo]) else b
-        e = simple_branch_point(problem, opts, start.u, start.p, start.eigenvectors[:, lo],
-                                (a.morse_index, b.morse_index), step, start.tangent)
+        # the crossing mode by its rank among the shape modes (soft directions split off), as the
+        # Morse index counts it: a soft mode's index must not be taken for it
+        ends = [(q, _shape_index(q, lo)) for q in (a, b)]
+        (start, j0), _ = sorted(ends, key=lambda e: abs(e[0].eigenvalues[e[1]]))
+        e = simple_from(start.u, start.p, start.eigenvectors[:, j0], start.tangent)
         if e is not None:
             return [e]
-    roots, calls = [], 0
+    roots, calls, tried = [], 0, {}
     try:
         for j in range(lo, lo + k):
-            f = lambda s: at(s)[1][0][j]  # noqa: E731  (the shape eigenvalue j)
+            def f(s, j=j):  # the shape eigenvalue j on the hyperplane s
+                value = at(s)[1][0][j]
+                tried[s] = (j, value)
+                return value
+
             if f(0.0) * f(sb) >= 0:  # the tracked eigenvalue does not change sign over the bracket
                 raise _Failed
             s, info = brentq(f, 0.0, sb, xtol=1e-15 * abs(sb), rtol=1e-15, maxiter=100, full_output=True)
             roots.append(s)
             calls += info.function_calls
     except _Failed:  # a corrector failure, or no sign change
+        if k == 1 and tried:
+            # The hyperplane corrector is singular at a branch point and may fail right next to it
+            # (the trefoil at N = 61, 6.2332 pi: at s = 0.2540 of 0.5, after |lambda| = 2.9e-7 at
+            # 0.2537): the unfolded system, regular there, from the nearest point Brent reached
+            s_best = min(tried, key=lambda s: abs(tried[s][1]))
+            c, (vals, vecs, _, _) = at(s_best)
+            e = simple_from(c.z[:-1], float(c.z[-1]), vecs[:, tried[s_best][0]], ta if s_best < 0.5 * sb else b.tangent)
+            if e is not None:
+                return [e]
         return [Event("branch_point", a.p, a.u, a.eigenvectors[:, lo:lo + k], a.eigenvalues[lo:lo + k], np.inf,
                       calls, k, a.morse_index, b.morse_index, step, ta, False)]
     # group coincident roots (a symmetric, multiple crossing) into one event each: equal to 1e-9 of
