@@ -441,21 +441,23 @@ def test_a_fold_outside_the_step_is_not_reported_again():
 
 
 # 11. Two branch points close together on a trivial branch: E = x^4/4 + p (p - 0.1) x^2/2 + y^2/2,
-# lambda = p (p - 0.1) crosses zero at p = 0 (Morse 0 -> 1) and p = 0.1 (1 -> 0). A step from
-# p = 0.02 to 0.15 holds only the second; the unfolded system from its nearer end (|lambda| smaller
-# at 0.02) converges to the first. The event of this step must be the branch point at 0.1 (the
-# trefoil at N = 61 reported its 2 -> 1 crossing near 6.2332 pi as not located, Newton having
-# found the 1 -> 2 one at 6.3152 pi, and the hyperplane corrector failing next to the root).
+# lambda = p (p - 0.1) crosses zero at p = 0 (Morse 0 -> 1) and p = 0.1 (1 -> 0). Steps of 0.13 from
+# p = -0.11: the first (to 0.02) holds the crossing at 0, the second (to 0.15) the one at 0.1. From
+# the second step's nearer end (|lambda| smaller at 0.02) the unfolded system converges to the
+# first crossing again: the second step's event must be the branch point at 0.1 (the trefoil at
+# N = 61 reported its 2 -> 1 crossing near 6.2332 pi as not located, Newton having found the 1 -> 2
+# one at 6.3152 pi, and the hyperplane corrector failing next to the root).
 def two_crossings_energy(u, p, args):
     x, y = u
     return x ** 4 / 4 + p * (p - 0.1) * x ** 2 / 2 + y ** 2 / 2
 
 
-def test_a_branch_point_outside_the_step_is_not_taken_for_its_own():
-    prob = BifurcationProblem(two_crossings_energy, [0.0, 0.0], 0.02)
-    opts = ContinuationOptions(ds=0.13, ds_max=0.13, max_steps=1, n_eig=2, p_min=-1.0, p_max=1.0)
+def test_a_branch_point_already_located_is_not_taken_for_the_next():
+    prob = BifurcationProblem(two_crossings_energy, [0.0, 0.0], -0.11)
+    opts = ContinuationOptions(ds=0.13, ds_max=0.13, max_steps=2, n_eig=2, p_min=-1.0, p_max=1.0)
     br = continuation(prob, ALG, opts, throw=False)
-    assert [q.morse_index for q in br.points] == [1, 0] and br.points[1].p > 0.1
-    (e,) = br.events
-    check_located(e, "branch_point", 0.1, [0.0, 0.0])
-    assert (e.morse_before, e.morse_after) == (1, 0)
+    assert [q.morse_index for q in br.points] == [0, 1, 0] and br.points[2].p > 0.1
+    first, second = br.events
+    check_located(first, "branch_point", 0.0, [0.0, 0.0])
+    check_located(second, "branch_point", 0.1, [0.0, 0.0])
+    assert (first.morse_before, first.morse_after, second.morse_before, second.morse_after) == (0, 1, 1, 0)

@@ -33,14 +33,16 @@ def _point(problem, opts, c, t, ds, arclength):
     return Point(u, p, t, vals, vecs, morse, c.iterations, ds, arclength, soft)
 
 
-def continuation(problem, alg, opts, *, observer=None, start=None, throw=True):
+def continuation(problem, alg, opts, *, observer=None, start=None, throw=True, known=()):
     """Follow the branch of F(u, p) = 0 through (problem.u0, problem.p0) by ``alg`` (PseudoArclength).
 
     start: optional (u (n,), p, tangent (n+1,)): a predicted point and direction (a branch switch);
     the first point is then corrected on the hyperplane through it orthogonal to the tangent,
     otherwise on p = p0, and the path starts towards sign(opts.ds) in p.
     observer(point) is called after each accepted point. Folds and branch points found between
-    consecutive points are located (``Branch.events``). throw=True raises ContinuationError (with
+    consecutive points are located (``Branch.events``); known: events located before on the same
+    path (earlier chunks), which a locator landing on one does not take for a new event.
+    throw=True raises ContinuationError (with
     ``.branch``) when the corrector fails or an event is not located to ``opts.event_tol``;
     throw=False returns the branch with ``result`` and ``message`` saying so.
     """
@@ -81,7 +83,8 @@ def continuation(problem, alg, opts, *, observer=None, start=None, throw=True):
         if observer is not None:
             observer(points[-1])
         if opts.detect_events:
-            found = find_events(problem, opts, points[-2], points[-1], len(points) - 1)
+            found = find_events(problem, opts, points[-2], points[-1], len(points) - 1,
+                                [e for e in list(known) + events if e.converged])
             events += found
             soft = next((e for e in found if e.kind in ("soft_fold", "soft_turn") and e.converged), None)
             if soft is not None and opts.soft_folds == "slide":
@@ -120,7 +123,7 @@ def continuation_until(problem, alg, opts, stop, *, start=None, observer=None):
     stop's message, or the last chunk's result and message. Never raises for a failed chunk."""
     points, events, slides = [], [], []
     while True:
-        br = continuation(problem, alg, opts, start=start, throw=False, observer=observer)
+        br = continuation(problem, alg, opts, start=start, throw=False, observer=observer, known=events)
         offset = len(points) - (1 if points else 0)
         if points:  # a chunk restarts its arclength at 0: carry it on from the last point
             s0 = points[-1].arclength

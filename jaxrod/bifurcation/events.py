@@ -17,13 +17,14 @@ from __future__ import annotations
 from .locate import locate_branch_points, locate_fold
 
 
-def find_events(problem, opts, a, b, step):
-    """Located events (list of Event) between Points a and b = points[step - 1], points[step]."""
+def find_events(problem, opts, a, b, step, known=()):
+    """Located events (list of Event) between Points a and b = points[step - 1], points[step];
+    known: the events located before on this path (a locator landing on one is not taken)."""
     if a.tangent[-1] * b.tangent[-1] < 0:
         # start Newton from the end nearer the fold (smaller |dp/ds|), the other end as a fallback
         starts = (a, b) if abs(a.tangent[-1]) <= abs(b.tangent[-1]) else (b, a)
         return [locate_fold(problem, opts, starts, (a.morse_index, b.morse_index), step)]
     if a.morse_index != b.morse_index:
-        return locate_branch_points(problem, opts, a, b, step)
+        return locate_branch_points(problem, opts, a, b, step, known)
     return []
 

@@ -347,6 +347,13 @@ def simple_branch_point(problem, opts, u, p, v0, morse, step, tangent):
     return Event("branch_point", p, u, vecs[:, [k]], vals[[k]], res, it, 1, morse[0], morse[1], step, tangent, True)
 
 
+def _same_point(e, other):
+    """Whether two located events are one point of the path (to far below any step)."""
+    scale = max(1.0, abs(e.p))
+    return bool(abs(e.p - other.p) <= 1e-9 * scale
+                and np.linalg.norm(np.asarray(e.u) - np.asarray(other.u)) <= 1e-6 * (1.0 + np.linalg.norm(e.u)))
+
+
 def _shape_index(point, rank):
     """Index, among a Point's computed eigenpairs, of its rank-th shape mode (soft modes skipped)."""
     if point.soft is None or not np.any(point.soft):
@@ -355,8 +362,10 @@ def _shape_index(point, rank):
     return int(shape[min(rank, shape.size - 1)])
 
 
-def locate_branch_points(problem, opts, a, b, step):
-    """Branch point(s) between Points a and b (Morse index differs, no fold). -> [Event]."""
+def locate_branch_points(problem, opts, a, b, step, known=()):
+    """Branch point(s) between Points a and b (Morse index differs, no fold). -> [Event].
+    known: events already located on this path; Newton landing on one of them has found an
+    earlier crossing, not this step's."""
     lo, k = min(a.morse_index, b.morse_index), abs(a.morse_index - b.morse_index)
     sign = 1 if b.morse_index > a.morse_index else -1
     ta = a.tangent
@@ -367,11 +376,14 @@ def locate_branch_points(problem, opts, a, b, step):
     morse = (a.morse_index, b.morse_index)
 
     def simple_from(u, p, v, tangent):
-        """simple_branch_point from (u, p) along v, kept only if it lies in this step (no fold in
-        it, so p runs monotonically from a.p to b.p): Newton may converge to a neighbouring step's."""
+        """simple_branch_point from (u, p) along v, unless it lands on an event already located
+        (an earlier crossing of the same or another mode, Newton's basin reaching past this step).
+        Not required to lie between a and b: the Morse index counts an eigenvalue negative only
+        below a band, so a crossing may sit just outside the step where the count changes."""
         e = simple_branch_point(problem, opts, u, p, v, morse, step, tangent)
-        slack = 1e-12 * max(1.0, abs(a.p), abs(b.p))
-        return e if e is not None and min(a.p, b.p) - slack <= e.p <= max(a.p, b.p) + slack else None
+        if e is None or any(_same_point(e, k) for k in known):
+            return None
+        return e
 
     if k == 1:
         # the crossing mode by its rank among the shape modes (soft directions split off), as the
