@@ -415,6 +415,28 @@ def test_an_unstable_branch_is_followed_until_it_restabilises():
     assert back is None and br.result is Result.STOPPED and "not restabilised" in br.message
 
 
+def test_the_branch_met_where_an_unstable_branch_restabilises():
+    # System 2's branch y = 1, x^2 = p - 1 (Morse 1) restabilises at p = 2, where it crosses the
+    # branch x^2 = y, p = y + y^2 (a transcritical point at x = y = 1). switch_branches from the
+    # restabilising event gives that branch: stable (Morse 0) towards p < 2, unstable beyond.
+    from jaxrod.bifurcation import switch_branches, until_stable
+
+    p0 = 1.2
+    prob = BifurcationProblem(pitchfork_energy, [np.sqrt(p0 - 1.0), 1.0], p0)
+    opts = ContinuationOptions(ds=0.1, ds_max=0.2, max_steps=5, n_eig=2, p_min=-3.0, p_max=4.0)
+    _, back = until_stable(prob, ALG, opts, max_points=200, keep=3)
+    check_located(back, "branch_point", 2.0, [1.0, 1.0])
+    assert (back.morse_before, back.morse_after) == (1, 0)
+    halves = switch_branches(prob, back, ALG, ContinuationOptions(ds=0.05, ds_max=0.1, max_steps=10, n_eig=2,
+                                                                  p_min=-3.0, p_max=4.0))
+    by_side = {}
+    for br in halves:
+        x, y = br.u.T
+        assert np.max(np.abs(x ** 2 - y)) <= 1e-9 and np.max(np.abs(br.p - y - y ** 2)) <= 1e-9  # the met branch
+        by_side["below" if np.all(br.p < 2.0) else "above"] = sorted({int(m) for m in br.morse_index})
+    assert by_side == {"below": [0], "above": [1]}
+
+
 # 10. A small S: E = x^4/4 - eps x^2/2 - p x + y^2/2, p = x^3 - eps x, folds at x = -+sqrt(eps/3),
 # 0.2 apart for eps = 0.03. A point just past the first fold (x = -0.09) and a step across the
 # second (to x ~ +0.11): Newton from the nearer end (x = -0.09) converges to the first fold, which
