@@ -265,10 +265,7 @@ class _SymbolicPool:
             solver = idle.pop() if idle else None
         if solver is None:
             return key, _qdldl.Solver(A)
-        try:
-            solver.update(A)
-        except RuntimeError:
-            raise  # the solver's numbers are now invalid: it is dropped, not returned to the pool
+        solver.update(A)  # if this raises, the solver (its numbers now invalid) is dropped, not given back
         return key, solver
 
     def give_back(self, key, solver):
