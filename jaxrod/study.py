@@ -34,6 +34,7 @@ import threading
 import time
 from dataclasses import dataclass, field, replace
 
+import jax.numpy as jnp
 import numpy as np
 
 from .sparse_contact import use_sparse
@@ -266,8 +267,11 @@ def twist_study(scene, phi_min, phi_max, options=None, *, out=None, resume=True,
         todo.append((direction, target, stored.get(direction)))
     if any(state is None for _, _, state in todo):
         say("relaxing the knot at phi = 0")
+        ahead = _compile_ahead(scene) if parallel and len(todo) == 2 else None
         # A minimum, not a saddle: a symmetric drawing (a torus knot) can relax onto a saddle.
         start = relax_to_minimum(scene, 0.0, None, progress=say)
+        if ahead is not None:
+            ahead.join()
 
     def run_direction(direction, target, state):
         counter = 0 if state is None else int(state.arrays["n_points"])
@@ -337,6 +341,31 @@ def twist_study(scene, phi_min, phi_max, options=None, *, out=None, resume=True,
     return StudyResult(table=table, critical=critical, out=out, seconds=seconds,
                        seconds_total=seconds_before + seconds,
                        end_states=_end_states(critical, end_states, out))
+
+
+def _compile_ahead(scene):
+    """A thread that runs the continuation's per-step analysis once on the drawn shape, while the
+    relaxation at phi = 0 runs: its programs (projected Hessian, branch tangent, step records) are
+    then compiled, or loaded from the compile cache, on the core the relaxation leaves idle (one
+    XLA compilation uses one core), not one after the other at the first steps. The results are
+    dropped; a failure only loses the head start."""
+    from .records import _record_arrays
+    from .stability import branch_analysis
+
+    def run():
+        try:
+            q = np.asarray(scene.q_init, dtype=float)
+            nbr = scene.neighbourhood(q, 0.0)
+            branch_analysis(scene, q, 0.0, 0, nbr=nbr)
+            _record_arrays(scene, jnp.asarray(q), jnp.asarray(0.0), nbr)
+        except Exception:  # noqa: BLE001 -- only a head start
+            pass
+
+    if "contact" in scene.terms and use_sparse(scene, "auto"):
+        return None  # the sparse path compiles other programs
+    thread = threading.Thread(target=run, name="jaxrod-compile-ahead", daemon=True)
+    thread.start()
+    return thread
 
 
 def _read_seconds(out):
