@@ -1,6 +1,6 @@
 """Command 1 as a user runs it: ``jaxrod trefoil ...`` as two CLI processes, the second reusing the
 first's compile cache, with the CLI's XLA flags (the default) and without them (XLA_FLAGS set to
-the fusion emitters' default, which the CLI then leaves alone), side by side on this machine.
+XLA's defaults for the flags the CLI sets, which it then leaves alone), side by side on this machine.
 
     python benchmarks/cli_start.py              # 1 round
     python benchmarks/cli_start.py --rounds 2
@@ -27,7 +27,8 @@ import time  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ARGS = ["trefoil", "--D", "8", "--L", "292", "--N", "121", "--phi-min", "-12pi", "--phi-max", "14pi"]
-SETTINGS = {"CLI flags (default)": None, "XLA defaults": "--xla_cpu_use_fusion_emitters=true"}
+SETTINGS = {"CLI flags (default)": None,
+            "XLA defaults": "--xla_cpu_use_fusion_emitters=true --xla_backend_optimization_level=3"}
 
 
 def run_cli(args, cache, out, xla_flags=None):

@@ -1341,9 +1341,12 @@ def _main(argv):
 # XLA:CPU's classic elemental emitters instead of its MLIR fusion emitters: the same arithmetic
 # (fast-math stays off), compiled faster. Command 1 (N = 121, -12 pi ... 14 pi) as two CLI
 # processes on an empty cache (benchmarks/cli_start.py, medians of 2 rounds): 35.8 s against
-# 41.1 s cold, 24.3 s against 25.5 s warm, phi* equal to 2e-10 rad. Only for the command's own
-# process, and only if the user set no such flag.
-_CLI_XLA_FLAGS = ("--xla_cpu_use_fusion_emitters=false",)
+# 41.1 s cold, 24.3 s against 25.5 s warm, phi* equal to 2e-10 rad. And LLVM's optimisation
+# level 1 instead of XLA's default 3: 32.5 / 32.7 / 33.4 s cold against 33.9 / 34.7 / 35.6 s,
+# warm 15.2 / 15.4 / 15.6 s against 15.1 / 15.5 / 15.6 s (alternating runs, 2026-12-04; level 0
+# compiled 40 % faster but ran the Newton loop 1.5x slower); the located ends equal to 2e-11 pi.
+# Only for the command's own process, and only if the user set no such flag.
+_CLI_XLA_FLAGS = ("--xla_cpu_use_fusion_emitters=false", "--xla_backend_optimization_level=1")
 
 
 def _add_cli_xla_flags(environ=os.environ):

@@ -273,13 +273,16 @@ def test_cli_xla_flags_are_added_unless_the_user_set_them():
     env = {"XLA_FLAGS": "--xla_force_host_platform_device_count=2"}
     _add_cli_xla_flags(env)
     assert env["XLA_FLAGS"].split() == ["--xla_force_host_platform_device_count=2",
-                                        "--xla_cpu_use_fusion_emitters=false"]
-    mine = {"XLA_FLAGS": "--xla_cpu_use_fusion_emitters=true"}
+                                        "--xla_cpu_use_fusion_emitters=false", "--xla_backend_optimization_level=1"]
+    mine = {"XLA_FLAGS": "--xla_cpu_use_fusion_emitters=true --xla_backend_optimization_level=3"}
     _add_cli_xla_flags(mine)
-    assert mine["XLA_FLAGS"] == "--xla_cpu_use_fusion_emitters=true"
+    assert mine["XLA_FLAGS"] == "--xla_cpu_use_fusion_emitters=true --xla_backend_optimization_level=3"
+    one = {"XLA_FLAGS": "--xla_backend_optimization_level=2"}  # the user's value of one flag stays
+    _add_cli_xla_flags(one)
+    assert one["XLA_FLAGS"].split() == ["--xla_backend_optimization_level=2", "--xla_cpu_use_fusion_emitters=false"]
     empty = {}
     _add_cli_xla_flags(empty)
-    assert empty["XLA_FLAGS"] == "--xla_cpu_use_fusion_emitters=false"
+    assert empty["XLA_FLAGS"] == "--xla_cpu_use_fusion_emitters=false --xla_backend_optimization_level=1"
     code = "import jaxrod.cli; from jax._src import xla_bridge; print(len(xla_bridge._backends))"
     assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip() == "0"
 
