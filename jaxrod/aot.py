@@ -197,7 +197,7 @@ def _load_or_export(fn, statics, names, treedef, leaves, path):
 
     try:
         with open(path, "rb") as f:
-            return jax.jit(export.deserialize(bytearray(f.read())).call)
+            return _named_call(export.deserialize(bytearray(f.read())), fn)
     except OSError:
         pass
     except Exception:  # noqa: BLE001 -- a damaged or foreign file: exported again below
@@ -219,4 +219,14 @@ def _load_or_export(fn, statics, names, treedef, leaves, path):
         os.replace(tmp, path)
     except OSError:  # a read-only cache: kept in memory only
         pass
-    return jax.jit(exported.call)
+    return _named_call(exported, fn)
+
+
+def _named_call(exported, fn):
+    """jax.jit of the exported program's call, named after fn, so that JAX's compile logs and
+    profiles say which program it is (they would all read ``jit(call)``)."""
+    def call(*xs):
+        return exported.call(*xs)
+
+    call.__name__ = call.__qualname__ = fn.__name__
+    return jax.jit(call)

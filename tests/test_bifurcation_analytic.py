@@ -483,3 +483,33 @@ def test_a_branch_point_already_located_is_not_taken_for_the_next():
     check_located(first, "branch_point", 0.0, [0.0, 0.0])
     check_located(second, "branch_point", 0.1, [0.0, 0.0])
     assert (first.morse_before, first.morse_after, second.morse_before, second.morse_after) == (0, 1, 1, 0)
+
+
+def coupled_energy(u, p, mu):
+    # a 4-DOF energy with every third derivative nonzero and a p-dependent Hessian
+    x = u
+    return (jnp.sum(x ** 4) / 4 + mu * x[0] * x[1] * x[2] - p * jnp.dot(x, x) / 2 + jnp.sin(p * x[3]) * x[0] ** 2
+            + x[1] ** 2 * x[3] + jnp.exp(0.1 * p * x[2]))
+
+
+def test_the_test_functions_adjoint_equals_reverse_mode_through_the_bordered_solve():
+    """``singular_tests`` (the branch-point locator's Newton matrix) and ``wjw_gradient`` (the fold
+    locator's) come from a jitted linearisation, the backend's bordered solves and two contracted
+    third-derivative gradients: they equal reverse-mode differentiation of the traceable
+    ``_singular_tests`` (through the bordered solve) and of w^T J w, to roundoff."""
+    import jax
+
+    prob = BifurcationProblem(coupled_energy, [0.3, -0.7, 0.5, 1.1], 0.4, 0.8)
+    u, p, b = jnp.array([0.3, -0.7, 0.5, 1.1]), jnp.asarray(0.4), np.array([0.5, 0.1, -0.3, 0.8])
+    (gu, gp), (st, F, J, Fp, w) = prob.singular_tests(u, p, prob.args, b)
+    ref_u, ref_p = jax.jacrev(lambda x, q: prob._singular_tests(x, q, prob.args, b)[0], argnums=(0, 1))(u, p)
+    ref_st = prob._singular_tests(u, p, prob.args, b)[0]
+    np.testing.assert_allclose(st, ref_st, rtol=1e-13, atol=1e-14)
+    np.testing.assert_allclose(gu, ref_u, rtol=1e-11, atol=1e-12)
+    np.testing.assert_allclose(gp, ref_p, rtol=1e-11, atol=1e-12)
+    assert np.max(np.abs(ref_u)) > 0.1 and abs(ref_p[1]) > 1e-3  # the check is not of zeros
+    hess = jax.hessian(coupled_energy)
+    wu, wp = prob.wjw_gradient(u, p, prob.args, jnp.asarray(w))
+    ref = jax.grad(lambda x, q: w @ hess(x, q, 0.8) @ w, argnums=(0, 1))(u, p)
+    np.testing.assert_allclose(wu, ref[0], rtol=1e-12, atol=1e-13)
+    assert float(wp) == pytest.approx(float(ref[1]), rel=1e-12, abs=1e-13)

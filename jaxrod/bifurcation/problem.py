@@ -128,13 +128,8 @@ def _linearise_program(u, p, args, energy, residual, jacobian, backend):
 
 
 @cached_jit(static_argnames=_STATICS)
-def _wjw_gradient_program(u, p, args, w, energy, residual, jacobian, backend):
-    return _functions(energy, residual, jacobian, backend)._wjw_gradient(u, p, args, w)
-
-
-@cached_jit(static_argnames=_STATICS)
-def _singular_tests_program(u, p, args, b, energy, residual, jacobian, backend):
-    return _functions(energy, residual, jacobian, backend)._singular_test_gradients(u, p, args, b)
+def _bilinear_gradient_program(u, p, args, a, c, t, energy, residual, jacobian, backend):
+    return _functions(energy, residual, jacobian, backend)._bilinear_gradient(u, p, args, a, c, t)
 
 
 @cached_jit(static_argnames=_STATICS)
@@ -145,11 +140,6 @@ def _hvp_derivative_program(u, p, args, w, du, dp, energy, residual, jacobian, b
 @cached_jit(static_argnames=_STATICS)
 def _directional_derivatives_program(u, p, args, h, energy, residual, jacobian, backend):
     return _functions(energy, residual, jacobian, backend)._directional_derivatives(u, p, args, h)
-
-
-@cached_jit(static_argnames=_STATICS)
-def _tests_gradient_program(u, p, args, w, y, energy, residual, jacobian, backend):
-    return _functions(energy, residual, jacobian, backend)._tests_gradient(u, p, args, w, y)
 
 
 class _Functions:
@@ -167,37 +157,63 @@ class _Functions:
         # module-level, so they key it), where a jit of a bound method could only be traced anew
         statics = {"energy": energy, "residual": residual, "jacobian": jacobian, "backend": backend}
         self.linearise = _in_u_p(_linearise_program, statics)
-        self.wjw_gradient = _in_u_p(_wjw_gradient_program, statics)
-        self.singular_tests = _in_u_p(_singular_tests_program, statics)
+        self.bilinear_gradient = _in_u_p(_bilinear_gradient_program, statics)
         self.hvp_derivative = _in_u_p(_hvp_derivative_program, statics)
         self.directional_derivatives = _in_u_p(_directional_derivatives_program, statics)
-        self.tests_gradient = _in_u_p(_tests_gradient_program, statics)
 
     def host_linearise(self, u, p, args):
         """(F, J, F_p) with J assembled on the host by the backend (``SparseBackend``)."""
         F, parts, Fp = self.linearise(u, p, args)
         return F, self.backend.matrix(jax.device_get(parts), args), Fp
 
-    def host_singular_tests(self, u, p, args, b):
-        """``_singular_test_gradients`` with the bordered solves on the host backend."""
-        F, J, Fp = self.host_linearise(u, p, args)
-        w, sigma = self.backend.bordered_solve(J, b, b, 0.0, np.zeros(np.shape(b)[0]), 1.0)
+    def wjw_gradient(self, u, p, args, w):
+        """Gradient of w^T J(u, p) w in (u, p): (E'''[w, w, .] (n,), w^T J_p w); exact, by JAX."""
+        return self._contracted(u, p, args, w, w, 0.0)
+
+    def _contracted(self, u, p, args, a, c, t):
+        """``bilinear_gradient`` with a and c as host arrays and t as a float64 scalar: a jitted
+        output (committed to its device) and a host array are two signatures to jit, i.e. two
+        compilations of the same program (2 s each for a knot at N = 121)."""
+        return self.bilinear_gradient(u, p, args, np.asarray(a, dtype=float), np.asarray(c, dtype=float),
+                                      jnp.asarray(t, dtype=jnp.float64))
+
+    def singular_tests(self, u, p, args, b, linearise=None):
+        """The branch-point test functions' Jacobian in (u, p), ((2, n), (2,)), with aux (value (2,),
+        F, J, F_p, w): ``linearise`` (default this problem's jitted one) gives (F, J, F_p), the
+        backend's bordered solves give w and y, and two ``bilinear_gradient`` calls the adjoint.
+
+        With M = [[J, b], [b^T, 0]] symmetric, M [w; sigma] = [0; 1] and M [y; eta] = [F_p; 0]:
+        d sigma = -w^T dJ w and d tau = -y^T dJ w + w^T dF_p (differentiate M [w; sigma] and use
+        w^T J = -sigma b^T, b^T dw = 0). J is symmetric at every (u, p), so y^T dJ w = w^T dJ y and
+        d tau = w^T d(J (-y) + F_p): both rows are gradients of w^T (J c + t F_p), a jvp of F
+        contracted with w (third derivatives of E, O(n) per gradient), where reverse mode through
+        the assembled J costs n passes (measured on the trefoil at N = 121, n = 719: ~3 s per
+        Newton iteration of the branch-point locator). The pieces are programs the fold locator
+        compiles anyway: one program for all of it compiled the rod's energy, Hessian and third
+        derivatives once more (~6 s of XLA at N = 121)."""
+        F, J, Fp = (linearise or self.linearise)(u, p, args)
+        n = np.shape(b)[0]
+        w, sigma = self.backend.bordered_solve(J, b, b, 0.0, np.zeros(n), 1.0)
         y, _ = self.backend.bordered_solve(J, b, b, 0.0, np.asarray(Fp), 0.0)
-        gu, gp = self.tests_gradient(u, p, args, jnp.asarray(w), jnp.asarray(y))
+        w, y = np.asarray(w), np.asarray(y)
+        g0u, g0p = self._contracted(u, p, args, w, w, 0.0)
+        g1u, g1p = self._contracted(u, p, args, w, -y, 1.0)
+        gu = np.stack([-np.asarray(g0u), np.asarray(g1u)])
+        gp = np.array([-float(g0p), float(g1p)])
         st = np.array([float(sigma), float(np.dot(w, np.asarray(Fp)))])
-        return (np.asarray(gu), np.asarray(gp)), (st, F, J, Fp, np.asarray(w))
+        return (gu, gp), (st, F, J, Fp, w)
 
-    def _tests_gradient(self, u, p, args, w, y):
-        """The Jacobian in (u, p) of (sigma, tau) by the adjoint (see ``_singular_test_gradients``),
-        given the kernel vector w and the solution y of the bordered systems."""
-        def fp(x, q):
-            return jax.jvp(lambda r: self.F(x, r, args), (q,), (jnp.ones_like(q),))[1]
+    def host_singular_tests(self, u, p, args, b):
+        """``singular_tests`` with J assembled on the host by the backend (``SparseBackend``)."""
+        return self.singular_tests(u, p, args, b, linearise=self.host_linearise)
 
-        def tests(x, q):
-            Jw = self.hvp(x, q, args, w)
-            return jnp.stack([-jnp.dot(w, Jw), -jnp.dot(y, Jw) + jnp.dot(w, fp(x, q))])
+    def _bilinear_gradient(self, u, p, args, a, c, t):
+        """Gradient in (u, p) of a^T (J(u, p) c + t F_p(u, p)), ((n,), ()): a jvp of F in the
+        direction (c, t), contracted with a and differentiated in reverse mode; exact, by JAX."""
+        def contracted(x, q):
+            return jnp.dot(a, jax.jvp(lambda y, r: self.F(y, r, args), (x, q), (c, t))[1])
 
-        return jax.jacrev(tests, argnums=(0, 1))(u, p)
+        return jax.grad(contracted, argnums=(0, 1))(u, p)
 
     def hvp(self, u, p, args, w):
         """J(u, p) w (n,), by a jvp of F: never forms J."""
@@ -221,37 +237,11 @@ class _Functions:
             return F, self.jacobian(u, p, args), Fp
         return F, self.backend.jacobian(lambda x: self.F(x, p, args), u), Fp
 
-    def _wjw_gradient(self, u, p, args, w):
-        """Gradient of w^T J(u, p) w in (u, p): (E'''[w, w, .] (n,), w^T J_p w); exact, by JAX."""
-        return jax.grad(lambda x, q: jnp.dot(w, self.hvp(x, q, args, w)), argnums=(0, 1))(u, p)
-
-    def _singular_test_gradients(self, u, p, args, b):
-        """The Jacobian of ``_singular_tests`` in (u, p), ((2, n), (2,)), with aux (value (2,), F, J,
-        F_p, w), by the adjoint of the bordered system instead of reverse mode through it.
-
-        With M = [[J, b], [b^T, 0]] symmetric, M [w; sigma] = [0; 1] and M [y; eta] = [F_p; 0]:
-        d sigma = -w^T dJ w and d tau = -y^T dJ w + w^T dF_p (differentiate M [w; sigma] and use
-        w^T J = -sigma b^T, b^T dw = 0). Both are gradients of third derivatives of E contracted
-        with fixed vectors: a jvp of the Hessian-vector product, O(n) per gradient, where reverse
-        mode through the assembled J costs n passes (measured on the trefoil at N = 121, n = 719:
-        ~3 s per Newton iteration of the branch-point locator)."""
-        F, Fp = jax.jvp(lambda q: self.F(u, q, args), (p,), (jnp.ones_like(p),))
-        J = self.jacobian(u, p, args) if self.jacobian is not None else \
-            self.backend.jacobian(lambda x: self.F(x, p, args), u)
-        w, sigma = self.backend.bordered_solve(J, b, b, 0.0, jnp.zeros_like(u), 1.0)
-        y, _ = self.backend.bordered_solve(J, b, b, 0.0, Fp, 0.0)
-        w, y = jax.lax.stop_gradient(w), jax.lax.stop_gradient(y)
-        # the tests' linearisation at (u, p): the value of the tests is not sigma, tau (it is
-        # linear in the same third derivatives); only its derivative is used
-        gu, gp = self._tests_gradient(u, p, args, w, y)
-        st = jnp.stack([sigma, jnp.dot(w, Fp)])
-        return (gu, gp), (st, F, J, Fp, w)
-
     def _singular_tests(self, u, p, args, b):
         """(sigma, tau) (2,): sigma from [[J, b], [b^T, 0]] [w; sigma] = [0; 1] vanishes iff J is
         singular; tau = w^T F_p also vanishes at a branch point (F_p orthogonal to the kernel).
-        ``singular_tests`` is its Jacobian ((2, n), (2,)) by reverse mode through the bordered
-        solve (exact), with aux = (value (2,), F, J, F_p, w)."""
+        ``singular_tests`` gives its Jacobian ((2, n), (2,)) by the adjoint; this form is traceable
+        and differentiable in reverse mode through the bordered solve (``fold_curve`` uses it)."""
         # J by autodiff here even where a structured ``jacobian`` is given: this function is
         # differentiated in reverse mode, which a structured assembly (loops) may not support
         F, Fp = jax.jvp(lambda q: self.F(u, q, args), (p,), (jnp.ones_like(p),))
