@@ -130,17 +130,67 @@ def _lowest_of(hp, tol):
     return lam, vec, neg
 
 
-# The analyses below are Python compositions of separately jitted pieces: the projected Hessian
-# (the largest piece to compile, ~1.7 s per scene shape) is compiled once and shared by
-# ``stability``, ``spectrum`` and ``branch_analysis``; the eigen-solvers depend on the matrix
-# size only. One jit around each analysis compiled the Hessian into each of them.
+# The analyses below are Python compositions of separately jitted pieces, so that each heavy
+# program is compiled once per scene shape and shared: ``scene_linearisation`` (gradient,
+# structured Hessian, the gradient's phi-derivative) serves ``stability``, ``spectrum``,
+# ``branch_analysis`` and a knot's bifurcation problem (``bifurcation.rods.knot_problem``), and
+# ``scene_bilinear_gradient`` (third derivatives contracted with fixed vectors) serves the branch
+# tangent and that problem's event locators; the projection and the tangent's deflated solve depend
+# on the matrix size only. One jit around each analysis compiled the energy's derivatives into
+# each of them (command 1, cold: ~2-3 s of XLA per program and shape).
 @cached_jit
+def _scene_linearisation(scene, u, phi, nbr):
+    grad = jax.grad(scene.scaled_energy)
+    g, g_phi = jax.jvp(lambda p: grad(u, p, nbr), (phi,), (jnp.ones_like(phi),))
+    return g, structured_scaled_hessian(scene, u, phi, nbr), g_phi
+
+
+@cached_jit
+def _scene_bilinear_gradient(scene, u, phi, nbr, a, c, t):
+    def contracted(x, p):
+        return jnp.dot(a, jax.jvp(lambda y, r: jax.grad(scene.scaled_energy)(y, r, nbr), (x, p), (c, t))[1])
+
+    return jax.grad(contracted, argnums=(0, 1))(u, phi)
+
+
+def _host_vector(v):
+    return np.asarray(v, dtype=float)
+
+
+def scene_linearisation(scene, u, phi, nbr=None):
+    """(g (n,), H (n, n), g_phi (n,)) of ``scene.scaled_energy(u, phi, nbr)`` at the scaled DOFs u:
+    its gradient, its exact structured Hessian (``jaxrod.hessian.scaled_hessian``) and the
+    gradient's derivative in phi. One compiled program per scene shape (u and phi are passed as a
+    host array and a Python float, so every caller shares it)."""
+    return _scene_linearisation(scene, _host_vector(u), float(phi), nbr)
+
+
+def scene_bilinear_gradient(scene, u, phi, nbr, a, c, t):
+    """((n,), scalar): the gradient in (u, phi) of a^T (H(u, phi) c + t g_phi(u, phi)), H and g_phi
+    as in ``scene_linearisation``, a and c (n,) fixed: third derivatives of the energy contracted
+    with fixed vectors, by reverse mode over a jvp of the gradient (O(n), exact)."""
+    return _scene_bilinear_gradient(scene, _host_vector(u), float(phi), nbr, _host_vector(a), _host_vector(c),
+                                    float(t))
+
+
+@cached_jit
+def _project_zero_modes(scene, u, phi, h):
+    z = orthonormal_columns(scene.scaled_zero_modes(u, phi))
+    return project_out(h, z), z, jnp.sum(jnp.any(z != 0.0, axis=0))
+
+
+def _projected(scene, u, phi, nbr):
+    """(hp (n, n): H with the zero modes projected out and lifted to the top, z (n, k) their
+    orthonormal basis, n_zero, g_phi (n,) the gradient's phi-derivative)."""
+    _, h, g_phi = scene_linearisation(scene, u, phi, nbr)
+    hp, z, n_zero = _project_zero_modes(scene, _host_vector(u), float(phi), h)
+    return hp, z, n_zero, g_phi
+
+
 def _projected_hessian(scene, u, phi, nbr):
     """(H with the zero modes projected out and lifted to the top, z (n, k) their orthonormal
     basis, n_zero)."""
-    h = structured_scaled_hessian(scene, u, phi, nbr)
-    z = orthonormal_columns(scene.scaled_zero_modes(u, phi))
-    return project_out(h, z), z, jnp.sum(jnp.any(z != 0.0, axis=0))
+    return _projected(scene, u, phi, nbr)[:3]
 
 
 def _lowest_spectrum(scene, u, phi, nbr, tol):
@@ -271,16 +321,15 @@ def _skip_mask(lam, n_zero, index, cluster_rtol, pinv_tol=0.0):
 
 
 def _branch_analysis(scene, u, phi, index, ref, cluster_rtol, pinv_tol, nbr, tol):
-    hp, z, n_zero = _projected_hessian(scene, u, phi, nbr)
+    hp, z, n_zero, g_phi = _projected(scene, u, phi, nbr)
     lam, vec, n_neg = _lowest_of(hp, tol)
-    dlam, du, index = _branch_tangent(scene, u, phi, index, ref, cluster_rtol, pinv_tol, nbr, hp, z, n_zero, lam, vec)
+    dlam, du, index = _branch_tangent(scene, u, phi, index, ref, cluster_rtol, pinv_tol, nbr, hp, z, n_zero, lam, vec,
+                                      g_phi)
     return lam, vec, n_zero, n_neg, dlam, du, index
 
 
 @cached_jit
-def _branch_tangent(scene, u, phi, index, ref, cluster_rtol, pinv_tol, nbr, hp, z, n_zero, lam, vec):
-    """The tracked mode (by index, or by overlap with ref), its eigenvalue's phi-derivative along
-    the branch and the branch tangent du/dphi (deflated solve), from the lowest eigenpairs."""
+def _tangent_solve(hp, z, n_zero, lam, vec, index, ref, cluster_rtol, pinv_tol, g_phi):
     m = lam.shape[0]
     # Lifted zero modes (only present when the subset reaches the top of a small spectrum) are
     # never tracked.
@@ -289,11 +338,20 @@ def _branch_tangent(scene, u, phi, index, ref, cluster_rtol, pinv_tol, nbr, hp, 
     overlap = jnp.where(physical, jnp.abs(vec.T @ ref), -1.0)
     index = jnp.where(jnp.any(ref != 0.0), jnp.argmax(overlap), index)
     skip = _skip_mask(lam, 0, index, cluster_rtol, pinv_tol) | ~physical
-    motion = _deflated_motion(hp, z, lam, vec, skip)
-    dlam, du = _branch_motion_sensitivities(
-        scene, u, phi, vec[:, index], motion, _zero_tangent(scene), jnp.asarray(1.0), nbr
-    )
-    return dlam, du, index
+    return _deflated_motion(hp, z, lam, vec, skip)(g_phi), index, vec[:, index]
+
+
+def _branch_tangent(scene, u, phi, index, ref, cluster_rtol, pinv_tol, nbr, hp, z, n_zero, lam, vec, g_phi):
+    """The tracked mode (by index, or by overlap with ref), its eigenvalue's phi-derivative along
+    the branch and the branch tangent du/dphi (deflated solve), from the lowest eigenpairs and the
+    gradient's phi-derivative g_phi. -> (dlam, du (n,), index).
+
+    du = -H^+ g_phi (``_deflated_motion``), and d lambda = v^T (dH) v along (du, 1): the gradient of
+    v^T H v in (u, phi) (``scene_bilinear_gradient``) dotted with (du, 1)."""
+    du, index, v = _tangent_solve(hp, z, n_zero, lam, vec, index, ref, cluster_rtol, pinv_tol, g_phi)
+    du = np.asarray(du)
+    gu, gp = scene_bilinear_gradient(scene, u, phi, nbr, v, v, 0.0)
+    return float(np.dot(np.asarray(gu), du) + float(gp)), du, index
 
 
 def _stability_from_lowest(lam, vec, n_zero, n_negative, k, tol):

@@ -37,11 +37,15 @@ class BifurcationProblem:
     soft directions (e.g. material sliding) off within the span of the lowest eigenvectors: they
     are left out of the Morse index and of the event tests (``Point.soft``). ``jacobian(u, p, args) -> J
     (n, n)``, traceable, replaces the backend's autodiff J where a structured one is cheaper (a
-    rod's Hessian assembled from its local blocks); it must equal dF/du.
+    rod's Hessian assembled from its local blocks); it must equal dF/du. ``programs``, an object
+    with host-level ``linearise(u, p, args) -> (F, J, F_p)`` and ``bilinear_gradient(u, p, args, a,
+    c, t) -> (gradient in u (n,), in p)`` of a^T (J c + t F_p), replaces the problem's own jitted
+    forms of both (a knot evaluates them with the programs its stability analysis compiled:
+    ``bifurcation.rods.knot_problem``); the traced forms (``fold_curve``) still use energy/jacobian.
     """
 
     def __init__(self, energy=None, u0=None, p0=0.0, args=None, *, residual=None, n_zero_modes=0, backend=None,
-                 update_args=None, soft_modes=None, jacobian=None):
+                 update_args=None, soft_modes=None, jacobian=None, programs=None):
         if (energy is None) == (residual is None):
             raise ValueError("give exactly one of energy= or residual=")
         self.energy = energy
@@ -61,13 +65,53 @@ class BifurcationProblem:
         fns = _functions(energy, residual, jacobian, self.backend)
         self.F, self.hvp = fns.F, fns.hvp
         self._linearise, self._singular_tests = fns._linearise, fns._singular_tests
-        self.energy_value, self.linearise, self.wjw_gradient = fns.energy_value, fns.linearise, fns.wjw_gradient
-        self.singular_tests, self.hvp_derivative = fns.singular_tests, fns.hvp_derivative
-        self.directional_derivatives = fns.directional_derivatives
-        if getattr(self.backend, "host", False):
+        self.energy_value, self.linearise, self.bilinear_gradient = fns.energy_value, fns.linearise, fns.bilinear_gradient
+        self.hvp_derivative, self.directional_derivatives = fns.hvp_derivative, fns.directional_derivatives
+        self._programs = programs
+        if programs is not None:
+            self.linearise = programs.linearise
+        elif getattr(self.backend, "host", False):
             # J leaves the jitted linearisation as parts, assembled on the host by the backend
             self.linearise = fns.host_linearise
-            self.singular_tests = fns.host_singular_tests
+
+    def wjw_gradient(self, u, p, args, w):
+        """Gradient of w^T J(u, p) w in (u, p): (E'''[w, w, .] (n,), w^T J_p w); exact, by JAX."""
+        return self._contracted(u, p, args, w, w, 0.0)
+
+    def _contracted(self, u, p, args, a, c, t):
+        """``bilinear_gradient`` with a and c as host arrays and t as a float64 scalar: a jitted
+        output (committed to its device) and a host array are two signatures to jit, i.e. two
+        compilations of the same program (2 s each for a knot at N = 121)."""
+        if self._programs is not None:
+            return self._programs.bilinear_gradient(u, p, args, a, c, t)
+        return self.bilinear_gradient(u, p, args, np.asarray(a, dtype=float), np.asarray(c, dtype=float),
+                                      jnp.asarray(t, dtype=jnp.float64))
+
+    def singular_tests(self, u, p, args, b):
+        """The branch-point test functions' Jacobian in (u, p), ((2, n), (2,)), with aux (value (2,),
+        F, J, F_p, w): ``linearise`` gives (F, J, F_p), the backend's bordered solves give w and y,
+        and two ``bilinear_gradient`` calls the adjoint.
+
+        With M = [[J, b], [b^T, 0]] symmetric, M [w; sigma] = [0; 1] and M [y; eta] = [F_p; 0]:
+        d sigma = -w^T dJ w and d tau = -y^T dJ w + w^T dF_p (differentiate M [w; sigma] and use
+        w^T J = -sigma b^T, b^T dw = 0). J is symmetric at every (u, p), so y^T dJ w = w^T dJ y and
+        d tau = w^T d(J (-y) + F_p): both rows are gradients of w^T (J c + t F_p), a jvp of F
+        contracted with w (third derivatives of E, O(n) per gradient), where reverse mode through
+        the assembled J costs n passes (measured on the trefoil at N = 121, n = 719: ~3 s per
+        Newton iteration of the branch-point locator). The pieces are programs the fold locator
+        compiles anyway: one program for all of it compiled the rod's energy, Hessian and third
+        derivatives once more (~6 s of XLA at N = 121)."""
+        F, J, Fp = self.linearise(u, p, args)
+        n = np.shape(b)[0]
+        w, sigma = self.backend.bordered_solve(J, b, b, 0.0, np.zeros(n), 1.0)
+        y, _ = self.backend.bordered_solve(J, b, b, 0.0, np.asarray(Fp), 0.0)
+        w, y = np.asarray(w), np.asarray(y)
+        g0u, g0p = self._contracted(u, p, args, w, w, 0.0)
+        g1u, g1p = self._contracted(u, p, args, w, -y, 1.0)
+        gu = np.stack([-np.asarray(g0u), np.asarray(g1u)])
+        gp = np.array([-float(g0p), float(g1p)])
+        st = np.array([float(sigma), float(np.dot(w, np.asarray(Fp)))])
+        return (gu, gp), (st, F, J, Fp, w)
 
     def energy_at(self, u, p_args):
         """E(u, p, args) with p_args = (p, args): the form ``jaxrod.solvers.minimise`` takes."""
@@ -165,47 +209,6 @@ class _Functions:
         """(F, J, F_p) with J assembled on the host by the backend (``SparseBackend``)."""
         F, parts, Fp = self.linearise(u, p, args)
         return F, self.backend.matrix(jax.device_get(parts), args), Fp
-
-    def wjw_gradient(self, u, p, args, w):
-        """Gradient of w^T J(u, p) w in (u, p): (E'''[w, w, .] (n,), w^T J_p w); exact, by JAX."""
-        return self._contracted(u, p, args, w, w, 0.0)
-
-    def _contracted(self, u, p, args, a, c, t):
-        """``bilinear_gradient`` with a and c as host arrays and t as a float64 scalar: a jitted
-        output (committed to its device) and a host array are two signatures to jit, i.e. two
-        compilations of the same program (2 s each for a knot at N = 121)."""
-        return self.bilinear_gradient(u, p, args, np.asarray(a, dtype=float), np.asarray(c, dtype=float),
-                                      jnp.asarray(t, dtype=jnp.float64))
-
-    def singular_tests(self, u, p, args, b, linearise=None):
-        """The branch-point test functions' Jacobian in (u, p), ((2, n), (2,)), with aux (value (2,),
-        F, J, F_p, w): ``linearise`` (default this problem's jitted one) gives (F, J, F_p), the
-        backend's bordered solves give w and y, and two ``bilinear_gradient`` calls the adjoint.
-
-        With M = [[J, b], [b^T, 0]] symmetric, M [w; sigma] = [0; 1] and M [y; eta] = [F_p; 0]:
-        d sigma = -w^T dJ w and d tau = -y^T dJ w + w^T dF_p (differentiate M [w; sigma] and use
-        w^T J = -sigma b^T, b^T dw = 0). J is symmetric at every (u, p), so y^T dJ w = w^T dJ y and
-        d tau = w^T d(J (-y) + F_p): both rows are gradients of w^T (J c + t F_p), a jvp of F
-        contracted with w (third derivatives of E, O(n) per gradient), where reverse mode through
-        the assembled J costs n passes (measured on the trefoil at N = 121, n = 719: ~3 s per
-        Newton iteration of the branch-point locator). The pieces are programs the fold locator
-        compiles anyway: one program for all of it compiled the rod's energy, Hessian and third
-        derivatives once more (~6 s of XLA at N = 121)."""
-        F, J, Fp = (linearise or self.linearise)(u, p, args)
-        n = np.shape(b)[0]
-        w, sigma = self.backend.bordered_solve(J, b, b, 0.0, np.zeros(n), 1.0)
-        y, _ = self.backend.bordered_solve(J, b, b, 0.0, np.asarray(Fp), 0.0)
-        w, y = np.asarray(w), np.asarray(y)
-        g0u, g0p = self._contracted(u, p, args, w, w, 0.0)
-        g1u, g1p = self._contracted(u, p, args, w, -y, 1.0)
-        gu = np.stack([-np.asarray(g0u), np.asarray(g1u)])
-        gp = np.array([-float(g0p), float(g1p)])
-        st = np.array([float(sigma), float(np.dot(w, np.asarray(Fp)))])
-        return (gu, gp), (st, F, J, Fp, w)
-
-    def host_singular_tests(self, u, p, args, b):
-        """``singular_tests`` with J assembled on the host by the backend (``SparseBackend``)."""
-        return self.singular_tests(u, p, args, b, linearise=self.host_linearise)
 
     def _bilinear_gradient(self, u, p, args, a, c, t):
         """Gradient in (u, p) of a^T (J(u, p) c + t F_p(u, p)), ((n,), ()): a jvp of F in the
