@@ -19,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .aot import cached_jit
-from .hessian import project_out, scaled_hessian as structured_scaled_hessian
+from .hessian import scaled_hessian as structured_scaled_hessian
 from .validation import check_finite, refuse_knot
 from .solvers import orthonormal_columns
 from .tolerances import CONTACT_NEGATIVE_TOL, DEFAULT_NEGATIVE_TOL, scaled_negative_tol  # noqa: F401  (re-exported)
@@ -174,17 +174,31 @@ def scene_bilinear_gradient(scene, u, phi, nbr, a, c, t):
 
 
 @cached_jit
-def _project_zero_modes(scene, u, phi, h):
+def _zero_mode_basis(scene, u, phi):
     z = orthonormal_columns(scene.scaled_zero_modes(u, phi))
-    return project_out(h, z), z, jnp.sum(jnp.any(z != 0.0, axis=0))
+    return z, jnp.sum(jnp.any(z != 0.0, axis=0))
+
+
+def _project_out_host(h, z):
+    """``hessian.project_out`` on the host: P h P + lift Z Z^T (P = I - Z Z^T), written as one
+    rank-2k update of h, h + [Z, HZ] [[Z^T H Z + lift I, -I], [-I, 0]] [Z, HZ]^T (one BLAS
+    product: 0.7 ms at n = 484, where XLA's fused program took 2.6 ms)."""
+    hz = h @ z
+    k = z.shape[1]
+    lift = 2.0 * float(np.max(np.sum(np.abs(h), axis=1))) + 1.0
+    eye = np.eye(k)
+    core = np.block([[z.T @ hz + lift * eye, -eye], [-eye, np.zeros((k, k))]])
+    zb = np.concatenate([z, hz], axis=1)
+    return h + (zb @ core) @ zb.T
 
 
 def _projected(scene, u, phi, nbr):
     """(hp (n, n): H with the zero modes projected out and lifted to the top, z (n, k) their
-    orthonormal basis, n_zero, g_phi (n,) the gradient's phi-derivative)."""
+    orthonormal basis, n_zero, g_phi (n,) the gradient's phi-derivative), on the host."""
     _, h, g_phi = scene_linearisation(scene, u, phi, nbr)
-    hp, z, n_zero = _project_zero_modes(scene, _host_vector(u), float(phi), h)
-    return hp, z, n_zero, g_phi
+    z, n_zero = _zero_mode_basis(scene, _host_vector(u), float(phi))
+    z = np.asarray(z)
+    return _project_out_host(np.asarray(h), z), z, int(n_zero), np.asarray(g_phi)
 
 
 def _projected_hessian(scene, u, phi, nbr):
@@ -306,17 +320,18 @@ def _zero_tangent(scene):
     return jax.tree_util.tree_map(zero, scene)
 
 
-def _skip_mask(lam, n_zero, index, cluster_rtol, pinv_tol=0.0):
+def _skip_mask(lam, n_zero, index, cluster_rtol, pinv_tol=0.0, xp=jnp):
     """Eigen-directions left out of the branch pseudo-inverse: the cluster of the tracked
     eigenvalue (degenerate partners included), the lifted zero modes at the top, and near-zero
-    modes |lambda| <= pinv_tol (e.g. strands sliding along each other in a loose knot)."""
+    modes |lambda| <= pinv_tol (e.g. strands sliding along each other in a loose knot). xp:
+    jax.numpy (traced) or numpy (host)."""
     n = lam.shape[0]
     lam_i = lam[index]
-    scale = jnp.maximum(jnp.abs(lam_i), 1e-12)
+    scale = xp.maximum(xp.abs(lam_i), 1e-12)
     return (
-        (jnp.abs(lam - lam_i) <= cluster_rtol * scale + 1e-14)
-        | (jnp.arange(n) >= n - n_zero)
-        | (jnp.abs(lam) <= pinv_tol)
+        (xp.abs(lam - lam_i) <= cluster_rtol * scale + 1e-14)
+        | (xp.arange(n) >= n - n_zero)
+        | (xp.abs(lam) <= pinv_tol)
     )
 
 
@@ -328,17 +343,35 @@ def _branch_analysis(scene, u, phi, index, ref, cluster_rtol, pinv_tol, nbr, tol
     return lam, vec, n_zero, n_neg, dlam, du, index
 
 
-@cached_jit
 def _tangent_solve(hp, z, n_zero, lam, vec, index, ref, cluster_rtol, pinv_tol, g_phi):
+    """(du (n,), index, v (n,)): the tracked mode (by index, or by overlap with ref) and the
+    branch tangent du = -H^+ g_phi by one deflated solve (``_deflated_motion``'s matrix), on the
+    host: a Cholesky factorisation where the deflated matrix is positive definite (a stable
+    state: half an LU's work), an LU otherwise."""
+    import scipy.linalg
+
     m = lam.shape[0]
     # Lifted zero modes (only present when the subset reaches the top of a small spectrum) are
     # never tracked.
-    physical = jnp.arange(m) < hp.shape[0] - n_zero
+    physical = np.arange(m) < hp.shape[0] - n_zero
     # With a reference vector, follow the mode by eigenvector overlap (robust to reordering).
-    overlap = jnp.where(physical, jnp.abs(vec.T @ ref), -1.0)
-    index = jnp.where(jnp.any(ref != 0.0), jnp.argmax(overlap), index)
-    skip = _skip_mask(lam, 0, index, cluster_rtol, pinv_tol) | ~physical
-    return _deflated_motion(hp, z, lam, vec, skip)(g_phi), index, vec[:, index]
+    ref = np.asarray(ref, dtype=float)
+    if np.any(ref != 0.0):
+        index = int(np.argmax(np.where(physical, np.abs(vec.T @ ref), -1.0)))
+    index = int(index)
+    skip = _skip_mask(lam, 0, index, cluster_rtol, pinv_tol, xp=np) | ~physical
+    top = float(np.max(np.abs(np.diag(hp)))) + 1.0
+    vs = vec[:, skip]
+    h_def = hp + (vs * (top - lam[skip])[None, :]) @ vs.T
+    b = g_phi - z @ (z.T @ g_phi)
+    b = b - vs @ (vs.T @ b)
+    with _LAPACK_LOCK:
+        try:
+            du = -scipy.linalg.cho_solve(scipy.linalg.cho_factor(h_def, lower=True, check_finite=False), b,
+                                         check_finite=False)
+        except np.linalg.LinAlgError:  # indefinite: an unstable state's other negative modes
+            du = -scipy.linalg.lu_solve(scipy.linalg.lu_factor(h_def, check_finite=False), b, check_finite=False)
+    return du, index, vec[:, index]
 
 
 def _branch_tangent(scene, u, phi, index, ref, cluster_rtol, pinv_tol, nbr, hp, z, n_zero, lam, vec, g_phi):
@@ -348,8 +381,9 @@ def _branch_tangent(scene, u, phi, index, ref, cluster_rtol, pinv_tol, nbr, hp, 
 
     du = -H^+ g_phi (``_deflated_motion``), and d lambda = v^T (dH) v along (du, 1): the gradient of
     v^T H v in (u, phi) (``scene_bilinear_gradient``) dotted with (du, 1)."""
-    du, index, v = _tangent_solve(hp, z, n_zero, lam, vec, index, ref, cluster_rtol, pinv_tol, g_phi)
-    du = np.asarray(du)
+    lam, vec = np.asarray(lam), np.asarray(vec)
+    du, index, v = _tangent_solve(np.asarray(hp), np.asarray(z), int(n_zero), lam, vec, index, ref, cluster_rtol,
+                                  pinv_tol, np.asarray(g_phi))
     gu, gp = scene_bilinear_gradient(scene, u, phi, nbr, v, v, 0.0)
     return float(np.dot(np.asarray(gu), du) + float(gp)), du, index
 
