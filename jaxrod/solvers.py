@@ -355,43 +355,50 @@ def _damped_newton_loop(fun, zero_modes, leave, y0, args, gtol, max_step, max_st
         big = jnp.max(jnp.abs(dy))
         return jnp.where(big > max_step, dy * (max_step / big), dy), mu_used
 
+    value_and_grad = jax.value_and_grad(f)
+
+    # The energy and its gradient are written once, in the line search's trial: each copy of them
+    # is compiled separately, and compilation is most of a short run (a study's cold start). The
+    # first pass through the loop makes no step (dy = 0, direction not computed) and only
+    # evaluates the start, accepted whatever its value.
     def cond(carry):
-        y, it, gnorm, code, _, _, _ = carry
-        return (it < max_steps) & (gnorm > gtol) & (code == 0)
+        y, it, gnorm, code, _, _, _, started = carry
+        return ~started | ((it < max_steps) & (gnorm > gtol) & (code == 0))
 
     def body(carry):
-        # g: the gradient at y, carried from the last iteration (one gradient per iteration).
-        y, it, _, _, fy, g, mu_prev = carry
-        dy, mu_prev = direction(y, g, mu_prev)
+        # g: the gradient at y, carried from the last iteration (one gradient per accepted step).
+        y, it, _, _, fy, g, mu_prev, started = carry
+        dy, mu_next = jax.lax.cond(started, lambda: direction(y, g, mu_prev),
+                                   lambda: (jnp.zeros_like(y), mu_prev))
         slope = jnp.dot(g, dy)
+        # fy is +inf before the start is evaluated: its trial is then accepted if finite.
+        fy = jnp.where(started, fy, jnp.inf)
 
         def ls_cond(c):
-            alpha, k, f_new = c
-            return (k < max_backtracks) & ~(f_new <= fy + 1e-4 * alpha * slope)
+            alpha, k, f_new, _, first = c
+            return first | ((k < max_backtracks) & ~(f_new <= fy + 1e-4 * alpha * slope))
 
         def ls_body(c):
-            alpha, k, _ = c
-            alpha = 0.5 * alpha
-            fn = f(y + alpha * dy)
-            return alpha, k + 1, jnp.where(jnp.isfinite(fn), fn, jnp.inf)
+            alpha, k, _, _, first = c
+            alpha = jnp.where(first, alpha, 0.5 * alpha)
+            fn, gn = value_and_grad(y + alpha * dy)
+            return alpha, jnp.where(first, k, k + 1), jnp.where(jnp.isfinite(fn), fn, jnp.inf), gn, False
 
-        f1 = f(y + dy)
-        alpha, _, f_new = jax.lax.while_loop(ls_cond, ls_body, (1.0, 0, jnp.where(jnp.isfinite(f1), f1, jnp.inf)))
+        alpha, _, f_new, g_trial, _ = jax.lax.while_loop(ls_cond, ls_body, (1.0, 0, jnp.inf, g, True))
         accepted = f_new <= fy + 1e-4 * alpha * slope
         y_new = jnp.where(accepted, y + alpha * dy, y)
         f_y = jnp.where(accepted, f_new, fy)
-        g_new = grad(y_new)
+        g_new = jnp.where(accepted, g_trial, g)
         gnorm = jnp.max(jnp.abs(g_new))
         left = leave(y_new, args) if leave is not None else False
         code = jnp.where(accepted, jnp.where(left & (gnorm > gtol), 4, 0), 3)
-        return y_new, it + 1, gnorm, code, f_y, g_new, mu_prev
+        # the start: a non-finite energy or gradient there is code 2 (no step was tried)
+        code = jnp.where(started, code, jnp.where(jnp.isfinite(f_new) & jnp.isfinite(gnorm), 0, 2))
+        return y_new, jnp.where(started, it + 1, it), gnorm, code, f_y, g_new, mu_next, True
 
-    f0 = f(y0)
-    g0 = grad(y0)
-    gnorm0 = jnp.max(jnp.abs(g0))
-    code0 = jnp.where(jnp.isfinite(gnorm0) & jnp.isfinite(f0), 0, 2)
-    y, it, gnorm, code, value, _, _ = jax.lax.while_loop(
-        cond, body, (y0, 0, gnorm0, code0, f0, g0, jnp.zeros_like(f0)))
+    y, it, gnorm, code, value, _, _, _ = jax.lax.while_loop(
+        cond, body, (y0, 0, jnp.inf, 0, jnp.asarray(0.0, y0.dtype), jnp.zeros_like(y0), jnp.asarray(0.0, y0.dtype),
+                     False))
     code = jnp.where(
         ~(jnp.isfinite(value) & jnp.isfinite(gnorm)), 2,
         jnp.where(gnorm <= gtol, 0, jnp.where(code == 0, 1, code)),
