@@ -416,3 +416,33 @@ def test_an_end_that_changes_the_morse_index_by_more_than_its_multiplicity_is_fl
     assert "changes the Morse index by 2 (0 -> 2)" in extra_crossings(double)
     bp2 = SimpleNamespace(kind="branch_point", p=1.0, morse_before=0, morse_after=2, multiplicity=2)
     assert extra_crossings(bp2) == ""  # a double branch point: 2 is its multiplicity
+
+
+def test_the_knot_problem_linearises_with_the_scene_programs_to_roundoff(paths):
+    """knot_problem (dense backend) evaluates F, J, F_p and the locators' third derivatives with the
+    scene's own programs (the study's), restricted to the free DOFs (``BifurcationProblem(programs=)``):
+    they equal the pinned problem's generic forms (autodiff of the pinned energy, the structured
+    Hessian of the embedded state), which the traced paths (``fold_curve``) still use."""
+    import importlib
+
+    problem_module = importlib.import_module("jaxrod.bifurcation.problem")
+    scene, runs = paths
+    rod, branch = runs[6.0, 1.0]
+    prob = rod.problem
+    assert prob._programs is not None
+    rng = np.random.default_rng(0)
+    # off the equilibrium (F of order one), within the neighbourhood's reach (1e-3 edge lengths)
+    u = np.asarray(branch.points[3].u) + 1e-3 * rng.standard_normal(prob.n)
+    p = float(branch.points[3].p)
+    F, J, Fp = prob.linearise(u, p, prob.args)
+    Fg, Jg, Fpg = prob._linearise(jax.numpy.asarray(u), jax.numpy.asarray(p), prob.args)
+    for mine, generic in ((F, Fg), (J, Jg), (Fp, Fpg)):
+        scale = float(np.max(np.abs(np.asarray(generic))))
+        assert scale > 0 and np.max(np.abs(np.asarray(mine) - np.asarray(generic))) <= 1e-12 * scale
+    a, c = rng.standard_normal(u.size), rng.standard_normal(u.size)
+    gu, gp = prob._contracted(u, p, prob.args, a, c, 0.7)
+    fns = problem_module._functions(prob.energy, None, prob.jacobian, prob.backend)
+    gug, gpg = fns.bilinear_gradient(u, p, prob.args, a, c, jax.numpy.asarray(0.7))
+    scale = float(np.max(np.abs(np.asarray(gug))))
+    assert scale > 0 and np.max(np.abs(np.asarray(gu) - np.asarray(gug))) <= 1e-11 * scale
+    assert float(gp) == pytest.approx(float(gpg), rel=1e-10, abs=1e-12 * scale)
