@@ -296,7 +296,6 @@ _SHIFT_DOWN, _SHIFT_UP, _SHIFT_REFINE = 0.1, 4.0, 2
 @cached_jit(static_argnames=("fun", "zero_modes", "leave", "max_backtracks", "hessian"))
 def _damped_newton_loop(fun, zero_modes, leave, y0, args, gtol, max_step, max_steps, max_backtracks, hessian=None):
     f = lambda y: fun(y, args)  # noqa: E731
-    grad = jax.grad(f)
     hess = _hessian_of(f, hessian, args)
 
     def direction(y, g, mu_prev):
