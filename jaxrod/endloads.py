@@ -45,7 +45,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .contact import contact_energy  # noqa: F401  (the contact term is the scenes' own)
-from .hessian import scaled_hessian as structured_scaled_hessian
+from .hessian import project_out, scaled_hessian as structured_scaled_hessian
 from .material import Material
 from .scenes import ClampedRod, _pytree, clamped_rod
 from .solvers import DampedNewton, Newton, minimise, orthonormal_columns
@@ -244,10 +244,7 @@ def _project(h, z):
     uz, sv, _ = np.linalg.svd(z, full_matrices=False)
     keep = sv > 1e-10 * np.max(sv) if np.max(sv) > 0.0 else np.zeros_like(sv, dtype=bool)
     z = uz * keep[None, :]
-    hz = h @ z  # project_out (jaxrod.hessian) in numpy
-    hp = h - z @ hz.T - hz @ z.T + z @ (z.T @ hz) @ z.T
-    hp = hp + (2.0 * np.max(np.sum(np.abs(h), axis=1)) + 1.0) * (z @ z.T)
-    return 0.5 * (hp + hp.T), int(np.sum(keep))
+    return project_out(h, z, xp=np), int(np.sum(keep))
 
 
 @jax.jit

@@ -297,13 +297,17 @@ def dense_autodiff_hessian(scene, u, phi, nbr=None):
     return 0.5 * (h + h.T)
 
 
-def project_out(h, z):
+def project_out(h, z, xp=jnp):
     """P h P + lift Z Z^T with P = I - Z Z^T for orthonormal columns z (n, k) (zero columns
-    allowed): the symmetry directions lifted to ``lift`` above the Gershgorin bound of h, at
-    O(n^2 k) cost instead of two dense n x n products."""
+    allowed): the symmetry directions lifted to ``lift`` above the Gershgorin bound of h. Written
+    as one rank-2k update of h, h + [Z, HZ] [[Z^T H Z + lift I, -I], [-I, 0]] [Z, HZ]^T: O(n^2 k),
+    one matrix product (0.7 ms at n = 484 in numpy, where XLA's four products took 2.6 ms).
+    xp: jax.numpy (traced) or numpy (host)."""
     hz = h @ z  # (n, k)
-    zhz = z.T @ hz
-    hp = h - z @ hz.T - hz @ z.T + z @ zhz @ z.T
-    lift = 2.0 * jnp.max(jnp.sum(jnp.abs(h), axis=1)) + 1.0
-    hp = hp + lift * (z @ z.T)
+    k = z.shape[1]
+    lift = 2.0 * xp.max(xp.sum(xp.abs(h), axis=1)) + 1.0
+    eye = xp.eye(k)
+    core = xp.block([[z.T @ hz + lift * eye, -eye], [-eye, xp.zeros((k, k))]])
+    zb = xp.concatenate([z, hz], axis=1)
+    hp = h + (zb @ core) @ zb.T
     return 0.5 * (hp + hp.T)

@@ -19,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .aot import cached_jit
-from .hessian import scaled_hessian as structured_scaled_hessian
+from .hessian import project_out, scaled_hessian as structured_scaled_hessian
 from .validation import check_finite, refuse_knot
 from .solvers import orthonormal_columns
 from .tolerances import CONTACT_NEGATIVE_TOL, DEFAULT_NEGATIVE_TOL, scaled_negative_tol  # noqa: F401  (re-exported)
@@ -179,26 +179,13 @@ def _zero_mode_basis(scene, u, phi):
     return z, jnp.sum(jnp.any(z != 0.0, axis=0))
 
 
-def _project_out_host(h, z):
-    """``hessian.project_out`` on the host: P h P + lift Z Z^T (P = I - Z Z^T), written as one
-    rank-2k update of h, h + [Z, HZ] [[Z^T H Z + lift I, -I], [-I, 0]] [Z, HZ]^T (one BLAS
-    product: 0.7 ms at n = 484, where XLA's fused program took 2.6 ms)."""
-    hz = h @ z
-    k = z.shape[1]
-    lift = 2.0 * float(np.max(np.sum(np.abs(h), axis=1))) + 1.0
-    eye = np.eye(k)
-    core = np.block([[z.T @ hz + lift * eye, -eye], [-eye, np.zeros((k, k))]])
-    zb = np.concatenate([z, hz], axis=1)
-    return h + (zb @ core) @ zb.T
-
-
 def _projected(scene, u, phi, nbr):
     """(hp (n, n): H with the zero modes projected out and lifted to the top, z (n, k) their
     orthonormal basis, n_zero, g_phi (n,) the gradient's phi-derivative), on the host."""
     _, h, g_phi = scene_linearisation(scene, u, phi, nbr)
     z, n_zero = _zero_mode_basis(scene, _host_vector(u), float(phi))
     z = np.asarray(z)
-    return _project_out_host(np.asarray(h), z), z, int(n_zero), np.asarray(g_phi)
+    return project_out(np.asarray(h), z, xp=np), z, int(n_zero), np.asarray(g_phi)
 
 
 def _projected_hessian(scene, u, phi, nbr):
@@ -259,23 +246,6 @@ def _pinv_motion(lam, vec, skip):
     """du(dg) = -H^+ dg over a full eigen-decomposition, the flagged directions left out."""
     safe = jnp.where(skip, 1.0, lam)
     return lambda dg: -vec @ jnp.where(skip, 0.0, (vec.T @ dg) / safe)
-
-
-def _deflated_motion(hp, z, lam, vec, skip):
-    """du(dg) = -H^+ dg from the lowest eigenpairs only (lam (m,), vec (n, m)) of the projected
-    Hessian hp: the flagged low directions and the zero modes z are removed from dg and the
-    flagged eigenvalues moved to the top (deflation), so one LU solve gives the same result as
-    the full pseudo-inverse, without dividing by a near-zero eigenvalue."""
-    top = jnp.max(jnp.abs(jnp.diag(hp))) + 1.0
-    vs = vec * skip[None, :]
-    h_def = hp + (vs * (top - lam)[None, :]) @ vs.T
-
-    def motion(dg):
-        b = dg - z @ (z.T @ dg)
-        b = b - vs @ (vs.T @ b)
-        return -jnp.linalg.solve(h_def, b)
-
-    return motion
 
 
 @jax.jit
@@ -345,9 +315,11 @@ def _branch_analysis(scene, u, phi, index, ref, cluster_rtol, pinv_tol, nbr, tol
 
 def _tangent_solve(hp, z, n_zero, lam, vec, index, ref, cluster_rtol, pinv_tol, g_phi):
     """(du (n,), index, v (n,)): the tracked mode (by index, or by overlap with ref) and the
-    branch tangent du = -H^+ g_phi by one deflated solve (``_deflated_motion``'s matrix), on the
-    host: a Cholesky factorisation where the deflated matrix is positive definite (a stable
-    state: half an LU's work), an LU otherwise."""
+    branch tangent du = -H^+ g_phi from the lowest eigenpairs only: the flagged low directions and
+    the zero modes z are removed from g_phi and the flagged eigenvalues moved to the top
+    (deflation), so one solve gives the full pseudo-inverse's result without dividing by a
+    near-zero eigenvalue. On the host: a Cholesky factorisation where the deflated matrix is
+    positive definite (a stable state: half an LU's work), an LU otherwise."""
     import scipy.linalg
 
     m = lam.shape[0]
@@ -379,7 +351,7 @@ def _branch_tangent(scene, u, phi, index, ref, cluster_rtol, pinv_tol, nbr, hp, 
     the branch and the branch tangent du/dphi (deflated solve), from the lowest eigenpairs and the
     gradient's phi-derivative g_phi. -> (dlam, du (n,), index).
 
-    du = -H^+ g_phi (``_deflated_motion``), and d lambda = v^T (dH) v along (du, 1): the gradient of
+    du = -H^+ g_phi (``_tangent_solve``), and d lambda = v^T (dH) v along (du, 1): the gradient of
     v^T H v in (u, phi) (``scene_bilinear_gradient``) dotted with (du, 1)."""
     lam, vec = np.asarray(lam), np.asarray(vec)
     du, index, v = _tangent_solve(np.asarray(hp), np.asarray(z), int(n_zero), lam, vec, index, ref, cluster_rtol,

@@ -322,8 +322,8 @@ def knot_problem(scene, q_ref, phi0, *, pins=None, capacity=None, sliding=CLEAN_
     args = RodArgs(scene, jnp.asarray(u_ref), jnp.asarray(free), nbr0)
     if backend is None:
         backend = SparseBackend(_assemble_pinned) if use_sparse(scene) else DenseBackend()
-    jacobian = _pinned_parts if getattr(backend, "host", False) else _pinned_structured_hessian
     host = getattr(backend, "host", False)
+    jacobian = _pinned_parts if host else _pinned_structured_hessian
     prob = BifurcationProblem(_pinned_energy, u_ref[free], phi0, args, n_zero_modes=0, backend=backend,
                               update_args=update_args, soft_modes=soft_modes, jacobian=jacobian,
                               programs=None if host else _ScenePrograms())
