@@ -150,6 +150,41 @@ class Diagram:
 # is halved (``jaxrod.bifurcation.ContinuationOptions.resolve_crossings``).
 RESOLVE_CROSSINGS = 1e-5
 
+# The path starts where the study's critical eigenvalue is at least START_EIGENVALUE (scaled units):
+# the study's states are converged to a gradient of 1e-9 only, and Newton from one whose critical
+# eigenvalue is ~1e-9 moves along that mode by up to gradient / eigenvalue ~ 1 edge, onto another
+# state (measured: the trefoil's buckled+ end at N = 121 with --step 0.25pi, eigenvalue 7.8e-10 at
+# the study's last state: the path started 1.7e-7 higher in the spectrum and met a fold at 7.069 pi
+# instead of the branch point at 7.041 pi). At 1e-7 that move is below 1e-2 edge.
+START_EIGENVALUE = 1e-7
+# ... stepping back from the study's last stable state by at most this much twist (rad).
+MAX_START_BACK = 0.05 * math.pi
+
+
+def backed_off_start(scene, q, phi, eigenvalue, rate, sign):
+    """The state to start an end's path from: (q, phi) itself where the critical eigenvalue there
+    (``eigenvalue``, changing at ``rate`` = dlambda/dphi) is at least START_EIGENVALUE; else the
+    stable state relaxed from q at the twist where the linear model puts it at START_EIGENVALUE,
+    stepped back against ``sign`` (the direction of the end), by at most MAX_START_BACK. A state with
+    the two-fold symmetry through the joint keeps it (``jaxrod.symmetry``). -> (q, phi)."""
+    from .equilibrium import EquilibriumOptions, RelaxOptions, relax, solve_equilibrium
+    from .solvers import ConvergenceError
+    from .symmetry import joint_two_fold, symmetrize
+
+    if not (math.isfinite(eigenvalue) and math.isfinite(rate)) or eigenvalue >= START_EIGENVALUE or rate * sign >= 0.0:
+        return q, phi
+    back = min((START_EIGENVALUE - eigenvalue) / abs(rate), MAX_START_BACK)
+    phi_back = phi - sign * back
+    edge = float(scene.length) / scene.n_nodes
+    try:
+        e = relax(scene, phi_back, np.asarray(q), RelaxOptions(gtol=1e-9, with_stability=False))
+        if joint_two_fold(scene, q, 1e-5 * edge) is not None:
+            e = solve_equilibrium(scene, phi_back, symmetrize(scene, e.q),
+                                  EquilibriumOptions(method="newton", gtol=1e-9, with_stability=False))
+    except ConvergenceError:
+        return q, phi
+    return np.asarray(e.q), float(phi_back)
+
 
 def follow_branch_end(scene, q, phi, sign, options=None, *, p_min=-math.inf, p_max=math.inf, capacity=None,
                       observer=None):
@@ -264,6 +299,8 @@ def unstable_branches(scene, study, options=None, *, progress=None, parallel=Tru
         q, phi = state
         lo, hi = inst["bracket"][0], inst["bracket"][1]
         sign = 1.0 if hi > lo else -1.0
+        q, phi = backed_off_start(scene, q, phi, float(inst.get("eigenvalue", math.nan)),
+                                  float(inst.get("dlambda_dphi", math.nan)), sign)
         say(f"{inst['direction']}: locating the end of {inst['from_branch']} (bracketed at "
             f"{inst['phi'] / math.pi:+.6f} pi) on the extended system, then its unstable branch")
         end = follow_branch_end(scene, q, phi, sign, o, p_min=min(p_min, phi) - 0.5 * math.pi,

@@ -146,7 +146,7 @@ def study_options(options=None):
     them is refused (ValueError naming it): a resumed run could not check it against run.json."""
     options = checked_options(options)
     for name in ("negative_tol", "gtol", "jump_tol", "corrector_max_steps", "max_refine", "linear_algebra", "branch",
-                 "switch", "perturbation"):
+                 "switch", "perturbation", "keep_symmetry"):
         if getattr(options, name) is not None:
             raise ValueError(f"options.{name}: twist_study does not take it (it sets step, tol, k and max_switches, "
                              "which run.json records)")

@@ -513,3 +513,41 @@ def test_the_test_functions_adjoint_equals_reverse_mode_through_the_bordered_sol
     ref = jax.grad(lambda x, q: w @ hess(x, q, 0.8) @ w, argnums=(0, 1))(u, p)
     np.testing.assert_allclose(wu, ref[0], rtol=1e-12, atol=1e-13)
     assert float(wp) == pytest.approx(float(ref[1]), rel=1e-12, abs=1e-13)
+
+
+def test_a_morse_change_one_step_after_a_turn_is_that_folds_crossing():
+    """A fold located with the Morse index unchanged across its step, and the index changing in the
+    next step without a turn: the fold's crossing counted one step late (the soft split lags the
+    turn where the fold's mode mixes with a slide; the trefoil's tightening side at N = 121), so the
+    fold is reported again with the new index and no branch point is sought. Further away, or a
+    change by two, goes to the branch-point locator as before."""
+    from jaxrod.bifurcation.events import find_events
+    from jaxrod.bifurcation.results import Event, Point
+
+    def point(p, tp, morse):
+        return Point(np.zeros(2), p, np.array([0.0, 0.0, tp]), np.zeros(2), np.eye(2), morse, 1, 0.1, 0.0)
+
+    fold = Event("fold", -1.0, np.zeros(2), np.eye(2)[:, :1], np.zeros(1), 1e-14, 3, 1, 0, 0, 4,
+                 np.array([0.0, 0.0, 1.0]), True)
+    a, b = point(-0.99, 0.3, 0), point(-0.95, 0.5, 1)
+    (e,) = find_events(None, None, a, b, 5, [fold])
+    assert e.kind == "fold" and e.p == fold.p and (e.morse_before, e.morse_after, e.step) == (0, 1, 5)
+
+    class Refused(Exception):
+        pass
+
+    def no_locator(*args, **kwargs):
+        raise Refused
+
+    import jaxrod.bifurcation.events as events
+
+    saved = events.locate_branch_points
+    events.locate_branch_points = no_locator
+    try:
+        for known, b2 in (([fold], point(-0.95, 0.5, 2)),  # the index changed by two
+                          ([Event(**{**fold.__dict__, "step": 3})], b),  # the fold two steps back
+                          ([Event(**{**fold.__dict__, "morse_after": 1})], b)):  # the fold changed the index itself
+            with pytest.raises(Refused):
+                find_events(None, None, a, b2, 5, known)
+    finally:
+        events.locate_branch_points = saved

@@ -183,6 +183,49 @@ def test_only_a_clean_slide_is_split_off():
     assert np.allclose(vals[~soft], np.delete(values, 2), rtol=1e-3, atol=1e-12)
 
 
+def test_a_slide_coupled_to_a_shape_mode_does_not_hide_its_instability():
+    """A slide and a shape mode both near zero and strongly coupled (J = [[sigma, beta], [beta,
+    gamma]] in the slide / shape basis, sigma, gamma > 0 > sigma gamma - beta^2): J has a negative
+    direction, mostly shape, that neither the slide's Rayleigh quotient nor the Ritz value left on
+    the complement shows (the trefoil's buckled+ branch at N = 121, --step 0.25pi: 2.1e-7, 1.7e-7,
+    J's lowest -1.3e-9; the branch point at 7.041 pi went unseen). The split is then not made. A
+    negative direction that is the slide itself (a saddle of the sliding landscape) is split off."""
+    from jaxrod.bifurcation.rods import split_sliding
+    from jaxrod.stability import CLEAN_SLIDE_FRACTION
+
+    scene = jr.trefoil(D=8.0, L=292.0, N=61)
+    q = np.asarray(scene.q_init)
+    n, n_full = scene.n_nodes, q.size
+    x = q[:3 * n].reshape(n, 3)
+    t = np.roll(x, -1, axis=0) - np.roll(x, 1, axis=0)
+    slide = np.concatenate([(t / np.linalg.norm(t, axis=1, keepdims=True)).ravel(), np.zeros(n_full - 3 * n)])
+    rng = np.random.default_rng(1)
+    basis, _ = np.linalg.qr(np.column_stack([slide, rng.standard_normal((n_full, 3))]))  # slide, shape modes
+    free = np.arange(n_full)
+
+    def eigenpairs(sigma, beta, gamma):
+        J = np.diag([sigma, gamma, 1e-5, 3e-5])
+        J[0, 1] = J[1, 0] = beta
+        w, c = np.linalg.eigh(J)
+        return w, basis @ c
+
+    # coupled: both diagonal entries positive, J indefinite
+    values, V = eigenpairs(2.1e-7, 1.9e-7, 1.7e-7)
+    assert values[0] < 0 < values[1]
+    vals, vecs, soft = split_sliding(scene, q, free, n_full, values, V, CLEAN_SLIDE_FRACTION)
+    assert not soft.any() and np.array_equal(vals, values)
+    assert int(np.sum(vals[~soft] < 0)) == 1
+    # what the split alone would count: no negative Ritz value on the complement of the slide
+    from jaxrod.stability import split_slide
+
+    full_vals, _, full_soft = split_slide(scene, q, values, V, CLEAN_SLIDE_FRACTION)
+    assert full_soft.any() and int(np.sum(full_vals[~full_soft] < 0)) == 0
+    # a saddle of the sliding landscape, weakly coupled: the negative direction is the slide, split off
+    values, V = eigenpairs(-1.4e-8, 1e-9, 2e-6)
+    vals, vecs, soft = split_sliding(scene, q, free, n_full, values, V, CLEAN_SLIDE_FRACTION)
+    assert soft.sum() == 1 and vals[soft][0] < 0 and int(np.sum(vals[~soft] < 0)) == 0
+
+
 def test_sliding_modes_are_soft_and_make_no_events(paths):
     scene, runs = paths
     rod, br = runs[6.0, 1.0]

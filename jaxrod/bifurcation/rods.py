@@ -359,7 +359,39 @@ def split_sliding(scene, q, free, n_full, values, vectors, threshold=CLEAN_SLIDE
     full = np.zeros((n_full, V.shape[1]))
     full[np.asarray(free)] = V
     vals, coef, soft = split_slide(scene, q, values, full, threshold)
+    if soft.any() and _split_hides_a_shape_instability(scene, q, np.asarray(values, dtype=float), full, vals, soft):
+        return np.asarray(values, dtype=float), V, np.zeros(V.shape[1], dtype=bool)
     return vals, V @ coef, soft
+
+
+# Eigenvalues within this of zero (scaled units; round-off is ~1e-14 at N = 121) count as neither sign
+# when a split is checked against the inertia.
+SPLIT_SIGN_TOL = 1e-14
+
+
+def _split_hides_a_shape_instability(scene, q, values, full, split_values, soft):
+    """Whether splitting the slide off hides a negative direction of J that changes the shape.
+
+    The split counts the Morse index on the Ritz values of the complement of the slide direction s.
+    Where the slide couples strongly to a shape mode near zero, J can have a negative direction that
+    neither s's Rayleigh quotient nor the complement's Ritz values show (Haynsworth: n_neg(J) =
+    [s^T J s < 0] + n_neg(Schur complement), and the complement's count can fall below the Schur
+    complement's). So J's negative eigenvectors are counted too, those that change the shape
+    (sliding fraction above SLIDING_FRACTION: a slide leaves < 1e-3, shape modes 0.2 and more); if
+    they outnumber the complement's negative Ritz values, the split is not made (J's eigenpairs stay
+    as they are, none soft). Measured on the trefoil at N = 121 (--step 0.25pi): on its buckled+
+    branch the slide sat at 2.1e-7, the shape Ritz value at 1.7e-7 and J's lowest eigenvalue at
+    -1.3e-9 (7.0411 pi, fraction 0.20), and the split hid the branch point at 7.041 pi (the path
+    ended at a fold at 7.069 pi); at the opening fold J's negative direction -1.4e-8 is the slide
+    (fraction 3e-4), and the split stands."""
+    from ..stability import SLIDING_FRACTION, sliding_fraction
+
+    tol = SPLIT_SIGN_TOL
+    negative = np.flatnonzero(values < -tol)
+    if negative.size <= int(np.sum(split_values[~soft] < -tol)):
+        return False
+    shape = int(np.sum(sliding_fraction(scene, q, full[:, negative]) > SLIDING_FRACTION))
+    return shape > int(np.sum(split_values[~soft] < -tol))
 
 
 def sliding_slice(rod, event, *, candidates=None):

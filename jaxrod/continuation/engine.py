@@ -22,6 +22,7 @@ from ..sparse_branch import EXTRA_PAIRS, solve_equilibrium_sparse, sparse_branch
 from ..sparse_contact import SPARSE_MIN_DOF, deflated_newton_direction, use_sparse
 from ..equilibrium import equilibrium_from_solution, scaled_energy
 from ..stability import branch_analysis
+from ..symmetry import joint_two_fold, symmetrize, two_fold_asymmetry
 from .options import ContinuationOptions, Task
 
 
@@ -48,7 +49,14 @@ class _Refusal:
 # sliding modes (seen: N = 151 trefoil, |g| ~ 7e-9 against 1e-9, a false branch end at -8.03 pi
 # where the true one is -11.1 pi); Newton finishes it (``_Engine._finish_stalled``).
 STALL_FACTOR = 100.0
-# Damped-Newton iterations a continuation corrector may take between two neighbourhood pauses.
+# A state is on a two-fold symmetry (``ContinuationOptions.keep_symmetry``) when its nodes' rms
+# distance from their images is below SYMMETRIC_TOL edge lengths: the trefoil relaxed at phi = 0 as
+# drawn has 1e-14, and a stable-only path without the projection drifted along its nearly null
+# sliding modes by 1e-8 to 1e-6 edges per step before it left for another placement of its nodes
+# (N = 121, 2026-12-04). Each corrected state further from the symmetry than ROUND_OFF_ASYMMETRY
+# edges is projected back (one or two Newton steps), so the next one starts symmetric.
+SYMMETRIC_TOL = 1e-5
+ROUND_OFF_ASYMMETRY = 1e-12
 
 @dataclass(frozen=True)
 class _Step:
@@ -187,6 +195,7 @@ class _Engine:
             e = self._finish_stalled(exc, phi, prev)
             if e is None:
                 return _Step(None, refusal=_Refusal(StepFailure.NOT_CONVERGED, str(exc)))
+        e = self._kept_symmetric(prev, e, phi)
         moved = polyline_distance(e.x, x_pred, self.closed)
         if moved > opts.jump_tol:
             return _Step(e, refusal=_Refusal(StepFailure.JUMP, f"the state moved {moved:.3g} from the predicted shape"))
@@ -206,6 +215,27 @@ class _Engine:
         if n_negative > 0:
             return replace(s, refusal=_Refusal(StepFailure.UNSTABLE, f"{n_negative} negative eigenvalue(s)"))
         return s
+
+    def _kept_symmetric(self, prev, e, phi):
+        """e, or e projected back onto the two-fold symmetry that ``prev`` has (see
+        ``ContinuationOptions.keep_symmetry`` and ``jaxrod.symmetry``) and finished by Newton, where
+        the corrector drifted off it by more than round-off and less than jump_tol. Newton from a
+        symmetric state keeps the symmetry (the gradient is symmetric and the Hessian commutes with
+        the map), so the result is on the symmetric branch; it is checked like any corrected state.
+        e itself where prev is not symmetric, the drift is round-off or a departure of the shape, or
+        Newton fails."""
+        if not self.opts.keep_symmetry:
+            return e
+        edge = float(self.scene.length) / self.scene.n_nodes
+        if joint_two_fold(self.scene, prev.q, SYMMETRIC_TOL * edge) is None:
+            return e
+        sym = two_fold_asymmetry(e.x)
+        if not ROUND_OFF_ASYMMETRY * edge < sym.asymmetry <= self.opts.jump_tol:
+            return e
+        try:
+            return self._newton(phi, symmetrize(self.scene, e.q, sym), e.neighbourhood)
+        except ConvergenceError:
+            return e
 
     def _finish_stalled(self, exc, phi, prev):
         """A minimiser that ran out of steps within a factor STALL_FACTOR of gtol has stalled on

@@ -67,6 +67,10 @@ class ContinuationOptions:
     switch: at a branch end, switch to the stable buckled branch and go on (default True).
     max_switches: at most this many switches (default 3).
     perturbation: push along the critical mode when switching (default jump_tol).
+    keep_symmetry: on a closed rod whose joint lies on a two-fold axis of the state followed (the
+      trefoil as drawn), keep the states on that symmetry while the branch has it: a corrected
+      state that drifted off it by less than ``jump_tol`` (material sliding along nearly null
+      modes) is projected back and finished by Newton (``jaxrod.symmetry``). Default True.
 
     ``updated(**values)`` is a copy with the values that are not None replaced.
     """
@@ -84,6 +88,7 @@ class ContinuationOptions:
     switch: bool | None = None
     max_switches: int | None = None
     perturbation: float | None = None
+    keep_symmetry: bool | None = None
 
     def updated(self, **values):
         """A copy with every value that is not None replaced."""
@@ -109,6 +114,7 @@ class ContinuationOptions:
             "switch": True,
             "max_switches": 3,
             "perturbation": None,  # jump_tol, once that is known
+            "keep_symmetry": True,
         }
         values = {key: getattr(self, key) if getattr(self, key) is not None else d for key, d in defaults.items()}
         for key in ("step", "tol", "negative_tol", "gtol", "jump_tol"):
@@ -126,6 +132,9 @@ class ContinuationOptions:
         if values["switch"] not in (True, False):
             raise ValueError(f"switch must be True or False, got {values['switch']!r}")
         values["switch"] = bool(values["switch"])
+        if values["keep_symmetry"] not in (True, False):
+            raise ValueError(f"keep_symmetry must be True or False, got {values['keep_symmetry']!r}")
+        values["keep_symmetry"] = bool(values["keep_symmetry"])
         if not isinstance(values["branch"], str) or not values["branch"]:
             raise ValueError(f"branch must be a non-empty name, got {values['branch']!r}")
         return ContinuationOptions(**values)
