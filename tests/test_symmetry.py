@@ -95,3 +95,30 @@ def test_a_corrected_state_that_slid_is_brought_back_to_the_symmetric_branch(kno
     # keep_symmetry=False: the state is left as the corrector gave it
     off = _Engine(knot, Task.FOLLOW_TWIST, ContinuationOptions(keep_symmetry=False).resolved(knot, Task.FOLLOW_TWIST, 1.0))
     assert off._kept_symmetric(e0, slid, phi) is slid
+
+
+def test_a_diagram_path_starts_where_the_critical_eigenvalue_is_resolved(knot):
+    # diagram.backed_off_start: the study's last stable state as it is where its critical
+    # eigenvalue is resolved (or the model says nothing), else relaxed at the twist where the
+    # linear model puts the eigenvalue at START_EIGENVALUE, keeping the joint's symmetry.
+    from jaxrod.diagram import MAX_START_BACK, START_EIGENVALUE, backed_off_start
+    from jaxrod.equilibrium import solve_equilibrium
+
+    q0 = np.asarray(knot.q_init)
+    for eigenvalue, rate in ((2 * START_EIGENVALUE, -1e-6), (1e-9, -1e-6 * -1), (math.nan, -1e-6), (1e-9, math.nan)):
+        q, phi = backed_off_start(knot, q0, 0.5, eigenvalue, rate, 1.0)
+        assert q is q0 and phi == 0.5
+    q, phi = backed_off_start(knot, q0, 0.0, 1e-9, -1e-6, 1.0)  # the end lies at phi > 0: back to phi < 0
+    assert phi == pytest.approx(-(START_EIGENVALUE - 1e-9) / 1e-6, rel=1e-12) and -phi <= MAX_START_BACK
+    edge = knot.length / N
+    assert two_fold_asymmetry(np.asarray(knot.positions(q))).asymmetry < 1e-11 * edge
+    e = solve_equilibrium(knot, phi, q, replace(_newton_options(), gtol=1e-9))
+    assert e.solution.iterations <= 1  # already an equilibrium there
+    q, phi = backed_off_start(knot, q0, 0.0, 1e-12, 1e-9, -1.0)  # end at phi < 0, a flat eigenvalue: at most MAX_START_BACK
+    assert phi == pytest.approx(MAX_START_BACK)
+
+
+def _newton_options():
+    from jaxrod.equilibrium import EquilibriumOptions
+
+    return EquilibriumOptions(method="newton", with_stability=False)
