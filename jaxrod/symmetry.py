@@ -27,7 +27,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["TwoFold", "joint_two_fold", "two_fold_asymmetry", "symmetrize"]
+__all__ = ["TwoFold", "joint_two_fold", "two_fold_asymmetry", "symmetrize", "SYMMETRIC_TOL", "ROUND_OFF_ASYMMETRY"]
+
+# A state is on a two-fold symmetry (``ContinuationOptions.keep_symmetry``) when its nodes' rms
+# distance from their images is below SYMMETRIC_TOL edge lengths: the trefoil relaxed at phi = 0 as
+# drawn has 1e-14, and a stable-only path without the projection drifted along its nearly null
+# sliding modes by 1e-8 to 1e-6 edges per step before it left for another placement of its nodes
+# (N = 121, 2026-12-04). Each corrected state further from the symmetry than ROUND_OFF_ASYMMETRY
+# edges is projected back (one or two Newton steps), so the next one starts symmetric.
+SYMMETRIC_TOL = 1e-5
+ROUND_OFF_ASYMMETRY = 1e-12
 
 
 @dataclass(frozen=True)
@@ -101,3 +110,4 @@ def symmetrize(scene, q, sym=None):
     theta_image = -theta[::-1] + 2.0 * theta.mean()
     theta_sym = 0.5 * (theta + theta_image)
     return np.concatenate([x_sym.ravel(), theta_sym])
+

@@ -22,7 +22,7 @@ from ..sparse_branch import EXTRA_PAIRS, solve_equilibrium_sparse, sparse_branch
 from ..sparse_contact import SPARSE_MIN_DOF, deflated_newton_direction, use_sparse
 from ..equilibrium import equilibrium_from_solution, scaled_energy
 from ..stability import branch_analysis
-from ..symmetry import joint_two_fold, symmetrize, two_fold_asymmetry
+from ..symmetry import ROUND_OFF_ASYMMETRY, SYMMETRIC_TOL, joint_two_fold, symmetrize, two_fold_asymmetry
 from .options import ContinuationOptions, Task
 
 
@@ -49,14 +49,6 @@ class _Refusal:
 # sliding modes (seen: N = 151 trefoil, |g| ~ 7e-9 against 1e-9, a false branch end at -8.03 pi
 # where the true one is -11.1 pi); Newton finishes it (``_Engine._finish_stalled``).
 STALL_FACTOR = 100.0
-# A state is on a two-fold symmetry (``ContinuationOptions.keep_symmetry``) when its nodes' rms
-# distance from their images is below SYMMETRIC_TOL edge lengths: the trefoil relaxed at phi = 0 as
-# drawn has 1e-14, and a stable-only path without the projection drifted along its nearly null
-# sliding modes by 1e-8 to 1e-6 edges per step before it left for another placement of its nodes
-# (N = 121, 2026-12-04). Each corrected state further from the symmetry than ROUND_OFF_ASYMMETRY
-# edges is projected back (one or two Newton steps), so the next one starts symmetric.
-SYMMETRIC_TOL = 1e-5
-ROUND_OFF_ASYMMETRY = 1e-12
 
 @dataclass(frozen=True)
 class _Step:
