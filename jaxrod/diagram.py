@@ -167,21 +167,24 @@ def backed_off_start(scene, q, phi, eigenvalue, rate, sign):
     stable state relaxed from q at the twist where the linear model puts it at START_EIGENVALUE,
     stepped back against ``sign`` (the direction of the end), by at most MAX_START_BACK. A state with
     the two-fold symmetry through the joint keeps it (``jaxrod.symmetry``). -> (q, phi)."""
-    from .equilibrium import EquilibriumOptions, RelaxOptions, relax, solve_equilibrium
+    from .continuation.follow import _follow_engine
+    from .continuation.options import ContinuationOptions, Task
+    from .equilibrium import LeftBranchError, TopologyChangeError, relax
     from .solvers import ConvergenceError
-    from .symmetry import joint_two_fold, symmetrize
+    from .symmetry import SYMMETRIC_TOL, joint_two_fold, symmetrize
 
     if not (math.isfinite(eigenvalue) and math.isfinite(rate)) or eigenvalue >= START_EIGENVALUE or rate * sign >= 0.0:
         return q, phi
     back = min((START_EIGENVALUE - eigenvalue) / abs(rate), MAX_START_BACK)
     phi_back = phi - sign * back
     edge = float(scene.length) / scene.n_nodes
+    # the study's own corrector (the same compiled programs), projected back onto the symmetry
+    options = _follow_engine(scene, ContinuationOptions().resolved(scene, Task.FOLLOW_TWIST, 1.0)).corrector_options
     try:
-        e = relax(scene, phi_back, np.asarray(q), RelaxOptions(gtol=1e-9, with_stability=False))
-        if joint_two_fold(scene, q, 1e-5 * edge) is not None:
-            e = solve_equilibrium(scene, phi_back, symmetrize(scene, e.q),
-                                  EquilibriumOptions(method="newton", gtol=1e-9, with_stability=False))
-    except ConvergenceError:
+        e = relax(scene, phi_back, np.asarray(q), options)
+        if joint_two_fold(scene, q, SYMMETRIC_TOL * edge) is not None:
+            e = relax(scene, phi_back, symmetrize(scene, e.q), options, nbr=e.neighbourhood)
+    except (ConvergenceError, LeftBranchError, TopologyChangeError):
         return q, phi
     return np.asarray(e.q), float(phi_back)
 

@@ -210,12 +210,12 @@ class _Engine:
 
     def _kept_symmetric(self, prev, e, phi):
         """e, or e projected back onto the two-fold symmetry that ``prev`` has (see
-        ``ContinuationOptions.keep_symmetry`` and ``jaxrod.symmetry``) and finished by Newton, where
-        the corrector drifted off it by more than round-off and less than jump_tol. Newton from a
-        symmetric state keeps the symmetry (the gradient is symmetric and the Hessian commutes with
-        the map), so the result is on the symmetric branch; it is checked like any corrected state.
-        e itself where prev is not symmetric, the drift is round-off or a departure of the shape, or
-        Newton fails."""
+        ``ContinuationOptions.keep_symmetry`` and ``jaxrod.symmetry``) and finished by the corrector,
+        where it drifted off it by more than round-off and less than jump_tol. From a symmetric state
+        the gradient is symmetric and the Hessian commutes with the map, so the finishing steps (none
+        or one) keep the symmetry; the result is checked like any corrected state. e itself where
+        prev is not symmetric, the drift is round-off or a departure of the shape, or the corrector
+        fails."""
         if not self.opts.keep_symmetry:
             return e
         edge = float(self.scene.length) / self.scene.n_nodes
@@ -225,8 +225,12 @@ class _Engine:
         if not ROUND_OFF_ASYMMETRY * edge < sym.asymmetry <= self.opts.jump_tol:
             return e
         try:
-            return self._newton(phi, symmetrize(self.scene, e.q, sym), e.neighbourhood)
-        except ConvergenceError:
+            # the corrector itself, from the projected state: its gradient differs from e's by the
+            # near-null slide's curvature times the drift (~1e-15), so it stops at once or after one
+            # step, and no other program is compiled for it (Newton here cost command 1 ~6 s cold)
+            return relax(self.scene, phi, symmetrize(self.scene, e.q, sym), self.corrector_options, previous=prev,
+                         nbr=e.neighbourhood)
+        except (ConvergenceError, LeftBranchError, TopologyChangeError):
             return e
 
     def _finish_stalled(self, exc, phi, prev):
