@@ -367,6 +367,12 @@ def split_sliding(scene, q, free, n_full, values, vectors, threshold=CLEAN_SLIDE
 # Eigenvalues within this of zero (scaled units; round-off is ~1e-14 at N = 121) count as neither sign
 # when a split is checked against the inertia.
 SPLIT_SIGN_TOL = 1e-14
+# A negative direction of J that the split hides counts as a shape instability above this sliding
+# fraction. Measured where the split hid one: 0.20-0.28 at crossings (the trefoil's buckled+ branch
+# at N = 121, its tightening curve at N = 128 and D/L = 0.021); slide-dominated mixes that are saddles
+# of the sliding landscape: 0.05-0.06 (the tightening curve at D/L = 0.020, where counting them lost
+# the branch point's location). SLIDING_FRACTION (0.05) separates a clean mode from a slide.
+HIDDEN_SHAPE_FRACTION = 0.15
 
 
 def _split_hides_a_shape_instability(scene, q, values, full, split_values, soft):
@@ -377,20 +383,20 @@ def _split_hides_a_shape_instability(scene, q, values, full, split_values, soft)
     neither s's Rayleigh quotient nor the complement's Ritz values show (Haynsworth: n_neg(J) =
     [s^T J s < 0] + n_neg(Schur complement), and the complement's count can fall below the Schur
     complement's). So J's negative eigenvectors are counted too, those that change the shape
-    (sliding fraction above SLIDING_FRACTION: a slide leaves < 1e-3, shape modes 0.2 and more); if
+    (sliding fraction above HIDDEN_SHAPE_FRACTION = 0.15: a slide leaves < 1e-3, the hidden crossings seen 0.20 and more); if
     they outnumber the complement's negative Ritz values, the split is not made (J's eigenpairs stay
     as they are, none soft). Measured on the trefoil at N = 121 (--step 0.25pi): on its buckled+
     branch the slide sat at 2.1e-7, the shape Ritz value at 1.7e-7 and J's lowest eigenvalue at
     -1.3e-9 (7.0411 pi, fraction 0.20), and the split hid the branch point at 7.041 pi (the path
     ended at a fold at 7.069 pi); at the opening fold J's negative direction -1.4e-8 is the slide
     (fraction 3e-4), and the split stands."""
-    from ..stability import SLIDING_FRACTION, sliding_fraction
+    from ..stability import sliding_fraction
 
     tol = SPLIT_SIGN_TOL
     negative = np.flatnonzero(values < -tol)
     if negative.size <= int(np.sum(split_values[~soft] < -tol)):
         return False
-    shape = int(np.sum(sliding_fraction(scene, q, full[:, negative]) > SLIDING_FRACTION))
+    shape = int(np.sum(sliding_fraction(scene, q, full[:, negative]) > HIDDEN_SHAPE_FRACTION))
     return shape > int(np.sum(split_values[~soft] < -tol))
 
 
