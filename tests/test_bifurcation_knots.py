@@ -126,6 +126,18 @@ def test_the_path_goes_through_the_fold_onto_the_unstable_branch(paths):
         assert all(q.tangent[-1] < 0 for q in after[:5])
 
 
+def _drawn_trefoil_and_its_slide():
+    """(scene, q, slide (n,)): the trefoil as drawn at N = 61 and a uniform slide of its material
+    along the centreline (node motions along the tangents, twist angles still)."""
+    scene = jr.trefoil(D=8.0, L=292.0, N=61)
+    q = np.asarray(scene.q_init)
+    n, n_full = scene.n_nodes, q.size
+    x = q[:3 * n].reshape(n, 3)
+    t = np.roll(x, -1, axis=0) - np.roll(x, 1, axis=0)
+    slide = np.concatenate([(t / np.linalg.norm(t, axis=1, keepdims=True)).ravel(), np.zeros(n_full - 3 * n)])
+    return scene, q, slide
+
+
 def test_only_a_clean_slide_is_split_off():
     """The soft direction split off a pinned knot's lowest eigenpairs must be a slide, not the least
     sliding mix of its span: on the trefoil at N = 241 (slide pinned) the least sliding direction of
@@ -141,12 +153,8 @@ def test_only_a_clean_slide_is_split_off():
 
     threshold = inspect.signature(knot_problem).parameters["sliding"].default
     assert threshold == CLEAN_SLIDE_FRACTION < 0.05
-    scene = jr.trefoil(D=8.0, L=292.0, N=61)
-    q = np.asarray(scene.q_init)
-    n, n_full = scene.n_nodes, q.size
-    x = q[:3 * n].reshape(n, 3)
-    t = np.roll(x, -1, axis=0) - np.roll(x, 1, axis=0)
-    slide = np.concatenate([(t / np.linalg.norm(t, axis=1, keepdims=True)).ravel(), np.zeros(n_full - 3 * n)])
+    scene, q, slide = _drawn_trefoil_and_its_slide()
+    n_full = q.size
     rng = np.random.default_rng(0)
     shape = rng.standard_normal((n_full, 6))
     def fraction(v):
@@ -193,12 +201,8 @@ def test_a_slide_coupled_to_a_shape_mode_does_not_hide_its_instability():
     from jaxrod.bifurcation.rods import split_sliding
     from jaxrod.stability import CLEAN_SLIDE_FRACTION
 
-    scene = jr.trefoil(D=8.0, L=292.0, N=61)
-    q = np.asarray(scene.q_init)
-    n, n_full = scene.n_nodes, q.size
-    x = q[:3 * n].reshape(n, 3)
-    t = np.roll(x, -1, axis=0) - np.roll(x, 1, axis=0)
-    slide = np.concatenate([(t / np.linalg.norm(t, axis=1, keepdims=True)).ravel(), np.zeros(n_full - 3 * n)])
+    scene, q, slide = _drawn_trefoil_and_its_slide()
+    n_full = q.size
     rng = np.random.default_rng(1)
     basis, _ = np.linalg.qr(np.column_stack([slide, rng.standard_normal((n_full, 3))]))  # slide, shape modes
     free = np.arange(n_full)
