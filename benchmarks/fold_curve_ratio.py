@@ -43,7 +43,7 @@ from jaxrod.bifurcation.rods import knot_problem, set_diameter  # noqa: E402
 PI = math.pi
 L, N, D0, NU = 292.0, 128, 8.0, 0.5
 GRID = np.round(np.arange(0.008, 0.0451, 0.001), 4)  # D/L
-CHECKS = (0.010, 0.015, 0.020, 0.035, 0.040)
+CHECKS = (0.010, 0.015, 0.020, 0.025, 0.030, 0.035, 0.040)  # every 0.005 over the range (0.025 and 0.030 added 2026-12-04)
 SIDES = {"plus": dict(sign=1.0, below=6.35, name="opening"), "minus": dict(sign=-1.0, below=-10.9, name="tightening")}
 DELTA = 0.03 * PI
 MAX_JUMP = 2.0  # scaled units (edge lengths): a start that relaxed further has left the branch
