@@ -184,7 +184,11 @@ def backed_off_start(scene, q, phi, eigenvalue, rate, sign):
         e = relax(scene, phi_back, np.asarray(q), options)
         if joint_two_fold(scene, q, SYMMETRIC_TOL * edge) is not None:
             e = relax(scene, phi_back, symmetrize(scene, e.q), options, nbr=e.neighbourhood)
-    except (ConvergenceError, LeftBranchError, TopologyChangeError):
+    except (ConvergenceError, LeftBranchError, TopologyChangeError) as exc:
+        warnings.warn(f"the path to the end is started from the study's last stable state at {phi / math.pi:+.6f} pi, "
+                      f"whose critical eigenvalue {eigenvalue:.2g} is below {START_EIGENVALUE:g}: relaxing at "
+                      f"{phi_back / math.pi:+.6f} pi failed ({exc}); Newton from it may move onto another state",
+                      stacklevel=2)
         return q, phi
     return np.asarray(e.q), float(phi_back)
 

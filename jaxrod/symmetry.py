@@ -27,6 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .scenes import ClosedRod
+
 __all__ = ["TwoFold", "joint_two_fold", "two_fold_asymmetry", "symmetrize", "SYMMETRIC_TOL", "ROUND_OFF_ASYMMETRY"]
 
 # A state is on a two-fold symmetry (``ContinuationOptions.keep_symmetry``) when its nodes' rms
@@ -62,7 +64,7 @@ class TwoFold:
 def _applies(scene):
     """Whether the scene's energy is invariant under the map: a closed rod with uniform rest lengths
     (the vertices' Voronoi lengths then are too)."""
-    if not getattr(scene, "closed", False) or not hasattr(scene, "Lk0"):
+    if not isinstance(scene, ClosedRod):  # its DOF layout, holonomy at vertex 0
         return False
     rest = np.asarray(scene.rest_lengths, dtype=float)
     return bool(np.all(np.abs(rest - rest.mean()) <= 1e-12 * rest.mean()))

@@ -46,7 +46,8 @@ from ..aot import cached_jit
 from ..geometry import closest_approach
 from ..hessian import scaled_hessian as structured_scaled_hessian
 from ..sparse_stability import gauge_pins
-from ..stability import CLEAN_SLIDE_FRACTION, scene_bilinear_gradient, scene_linearisation, split_slide
+from ..stability import (CLEAN_SLIDE_FRACTION, scene_bilinear_gradient, scene_linearisation, sliding_fraction,
+                         split_slide)
 from ..topology import writhe
 from ..sparse_contact import assemble, hessian_parts, use_sparse
 from .linalg import DenseBackend, HostMatrix, SparseBackend
@@ -383,21 +384,19 @@ def _split_hides_a_shape_instability(scene, q, values, full, split_values, soft)
     neither s's Rayleigh quotient nor the complement's Ritz values show (Haynsworth: n_neg(J) =
     [s^T J s < 0] + n_neg(Schur complement), and the complement's count can fall below the Schur
     complement's). So J's negative eigenvectors are counted too, those that change the shape
-    (sliding fraction above HIDDEN_SHAPE_FRACTION = 0.15: a slide leaves < 1e-3, the hidden crossings seen 0.20 and more); if
-    they outnumber the complement's negative Ritz values, the split is not made (J's eigenpairs stay
-    as they are, none soft). Measured on the trefoil at N = 121 (--step 0.25pi): on its buckled+
-    branch the slide sat at 2.1e-7, the shape Ritz value at 1.7e-7 and J's lowest eigenvalue at
-    -1.3e-9 (7.0411 pi, fraction 0.20), and the split hid the branch point at 7.041 pi (the path
-    ended at a fold at 7.069 pi); at the opening fold J's negative direction -1.4e-8 is the slide
-    (fraction 3e-4), and the split stands."""
-    from ..stability import sliding_fraction
-
+    (sliding fraction above HIDDEN_SHAPE_FRACTION = 0.15: a slide leaves < 1e-3, the hidden
+    crossings seen 0.20 and more); if they outnumber the complement's negative Ritz values, the
+    split is not made (J's eigenpairs stay as they are, none soft). Measured on the trefoil at
+    N = 121 (--step 0.25pi): on its buckled+ branch the slide sat at 2.1e-7, the shape Ritz value
+    at 1.7e-7 and J's lowest eigenvalue at -1.3e-9 (7.0411 pi, fraction 0.20), and the split hid
+    the branch point at 7.041 pi (the path ended at a fold at 7.069 pi); at the opening fold J's
+    negative direction -1.4e-8 is the slide (fraction 3e-4), and the split stands."""
     tol = SPLIT_SIGN_TOL
     negative = np.flatnonzero(values < -tol)
-    if negative.size <= int(np.sum(split_values[~soft] < -tol)):
+    counted = int(np.sum(split_values[~soft] < -tol))
+    if negative.size <= counted:
         return False
-    shape = int(np.sum(sliding_fraction(scene, q, full[:, negative]) > HIDDEN_SHAPE_FRACTION))
-    return shape > int(np.sum(split_values[~soft] < -tol))
+    return int(np.sum(sliding_fraction(scene, q, full[:, negative]) > HIDDEN_SHAPE_FRACTION)) > counted
 
 
 def sliding_slice(rod, event, *, candidates=None):

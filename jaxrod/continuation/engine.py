@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import enum
 import math
+import warnings
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -230,7 +231,12 @@ class _Engine:
             # step, and no other program is compiled for it (Newton here cost command 1 ~6 s cold)
             return relax(self.scene, phi, symmetrize(self.scene, e.q, sym), self.corrector_options, previous=prev,
                          nbr=e.neighbourhood)
-        except (ConvergenceError, LeftBranchError, TopologyChangeError):
+        except (ConvergenceError, LeftBranchError, TopologyChangeError) as exc:
+            # not silently: once a state is off the symmetry by more than SYMMETRIC_TOL, the rest of
+            # the branch is followed without it (and may slide into another placement of the nodes)
+            warnings.warn(f"phi = {phi / math.pi:+.5f} pi: the state drifted {sym.asymmetry:.2g} off the two-fold "
+                          f"symmetry through the joint and could not be brought back ({exc}); kept as corrected",
+                          stacklevel=2)
             return e
 
     def _finish_stalled(self, exc, phi, prev):

@@ -70,7 +70,7 @@ class ContinuationOptions:
     keep_symmetry: on a closed rod whose joint lies on a two-fold axis of the state followed (the
       trefoil as drawn), keep the states on that symmetry while the branch has it: a corrected
       state that drifted off it by less than ``jump_tol`` (material sliding along nearly null
-      modes) is projected back and finished by Newton (``jaxrod.symmetry``). Default True.
+      modes) is projected back and finished by the corrector (``jaxrod.symmetry``). Default True.
 
     ``updated(**values)`` is a copy with the values that are not None replaced.
     """
