@@ -40,6 +40,7 @@ PI = math.pi
 D, L, N = 8.0, 292.0, 121
 NU0 = 0.5
 POINTS = (0.0, 0.1, 0.2, 0.3, 0.4)
+H_NU = 1e-3  # the central differences' step in nu (0.0 +- h: nu = -0.001 is a valid material)
 HERE = os.path.dirname(os.path.abspath(__file__))
 OUT = os.path.join(HERE, "results")
 ALG = PseudoArclength()
@@ -86,9 +87,17 @@ def main():
                    difference_over_pi=(abs(study.p - on_curve.p) / PI if study else None),
                    study_critical_eigenvalue=(study.critical_eigenvalue if study else None),
                    study_seconds=seconds, michell_over_pi=2 * math.sqrt(3) * (1 + nu))
+        if study is not None:
+            # dphi*/dnu of the point studies: central differences of two more, at nu +- H_NU
+            ends = [locate_opening_fold(nu + sgn * H_NU, on_curve.p - 0.3 * PI)[1] for sgn in (-1.0, 1.0)]
+            if all(e is not None for e in ends):
+                central = (ends[1].p - ends[0].p) / (2 * H_NU)
+                row.update(central_dphi_dnu=central, derivative_rel_diff=abs(central - on_curve.dp_dmu) / abs(on_curve.dp_dmu))
         rows.append(row)
         print(f"nu = {nu}: curve {row['curve_phi_over_pi']:.10f} pi, point study "
-              f"{row['study_phi_over_pi']} pi, difference {row['difference_over_pi']} pi ({seconds:.0f} s)", flush=True)
+              f"{row['study_phi_over_pi']} pi, difference {row['difference_over_pi']} pi ({seconds:.0f} s); dphi*/dnu "
+              f"IFT {on_curve.dp_dmu:.8f}, central {row.get('central_dphi_dnu')}, rel {row.get('derivative_rel_diff')}",
+              flush=True)
     # the IFT slope along the curve against the curve's own finite differences (a consistency check)
     order = np.argsort(curve.mu)
     mu, p, slope = curve.mu[order], curve.p[order], curve.dp_dmu[order]
@@ -119,13 +128,17 @@ def write_md(s):
              f"{s['curve_seconds']:.1f} s ({s['curve_result']}), residual of the fold system <= {s['max_residual']:.1e}. "
              f"The IFT slope dphi*/dnu along the curve agrees with the curve's own finite differences to "
              f"{s['slope_vs_curve_differences_max_rel']:.1e} relative (second-order differences on uneven points).", "",
-             "| nu | curve phi* / pi | point study phi* / pi | difference / pi | dphi*/dnu (IFT) | Michell / pi | "
-             "point study s |", "|---|---|---|---|---|---|---|"]
+             f"Each point study's dphi*/dnu: central differences of two more point studies at nu +- {H_NU:g}, against "
+             "the IFT on the fold system at the curve's point.", "",
+             "| nu | curve phi* / pi | point study phi* / pi | difference / pi | dphi*/dnu (IFT) | central | rel. diff | "
+             "Michell / pi | point study s |", "|---|---|---|---|---|---|---|---|---|"]
     for r in s["point_studies"]:
         diff = "--" if r["difference_over_pi"] is None else f"{r['difference_over_pi']:.1e}"
         study = "no fold" if r["study_phi_over_pi"] is None else f"{r['study_phi_over_pi']:.10f}"
+        central = "--" if r.get("central_dphi_dnu") is None else f"{r['central_dphi_dnu']:.6f}"
+        rel = "--" if r.get("derivative_rel_diff") is None else f"{r['derivative_rel_diff']:.1e}"
         lines.append(f"| {r['nu']:g} | {r['curve_phi_over_pi']:.10f} | {study} | {diff} | {r['curve_dphi_dnu']:.6f} | "
-                     f"{r['michell_over_pi']:.6f} | {r['study_seconds']:.0f} |")
+                     f"{central} | {rel} | {r['michell_over_pi']:.6f} | {r['study_seconds']:.0f} |")
     with open(os.path.join(OUT, "fold_curve_nu.md"), "w") as f:
         f.write("\n".join(lines) + "\n")
 

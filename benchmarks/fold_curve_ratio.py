@@ -39,6 +39,7 @@ import jaxrod as jr  # noqa: E402
 from jaxrod.bifurcation import ContinuationOptions, PseudoArclength  # noqa: E402
 from jaxrod.bifurcation.event_curve import EventCurveOptions, event_curve  # noqa: E402
 from jaxrod.bifurcation.rods import knot_problem, set_diameter  # noqa: E402
+from jaxrod.symmetry import two_fold_asymmetry  # noqa: E402
 
 PI = math.pi
 L, N, D0, NU = 292.0, 128, 8.0, 0.5
@@ -47,7 +48,7 @@ CHECKS = (0.010, 0.015, 0.020, 0.025, 0.030, 0.035, 0.040)  # every 0.005 over t
 SIDES = {"plus": dict(sign=1.0, below=6.35, name="opening"), "minus": dict(sign=-1.0, below=-10.9, name="tightening")}
 DELTA = 0.03 * PI
 MAX_JUMP = 2.0  # scaled units (edge lengths): a start that relaxed further has left the branch
-H_REL = 1e-3
+H_RELS = (1e-3, 1e-4)  # central-difference steps h / D (the last one is the check)
 # The curves from D0 end before the grid's ends (the opening fold at a cusp near D/L = 0.0425, the
 # tightening event where its curve turns back in D/L near 0.039); past them the first instability is
 # another event (point studies at 0.044: opening 7.818 pi, tightening -12.679 pi). That event is
@@ -69,12 +70,23 @@ def _path(sign):
                                p_min=-20 * PI, p_max=16 * PI)
 
 
-def row_of(side, r, stage):
+def asymmetry(rod, u):
+    """The state's distance from the nearest two-fold symmetry that maps the nodes onto each other
+    (rms, in edge lengths): node i -> k - i, over every k (through a node for k even, an edge's
+    midpoint for k odd). The symmetry through the joint is k = 0; the material slid by whole edges is
+    the same state (an isotropic rod's energy does not depend on where its joint is), symmetric
+    about another node."""
+    x = rod.nodes(u)
+    return float(min(two_fold_asymmetry(np.roll(x[::-1], k + 1, axis=0)).asymmetry for k in range(N)) / (L / N))
+
+
+def row_of(side, r, stage, rod):
     return dict(side=side, stage=stage, D_over_L=r.mu / L, phi_star_over_pi=r.p / PI, kind=r.kind,
                 morse_before=r.morse_before, morse_after=r.morse_after, critical_eigenvalue=r.critical_eigenvalue,
                 residual=r.residual, dphi_dratio_over_pi=r.dp_dmu * L / PI,
                 predicted_over_pi=(r.predicted / PI if np.isfinite(r.predicted) else None), seconds=r.seconds,
-                back_offs=r.back_offs, points=r.points)
+                back_offs=r.back_offs, points=r.points, symmetric=bool(r.symmetric), asymmetry=asymmetry(rod, r.u),
+                anchor_asymmetry=asymmetry(rod, r.anchor_u))
 
 
 def start_state(D, below):
@@ -95,7 +107,7 @@ def run_side(side, summary, save):
     def observer(stage):
         def obs(r):
             rows = summary["curve"]
-            rows.append(row_of(side, r, stage))
+            rows.append(row_of(side, r, stage, rod))
             print(f"[{side} {stage}] D/L {r.mu / L:.4f}: {r.kind} {r.p / PI:+.9f} pi, lambda {r.critical_eigenvalue:.1e}, "
                   f"residual {r.residual:.1e}, dphi*/d(D/L) {r.dp_dmu * L / PI:+.3f} pi, {r.seconds:.1f} s",
                   flush=True)
@@ -127,7 +139,7 @@ def run_high(side, high, save):
     high["start_seconds"][side] = time.perf_counter() - t0
 
     def obs(r):
-        high["curve"].append(row_of(side, r, "high"))
+        high["curve"].append(row_of(side, r, "high", rod))
         print(f"[{side} high] D/L {r.mu / L:.4f}: {r.kind} {r.p / PI:+.9f} pi, lambda {r.critical_eigenvalue:.1e}, "
               f"residual {r.residual:.1e}, dphi*/d(D/L) {r.dp_dmu * L / PI:+.3f} pi, {r.seconds:.1f} s", flush=True)
         save()
@@ -149,6 +161,8 @@ def checks(side, curve_rows, summary, save):
     sign = SIDES[side]["sign"]
     for ratio in CHECKS:
         r = next((q for q in curve_rows if q["side"] == side and abs(q["D_over_L"] - ratio) < 1e-9), None)
+        if r is None:  # past the end of the curve from D0: the second segment's point, if any
+            r = next((q for q in _high_rows()["curve"] if q["side"] == side and abs(q["D_over_L"] - ratio) < 1e-9), None)
         if r is None:
             continue
         D = ratio * L
@@ -163,23 +177,31 @@ def checks(side, curve_rows, summary, save):
             save()
             continue
         q = study.points[0]
-        h = H_REL * D
-        located = []
-        for mu in (D - h, D + h):
-            c = event_curve(rod.problem, (q.anchor_u, q.anchor_p), set_diameter, mu, [], options(sign, 300))
-            located.append((c.points[0].p, c.points[0].kind) if c.points else (float("nan"), None))
-        fd = (located[1][0] - located[0][0]) / (2 * h)
+        centrals = []
+        for h_rel in H_RELS:  # two steps: a difference that changes with h is truncation, not the IFT
+            h = h_rel * D
+            located = []
+            for mu in (D - h, D + h):
+                c = event_curve(rod.problem, (q.anchor_u, q.anchor_p), set_diameter, mu, [], options(sign, 300))
+                located.append((c.points[0].p, c.points[0].kind) if c.points else (float("nan"), None))
+            centrals.append(((located[1][0] - located[0][0]) / (2 * h), [k for _, k in located]))
+        fd, kinds = centrals[-1]
         row = dict(side=side, D_over_L=ratio, curve_over_pi=r["phi_star_over_pi"], curve_kind=r["kind"],
-                   study_over_pi=q.p / PI, study_kind=q.kind,
+                   study_over_pi=q.p / PI, study_kind=q.kind, study_asymmetry=asymmetry(rod, q.u),
+                   curve_asymmetry=r.get("asymmetry"),
                    difference_over_pi=abs(q.p / PI - r["phi_star_over_pi"]), study_seconds=seconds,
                    curve_ift_over_pi=r["dphi_dratio_over_pi"], study_ift_over_pi=q.dp_dmu * L / PI,
-                   central_difference_over_pi=fd * L / PI, central_kinds=[k for _, k in located],
-                   derivative_rel_diff=abs(fd - q.dp_dmu) / abs(q.dp_dmu), h_over_D=H_REL)
+                   central_difference_over_pi=fd * L / PI, central_kinds=kinds,
+                   derivative_rel_diff=abs(fd - q.dp_dmu) / abs(q.dp_dmu), h_over_D=H_RELS[-1],
+                   centrals=[dict(h_over_D=h_rel, central_over_pi=c * L / PI, kinds=k,
+                                  rel_diff=abs(c - q.dp_dmu) / abs(q.dp_dmu)) for h_rel, (c, k) in zip(H_RELS, centrals)])
         summary["checks"].append(row)
+        others = "; ".join(f"{c['rel_diff']:.1e} at h = {c['h_over_D']:g} D" for c in row["centrals"][:-1])
         print(f"[{side} check] D/L {ratio}: curve {r['phi_star_over_pi']:+.10f} pi ({r['kind']}), study "
               f"{q.p / PI:+.10f} pi ({q.kind}), difference {row['difference_over_pi']:.1e} pi; IFT "
               f"{row['study_ift_over_pi']:+.6f} pi, central {row['central_difference_over_pi']:+.6f} pi "
-              f"({located[0][1]}, {located[1][1]}), rel {row['derivative_rel_diff']:.1e}", flush=True)
+              f"({kinds[0]}, {kinds[1]}), rel {row['derivative_rel_diff']:.1e} at h = {H_RELS[-1]:g} D ({others}); "
+              f"asymmetry study {row['study_asymmetry']:.1e}, curve {row['curve_asymmetry']}", flush=True)
         save()
 
 
@@ -248,23 +270,25 @@ def report(s):
              f"`benchmarks/fold_curve_ratio.py`. Each side's first instability followed in D/L by "
              f"`jaxrod.bifurcation.event_curve` from D/L = {s['D0'] / s['L']:.4f} up and down.", ""]
     lines += _curve_lines(s, rows)
-    lines += ["", "Point studies (a new scene at that D, from phi = 0; its event located on its own) and, for each, "
-              "dphi*/d(D/L) from the IFT against central differences of two more point studies at D +- h (h = 1e-3 D, "
-              "each from the point study's stable state before its event):", "",
-              "| side | D/L | curve / pi | point study / pi | difference / pi | dphi*/d(D/L) IFT / pi | central / pi | "
-              "rel. diff |", "|---|---|---|---|---|---|---|---|"]
+    lines += ["", "Point studies (a new scene at that D, followed from phi = 0 on the two-fold symmetry through the joint; "
+              "its event located on its own) and, for each, dphi*/d(D/L) from the IFT against central differences of two "
+              "more point studies at D +- h (each from the point study's stable state before its event; rel. diff at the "
+              "smaller h, the larger h's in brackets). Asymmetry: the located states' rms distance from the symmetry, in "
+              "edge lengths:", "",
+              "| side | D/L | curve / pi | point study / pi | difference / pi | asymmetry curve / study | "
+              "dphi*/d(D/L) IFT / pi | central / pi | rel. diff |", "|---|---|---|---|---|---|---|---|---|"]
     for c in s["checks"]:
         if c.get("study_over_pi") is None:
             lines.append(f"| {c['side']} | {c['D_over_L']:.3f} | {c['curve_over_pi']:+.10f} ({c['curve_kind']}) | "
-                         f"no event: {c.get('message', '')} | | | | |")
+                         f"no event: {c.get('message', '')} | | | | | |")
             continue
-        if "study_ift_over_pi" not in c:  # a point study of the first run, whose central differences were not kept
-            deriv = "-- | -- | --"
-        else:
-            deriv = (f"{c['study_ift_over_pi']:+.6f} | {c['central_difference_over_pi']:+.6f} | "
-                     f"{c['derivative_rel_diff']:.1e}")
+        centrals = c.get("centrals", [])
+        others = ", ".join(f"{q['rel_diff']:.1e} at {q['h_over_D']:g} D" for q in centrals[:-1])
+        deriv = (f"{c['study_ift_over_pi']:+.6f} | {c['central_difference_over_pi']:+.6f} (h = {c['h_over_D']:g} D) | "
+                 f"{c['derivative_rel_diff']:.1e}" + (f" ({others})" if others else ""))
+        asym = f"{_fmt(c.get('curve_asymmetry'))} / {_fmt(c.get('study_asymmetry'))}"
         lines.append(f"| {c['side']} | {c['D_over_L']:.3f} | {c['curve_over_pi']:+.10f} ({c['curve_kind']}) | "
-                     f"{c['study_over_pi']:+.10f} ({c['study_kind']}) | {c['difference_over_pi']:.1e} | {deriv} |")
+                     f"{c['study_over_pi']:+.10f} ({c['study_kind']}) | {c['difference_over_pi']:.1e} | {asym} | {deriv} |")
     high = _high_rows()
     if high["curve"]:
         _write_csv("fold_curve_ratio_high.csv", sorted(high["curve"], key=lambda r: (r["side"], r["D_over_L"])))
@@ -278,8 +302,12 @@ def report(s):
     plot(rows, s, sorted(high["curve"], key=lambda r: (r["side"], r["D_over_L"])))
 
 
+def _fmt(x):
+    return "--" if x is None else f"{x:.1e}"
+
+
 CSV_KEYS = ["side", "D_over_L", "phi_star_over_pi", "kind", "morse_before", "morse_after", "critical_eigenvalue",
-            "residual", "dphi_dratio_over_pi", "predicted_over_pi", "seconds"]
+            "residual", "dphi_dratio_over_pi", "predicted_over_pi", "seconds", "asymmetry"]
 
 
 def _write_csv(name, rows):
@@ -287,7 +315,7 @@ def _write_csv(name, rows):
         w = csv.writer(f)
         w.writerow(CSV_KEYS)
         for r in rows:
-            w.writerow([r[k] if not isinstance(r[k], float) else f"{r[k]:.12g}" for k in CSV_KEYS])
+            w.writerow([r.get(k) if not isinstance(r.get(k), float) else f"{r[k]:.12g}" for k in CSV_KEYS])
 
 
 def _curve_lines(run, rows):

@@ -130,6 +130,8 @@ def _load_point(path):
     with np.load(path) as f:
         values = {}
         for fd in fields(EventCurvePoint):
+            if fd.name not in f:  # a field added since the point was stored: its default
+                continue
             v = f[fd.name]
             values[fd.name] = v if v.ndim else v.item()
         return EventCurvePoint(**values), bool(f["recorded"])

@@ -29,7 +29,8 @@ import numpy as np
 
 from .scenes import ClosedRod
 
-__all__ = ["TwoFold", "joint_two_fold", "two_fold_asymmetry", "symmetrize", "SYMMETRIC_TOL", "ROUND_OFF_ASYMMETRY"]
+__all__ = ["TwoFold", "has_joint_symmetry", "joint_two_fold", "two_fold_asymmetry", "symmetrize", "symmetrize_pinned",
+           "SYMMETRIC_TOL", "ROUND_OFF_ASYMMETRY"]
 
 # A state is on a two-fold symmetry (``ContinuationOptions.keep_symmetry``) when its nodes' rms
 # distance from their images is below SYMMETRIC_TOL edge lengths: the trefoil relaxed at phi = 0 as
@@ -61,7 +62,7 @@ class TwoFold:
         return (mirrored - self.centre) @ self.rotation.T + self.centre
 
 
-def _applies(scene):
+def has_joint_symmetry(scene):
     """Whether the scene's energy is invariant under the map: a closed rod with uniform rest lengths
     (the vertices' Voronoi lengths then are too)."""
     if not isinstance(scene, ClosedRod):  # its DOF layout, holonomy at vertex 0
@@ -93,7 +94,7 @@ def two_fold_asymmetry(x):
 def joint_two_fold(scene, q, tol):
     """The ``TwoFold`` of the state q if the scene's energy has the symmetry and q has it to within
     ``tol`` (rms, length units); else None."""
-    if not _applies(scene):
+    if not has_joint_symmetry(scene):
         return None
     sym = two_fold_asymmetry(np.asarray(scene.positions(np.asarray(q, dtype=float))))
     return sym if sym.asymmetry <= tol else None
@@ -113,3 +114,45 @@ def symmetrize(scene, q, sym=None):
     theta_sym = 0.5 * (theta + theta_image)
     return np.concatenate([x_sym.ravel(), theta_sym])
 
+
+
+def _rotation(omega):
+    """The rotation matrix of the rotation vector omega (3,) (Rodrigues)."""
+    angle = float(np.linalg.norm(omega))
+    if angle == 0.0:
+        return np.eye(3)
+    k = np.asarray(omega, dtype=float) / angle
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * (K @ K)
+
+
+def symmetrize_pinned(scene, q, pins, values, sym=None, iterations=4):
+    """``symmetrize`` for a problem whose gauge is pinned (``jaxrod.bifurcation.rods``): q (4N,)
+    projected onto the symmetric states, then moved by the rigid motion and uniform twist shift
+    (7 parameters, which keep the symmetry: the axis moves with the rod) that puts the scaled DOFs at
+    ``pins`` (7,) back at ``values`` (7,). Newton on those 7 equations (the projection moves the
+    pinned DOFs by about the asymmetry, so a few iterations reach round-off). Returns q (4N,)."""
+    n = scene.n_nodes
+    q_sym = symmetrize(scene, q, sym)
+    x, theta = q_sym[:3 * n].reshape(n, 3), q_sym[3 * n:]
+    centre = x.mean(axis=0)
+    pins = np.asarray(pins)
+    values = np.asarray(values, dtype=float)
+
+    def moved(z):
+        x_new = (x - centre) @ _rotation(z[:3]).T + centre + z[3:6]
+        return np.concatenate([x_new.ravel(), theta + z[6]])
+
+    def residual(z):
+        return np.asarray(scene.to_scaled(moved(z)))[pins] - values
+
+    z = np.zeros(7)
+    r = residual(z)
+    for _ in range(iterations):
+        if not np.max(np.abs(r)) > 1e-15 * max(1.0, float(np.max(np.abs(values)))):
+            break
+        h = 1e-7
+        jac = np.stack([(residual(z + h * e) - residual(z - h * e)) / (2 * h) for e in np.eye(7)], axis=1)
+        z = z - np.linalg.solve(jac, r)
+        r = residual(z)
+    return moved(z)

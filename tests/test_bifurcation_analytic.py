@@ -551,3 +551,44 @@ def test_a_morse_change_one_step_after_a_turn_is_that_folds_crossing():
                 find_events(None, None, a, b2, 5, known)
     finally:
         events.locate_branch_points = saved
+
+
+# A pitchfork whose critical mode mixes with a near-null soft mode of the same parity (a loose
+# knot's slide next to a symmetry-breaking mode on its symmetric branch): E = s a^2/2 + c a b +
+# (1 - p) b^2/2 + (a^4 + b^4)/4, with a marked soft by the hook wherever a direction of the span is
+# (almost) pure a. On the trivial branch J = [[s, c], [c, 1 - p]] is singular at p* = 1 - c^2/s, with
+# the null vector (-c, s) / |.|, 98% a and 2% b for c = 7 s: no clean slide, so the event. There the
+# slide's Rayleigh quotient (s) is nearer zero than the complement's Ritz value (1 - p* = c^2/s), the
+# rule that refused it before (the trefoil at N = 128, D/L = 0.010, opening side).
+MIXED_S, MIXED_C = 1e-7, 7e-7
+
+
+def mixed_slide_energy(u, p, args):
+    a, b = u
+    return 0.5 * MIXED_S * a ** 2 + MIXED_C * a * b + 0.5 * (1 - p) * b ** 2 + 0.25 * (a ** 4 + b ** 4)
+
+
+def a_is_soft(u, p, values, vectors, threshold=5e-3):
+    """Split the direction of the span nearest to pure a off as soft (its fraction of b below
+    threshold), the rest as Ritz pairs, as ``jaxrod.stability.split_slide`` does for a slide."""
+    lam, V = np.asarray(values, dtype=float), np.asarray(vectors, dtype=float)
+    along = V[0]
+    if 1.0 - float(along @ along) >= threshold:
+        return lam, V, np.zeros(lam.size, dtype=bool)
+    c = along / np.linalg.norm(along)
+    rest = np.linalg.svd(np.eye(lam.size) - np.outer(c, c))[0][:, :lam.size - 1]
+    ritz, w = np.linalg.eigh(rest.T @ np.diag(lam) @ rest)
+    values = np.concatenate([[c @ (lam * c)], ritz])
+    coef = np.concatenate([c[:, None], rest @ w], axis=1)
+    order = np.argsort(values)
+    return values[order], V @ coef[:, order], (np.arange(lam.size) == 0)[order]
+
+
+def test_a_branch_point_whose_null_vector_mixes_with_a_soft_mode_is_located_where_J_is_singular():
+    prob = BifurcationProblem(mixed_slide_energy, [0.0, 0.0], 0.93, None, soft_modes=a_is_soft)
+    br = continuation(prob, ALG, ContinuationOptions(ds=0.05, ds_max=0.05, p_max=1.1, max_steps=10))
+    (bp,) = br.events_of("branch_point")
+    check_located(bp, "branch_point", 1.0 - MIXED_C ** 2 / MIXED_S, [0.0, 0.0])
+    assert (bp.morse_before, bp.morse_after) == (0, 1)
+    v = np.asarray(bp.v[:, 0]) / np.linalg.norm(bp.v[:, 0])
+    assert abs(abs(v[1]) - MIXED_S / np.hypot(MIXED_S, MIXED_C)) <= 1e-6  # the mixed null vector itself

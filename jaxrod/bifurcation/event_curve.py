@@ -37,6 +37,7 @@ from dataclasses import dataclass, field, replace
 import jax.numpy as jnp
 import numpy as np
 
+from ..symmetry import SYMMETRIC_TOL
 from .continuation import continuation
 from .options import ContinuationOptions, PseudoArclength
 from .results import Result
@@ -87,7 +88,9 @@ class EventCurvePoint:
     points computed; anchor_u (n,), anchor_p: the stable state before the event from which the
     next mu starts (a start for a point study next to this one); predictor: what moved the start
     to this mu: "ift" (the last point's dp*/dmu), "secant" (the last two points' p*) or "none"
-    (the last point's anchor as it is: the first point, or the two others failed).
+    (the last point's anchor as it is: the first point, or the two others failed); symmetric: the
+    start was projected onto the problem's symmetric states (``BifurcationProblem.symmetrize``; False
+    where the problem has none, the last anchor was off it, or no event was located on it).
     """
 
     mu: float
@@ -106,6 +109,7 @@ class EventCurvePoint:
     anchor_u: np.ndarray = None
     anchor_p: float = float("nan")
     predictor: str = "none"
+    symmetric: bool = False
 
 
 @dataclass
@@ -161,19 +165,39 @@ def _shorter(opts, factor=4.0):
     return replace(opts, ds_max=ds_max, ds=float(np.sign(opts.ds)) * min(abs(opts.ds), ds_max))
 
 
-def _relaxed(problem, u, p):
+def _relaxed(problem, u, p, keep_symmetry=True):
     """A minimum of E(., p) with the problem's args, from u (damped Newton, the structured
     Hessian if the problem has one; args refreshed by ``update_args`` and the relaxation repeated
     while they change). The start at a new mu: Newton on F = 0 from the old state can fail where
     the new diameter pushes strands into contact; the state is stable there, so a minimiser gets
-    it. Returns u as it is when the problem has no energy."""
+    it. Returns u as it is when the problem has no energy.
+
+    A symmetric start (the problem's ``symmetrize`` hook, within ``SYMMETRIC_TOL``) gives a
+    symmetric result: the minimiser's result projected back onto the symmetric states. A loose
+    knot's slide is odd under the symmetry and nearly null, so the minimiser drifts along it by
+    round-off (the trefoil at N = 128, D/L = 0.010: 0.042 edges), onto another placement of the
+    nodes along the same shape, where the event lies elsewhere (3e-4 pi on the opening side); the
+    projection keeps every mu's event on the one symmetric branch, as a point study finds it."""
+    symmetric = keep_symmetry and _on_symmetry(problem, u)
     if problem.update_args is not None:
         problem.args = problem.update_args(u, p, problem.args)
     if problem.energy is None:
         return u
     sol, problem.args = problem.relax(jnp.asarray(u), p, problem.args, gtol=1e-10)
     # not converged or not: the run's first corrector puts the start on F = 0 at p, or refuses it
-    return np.asarray(sol.y)
+    y = np.asarray(sol.y)
+    if symmetric:
+        projected = problem.symmetrize(y, np.inf)
+        if projected is not None and np.all(np.isfinite(projected)):
+            y = projected
+            if problem.update_args is not None:
+                problem.args = problem.update_args(y, p, problem.args)
+    return y
+
+
+def _on_symmetry(problem, u):
+    """Whether u is within SYMMETRIC_TOL of the problem's symmetric states (its ``symmetrize`` hook)."""
+    return problem.symmetrize is not None and problem.symmetrize(np.asarray(u), SYMMETRIC_TOL) is not None
 
 
 def _run_to_event(problem, alg, opts, u, p, direction, chunk, max_points):
@@ -262,24 +286,36 @@ def event_curve(problem, start, set_mu, mu0, mus, options, *, observer=None, pro
     for mu in todo:
         t = time.perf_counter()
         ev = None
-        for back_offs, (predictor, shift, gap, shorter) in enumerate(_tries(history, mu, mu_prev, slope, delta)):
-            p_start = p_b + shift - direction * gap
-            problem.args = set_mu(problem.args, jnp.asarray(mu))
-            u_start = _relaxed(problem, u_b, p_start)
-            jump = float(np.max(np.abs(u_start - u_b))) if np.all(np.isfinite(u_start)) else np.inf
-            if not jump <= max_jump:  # relaxed onto another state (past the event): back off
-                ev, points, morse0, message = None, [], None, f"the start relaxed {jump:.3g} away (max_jump {max_jump:g})"
-                continue
-            # a try that found no event (not located next to a slide, or none within max_points) is
-            # repeated from a start further back, then with shorter steps: another path to the
-            # same event, through other brackets
-            ev, points, morse0, message = _run_to_event(problem, alg, _shorter(opts) if shorter else opts,
-                                                         u_start, p_start, direction, chunk, max_points)
+        # On the symmetry first (each start projected back onto it); where no try locates an event
+        # there, all of them again without the projection, as the curve was followed before it: the
+        # trefoil at N = 128 has brackets on the symmetric branch where the Morse index changes with
+        # no singular point of J (the slide split off on one side and not on the other), and the curve
+        # from D/L = 0.0274 stopped at 0.030 on the tightening side with the projection alone
+        passes = (True, False) if _on_symmetry(problem, u_b) else (False,)
+        for keep in passes:
+            for back_offs, (predictor, shift, gap, shorter) in enumerate(_tries(history, mu, mu_prev, slope, delta)):
+                p_start = p_b + shift - direction * gap
+                problem.args = set_mu(problem.args, jnp.asarray(mu))
+                u_start = _relaxed(problem, u_b, p_start, keep_symmetry=keep)
+                jump = float(np.max(np.abs(u_start - u_b))) if np.all(np.isfinite(u_start)) else np.inf
+                if not jump <= max_jump:  # relaxed onto another state (past the event): back off
+                    ev, points, morse0 = None, [], None
+                    message = f"the start relaxed {jump:.3g} away (max_jump {max_jump:g})"
+                    continue
+                # a try that found no event (not located next to a slide, or none within max_points)
+                # is repeated from a start further back, then with shorter steps: another path to the
+                # same event, through other brackets
+                ev, points, morse0, message = _run_to_event(problem, alg, _shorter(opts) if shorter else opts,
+                                                             u_start, p_start, direction, chunk, max_points)
+                if ev is not None:
+                    break
+                if progress is not None:
+                    progress(f"mu = {mu:.9g}, start p = {p_start:.9g} ({predictor} predictor): {message} "
+                             f"({len(points)} points); backing off")
             if ev is not None:
                 break
-            if progress is not None:
-                progress(f"mu = {mu:.9g}, start p = {p_start:.9g} ({predictor} predictor): {message} "
-                         f"({len(points)} points); backing off")
+            if keep and progress is not None:
+                progress(f"mu = {mu:.9g}: no event located on the symmetry; the tries again without the projection")
         if ev is None:
             curve.result = Result.CORRECTOR_FAILED if morse0 is None else Result.LOCATION_FAILED
             curve.message = f"at mu = {mu:.12g}: {message}"
@@ -293,7 +329,7 @@ def event_curve(problem, start, set_mu, mu0, mus, options, *, observer=None, pro
         row = EventCurvePoint(mu, float(ev.p), ev.kind, int(ev.morse_before), int(ev.morse_after),
                               float(ev.critical_eigenvalue), float(ev.residual), float(slope), np.asarray(ev.u),
                               p_star + shift, time.perf_counter() - t, back_offs, len(points), u_b.copy(), p_b,
-                              predictor)
+                              predictor, keep)
         p_star = float(ev.p)
         curve.points.append(row)
         history.append(row)

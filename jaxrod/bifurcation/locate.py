@@ -213,6 +213,26 @@ def _critical_mode_is_soft(problem, u, p, vals, vecs):
     return bool(np.min(np.abs(values[soft])) < np.min(np.abs(values[~soft])))
 
 
+def _null_vector_is_slide(problem, u, p, value, vector):
+    """Whether the null vector ``vector`` (n, 1) of J at a located singular point is itself a clean
+    slide (the problem's ``soft_modes`` hook on that one vector: its sliding fraction below the
+    problem's threshold), i.e. the point is a slide's singular point, not a change of shape.
+
+    Why not ``_critical_mode_is_soft`` (the slide's Rayleigh quotient against the complement's Ritz
+    values): where a symmetry-breaking mode crosses zero next to a near-null slide of the same parity,
+    the two mix, and at the point where J is singular the split leaves both the slide's Rayleigh
+    quotient and the complement's lowest Ritz value positive (the trefoil at N = 128, D/L = 0.010,
+    opening side, on the two-fold symmetric branch: 7.2e-8 and 5.3e-7, J's null vector sliding
+    fraction 0.020). The point is still the branch's only singular point in the bracket where the
+    Morse index changes (Haynsworth: with the slide's quotient s > 0, J is singular exactly where the
+    Schur complement of the slide is), so it is the event; refusing it left the root of the Ritz
+    value, 4.3e-6 pi away, where J is not singular (critical eigenvalue 5.8e-9)."""
+    if problem.soft_modes is None:
+        return False
+    _, _, soft = problem.soft_modes(u, p, np.asarray(value), np.asarray(vector))
+    return bool(np.asarray(soft, dtype=bool)[0])
+
+
 def _shape_spectrum(problem, opts, J, u, p, m):
     """The m lowest eigenpairs (values (m,), vectors (n, m)) of J with the soft directions (the
     problem's ``soft_modes`` hook) split off: the Ritz pairs of the rest of the span, ascending;
@@ -342,8 +362,8 @@ def simple_branch_point(problem, opts, u, p, v0, morse, step, tangent):
         return None
     vals, vecs, _ = be.spectrum(J, opts.n_eig + max(morse), problem.n_zero_modes, opts.eig_rtol)
     k = int(np.argmin(np.abs(vals)))
-    if abs(vals[k]) > opts.event_tol or _critical_mode_is_soft(problem, u, p, vals, vecs):
-        return None  # not singular, or singular along a soft mode only (a slide, not a branch point)
+    if abs(vals[k]) > opts.event_tol or _null_vector_is_slide(problem, u, p, vals[[k]], vecs[:, [k]]):
+        return None  # not singular, or singular along a slide only (a soft fold, not a branch point)
     return Event("branch_point", p, u, vecs[:, [k]], vals[[k]], res, it, 1, morse[0], morse[1], step, tangent, True)
 
 

@@ -42,10 +42,14 @@ class BifurcationProblem:
     c, t) -> (gradient in u (n,), in p)`` of a^T (J c + t F_p), replaces the problem's own jitted
     forms of both (a knot evaluates them with the programs its stability analysis compiled:
     ``bifurcation.rods.knot_problem``); the traced forms (``fold_curve``) still use energy/jacobian.
+    ``symmetrize(u, tol) -> u or None``: the projection of u onto the problem's symmetric states (a
+    closed rod's two-fold symmetry through its joint, ``jaxrod.symmetry``), or None where u is
+    further than tol (scaled units) from them or the problem has none; ``event_curve`` keeps a
+    symmetric branch symmetric with it where a minimiser would slide off along a near-null mode.
     """
 
     def __init__(self, energy=None, u0=None, p0=0.0, args=None, *, residual=None, n_zero_modes=0, backend=None,
-                 update_args=None, soft_modes=None, jacobian=None, programs=None):
+                 update_args=None, soft_modes=None, jacobian=None, programs=None, symmetrize=None):
         if (energy is None) == (residual is None):
             raise ValueError("give exactly one of energy= or residual=")
         self.energy = energy
@@ -57,6 +61,7 @@ class BifurcationProblem:
         self.n = int(self.u0.size)
         self.update_args = update_args
         self.soft_modes = soft_modes
+        self.symmetrize = symmetrize
         self.jacobian = jacobian
         # The functions of (u, p, args), jitted once per (energy, residual, jacobian, backend) and
         # shared by every problem built from them: a rod's problems at other starts (a study's

@@ -46,6 +46,7 @@ from ..aot import cached_jit
 from ..geometry import closest_approach
 from ..hessian import scaled_hessian as structured_scaled_hessian
 from ..sparse_stability import gauge_pins
+from ..symmetry import has_joint_symmetry, symmetrize_pinned, two_fold_asymmetry
 from ..stability import (CLEAN_SLIDE_FRACTION, scene_bilinear_gradient, scene_linearisation, sliding_fraction,
                          split_slide)
 from ..topology import writhe
@@ -242,7 +243,29 @@ def _build(scene, u_ref, phi0, pins, backend):
     free = np.setdiff1d(np.arange(u_ref.size), pins)
     args = RodArgs(scene, jnp.asarray(u_ref), jnp.asarray(free))
     prob = BifurcationProblem(_pinned_energy, u_ref[free], phi0, args, n_zero_modes=0, backend=backend)
-    return PinnedRod(prob, scene, pins, free, u_ref)
+    return _with_symmetry(PinnedRod(prob, scene, pins, free, u_ref))
+
+
+def _with_symmetry(rod):
+    """rod, its problem given the ``symmetrize`` hook where the scene has the joint's two-fold
+    symmetry (``jaxrod.symmetry``) and exactly the 7 gauge DOFs are pinned (a pin along a slide or
+    an extra pin is no gauge of the symmetric states: no hook then)."""
+    if not has_joint_symmetry(rod.scene) or rod.pins.size != 7:
+        return rod
+    edge = float(np.mean(np.asarray(rod.scene.rest_lengths)))
+    scale = np.asarray(rod.scene.to_scaled(np.ones(rod.u_ref.size)))  # 1 / dof_scale
+
+    def symmetrize(u_free, tol):
+        q = rod.q(u_free)
+        sym = two_fold_asymmetry(np.asarray(rod.scene.positions(q)))
+        # tol is in scaled units: node coordinates in edge lengths
+        if not sym.asymmetry <= tol * edge:
+            return None
+        q_sym = symmetrize_pinned(rod.scene, q, rod.pins, rod.u_ref[rod.pins], sym)
+        return (q_sym * scale)[rod.free]
+
+    rod.problem.symmetrize = symmetrize
+    return rod
 
 
 # A soft mode of the pinned Hessian that slides (``split_sliding``) with |lambda| at most this, in
@@ -328,7 +351,7 @@ def knot_problem(scene, q_ref, phi0, *, pins=None, capacity=None, sliding=CLEAN_
     prob = BifurcationProblem(_pinned_energy, u_ref[free], phi0, args, n_zero_modes=0, backend=backend,
                               update_args=update_args, soft_modes=soft_modes, jacobian=jacobian,
                               programs=None if host else _ScenePrograms())
-    rod = PinnedRod(prob, scene, pins, free, u_ref)
+    rod = _with_symmetry(PinnedRod(prob, scene, pins, free, u_ref))
     holder["rod"] = rod
     return rod
 

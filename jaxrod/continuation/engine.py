@@ -188,7 +188,7 @@ class _Engine:
             e = self._finish_stalled(exc, phi, prev)
             if e is None:
                 return _Step(None, refusal=_Refusal(StepFailure.NOT_CONVERGED, str(exc)))
-        e = self._kept_symmetric(prev, e, phi)
+        e = self._kept_symmetric(prev.q, e, phi, previous=prev)
         moved = polyline_distance(e.x, x_pred, self.closed)
         if moved > opts.jump_tol:
             return _Step(e, refusal=_Refusal(StepFailure.JUMP, f"the state moved {moved:.3g} from the predicted shape"))
@@ -209,18 +209,19 @@ class _Engine:
             return replace(s, refusal=_Refusal(StepFailure.UNSTABLE, f"{n_negative} negative eigenvalue(s)"))
         return s
 
-    def _kept_symmetric(self, prev, e, phi):
-        """e, or e projected back onto the two-fold symmetry that ``prev`` has (see
-        ``ContinuationOptions.keep_symmetry`` and ``jaxrod.symmetry``) and finished by the corrector,
-        where it drifted off it by more than round-off and less than jump_tol. From a symmetric state
-        the gradient is symmetric and the Hessian commutes with the map, so the finishing steps (none
-        or one) keep the symmetry; the result is checked like any corrected state. e itself where
-        prev is not symmetric, the drift is round-off or a departure of the shape, or the corrector
-        fails."""
+    def _kept_symmetric(self, reference_q, e, phi, previous=None):
+        """e, or e projected back onto the two-fold symmetry that the state ``reference_q`` it was
+        corrected from has (see ``ContinuationOptions.keep_symmetry`` and ``jaxrod.symmetry``) and
+        finished by the corrector, where it drifted off it by more than round-off and less than
+        jump_tol. From a symmetric state the gradient is symmetric and the Hessian commutes with the
+        map, so the finishing steps (none or one) keep the symmetry; the result is checked like any
+        corrected state. e itself where reference_q is not symmetric, the drift is round-off or a
+        departure of the shape, or the corrector fails. previous: the last Equilibrium (its writhe
+        checks the corrector), if any."""
         if not self.opts.keep_symmetry:
             return e
         edge = float(self.scene.length) / self.scene.n_nodes
-        if joint_two_fold(self.scene, prev.q, SYMMETRIC_TOL * edge) is None:
+        if joint_two_fold(self.scene, reference_q, SYMMETRIC_TOL * edge) is None:
             return e
         sym = two_fold_asymmetry(e.x)
         if not ROUND_OFF_ASYMMETRY * edge < sym.asymmetry <= self.opts.jump_tol:
@@ -229,8 +230,8 @@ class _Engine:
             # the corrector itself, from the projected state: its gradient differs from e's by the
             # near-null slide's curvature times the drift (~1e-15), so it stops at once or after one
             # step, and no other program is compiled for it (Newton here cost command 1 ~6 s cold)
-            return relax(self.scene, phi, symmetrize(self.scene, e.q, sym), self.corrector_options, previous=prev,
-                         nbr=e.neighbourhood)
+            return relax(self.scene, phi, symmetrize(self.scene, e.q, sym), self.corrector_options,
+                         previous=previous, nbr=e.neighbourhood)
         except (ConvergenceError, LeftBranchError, TopologyChangeError) as exc:
             # not silently: once a state is off the symmetry by more than SYMMETRIC_TOL, the rest of
             # the branch is followed without it (and may slide into another placement of the nodes)

@@ -8,6 +8,8 @@ import math
 import time
 from dataclasses import dataclass, replace
 
+import numpy as np
+
 from ..equilibrium import Equilibrium, relax
 from ..validation import check_finite
 from .engine import StepFailure, _Engine, _Refusal, _use_sparse
@@ -114,12 +116,23 @@ def follow_twist(scene, phi_start=0.0, phi_stop=None, options=None, *, start=Non
         opts = opts.resolved(scene, Task.FOLLOW_TWIST, abs(phi_stop - phi_start))
         engine = _follow_engine(scene, opts)
         if not given:
-            e0 = relax(scene, phi_start, start, replace(engine.corrector_options, max_steps=None))
+            q_start = scene.q_init if start is None else start
+            e0 = relax(scene, phi_start, q_start, replace(engine.corrector_options, max_steps=None))
+            # a start drawn with the joint's two-fold symmetry (the trefoil as drawn) stays on it: a
+            # loose knot's minimiser slides along its near-null, odd slide by round-off (the trefoil
+            # at N = 128, D/L = 0.010: 0.14 edges), and the branch's events then depend on where it
+            # stopped (3e-4 pi on the opening side)
+            kept = engine._kept_symmetric(np.asarray(q_start, dtype=float), e0, phi_start)
         else:
-            e0 = start
+            e0 = kept = start
             if e0.neighbourhood is None:
-                e0 = replace(e0, neighbourhood=scene.neighbourhood(e0.q, e0.phi))
-        s = engine.analysed(e0)
+                e0 = kept = replace(e0, neighbourhood=scene.neighbourhood(e0.q, e0.phi))
+        s = engine.analysed(kept)
+        if kept is not e0 and s.equilibrium.stability.n_negative:
+            # the symmetric state is a saddle of a shape mode, which the minimiser's drift escaped:
+            # the start is the minimum it found (the trefoil (8, 292) at N = 48, phi = 0: lowest
+            # eigenvalue -8.3e-4 on the symmetry, a stable state 0.28 edges off it)
+            s = engine.analysed(e0)
         if s.equilibrium.stability.n_negative:
             st = s.equilibrium.stability
             raise ValueError(
