@@ -131,22 +131,20 @@ def _antisymmetric(scene, q, size, seed):
     return size * push / np.sqrt(np.mean(push ** 2))
 
 
-def test_a_path_from_a_symmetric_drawing_starts_on_the_symmetry():
+def test_a_path_from_a_symmetric_drawing_starts_on_the_symmetry(knot):
     # follow_twist's first relaxation, from a start within SYMMETRIC_TOL of the symmetry, is brought
     # back onto it: the minimiser leaves the near-null (odd) slide where round-off put it (the
     # trefoil at N = 128, D/L = 0.010: 0.14 edges from its drawing), and the branch's events then
-    # depend on that placement of the nodes. At N = 44 the symmetric state is a minimum.
+    # depend on that placement of the nodes. At 4 pi the symmetric state is a minimum at this N.
     from jaxrod.continuation import follow_twist
 
-    n = 44
-    knot = trefoil(8.0, 292.0, n)
-    edge = knot.length / n
+    edge = knot.length / N
     q0 = np.asarray(knot.q_init)
     start = q0 + _antisymmetric(knot, q0, 1e-7 * edge, 2)
     assert joint_two_fold(knot, start, SYMMETRIC_TOL * edge) is not None
     asym = {}
     for keep in (True, False):
-        path = follow_twist(knot, 0.0, 0.2 * math.pi,
+        path = follow_twist(knot, 4.0 * math.pi, 4.2 * math.pi,
                             ContinuationOptions(step=0.2 * math.pi, max_switches=0, keep_symmetry=keep), start=start)
         asym[keep] = two_fold_asymmetry(np.asarray(path.points[0].equilibrium.x)).asymmetry / edge
     assert asym[True] < 1e-11
