@@ -1323,8 +1323,10 @@ def _main(argv):
         from .solvers import ConvergenceError
 
         if isinstance(exc, NoCrossingError):
-            advice = ("no critical twist up to twice Michell's value: raise --N" if args.command == "michell" else
-                      "no critical twist in the range: widen it (--phi-min / --phi-max) or raise --N")
+            advice = {"michell": "no critical twist up to twice Michell's value: raise --N",
+                      "critical-curve": "no instability at the start ratio: widen --span, start at another ratio "
+                                        "(--start) or raise --N"}.get(
+                args.command, "no critical twist in the range: widen it (--phi-min / --phi-max) or raise --N")
         elif isinstance(exc, ConvergenceError):
             advice = ("no equilibrium found: raise --N (for a knot, edges no longer than the diameter: "
                       "N >= L/D), or loosen the knot (larger --L/--D)")

@@ -157,7 +157,7 @@ def critical_twist_curve(knot, N, ratios, options=None, *, out=None, progress=No
     from .bifurcation import ContinuationOptions as PathOptions
     from .bifurcation.event_curve import EventCurveOptions, event_curve
     from .bifurcation.rods import knot_problem, set_diameter
-    from .continuation import ContinuationOptions, follow_twist
+    from .continuation import ContinuationOptions, NoCrossingError, follow_twist
     from .scenes import knot as make_knot
 
     t0 = time.perf_counter()
@@ -217,8 +217,8 @@ def critical_twist_curve(knot, N, ratios, options=None, *, out=None, progress=No
             path = follow_twist(scene, 0.0, sign * opts.span,
                                 ContinuationOptions(step=0.5 * math.pi, tol=1e-2 * math.pi, max_switches=0))
             if not path.instabilities:
-                raise RuntimeError(f"{knot} at D/L = {start:g}: no instability on the {side} side within "
-                                   f"{sign * opts.span / math.pi:+g} pi ({path.reason})")
+                raise NoCrossingError(f"{knot} at D/L = {start:g}: no instability on the {side} side within "
+                                      f"{sign * opts.span / math.pi:+g} pi ({path.reason})")
             end = path.instabilities[0].phi
             before = [p.equilibrium for p in path.points if p.branch.startswith("symmetric")
                       and sign * (end - p.equilibrium.phi) >= 0.2 * math.pi]

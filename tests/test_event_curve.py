@@ -109,6 +109,18 @@ def test_critical_curve_command_refuses_bad_input_naming_the_flag(tmp_path, caps
         assert len(err) == 1 and flag in err[0], (extra, err)
 
 
+def test_no_instability_at_the_start_ratio_is_one_line_naming_the_flags(tmp_path, capsys):
+    # found only after the start's path ran out of span: one line with what to change, exit 1,
+    # not a traceback (the figure-eight at N = 121, D/L = 0.026 has no end within 16 pi)
+    from jaxrod.cli import main
+
+    args = ["critical-curve", "--quiet", "--N", "40", "--ratios", "0.026", "--sides", "plus", "--span", "0.25pi",
+            "--out", str(tmp_path / "c")]
+    assert main(args) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--span" in err[0] and "no instability" in err[0], err
+
+
 def test_ratio_range_parsing():
     from jaxrod.critical_curve import check_ratio_range
 
