@@ -165,20 +165,19 @@ def _shorter(opts, factor=4.0):
     return replace(opts, ds_max=ds_max, ds=float(np.sign(opts.ds)) * min(abs(opts.ds), ds_max))
 
 
-def _relaxed(problem, u, p, keep_symmetry=True):
+def _relaxed(problem, u, p, symmetric=False):
     """A minimum of E(., p) with the problem's args, from u (damped Newton, the structured
     Hessian if the problem has one; args refreshed by ``update_args`` and the relaxation repeated
     while they change). The start at a new mu: Newton on F = 0 from the old state can fail where
     the new diameter pushes strands into contact; the state is stable there, so a minimiser gets
     it. Returns u as it is when the problem has no energy.
 
-    A symmetric start (the problem's ``symmetrize`` hook, within ``SYMMETRIC_TOL``) gives a
-    symmetric result: the minimiser's result projected back onto the symmetric states. A loose
+    symmetric: u is on the problem's symmetric states (``_on_symmetry``); the minimiser's result
+    is then projected back onto them (the problem's ``symmetrize`` hook). A loose
     knot's slide is odd under the symmetry and nearly null, so the minimiser drifts along it by
     round-off (the trefoil at N = 128, D/L = 0.010: 0.042 edges), onto another placement of the
     nodes along the same shape, where the event lies elsewhere (3e-4 pi on the opening side); the
     projection keeps every mu's event on the one symmetric branch, as a point study finds it."""
-    symmetric = keep_symmetry and _on_symmetry(problem, u)
     if problem.update_args is not None:
         problem.args = problem.update_args(u, p, problem.args)
     if problem.energy is None:
@@ -296,7 +295,7 @@ def event_curve(problem, start, set_mu, mu0, mus, options, *, observer=None, pro
             for back_offs, (predictor, shift, gap, shorter) in enumerate(_tries(history, mu, mu_prev, slope, delta)):
                 p_start = p_b + shift - direction * gap
                 problem.args = set_mu(problem.args, jnp.asarray(mu))
-                u_start = _relaxed(problem, u_b, p_start, keep_symmetry=keep)
+                u_start = _relaxed(problem, u_b, p_start, symmetric=keep)
                 jump = float(np.max(np.abs(u_start - u_b))) if np.all(np.isfinite(u_start)) else np.inf
                 if not jump <= max_jump:  # relaxed onto another state (past the event): back off
                     ev, points, morse0 = None, [], None
