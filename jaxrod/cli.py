@@ -600,7 +600,7 @@ def _trefoil(args):
     from .scenes import DEFAULT_CONTACT_STIFFNESS, IDEAL_ROPELENGTH, MIN_TREFOIL_NODES
     from .locking import folder_lock
     from .continuation import ContinuationOptions, Observer
-    from .study import check_study_folder, state_figures, study_summary, twist_study
+    from .study import check_study_folder, state_figures, study_options, study_summary, twist_study
 
     D, L = check_positive("D", args.D), check_positive("L", args.L)
     knot_name = "3_1" if args.command == "trefoil" else args.name
@@ -656,52 +656,119 @@ def _trefoil(args):
         reached[direction] = max(reached[direction], abs(point.equilibrium.phi) / math.pi)
         counts["steps"] += 1
         bar.update(reached["plus"] + reached["minus"], steps=counts["steps"], branch=point.branch)
+        if workers is not None and point.equilibrium.phi == (args.phi_max if direction == "plus" else args.phi_min):
+            workers.add_worker()  # this direction is done: its core takes the queued ends
+
+    title = f"{scene.name}, D/L = {args.D / args.L:.4f}, N = {args.N}"
+    span = max(-args.phi_min, args.phi_max)
+    estimates, n_estimates = {}, (args.N + 1) // 2
+
+    def estimate_job(side, entry):
+        """The N' = (N+1)/2 error estimate of one side's first end (``coarse_companion``)."""
+        from .convergence import coarse_companion
+
+        def job(cancel):
+            t_side = time.perf_counter()
+            if not estimates:
+                say(f"estimating the discretisation error of phi*: each end again at N = {n_estimates}")
+            estimates[side] = None
+            found = coarse_companion(scene, args.out, {"instabilities": [entry]}, span=span, step=args.step,
+                                     tol=args.tol, progress=say, cancel=cancel, sides=(side,))
+            return found.get(side), time.perf_counter() - t_side
+        return job
+
+    def end_job(direction, index, entry, state):
+        """The exact location of one branch end and its unstable branch (``diagram.locate_end``)."""
+        def job(cancel):
+            from .diagram import end_capacity, end_rows, locate_end
+
+            def stop(point):
+                if cancel.is_set():
+                    raise _Cancelled()
+            # this end's own contact-list size: the same for every end of a loose knot (the size
+            # does not depend on the state until a segment has more than 8 candidates)
+            end = locate_end(scene, entry, state, p_min=args.phi_min, p_max=args.phi_max,
+                             capacity=end_capacity(scene, [state]), progress=say, observer=stop)
+            if end.event is not None and end.event.converged:  # its rows too, while the study goes on
+                end_rows(scene, end, options_k, entry["negative_tol"])
+            return end
+        return job
+
+    # Each branch end's exact location and each side's error estimate start as soon as the study
+    # has found that end, in a worker thread beside the study's two; a second worker joins once the
+    # study is done. The minus side ends first (measured on command 1: the tightening side was
+    # finished 4 s before the opening side's last branch), and a core then idled until the whole
+    # study was over. The results are those of the serial order (each job is independent).
+    workers = None if args.serial else _Workers(start=False)
+    options_k = study_options(options).k  # the eigenvalue columns of branch.csv
+    wanted = {"ends": not args.stable_only, "estimate": not args.no_extrapolation}
+
+    def on_end(direction, index, entry, state):
+        if wanted["ends"]:
+            workers.submit(("end", direction, index), end_job(direction, index, entry, state))
+        if wanted["estimate"] and index == 0:
+            workers.submit(("estimate", direction), estimate_job(direction, entry))
+
+    from .study import _Cancelled
 
     try:
         result = twist_study(scene, args.phi_min, args.phi_max, options, out=args.out, resume=not args.fresh,
-                             parallel=not args.serial, observer=Observer(progress=say, on_point=on_point))
+                             parallel=not args.serial,
+                             observer=Observer(progress=say, on_point=on_point,
+                                               on_instability=None if workers is None else on_end))
+    except BaseException:
+        if workers is not None:
+            workers.stop()
+        raise
     finally:
         bar.close()
     summary = study_summary(result)
-    title = f"{scene.name}, D/L = {args.D / args.L:.4f}, N = {args.N}"
     drawn = None
     if not args.no_figures and not args.serial:
         # the states' figures need only the step files: drawn while the diagram runs
         drawn = _Background(lambda cancel: state_figures(args.out, title=title, length_unit="mm"))
-    companion = None
-    if not args.no_extrapolation and (summary["phi_plus"] is not None or summary["phi_minus"] is not None):
-        from .convergence import coarse_companion
-
-        say(f"estimating the discretisation error of phi*: each end again at N = {(args.N + 1) // 2}")
-        study_critical = result.critical
-
-        def estimate(cancel=None):
-            t_extra = time.perf_counter()
-            found = coarse_companion(scene, args.out, study_critical, span=max(-args.phi_min, args.phi_max),
-                                     step=args.step, tol=args.tol, progress=say, cancel=cancel)
-            return found, time.perf_counter() - t_extra
-
-        # The estimate needs only the study's step files and its bracketed ends, so it runs while
-        # the diagram locates the ends (one thread each; measured on the trefoil at N = 121: the
-        # second core otherwise idles through the diagram's Python)
-        companion = estimate if args.serial else _Background(estimate)
+    sides_with_end = [side for side in ("plus", "minus") if summary[f"phi_{side}"] is not None]
+    found, seconds_extrapolation = {}, 0.0
     try:
+        located = {}
+        if workers is not None:
+            for side in sides_with_end:  # a resumed run: ends found before the interruption
+                first = next(c for c in result.critical["instabilities"] if c["direction"] == side)
+                if wanted["estimate"] and ("estimate", side) not in workers.keys:
+                    workers.submit(("estimate", side), estimate_job(side, first))
+            while workers.n_workers < 2:
+                workers.add_worker()
+            for key, value in workers.results().items():
+                if key[0] == "end":
+                    located[key[1:]] = value
+                elif value[0] is not None:
+                    found[key[1]] = value[0]
+                    seconds_extrapolation += value[1]
+        elif wanted["estimate"] and sides_with_end:
+            for side in sides_with_end:
+                first = next(c for c in result.critical["instabilities"] if c["direction"] == side)
+                level, seconds = estimate_job(side, first)(None)
+                if level is not None:
+                    found[side] = level
+                seconds_extrapolation += seconds
         if not args.stable_only and result.end_states:
             from .diagram import unstable_branches
 
             t_diagram = time.perf_counter()
-            result = unstable_branches(scene, result, progress=say, parallel=not args.serial).study
+            diagram = unstable_branches(scene, result, progress=say, parallel=not args.serial, located=located)
+            result = diagram.study
             summary = study_summary(result)
-            summary["seconds_diagram"] = time.perf_counter() - t_diagram
+            # the ends' own wall time (most of it spent while the study ran) and the rest
+            summary["seconds_diagram"] = time.perf_counter() - t_diagram + sum(
+                end.seconds for end in located.values())
     except BaseException:
-        for job in (companion, drawn):
-            if isinstance(job, _Background):
+        for job in (workers, drawn):
+            if job is not None:
                 job.stop()
         raise
     summary.update({"D": args.D, "L": args.L, "N": args.N, "nu": args.nu, "contact_stiffness": stiffness,
                     "out": args.out})
-    if companion is not None:
-        found, seconds_extrapolation = companion.result() if isinstance(companion, _Background) else companion()
+    if wanted["estimate"] and sides_with_end:
         for side, (level, ext) in found.items():
             summary[f"phi_{side}_extrapolated"] = {"value": ext.value, "value_over_pi": ext.value / math.pi,
                                                    "error": ext.error, "error_over_pi": ext.error / math.pi,
@@ -783,6 +850,93 @@ class _Background:
         self._cancel.set()
         while not self._done.wait(0.2):
             pass
+
+
+class _Workers:
+    """Jobs run by worker threads in the order they were submitted: ``submit(key, fn)`` queues
+    fn(cancel); ``add_worker()`` starts one more thread (one is started at once); ``results()``
+    waits until every job has run (in short waits, so that Ctrl-C still reaches the main thread)
+    and returns {key: value}, or raises the first job's exception; ``stop()`` sets ``cancel`` (a
+    job stops at its next point), drops the jobs not started and waits until every thread has left
+    XLA. Used from several threads: the study's threads submit, the main thread collects."""
+
+    def __init__(self, start=True):
+        import collections
+        import threading
+
+        self._threading = threading
+        self._jobs = collections.deque()
+        self._wake = threading.Condition()
+        self._cancel = threading.Event()
+        self._closed = False
+        self._values, self._errors, self._done = {}, [], []
+        self.keys = set()
+        if start:
+            self.add_worker()
+
+    @property
+    def n_workers(self):
+        return len(self._done)
+
+    def submit(self, key, fn):
+        with self._wake:
+            self.keys.add(key)
+            self._jobs.append((key, fn))
+            self._wake.notify()
+
+    def add_worker(self):
+        done = self._threading.Event()
+        self._done.append(done)
+
+        def loop():
+            try:
+                while True:
+                    with self._wake:
+                        while not self._jobs and not self._closed:
+                            self._wake.wait(0.2)
+                        if not self._jobs:
+                            return
+                        key, fn = self._jobs.popleft()
+                    if self._cancel.is_set():
+                        continue
+                    try:
+                        self._values[key] = fn(self._cancel)
+                    except BaseException as exc:  # noqa: BLE001 -- handed to the main thread
+                        if not self._cancel.is_set():
+                            self._errors.append(exc)
+                        self._cancel.set()  # the first failure ends the others' work too
+            finally:
+                done.set()
+
+        self._threading.Thread(target=loop, daemon=True).start()
+
+    def _close(self):
+        with self._wake:
+            self._closed = True
+            self._wake.notify_all()
+
+    def _wait(self):
+        for done in list(self._done):
+            while not done.wait(0.2):
+                pass
+
+    def results(self):
+        self._close()
+        try:
+            self._wait()
+        except BaseException:  # Ctrl-C while waiting: stop the threads first
+            self.stop()
+            raise
+        if self._errors:
+            raise self._errors[0]
+        return dict(self._values)
+
+    def stop(self):
+        self._cancel.set()
+        with self._wake:
+            self._jobs.clear()
+        self._close()
+        self._wait()
 
 
 def _accuracy(args, scene, stiffness):

@@ -514,7 +514,7 @@ class _LevelStore:
 
 
 def coarse_companion(scene, out, critical, span=16 * math.pi, step=0.5 * math.pi, tol=None, margin=0.5 * math.pi,
-                     progress=None, cancel=None):
+                     progress=None, cancel=None, sides=("plus", "minus")):
     """An error estimate for a finished twist study (``jaxrod.study.twist_study`` in ``out``, of the
     closed rod ``scene`` at N nodes): each side's first branch end found again at the coarser
     N_c = (N + 1) / 2 (every coarse node a node of the study's rod), started from the study's own
@@ -525,7 +525,9 @@ def coarse_companion(scene, out, critical, span=16 * math.pi, step=0.5 * math.pi
     threading.Event; once set, the run stops at its next continuation point (raising
     ``jaxrod.study._Cancelled``). It reads only the study's step files and ``critical``'s
     instabilities (their bracketed phi), so it may run while ``jaxrod.diagram`` works on the same
-    study (the CLI runs the two at once). Returns {side: (Level,
+    study (the CLI runs the two at once). sides: the sides to estimate (a side needs only its own
+    first end and the step files before it, so the CLI starts each once that end is found, while
+    the study goes on). Returns {side: (Level,
     Extrapolation)} for the sides with an end; {} when N_c is below the rod's resolution (8
     nodes; a knot: 24, and L/D)."""
     import glob
@@ -543,7 +545,9 @@ def coarse_companion(scene, out, critical, span=16 * math.pi, step=0.5 * math.pi
         return {}
     tol = critical.get("tol") if tol is None else tol
     found = {}
-    for side in ("plus", "minus"):
+    for side in sides:
+        if side not in ("plus", "minus"):
+            raise ValueError(f"sides: 'plus' or 'minus', got {side!r}")
         first = [c for c in critical["instabilities"] if c["direction"] == side]
         if not first:
             continue

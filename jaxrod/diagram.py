@@ -40,8 +40,8 @@ import numpy as np
 
 from .atomic import savez as _savez, write_json as _write_json, write_rows as _write_rows
 
-__all__ = ["DiagramOptions", "BranchEnd", "Diagram", "follow_branch_end", "unstable_branches", "in_bracket",
-           "UNSTABLE_PREFIX"]
+__all__ = ["DiagramOptions", "BranchEnd", "Diagram", "follow_branch_end", "locate_end", "end_capacity", "end_rows",
+           "unstable_branches", "in_bracket", "UNSTABLE_PREFIX"]
 
 from .equilibrium import equilibrium_from_solution
 from .records import step_record
@@ -117,6 +117,8 @@ class BranchEnd:
     seconds: float = 0.0
     within_bracket: bool | None = None  # whether the located end lies in the study's bracket
     restabilised: object = None  # with until_restable: the Event where the unstable branch regains stability
+    rows: list | None = field(default=None, repr=False)  # ``end_rows``, once computed
+    rows_k: tuple | None = field(default=None, repr=False)  # (k, negative_tol) they were computed with
 
     @property
     def kind(self):
@@ -278,15 +280,70 @@ def _first_end(events):
     return next((e for e in events if e.kind in ("fold", "branch_point") and e.morse_after > e.morse_before), None)
 
 
-def unstable_branches(scene, study, options=None, *, progress=None, parallel=True):
+def locate_end(scene, inst, state, options=None, *, p_min, p_max, capacity=None, progress=None, observer=None):
+    """One branch end of a twist study, located exactly, and the unstable branch beyond it.
+
+    inst: the end's critical.json entry (``direction``, ``from_branch``, ``bracket``, ``phi``,
+    ``phi_error``, ``eigenvalue``, ``dlambda_dphi``); state: (q (n,), phi) the study's last stable
+    state before it (None: nothing to start from); p_min, p_max: the twist range of the path (the
+    study's, 0.5 pi wider); capacity: the contact list's padded size (the same for every end of a
+    study: a new size compiles every program again); progress: optional callable(str);
+    observer(point): called after each point (an exception raised there stops the run). Warns where
+    the located end lies outside the study's bracket. Returns a ``BranchEnd``."""
+    o = options or DiagramOptions()
+    say = progress or (lambda line: None)
+    if state is None:
+        return BranchEnd(inst["direction"], inst["from_branch"], None, [], None, "no state on file")
+    q, phi = state
+    lo, hi = inst["bracket"][0], inst["bracket"][1]
+    sign = 1.0 if hi > lo else -1.0
+    q, phi = backed_off_start(scene, q, phi, float(inst.get("eigenvalue", math.nan)),
+                              float(inst.get("dlambda_dphi", math.nan)), sign)
+    say(f"{inst['direction']}: locating the end of {inst['from_branch']} (bracketed at "
+        f"{inst['phi'] / math.pi:+.6f} pi) on the extended system, then its unstable branch")
+    end = follow_branch_end(scene, q, phi, sign, o, p_min=min(p_min, phi) - 0.5 * math.pi,
+                            p_max=max(p_max, phi) + 0.5 * math.pi, capacity=capacity, observer=observer)
+    end.direction, end.from_branch = inst["direction"], inst["from_branch"]
+    if end.event is None or not end.event.converged:
+        say(f"{inst['direction']}: {end.message}")
+        return end
+    ev = end.event
+    say(f"{inst['direction']}: {ev.kind} at {ev.p / math.pi:+.10f} pi (critical eigenvalue "
+        f"{ev.critical_eigenvalue:.1e}, residual {ev.residual:.1e}; the study's bracket said "
+        f"{inst['phi'] / math.pi:+.6f} +- {inst['phi_error'] / math.pi:.1e} pi), "
+        f"{len(end.unstable)} unstable points, {end.seconds:.1f} s")
+    end.within_bracket = in_bracket(ev.p, inst)
+    extra = extra_crossings(ev)
+    if extra:
+        warnings.warn(f"{inst['direction']}: {extra}", stacklevel=3)
+    if not end.within_bracket:
+        message = (f"{inst['direction']}: the end of {inst['from_branch']} located on the extended system, "
+                   f"{ev.kind} at {ev.p / math.pi:+.8f} pi, lies outside the study's bracket "
+                   f"{inst['phi'] / math.pi:+.8f} +- {inst['phi_error'] / math.pi:.1e} pi: the two methods "
+                   "disagree on where the branch ends (a mode the study counted negative that the "
+                   "path's shape classification does not, or the path left the study's branch); the "
+                   "study's value is kept as phi*")
+        warnings.warn(message, stacklevel=3)
+    return end
+
+
+def end_capacity(scene, states):
+    """The contact list's padded size for the ends of a study: the largest that any of the end
+    states (q, phi) asks for (None entries skipped; None without contact pairs)."""
+    return max((scene.neighbourhood(q, phi).capacity for q, phi in filter(None, states)), default=None)
+
+
+def unstable_branches(scene, study, options=None, *, progress=None, parallel=True, located=None):
     """Locate each branch end of a twist study exactly and follow the unstable branch beyond it.
 
     scene: the study's scene; study: its ``StudyResult`` (``jaxrod.study.twist_study``), whose
     ``end_states`` hold the last stable state before each instability; options: ``DiagramOptions``;
     progress: optional callable(str); parallel: the two directions' ends in two threads (each
-    direction's ends one after another; the results are the same). With ``study.out`` writes the
-    files described in the module docstring. Returns a ``Diagram`` (``Diagram.study``: the study with the diagram; ``study``
-    itself is left as it was).
+    direction's ends one after another; the results are the same). located: ends already located
+    by ``locate_end`` while the study ran (the CLI does), {(direction, index among that direction's
+    ends): BranchEnd}; only the others are computed here. With ``study.out`` writes the files
+    described in the module docstring. Returns a ``Diagram`` (``Diagram.study``: the study with the
+    diagram; ``study`` itself is left as it was).
     """
     o = options or DiagramOptions()
     say = progress or (lambda line: None)
@@ -295,62 +352,33 @@ def unstable_branches(scene, study, options=None, *, progress=None, parallel=Tru
     phis = np.asarray(study.table.get("phi", [0.0]), dtype=float)
     p_min, p_max = float(np.min(phis)), float(np.max(phis))
     cancel = threading.Event()
+    located = dict(located or {})
 
     def stop_if_cancelled(point):
         if cancel.is_set():
             raise _Cancelled()
 
-    def one_end(inst, state):
-        if state is None:
-            return BranchEnd(inst["direction"], inst["from_branch"], None, [], None, "no state on file")
-        q, phi = state
-        lo, hi = inst["bracket"][0], inst["bracket"][1]
-        sign = 1.0 if hi > lo else -1.0
-        q, phi = backed_off_start(scene, q, phi, float(inst.get("eigenvalue", math.nan)),
-                                  float(inst.get("dlambda_dphi", math.nan)), sign)
-        say(f"{inst['direction']}: locating the end of {inst['from_branch']} (bracketed at "
-            f"{inst['phi'] / math.pi:+.6f} pi) on the extended system, then its unstable branch")
-        end = follow_branch_end(scene, q, phi, sign, o, p_min=min(p_min, phi) - 0.5 * math.pi,
-                                p_max=max(p_max, phi) + 0.5 * math.pi, capacity=capacity,
-                                observer=stop_if_cancelled)
-        end.direction, end.from_branch = inst["direction"], inst["from_branch"]
-        if end.event is None or not end.event.converged:
-            say(f"{inst['direction']}: {end.message}")
-        else:
-            ev = end.event
-            say(f"{inst['direction']}: {ev.kind} at {ev.p / math.pi:+.10f} pi (critical eigenvalue "
-                f"{ev.critical_eigenvalue:.1e}, residual {ev.residual:.1e}; the study's bracket said "
-                f"{inst['phi'] / math.pi:+.6f} +- {inst['phi_error'] / math.pi:.1e} pi), "
-                f"{len(end.unstable)} unstable points, {end.seconds:.1f} s")
-            end.within_bracket = in_bracket(ev.p, inst)
-            extra = extra_crossings(ev)
-            if extra:
-                warnings.warn(f"{inst['direction']}: {extra}", stacklevel=3)
-            if not end.within_bracket:
-                message = (f"{inst['direction']}: the end of {inst['from_branch']} located on the extended system, "
-                           f"{ev.kind} at {ev.p / math.pi:+.8f} pi, lies outside the study's bracket "
-                           f"{inst['phi'] / math.pi:+.8f} +- {inst['phi_error'] / math.pi:.1e} pi: the two methods "
-                           "disagree on where the branch ends (a mode the study counted negative that the "
-                           "path's shape classification does not, or the path left the study's branch); the "
-                           "study's value is kept as phi*")
-                warnings.warn(message, stacklevel=3)
-        return end
-
-    # One contact-list size for every end (the largest any end state asks for): a size is an array
-    # shape, and each new one traces and compiles every function again (measured on the trefoil at
-    # N = 61: 15 s for each of its two ends, whose default sizes differed)
-    capacity = max((scene.neighbourhood(q, phi).capacity for q, phi in filter(None, study.end_states)), default=None)
     # Each direction's ends one after another, the two directions in two threads (as the study
     # runs them): the ends' work is mostly XLA and LAPACK, which release the GIL. Ctrl-C stops
     # both at their next point (``study._run_all``).
     ends = [None] * len(instabilities)
-    todo = {}
+    todo, seen = {}, {"plus": 0, "minus": 0}
     for i, (inst, state) in enumerate(zip(instabilities, study.end_states)):
-        todo.setdefault(inst["direction"], []).append((i, inst, state))
+        key = (inst["direction"], seen[inst["direction"]])
+        seen[inst["direction"]] += 1
+        if key in located:
+            ends[i] = located[key]
+        else:
+            todo.setdefault(inst["direction"], []).append((i, inst, state))
+    # One contact-list size for every end (the largest any end state asks for): a size is an array
+    # shape, and each new one traces and compiles every function again (measured on the trefoil at
+    # N = 61: 15 s for each of its two ends, whose default sizes differed)
+    capacity = end_capacity(scene, study.end_states) if todo else None
 
     def run_direction(items):
         for i, inst, state in items:
-            ends[i] = one_end(inst, state)
+            ends[i] = locate_end(scene, inst, state, o, p_min=p_min, p_max=p_max, capacity=capacity,
+                                 progress=say, observer=stop_if_cancelled)
 
     _run_all(run_direction, [(items,) for items in todo.values()], parallel, cancel)
     rows, table = _unstable_rows(scene, study, ends)
@@ -437,6 +465,35 @@ def _diagram_dict(diagram, options):
     return {"options": asdict(options), "seconds": diagram.seconds, "ends": [end(e) for e in diagram.ends]}
 
 
+def end_rows(scene, end, k, negative_tol):
+    """The rows of a located end's unstable branch (the end itself at arclength 0, then the path
+    beyond it), in branch.csv's columns but ``branch_id``: each state's ``step_record`` (k lowest
+    eigenvalues, zero modes removed, ``negative_tol`` as the study's), with ``morse_index``,
+    ``n_negative`` and ``stable`` from the pseudo-arclength path. Kept on ``end.rows`` (the CLI
+    computes them in the end's worker, beside the study, not after the last end); returns them."""
+    rod, ev = end.rod, end.event
+    before = end.points[ev.step - 1]
+    # the located end first (arclength 0), then the path beyond it
+    s_end = before.arclength + float(np.linalg.norm(np.append(ev.u - before.u, ev.p - before.p)))
+    path = [(ev.u, float(ev.p), 0.0, ev.morse_before, 0, float(rod.full_gradient(ev.u, ev.p)))]
+    path += [(pt.u, float(pt.p), pt.arclength - s_end, pt.morse_index, pt.iterations,
+              float(rod.full_gradient(pt.u, pt.p))) for pt in end.unstable]
+    name = UNSTABLE_PREFIX + end.from_branch
+    rows = []
+    for u, phi, s, morse, iterations, grad in path:
+        q = rod.q(u)
+        nbr = scene.neighbourhood(q, phi, capacity=rod.problem.args.nbr.capacity)
+        sol = Solution(y=np.asarray(scene.to_scaled(q)), value=math.nan, grad_norm=grad, iterations=int(iterations),
+                       converged=True, reason="converged", solver="pseudo-arclength", gtol=math.nan)
+        e = equilibrium_from_solution(scene, phi, sol, nbr, k=k, negative_tol=negative_tol)
+        row, _ = step_record(scene, e, branch=name)
+        row.update(direction=end.direction, arclength=s, morse_index=int(morse), n_negative=int(morse),
+                   stable=int(morse == 0))
+        rows.append(row)
+    end.rows, end.rows_k = rows, (k, negative_tol)
+    return rows
+
+
 def _unstable_rows(scene, study, ends):
     """The rows of the unstable branches beyond the study's branch ends, in branch.csv's columns,
     appended to branch.csv (with ``study.out``). Returns (rows, the table
@@ -453,24 +510,10 @@ def _unstable_rows(scene, study, ends):
     for end in ends:
         if end.event is None or not end.event.converged:
             continue
-        rod, ev = end.rod, end.event
-        before = end.points[ev.step - 1]
-        # the located end first (arclength 0), then the path beyond it
-        s_end = before.arclength + float(np.linalg.norm(np.append(ev.u - before.u, ev.p - before.p)))
-        path = [(ev.u, float(ev.p), 0.0, ev.morse_before, 0, float(rod.full_gradient(ev.u, ev.p)))]
-        path += [(pt.u, float(pt.p), pt.arclength - s_end, pt.morse_index, pt.iterations,
-                  float(rod.full_gradient(pt.u, pt.p))) for pt in end.unstable]
-        name = UNSTABLE_PREFIX + end.from_branch
-        for u, phi, s, morse, iterations, grad in path:
-            q = rod.q(u)
-            nbr = scene.neighbourhood(q, phi, capacity=rod.problem.args.nbr.capacity)
-            sol = Solution(y=np.asarray(scene.to_scaled(q)), value=math.nan, grad_norm=grad, iterations=int(iterations),
-                           converged=True, reason="converged", solver="pseudo-arclength", gtol=math.nan)
-            e = equilibrium_from_solution(scene, phi, sol, nbr, k=k, negative_tol=negative_tol)
-            row, _ = step_record(scene, e, branch=name)
-            row.update(direction=end.direction, branch_id=next_id, arclength=s, morse_index=int(morse),
-                       n_negative=int(morse), stable=int(morse == 0))
-            rows.append(row)
+        if end.rows is None or end.rows_k != (k, negative_tol):
+            end_rows(scene, end, k, negative_tol)
+        for row in end.rows:
+            rows.append(dict(row, branch_id=next_id))
         next_id += 1
     if study.out:
         csv_path = os.path.join(study.out, "branch.csv")

@@ -25,6 +25,7 @@ profiles and 3D snapshots from the files.
 """
 from __future__ import annotations
 
+import copy
 import csv
 import glob
 import json
@@ -181,7 +182,10 @@ def twist_study(scene, phi_min, phi_max, options=None, *, out=None, resume=True,
     options: a ``ContinuationOptions`` with step, tol, k, max_switches (``study_options``: a
     study's defaults are step 0.5 pi, tol 2e-4 pi, k 8, max_switches 3). observer: an
     ``Observer`` whose progress(str) gets progress lines and on_point(direction, BranchPoint) is
-    called after every step recorded ('plus' or 'minus'; from two threads when ``parallel``).
+    called after every step recorded ('plus' or 'minus'; from two threads when ``parallel``);
+    on_instability(direction, index, entry, (q, phi)), once each branch end is on file: its
+    critical.json entry (a copy), its index among that direction's ends, and the last stable state
+    before it (the CLI starts each end's exact location while the study goes on).
     Returns a ``StudyResult``.
 
     parallel: follow the two directions at once, in two threads (JAX releases the GIL while it
@@ -197,8 +201,8 @@ def twist_study(scene, phi_min, phi_max, options=None, *, out=None, resume=True,
     step = check_positive("step", options.step)
     tol = check_positive("tol", options.tol)
     k, max_switches = options.k, options.max_switches
-    observer = observed(observer, "twist_study", ("progress", "on_point"))
-    on_point = observer.on_point
+    observer = observed(observer, "twist_study", ("progress", "on_point", "on_instability"))
+    on_point, on_end = observer.on_point, observer.on_instability
     if not ("contact" in scene.terms and use_sparse(scene, options.linear_algebra or "auto")):
         check_dense_memory(scene)  # the dense Hessian must fit: refused before anything is compiled
     say = observer.say
@@ -293,10 +297,13 @@ def twist_study(scene, phi_min, phi_max, options=None, *, out=None, resume=True,
             with lock:
                 index = sum(1 for c in critical["instabilities"] if c["direction"] == direction)
                 end_states[(direction, index)] = (np.asarray(inst.equilibrium.q), float(inst.equilibrium.phi))
-                critical["instabilities"].append(_instability_dict(inst, scene, out, direction, index))
+                entry = _instability_dict(inst, scene, out, direction, index)
+                critical["instabilities"].append(entry)
                 _summarise(critical)
                 if out:
                     _write_json(crit_path, critical)
+            if on_end is not None:  # outside the lock: it may start work on this end at once
+                on_end(direction, index, copy.deepcopy(entry), end_states[(direction, index)])
 
         def on_state(path_state):
             # After the rows, step files and instabilities that this state counts: a run killed

@@ -406,6 +406,28 @@ def test_critical_json_events_and_state_file(on_file, paths):
     assert np.max(np.abs(g)) <= 1e-9
 
 
+def test_ends_located_while_the_study_runs_give_the_same_files(on_file, paths, tmp_path):
+    # What the CLI does (issue 18, acceptance 3): each branch end is located (locate_end, and its
+    # rows, end_rows) as soon as twist_study hands it over (on_instability; tests/test_convergence.py),
+    # while the study goes on, and unstable_branches only assembles: the same files as the diagram
+    # computed after the study. (The study here is the fixture's, resumed in a copy: cheap.)
+    from jaxrod.diagram import end_capacity, end_rows, locate_end
+
+    scene = paths[0]
+    out, study0, _ = on_file
+    entry, state = study0.critical["instabilities"][0], study0.end_states[0]
+    end = locate_end(scene, entry, state, DIAGRAM, p_min=PHI_MIN, p_max=PHI_MAX, capacity=end_capacity(scene, [state]))
+    end_rows(scene, end, 8, entry["negative_tol"])
+    again = str(tmp_path / "pipelined")
+    shutil.copytree(out, again)
+    study = twist_study(scene, PHI_MIN, PHI_MAX, jr.ContinuationOptions(step=1.0 * PI, tol=2e-4 * PI), out=again,
+                        parallel=False)
+    diagram = unstable_branches(scene, study, DIAGRAM, located={("plus", 0): end})
+    assert diagram.ends[0] is end
+    for name in ("branch.csv", "critical.json", "event_plus_0.npz"):
+        assert filecmp.cmp(os.path.join(out, name), os.path.join(again, name), shallow=False), name
+
+
 def test_a_resumed_study_drops_the_diagram_and_gets_it_back_identical(on_file, paths, tmp_path):
     scene = paths[0]
     out, _, _ = on_file

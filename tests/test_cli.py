@@ -310,3 +310,41 @@ def test_a_users_compile_cache_keeps_every_program(monkeypatch, tmp_path):
         assert jax.config.jax_persistent_cache_min_compile_time_secs == 2.0
     finally:
         jax.config.update("jax_persistent_cache_min_compile_time_secs", before)
+
+
+def test_workers_run_jobs_in_order_hand_back_values_and_errors():
+    # The CLI's worker threads (issue 18): each branch end's location and error estimate runs as a
+    # job as soon as the study has found that end; the main thread collects them.
+    import threading
+
+    from jaxrod.cli import _Workers
+
+    workers = _Workers(start=False)
+    ran = []
+    for i in range(4):
+        workers.submit(("job", i), lambda cancel, i=i: ran.append(i) or i * i)
+    assert workers.n_workers == 0 and not ran  # nothing runs before a worker is added
+    workers.add_worker()
+    assert workers.results() == {("job", i): i * i for i in range(4)} and ran == [0, 1, 2, 3]
+    assert workers.keys == {("job", i) for i in range(4)}
+
+    failing = _Workers()
+    failing.submit("bad", lambda cancel: 1 / 0)
+    with pytest.raises(ZeroDivisionError):
+        failing.results()
+
+    # stop(): a running job sees cancel, the queued ones never start
+    started, later = threading.Event(), []
+    stopping = _Workers()
+
+    def long_job(cancel):
+        started.set()
+        while not cancel.wait(0.01):
+            pass
+        return "stopped"
+
+    stopping.submit("long", long_job)
+    stopping.submit("later", lambda cancel: later.append(1))
+    assert started.wait(5.0)
+    stopping.stop()
+    assert later == []

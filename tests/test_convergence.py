@@ -167,11 +167,23 @@ def test_coarse_companion_of_a_study_brackets_the_converged_value(tmp_path):
     from jaxrod.convergence import coarse_companion
     from jaxrod.study import twist_study
 
+    from jaxrod.continuation import Observer
+
     ring = jr.michell_ring(32, nu=0.5)
+    handed = []  # the CLI starts each end's work here, while the study goes on
     study = twist_study(ring, -0.5 * PI, 6.0 * PI, jr.ContinuationOptions(step=0.5 * PI, tol=1e-3 * PI, max_switches=0),
-                        out=str(tmp_path / "ring"))
+                        out=str(tmp_path / "ring"), observer=Observer(on_instability=lambda *a: handed.append(a)))
+    (direction, index, entry, state), = handed  # each end once it is on file, with its last stable state
+    assert (direction, index) == ("plus", 0) and entry == study.critical["instabilities"][0]
+    assert np.array_equal(state[0], study.end_states[0][0]) and state[1] == study.end_states[0][1]
     found = coarse_companion(ring, str(tmp_path / "ring"), study.critical, step=0.5 * PI, tol=1e-3 * PI)
     assert list(found) == ["plus"]  # nothing ends on the minus side within -0.5 pi
+    # one side from its own entry (as the CLI runs it, once that end is found): the same estimate
+    alone = coarse_companion(ring, str(tmp_path / "ring"), {"instabilities": [entry]}, step=0.5 * PI, tol=1e-3 * PI,
+                             sides=("plus",))
+    assert alone["plus"][1] == found["plus"][1]
+    with pytest.raises(ValueError, match="sides"):
+        coarse_companion(ring, str(tmp_path / "ring"), study.critical, sides=("up",))
     level, ext = found["plus"]
     analytic = jr.michell_critical_twist(0.5)
     assert level.N == 16 and level.phi_star > study.critical["phi_plus"] > analytic  # from above, as Michell's

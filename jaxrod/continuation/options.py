@@ -166,7 +166,9 @@ class Observer:
       come); ``twist_study`` calls it as on_point(direction, BranchPoint), direction 'plus' or
       'minus' (from two threads when it runs both sides at once).
     on_instability(Instability): ``follow_twist``, as soon as a branch end is located (and, after
-      a switch, before the new branch's first point), so that a study can keep it on file at once.
+      a switch, before the new branch's first point), so that a study can keep it on file at once;
+      ``twist_study`` calls it as on_instability(direction, index, critical.json entry, (q, phi) the
+      last stable state before the end), once the end is on file.
     on_state(PathState): ``follow_twist``, after every step tried (and after the points and
       instabilities that step reported): what ``follow_twist(resume=...)`` goes on from.
 
