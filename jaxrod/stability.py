@@ -117,11 +117,11 @@ def _lowest_of(hp, tol):
     m = min(LOWEST_COUNT, n)
     if 2 * m >= n:
         return _lowest_of_small(hp, tol, m)
-    import scipy.linalg
+    from .lapack import lowest_eigenpairs
 
     h = np.asarray(hp)
     with _LAPACK_LOCK:
-        lam, vec = scipy.linalg.eigh(h, subset_by_index=[0, m - 1], driver="evr", check_finite=False)
+        lam, vec = lowest_eigenpairs(h, m)  # scipy's dsyevr, without holding the GIL
     vec = _fix_signs(vec, np)
     neg = int(np.sum(lam < -tol))
     if neg == m:
@@ -322,6 +322,8 @@ def _tangent_solve(hp, z, n_zero, lam, vec, index, ref, cluster_rtol, pinv_tol, 
     positive definite (a stable state: half an LU's work), an LU otherwise."""
     import scipy.linalg
 
+    from .lapack import cholesky_solve
+
     m = lam.shape[0]
     # Lifted zero modes (only present when the subset reaches the top of a small spectrum) are
     # never tracked.
@@ -339,8 +341,7 @@ def _tangent_solve(hp, z, n_zero, lam, vec, index, ref, cluster_rtol, pinv_tol, 
     b = b - vs @ (vs.T @ b)
     with _LAPACK_LOCK:
         try:
-            du = -scipy.linalg.cho_solve(scipy.linalg.cho_factor(h_def, lower=True, check_finite=False), b,
-                                         check_finite=False)
+            du = -cholesky_solve(h_def, b)  # scipy's dpotrf/dpotrs, without holding the GIL
         except np.linalg.LinAlgError:  # indefinite: an unstable state's other negative modes
             du = -scipy.linalg.lu_solve(scipy.linalg.lu_factor(h_def, check_finite=False), b, check_finite=False)
     return du, index, vec[:, index]

@@ -89,8 +89,10 @@ def _lowest_pairs(J, n_keep, n_zero, rtol):
         return None
     from ..stability import _LAPACK_LOCK
 
+    from ..lapack import lowest_eigenpairs
+
     with _LAPACK_LOCK:
-        lam, vec = scipy.linalg.eigh(J, subset_by_index=[0, m - 1], driver="evr", check_finite=False)
+        lam, vec = lowest_eigenpairs(J, m)  # scipy's dsyevr, without holding the GIL
     if lam[-1] < 0.0:  # negative eigenvalues beyond the m lowest: count them all
         return None
     if n_zero:
