@@ -36,19 +36,22 @@ os.environ["XLA_FLAGS"] = " ".join(_flags)
 import jaxrod  # noqa: E402,F401  (float64 before any test builds arrays)
 
 
-# Longest files first (measured 2026-12-03 again, after the sparse path, with --durations: seconds of busy time per file on 2 cores), so that the two xdist
+# Longest files first (measured 2026-12-04 again, fifth session, with --durations=0: seconds of busy
+# time per file on 2 cores; test_symmetry.py (22 s) and test_event_curve.py (14 s) had come in
+# unlisted, so they ran last), so that the two xdist
 # workers, which take whole files in collection order (``--no-loadscope-reorder`` in pyproject.toml:
 # by default xdist reorders files by their number of tests, which ignored this list), finish
 # together. Files not listed (short ones, or new ones) come after, alphabetically.
-_LONGEST_FIRST = ("test_notebooks.py", "test_bifurcation_knots.py", "test_atlas.py", "test_resume.py",
-                  "test_sparse_stability.py", "test_notebook_damped_dynamics.py", "test_readme.py",
-                  "test_notebook_bifurcation_diagram.py", "test_convergence.py", "test_interrupt_and_lock.py",
-                  "test_bifurcation_rods.py", "test_endloads.py", "test_energy.py", "test_conventions.py",
-                  "test_topology.py", "test_hessian.py", "test_solvers.py", "test_cli.py", "test_knots.py",
-                  "test_dynamics.py", "test_stability.py", "test_contact.py", "test_trefoil_twist.py",
-                  "test_analysis.py", "test_lk0.py", "test_bifurcation_analytic.py", "test_sparse_contact.py",
-                  "test_properties.py", "test_banded.py", "test_clamped_linking.py", "test_plotting.py",
-                  "test_michell.py", "test_event_curve.py", "test_analyze_study_files.py")
+_LONGEST_FIRST = ("test_notebooks.py", "test_bifurcation_knots.py", "test_resume.py", "test_atlas.py",
+                  "test_readme.py", "test_sparse_stability.py", "test_notebook_damped_dynamics.py",
+                  "test_symmetry.py", "test_convergence.py", "test_notebook_bifurcation_diagram.py",
+                  "test_bifurcation_rods.py", "test_endloads.py", "test_interrupt_and_lock.py", "test_energy.py",
+                  "test_event_curve.py", "test_conventions.py", "test_hessian.py", "test_topology.py",
+                  "test_solvers.py", "test_contact.py", "test_cli.py", "test_dynamics.py", "test_stability.py",
+                  "test_sparse_contact.py", "test_compile_ahead.py", "test_knots.py", "test_trefoil_twist.py",
+                  "test_analysis.py", "test_bifurcation_analytic.py", "test_michell.py", "test_properties.py",
+                  "test_clamped_linking.py", "test_aot.py", "test_banded.py", "test_lk0.py",
+                  "test_analyze_study_files.py", "test_plotting.py")
 
 
 def pytest_collection_modifyitems(session, config, items):
