@@ -661,7 +661,7 @@ def _trefoil(args):
 
     title = f"{scene.name}, D/L = {args.D / args.L:.4f}, N = {args.N}"
     span = max(-args.phi_min, args.phi_max)
-    estimates, n_estimates = {}, (args.N + 1) // 2
+    announced, n_estimates = [], (args.N + 1) // 2  # the estimate's first line is said once
 
     def estimate_job(side, entry):
         """The N' = (N+1)/2 error estimate of one side's first end (``coarse_companion``)."""
@@ -669,9 +669,9 @@ def _trefoil(args):
 
         def job(cancel):
             t_side = time.perf_counter()
-            if not estimates:
+            if not announced:
+                announced.append(side)
                 say(f"estimating the discretisation error of phi*: each end again at N = {n_estimates}")
-            estimates[side] = None
             found = coarse_companion(scene, args.out, {"instabilities": [entry]}, span=span, step=args.step,
                                      tol=args.tol, progress=say, cancel=cancel, sides=(side,))
             return found.get(side), time.perf_counter() - t_side
@@ -694,11 +694,12 @@ def _trefoil(args):
             return end
         return job
 
-    # Each branch end's exact location and each side's error estimate start as soon as the study
-    # has found that end, in a worker thread beside the study's two; a second worker joins once the
-    # study is done. The minus side ends first (measured on command 1: the tightening side was
-    # finished 4 s before the opening side's last branch), and a core then idled until the whole
-    # study was over. The results are those of the serial order (each job is independent).
+    # Each branch end's exact location and each side's error estimate are queued as soon as the
+    # study has found that end, and run by worker threads, one started when a study direction
+    # reaches its end of the range (``on_point``: on the core that direction leaves; started beside
+    # the study's two threads they gained nothing), the second once the study is done. Before, a
+    # core idled from the tightening side's end until the whole study was over (~4 s on command 1).
+    # The results are those of the serial order (each job is independent).
     workers = None if args.serial else _Workers(start=False)
     options_k = study_options(options).k  # the eigenvalue columns of branch.csv
     wanted = {"ends": not args.stable_only, "estimate": not args.no_extrapolation}
