@@ -727,16 +727,19 @@ def _trefoil(args):
     drawn = None
     if not args.no_figures and not args.serial:
         # the states' figures need only the step files: drawn while the diagram runs
-        drawn = _Background(lambda cancel: state_figures(args.out, title=title, length_unit="mm"))
-    sides_with_end = [side for side in ("plus", "minus") if summary[f"phi_{side}"] is not None]
+        drawn = _Workers()  # one job, in its own thread
+        drawn.submit("states", lambda cancel: state_figures(args.out, title=title, length_unit="mm"))
+    firsts = {}  # each side's first end (critical.json's entry)
+    for c in result.critical["instabilities"]:
+        firsts.setdefault(c["direction"], c)
+    sides_with_end = [side for side in ("plus", "minus") if side in firsts]
     found, seconds_extrapolation = {}, 0.0
     try:
         located = {}
         if workers is not None:
             for side in sides_with_end:  # a resumed run: ends found before the interruption
-                first = next(c for c in result.critical["instabilities"] if c["direction"] == side)
                 if wanted["estimate"] and ("estimate", side) not in workers.keys:
-                    workers.submit(("estimate", side), estimate_job(side, first))
+                    workers.submit(("estimate", side), estimate_job(side, firsts[side]))
             while workers.n_workers < 2:
                 workers.add_worker()
             for key, value in workers.results().items():
@@ -747,8 +750,7 @@ def _trefoil(args):
                     seconds_extrapolation += value[1]
         elif wanted["estimate"] and sides_with_end:
             for side in sides_with_end:
-                first = next(c for c in result.critical["instabilities"] if c["direction"] == side)
-                level, seconds = estimate_job(side, first)(None)
+                level, seconds = estimate_job(side, firsts[side])(None)
                 if level is not None:
                     found[side] = level
                 seconds_extrapolation += seconds
@@ -786,7 +788,8 @@ def _trefoil(args):
         from .study import branch_figures
 
         # pyplot's figure registry is shared: the states' figures are finished before these start
-        states = drawn.result() if drawn is not None else state_figures(args.out, title=title, length_unit="mm")
+        states = drawn.results()["states"] if drawn is not None else state_figures(args.out, title=title,
+                                                                                    length_unit="mm")
         paths = branch_figures(args.out, title=title) + states
         for path in paths:
             say(f"wrote {path}")
@@ -814,48 +817,10 @@ def _trefoil(args):
     return 0
 
 
-class _Background:
-    """fn(cancel) run in a daemon thread; ``result()`` waits for it (in short waits, so that
-    Ctrl-C still reaches the main thread) and returns its value or raises its exception;
-    ``stop()`` sets ``cancel`` (fn stops at its next point) and waits until the thread has left
-    XLA, so that no thread computes while the interpreter shuts down."""
-
-    def __init__(self, fn):
-        import threading
-
-        self._cancel, self._done = threading.Event(), threading.Event()
-        self._value, self._error = None, None
-
-        def target():
-            try:
-                self._value = fn(self._cancel)
-            except BaseException as exc:  # noqa: BLE001 -- handed to the main thread
-                self._error = exc
-            finally:
-                self._done.set()
-
-        threading.Thread(target=target, daemon=True).start()
-
-    def result(self):
-        try:
-            while not self._done.wait(0.2):
-                pass
-        except BaseException:  # Ctrl-C while waiting: stop the thread first
-            self.stop()
-            raise
-        if self._error is not None:
-            raise self._error
-        return self._value
-
-    def stop(self):
-        self._cancel.set()
-        while not self._done.wait(0.2):
-            pass
-
-
 class _Workers:
     """Jobs run by worker threads in the order they were submitted: ``submit(key, fn)`` queues
-    fn(cancel); ``add_worker()`` starts one more thread (one is started at once); ``results()``
+    fn(cancel); ``add_worker()`` starts one more thread (one is started at once, unless
+    start=False); ``results()``
     waits until every job has run (in short waits, so that Ctrl-C still reaches the main thread)
     and returns {key: value}, or raises the first job's exception; ``stop()`` sets ``cancel`` (a
     job stops at its next point), drops the jobs not started and waits until every thread has left

@@ -87,9 +87,8 @@ def _lowest_pairs(J, n_keep, n_zero, rtol):
     m = int(n_keep) + int(n_zero)
     if n < PARTIAL_MIN_SIZE or 3 * m >= n or not np.all(np.isfinite(J)):
         return None
-    from ..stability import _LAPACK_LOCK
-
     from ..lapack import lowest_eigenpairs
+    from ..stability import _LAPACK_LOCK
 
     with _LAPACK_LOCK:
         lam, vec = lowest_eigenpairs(J, m)  # scipy's dsyevr, without holding the GIL
