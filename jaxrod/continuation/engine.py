@@ -22,7 +22,8 @@ from ..solvers import HostDampedNewton, minimise
 from ..sparse_branch import EXTRA_PAIRS, solve_equilibrium_sparse, sparse_branch_analysis
 from ..sparse_contact import SPARSE_MIN_DOF, deflated_newton_direction, use_sparse
 from ..equilibrium import equilibrium_from_solution, scaled_energy
-from ..stability import branch_analysis
+from ..stability import SLIDING_FRACTION, branch_analysis, sliding_fraction
+from .branch_check import departure, predicted_crossing
 from ..symmetry import ROUND_OFF_ASYMMETRY, SYMMETRIC_TOL, joint_two_fold, symmetrize, two_fold_asymmetry
 from .options import ContinuationOptions, Task
 
@@ -41,6 +42,8 @@ class StepFailure(enum.Enum):
 class _Refusal:
     failure: StepFailure
     detail: str
+    modes: np.ndarray | None = field(default=None, compare=False, repr=False)  # (n, m): the critical modes
+    predicted: bool = False  # refused on a prediction (a zero predicted inside the step), not a measurement
 
     def __str__(self):
         return f"{self.failure.value}: {self.detail}"
@@ -126,7 +129,7 @@ class _Engine:
         q_pred = prev.q + tangent * (phi - prev.phi)
         if self.task is Task.CRITICAL_TWIST:
             return self._newton_step(prev, q_pred, phi, index, ref, guess)
-        return self._minimiser_step(prev, q_pred, phi)
+        return self._minimiser_step(prev, tangent, q_pred, phi)
 
     @property
     def linear_algebra(self):
@@ -174,7 +177,7 @@ class _Engine:
                 return _Step(None, refusal=_Refusal(StepFailure.NOT_CONVERGED, str(exc)))
         return self.analysed(e, index, ref, guess)
 
-    def _minimiser_step(self, prev, q_pred, phi):
+    def _minimiser_step(self, prev, tangent, q_pred, phi):
         opts = self.opts
         x_pred = np.asarray(self.scene.positions(jnp.asarray(q_pred)))
         try:
@@ -207,7 +210,42 @@ class _Engine:
         n_negative = s.equilibrium.stability.n_negative
         if n_negative > 0:
             return replace(s, refusal=_Refusal(StepFailure.UNSTABLE, f"{n_negative} negative eigenvalue(s)"))
+        gone = self.departure(prev, tangent, s.equilibrium)
+        if gone is not None:
+            return replace(s, refusal=_Refusal(StepFailure.JUMP, gone.detail()))
+        crossing = self.predicted_crossing(prev, tangent, phi)
+        if crossing is not None:
+            # stable at both ends, but a mode is predicted to cross zero in between: locate it (a
+            # minimiser past a branch point lands on the stable state beside the branch)
+            return replace(s, refusal=_Refusal(StepFailure.UNSTABLE, crossing.detail(), modes=crossing.mode[:, None],
+                                               predicted=True))
         return s
+
+    def predicted_crossing(self, prev, tangent, phi):
+        """The first of prev's lowest shape modes predicted, by its eigenvalue's derivative along
+        the branch, to cross zero between prev.phi and phi (``branch_check.Crossing``), or None
+        (also where ``check_branch`` is off or prev has no stability). A loose knot's near-zero
+        slides are not judged: they change sign from step to step without changing the shape."""
+        if not self.opts.check_branch or prev.stability is None:
+            return None
+        return predicted_crossing(self.scene, prev, tangent, phi, self.opts.negative_tol, keep=self._shape_modes(prev))
+
+    def departure(self, prev, tangent, e):
+        """A ``branch_check.Departure`` where one of prev's lowest shape modes has, at the corrected
+        state e, an eigenvalue far from its prediction along the branch (the corrector jumped to
+        another state, closer than ``jump_tol``), or None (also where ``check_branch`` is off)."""
+        if not self.opts.check_branch or prev.stability is None or e.stability is None:
+            return None
+        return departure(self.scene, prev, tangent, e, self.opts.negative_tol, keep=self._shape_modes(prev))
+
+    def _shape_modes(self, prev):
+        """None, or for a knot with contact the filter that leaves its slides out of a check."""
+        if not self.contact:
+            return None
+
+        def keep(vectors):
+            return sliding_fraction(self.scene, prev.q, vectors) > SLIDING_FRACTION
+        return keep
 
     def _kept_symmetric(self, reference_q, e, phi, previous=None):
         """e, or e projected back onto the two-fold symmetry that the state ``reference_q`` it was

@@ -225,6 +225,8 @@ class _Follower:
         being there, of its shape modes negative inside the near-zero band), else ``current``."""
         if s.refusal is None or s.refusal.failure is not StepFailure.UNSTABLE:
             return current
+        if s.refusal.modes is not None:  # predicted to cross zero inside the step (``branch_check``)
+            return s.refusal.modes
         found = _negative_modes(s.equilibrium, self.engine.opts.negative_tol)
         if found is None:
             hidden = _hidden_shape_modes(self.engine, s.equilibrium)
@@ -255,6 +257,12 @@ class _Follower:
                                   self.engine.opts.negative_tol, state.failures, state.probe_held, state.successes,
                                   state.critical_modes)
         s = self._unless_past_zero(state, self.engine.step(prev, state.tangent, trial))
+        if s.ok and state.lost_refusal.predicted and \
+                self.engine.predicted_crossing(s.equilibrium, s.tangent, state.lost_phi) is None:
+            # the branch was refused on a predicted zero that the closer state no longer predicts:
+            # the eigenvalue turned before zero; go on from there (no bracket to shrink)
+            self.say(f"[{state.branch}] no zero predicted from phi = {trial / math.pi:+.5f} pi any more: going on")
+            return self._accept(state, s, phase=Phase.FOLLOW, h=self.engine.opts.step, critical_modes=None)
         if s.ok:
             return self._accept(state, s, failures=0, successes=state.successes + 1, probe_held=probe)
         self.say(f"[{state.branch}] phi = {trial / math.pi:+.5f} pi refused ({s.refusal})")

@@ -71,6 +71,10 @@ class ContinuationOptions:
       trefoil as drawn), keep the states on that symmetry while the branch has it: a corrected
       state that drifted off it by less than ``jump_tol`` (material sliding along nearly null
       modes) is projected back and finished by the corrector (``jaxrod.symmetry``). Default True.
+    check_branch: refuse a stable step across which one of the last state's lowest shape modes is
+      predicted, by its eigenvalue's derivative along the branch, to cross zero; the end is then
+      located as any other (``continuation.branch_check``: a minimiser past a branch point lands
+      on the stable state beside the branch, and the instability was reported late). Default True.
 
     ``updated(**values)`` is a copy with the values that are not None replaced.
     """
@@ -89,6 +93,7 @@ class ContinuationOptions:
     max_switches: int | None = None
     perturbation: float | None = None
     keep_symmetry: bool | None = None
+    check_branch: bool | None = None
 
     def updated(self, **values):
         """A copy with every value that is not None replaced."""
@@ -115,6 +120,7 @@ class ContinuationOptions:
             "max_switches": 3,
             "perturbation": None,  # jump_tol, once that is known
             "keep_symmetry": True,
+            "check_branch": True,
         }
         values = {key: getattr(self, key) if getattr(self, key) is not None else d for key, d in defaults.items()}
         for key in ("step", "tol", "negative_tol", "gtol", "jump_tol"):
@@ -135,6 +141,9 @@ class ContinuationOptions:
         if values["keep_symmetry"] not in (True, False):
             raise ValueError(f"keep_symmetry must be True or False, got {values['keep_symmetry']!r}")
         values["keep_symmetry"] = bool(values["keep_symmetry"])
+        if values["check_branch"] not in (True, False):
+            raise ValueError(f"check_branch must be True or False, got {values['check_branch']!r}")
+        values["check_branch"] = bool(values["check_branch"])
         if not isinstance(values["branch"], str) or not values["branch"]:
             raise ValueError(f"branch must be a non-empty name, got {values['branch']!r}")
         return ContinuationOptions(**values)

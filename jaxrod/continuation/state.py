@@ -77,6 +77,7 @@ class PathState:
         if self.lost_refusal is not None:
             out["lost_failure"] = np.asarray(self.lost_refusal.failure.value)
             out["lost_detail"] = np.asarray(self.lost_refusal.detail)
+            out["lost_predicted"] = np.asarray(self.lost_refusal.predicted)
         if self.critical_modes is not None:
             out["critical_modes"] = np.asarray(self.critical_modes)
         for name in ("prev", "older", "lost_equilibrium"):
@@ -116,7 +117,8 @@ class _StoredPathState:
         lost, _ = equilibrium("lost_equilibrium")
         refusal = None
         if "lost_failure" in a:
-            refusal = _Refusal(StepFailure(str(a["lost_failure"])), str(a["lost_detail"]))
+            refusal = _Refusal(StepFailure(str(a["lost_failure"])), str(a["lost_detail"]),
+                               predicted=bool(a["lost_predicted"]) if "lost_predicted" in a else False)
         stop = str(a["stop"])
         return PathState(
             phase=Phase(str(a["phase"])), branch=str(a["branch"]), prev=prev, tangent=tangent, older=older,

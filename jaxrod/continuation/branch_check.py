@@ -1,0 +1,198 @@
+"""Eigenvalues predicted across a continuation step: a zero crossed between two stable states.
+
+A stable-only continuation corrects each predicted state with a minimiser. Past a branch point of
+a loose knot, the minimiser can land on a stable state beside the branch a small distance away: the
+step converges, every eigenvalue is positive at both ends, and the path has left its branch without
+a word (the trefoil at D/L = 0.024, N = 61: a step from -11.263 pi to -11.275 pi passed the
+symmetric branch's instability at -11.2675 pi, which was then reported 0.015 pi late, where the
+state beside it folded).
+
+The test here is first-order perturbation theory of the lowest eigenpairs at the last accepted
+state: with v_j its unit eigenvectors (eigenvalues lam_j) and s_j = v_j^T (dH/dphi along the
+branch) v_j their derivatives along the branch,
+
+    lam_j(phi + dphi) = lam_j + s_j dphi + O(dphi^2).
+
+A mode predicted to cross zero inside a step (lam_j > 0, lam_j + s_j dphi < 0) is a zero to
+locate, even when both ends of the step are stable: the step is refused and the end located as
+any other; from a closer state whose prediction no longer crosses, the continuation goes on.
+
+A general consistency test (every low eigenvalue at the corrected state, matched by eigenvector
+overlap, within a tolerance of its prediction) is not used to refuse steps: on the trefoil at
+N = 61 it failed in 30 of 81 ordinary 0.5 pi steps, since the lowest eigenvalues of a loose knot
+(1e-5 in scaled units) change with the contact set, which is not smooth on that scale.
+``matched_eigenvalues`` is kept for diagnostics.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..aot import cached_jit
+from ..stability import scene_bilinear_gradient
+
+# Modes checked: the lowest few physical eigenpairs (the ones that go soft first).
+CHECKED_MODES = 4
+# A departure from the prediction larger than |s dphi| + DEPARTURE_RELATIVE |lam| (and than
+# DEPARTURE_FLOOR times the near-zero band) is a jump to another state (``departure``).
+DEPARTURE_RELATIVE = 0.5
+DEPARTURE_FLOOR = 10.0
+# Overlap that pairs a mode of the last state with one of the new state's computed modes.
+MATCH_OVERLAP = 0.3
+
+
+@dataclass(frozen=True)
+class Crossing:
+    """A mode of the last accepted state predicted to cross zero inside a step.
+
+    index: its position among the state's eigenpairs; eigenvalue, slope: lam and d lam / d phi
+    there; phi: the twist of the linear prediction's zero; mode: (n,) its eigenvector (scaled
+    DOFs)."""
+
+    index: int
+    eigenvalue: float
+    slope: float
+    phi: float
+    mode: np.ndarray
+
+    def detail(self):
+        """One line for a refused step's message."""
+        return (f"mode {self.index}'s eigenvalue {self.eigenvalue:.3e} (d/dphi {self.slope:.3e}) is predicted to "
+                f"cross zero at phi = {self.phi / math.pi:+.6f} pi, inside the step")
+
+
+@cached_jit
+def _gradient_phi_derivative(scene, u, phi, nbr):
+    return jax.jvp(lambda p: jax.grad(scene.scaled_energy)(u, p, nbr), (phi,), (jnp.ones_like(phi),))[1]
+
+
+def branch_tangent(scene, e, tangent, floor, modes=CHECKED_MODES):
+    """(n,) the scaled branch tangent du/dphi at the equilibrium e with its components along e's
+    lowest ``modes`` eigenvectors restored: -(v . g_phi) / lam for each of them above ``floor``.
+    ``tangent`` (dq/dphi, physical DOFs) is the continuation's predictor, which leaves the tracked
+    mode's cluster out (it is built for symmetric branches, whose tangent has no component along
+    a symmetry-breaking mode); near a fold that component is the one that grows like 1/lam."""
+    u = scene.to_scaled(np.asarray(e.q, dtype=float))
+    du = scene.to_scaled(np.asarray(tangent, dtype=float))
+    st = e.stability
+    m = min(modes, len(st.eigenvalues))
+    lam = np.asarray(st.eigenvalues[:m], dtype=float)
+    vec = np.asarray(st.eigenvectors)[:, :m]
+    g_phi = np.asarray(_gradient_phi_derivative(scene, u, jnp.asarray(float(e.phi)), e.neighbourhood))
+    for j in np.nonzero(lam > floor)[0]:
+        v = vec[:, j]
+        du = du + v * (-(v @ g_phi) / lam[j] - v @ du)
+    return du
+
+
+def mode_slopes(scene, e, du, vectors):
+    """(m,) d lam_j / d phi along the branch at the equilibrium e for the unit eigenvectors
+    ``vectors`` (n, m) (scaled DOFs): v^T (D_u H [du] + d_phi H) v with du the scaled branch
+    tangent (``branch_tangent``), by one third-derivative contraction per mode
+    (``scene_bilinear_gradient``)."""
+    u = scene.to_scaled(np.asarray(e.q, dtype=float))
+    out = []
+    for v in np.asarray(vectors, dtype=float).T:
+        gu, gp = scene_bilinear_gradient(scene, u, e.phi, e.neighbourhood, v, v, 0.0)
+        out.append(float(np.dot(np.asarray(gu), du) + float(gp)))
+    return np.asarray(out)
+
+
+def predicted_crossing(scene, prev, tangent, phi, floor, modes=CHECKED_MODES, keep=None):
+    """The first of the lowest ``modes`` eigenpairs of the accepted equilibrium ``prev`` (with
+    its stability; ``tangent`` dq/dphi there) predicted to cross zero between prev.phi and phi,
+    as a ``Crossing``, or None.
+
+    A mode crosses where lam > 0, lam + s dphi < 0 and the predicted change |s dphi| exceeds
+    ``floor`` (the near-zero band of a loose knot's sliding modes, ``negative_tol``: a change
+    inside it is not resolved). keep: a function (n, m) vectors -> (m,) bools, the modes that may
+    count (a knot's slides are left out by the caller)."""
+    st = prev.stability
+    m = min(modes, len(st.eigenvalues))
+    lam = np.asarray(st.eigenvalues[:m], dtype=float)
+    vec = np.asarray(st.eigenvectors)[:, :m]
+    candidates = np.nonzero(lam > 0.0)[0]
+    if not candidates.size:
+        return None
+    slopes = mode_slopes(scene, prev, branch_tangent(scene, prev, tangent, floor, modes), vec[:, candidates])
+    dphi = float(phi - prev.phi)
+    linear = lam[candidates] + slopes * dphi
+    crossing = (linear < 0.0) & (np.abs(slopes * dphi) > floor)
+    if keep is not None and np.any(crossing):
+        crossing[crossing] = np.asarray(keep(vec[:, candidates[crossing]]), dtype=bool)
+    if not np.any(crossing):
+        return None
+    zero = np.where(crossing, prev.phi - lam[candidates] / np.where(slopes != 0.0, slopes, np.inf), np.inf)
+    first = int(np.argmin(np.abs(zero - prev.phi)))
+    j = int(candidates[first])
+    return Crossing(index=j, eigenvalue=float(lam[j]), slope=float(slopes[first]), phi=float(zero[first]),
+                    mode=vec[:, j].copy())
+
+
+@dataclass(frozen=True)
+class Departure:
+    """A mode of the last accepted state whose eigenvalue at the corrected state (matched by
+    eigenvector overlap) is far from its prediction: the corrector left the branch.
+
+    index: the mode; eigenvalue, slope: lam and d lam / d phi at the last state; predicted,
+    measured: lam + s dphi and the matched eigenvalue at the new state; tolerance: the allowed
+    difference."""
+
+    index: int
+    eigenvalue: float
+    slope: float
+    predicted: float
+    measured: float
+    tolerance: float
+
+    def detail(self):
+        return (f"left the branch: mode {self.index}'s eigenvalue {self.eigenvalue:.3e} (d/dphi {self.slope:.3e}) was "
+                f"predicted {self.predicted:.3e} and is {self.measured:.3e} (more than {self.tolerance:.1e} off)")
+
+
+def departure(scene, prev, tangent, new, floor, modes=CHECKED_MODES, keep=None):
+    """The first of the lowest ``modes`` shape modes of the accepted equilibrium ``prev`` whose
+    eigenvalue at the corrected equilibrium ``new`` (its partner by eigenvector overlap,
+    ``matched_eigenvalues``) differs from the linear prediction by more than
+    max(DEPARTURE_FLOOR * floor, |s dphi| + DEPARTURE_RELATIVE * |lam|), as a ``Departure``; or
+    None. The tolerance admits every change of the size the slope predicts plus half the
+    eigenvalue itself: the lowest eigenvalues of a loose knot change with its contact set, which
+    is not smooth on the scale of a step, and only a jump to another state is to be caught (the
+    trefoil at N = 61, D/L = 0.024: a step of 0.02 pi to a state whose writhe was 0.3 higher and
+    whose lowest eigenvalue was 8 times the last one). keep: as in ``predicted_crossing``."""
+    st = prev.stability
+    m = min(modes, len(st.eigenvalues))
+    lam = np.asarray(st.eigenvalues[:m], dtype=float)
+    vec = np.asarray(st.eigenvectors)[:, :m]
+    slopes = mode_slopes(scene, prev, branch_tangent(scene, prev, tangent, floor, modes), vec)
+    dphi = float(new.phi - prev.phi)
+    predicted = lam + slopes * dphi
+    measured = matched_eigenvalues(vec, new.stability, predicted)
+    tolerance = np.maximum(DEPARTURE_FLOOR * floor, np.abs(slopes * dphi) + DEPARTURE_RELATIVE * np.abs(lam))
+    off = np.isfinite(measured) & (np.abs(measured - predicted) > tolerance)
+    if keep is not None and np.any(off):
+        off[off] = np.asarray(keep(vec[:, off]), dtype=bool)
+    if not np.any(off):
+        return None
+    j = int(np.nonzero(off)[0][0])
+    return Departure(index=j, eigenvalue=float(lam[j]), slope=float(slopes[j]), predicted=float(predicted[j]),
+                     measured=float(measured[j]), tolerance=float(tolerance[j]))
+
+
+def matched_eigenvalues(prev_vectors, new_stability, predicted):
+    """(m,) for each column v_j of ``prev_vectors`` (n, m): of the new state's computed eigenpairs
+    that overlap it by at least MATCH_OVERLAP, the eigenvalue nearest ``predicted[j]`` (a near-
+    degenerate pair may swap its vectors inside a step; the nearer partner is the same mode); nan
+    where none overlaps it (the mode left the computed subspace)."""
+    mu = np.asarray(new_stability.eigenvalues, dtype=float)
+    overlap = np.abs(np.asarray(prev_vectors, dtype=float).T @ np.asarray(new_stability.eigenvectors, dtype=float))
+    out = np.full(overlap.shape[0], np.nan)
+    for j, row in enumerate(overlap):
+        partners = mu[row >= MATCH_OVERLAP]
+        if partners.size:
+            out[j] = partners[np.argmin(np.abs(partners - predicted[j]))]
+    return out
