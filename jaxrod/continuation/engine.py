@@ -23,7 +23,7 @@ from ..sparse_branch import EXTRA_PAIRS, solve_equilibrium_sparse, sparse_branch
 from ..sparse_contact import SPARSE_MIN_DOF, deflated_newton_direction, use_sparse
 from ..equilibrium import equilibrium_from_solution, scaled_energy
 from ..stability import SLIDING_FRACTION, branch_analysis, sliding_fraction
-from .branch_check import departure, predicted_crossing
+from .branch_check import predicted_crossing
 from ..symmetry import ROUND_OFF_ASYMMETRY, SYMMETRIC_TOL, joint_two_fold, symmetrize, two_fold_asymmetry
 from .options import ContinuationOptions, Task
 
@@ -210,9 +210,6 @@ class _Engine:
         n_negative = s.equilibrium.stability.n_negative
         if n_negative > 0:
             return replace(s, refusal=_Refusal(StepFailure.UNSTABLE, f"{n_negative} negative eigenvalue(s)"))
-        gone = self.departure(prev, tangent, s.equilibrium)
-        if gone is not None:
-            return replace(s, refusal=_Refusal(StepFailure.JUMP, gone.detail()))
         crossing = self.predicted_crossing(prev, tangent, phi)
         if crossing is not None:
             # stable at both ends, but a mode is predicted to cross zero in between: locate it (a
@@ -229,14 +226,6 @@ class _Engine:
         if not self.opts.check_branch or prev.stability is None:
             return None
         return predicted_crossing(self.scene, prev, tangent, phi, self.opts.negative_tol, keep=self._shape_modes(prev))
-
-    def departure(self, prev, tangent, e):
-        """A ``branch_check.Departure`` where one of prev's lowest shape modes has, at the corrected
-        state e, an eigenvalue far from its prediction along the branch (the corrector jumped to
-        another state, closer than ``jump_tol``), or None (also where ``check_branch`` is off)."""
-        if not self.opts.check_branch or prev.stability is None or e.stability is None:
-            return None
-        return departure(self.scene, prev, tangent, e, self.opts.negative_tol, keep=self._shape_modes(prev))
 
     def _shape_modes(self, prev):
         """None, or for a knot with contact the filter that leaves its slides out of a check."""
