@@ -39,6 +39,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .atomic import savez as _savez, write_json as _write_json, write_rows as _write_rows
+from .end_check import study_mode, verify_end
 
 __all__ = ["DiagramOptions", "BranchEnd", "Diagram", "follow_branch_end", "locate_end", "end_capacity", "end_rows",
            "unstable_branches", "in_bracket", "UNSTABLE_PREFIX"]
@@ -116,6 +117,8 @@ class BranchEnd:
     message: str = ""
     seconds: float = 0.0
     within_bracket: bool | None = None  # whether the located end lies in the study's bracket
+    verified: dict | None = None  # ``end_check.verify_end`` at the located state
+    onset: bool = False  # located, in the study's bracket, and the study's critical mode: the first instability
     restabilised: object = None  # with until_restable: the Event where the unstable branch regains stability
     rows: list | None = field(default=None, repr=False)  # ``end_rows``, once computed
     rows_k: tuple | None = field(default=None, repr=False)  # (k, negative_tol) they were computed with
@@ -297,6 +300,7 @@ def locate_end(scene, inst, state, options=None, *, p_min, p_max, capacity=None,
     q, phi = state
     lo, hi = inst["bracket"][0], inst["bracket"][1]
     sign = 1.0 if hi > lo else -1.0
+    reference = study_mode(scene, q, phi, float(inst.get("eigenvalue", 0.0)))
     q, phi = backed_off_start(scene, q, phi, float(inst.get("eigenvalue", math.nan)),
                               float(inst.get("dlambda_dphi", math.nan)), sign)
     say(f"{inst['direction']}: locating the end of {inst['from_branch']} (bracketed at "
@@ -313,6 +317,14 @@ def locate_end(scene, inst, state, options=None, *, p_min, p_max, capacity=None,
         f"{inst['phi'] / math.pi:+.6f} +- {inst['phi_error'] / math.pi:.1e} pi), "
         f"{len(end.unstable)} unstable points, {end.seconds:.1f} s")
     end.within_bracket = in_bracket(ev.p, inst)
+    end.verified = verify_end(scene, end.rod.q(ev.u), float(ev.p), reference)
+    end.onset = bool(end.within_bracket and end.verified["same_mode"])
+    if end.within_bracket and not end.onset:
+        v = end.verified
+        warnings.warn(f"{inst['direction']}: the {ev.kind} located at {ev.p / math.pi:+.8f} pi is not the study's "
+                      f"critical mode (eigenvalue {v['eigenvalue']:.1e} there, overlap {v['overlap']:.2f}): two events "
+                      f"lie within the study's bracket; the study's crossing at {inst['phi'] / math.pi:+.8f} pi is kept "
+                      "as the onset and both are reported", stacklevel=3)
     extra = extra_crossings(ev)
     if extra:
         warnings.warn(f"{inst['direction']}: {extra}", stacklevel=3)
@@ -405,7 +417,8 @@ def _event_dict(end, index):
               "slide_pin": end.rod.slide_pin,
               # more than the multiplicity: another crossing within the same step (a near-double event)
               "morse_jump": int(ev.morse_after) - int(ev.morse_before),
-              "unstable_branch": UNSTABLE_PREFIX + end.from_branch})
+              "unstable_branch": UNSTABLE_PREFIX + end.from_branch,
+              "verified": end.verified, "onset": bool(end.onset)})
     return d
 
 
@@ -454,7 +467,10 @@ def _diagram_dict(diagram, options):
     def end(e):
         row = {"direction": e.direction, "from_branch": e.from_branch, "kind": e.kind,
                "phi_over_pi": None if e.phi is None else e.phi / math.pi, "points": len(e.points),
-               "unstable_points": len(e.unstable), "message": e.message, "seconds": e.seconds}
+               "unstable_points": len(e.unstable), "message": e.message, "seconds": e.seconds,
+               # whether this end is the side's first instability (``end_check``), and what vanishes there
+               "located": e.event is not None and bool(e.event.converged), "onset": bool(e.onset),
+               "verified": e.verified}
         if options.until_restable:
             back = e.restabilised
             row["restabilised"] = None if back is None else {
@@ -462,7 +478,11 @@ def _diagram_dict(diagram, options):
                 "critical_eigenvalue": float(np.max(np.abs(back.critical_eigenvalue))), "residual": float(back.residual)}
         return row
 
-    return {"options": asdict(options), "seconds": diagram.seconds, "ends": [end(e) for e in diagram.ends]}
+    critical = diagram.study.critical
+    # each side's first instability, as critical.json and the summary give it (``end_check.onset_events``)
+    onsets = {side: (critical.get(f"phi_{side}_events") or [None])[0] for side in ("plus", "minus")}
+    return {"options": asdict(options), "seconds": diagram.seconds, "onsets": onsets,
+            "ends": [end(e) for e in diagram.ends]}
 
 
 def end_rows(scene, end, k, negative_tol):

@@ -46,6 +46,7 @@ from .stability import DEFAULT_NEGATIVE_TOL
 from .equilibrium import relax_to_minimum
 from .validation import check_finite, check_positive
 from .records import ROW_KEYS, ROW_UNITS, step_record
+from .end_check import onset_events
 from .locking import holds_output_folder
 from .atomic import savez as _savez, write_json as _write_json, write_rows as _write_rows
 
@@ -606,8 +607,13 @@ def _summarise(critical, table=None):
         # estimate, which is kept as ``<key>_bracketed``.
         index = critical["instabilities"].index(first[0]) if first else None
         # only where it lies in the study's bracket: elsewhere the two methods disagree (jaxrod.diagram warns)
-        located = [ev for ev in critical.get("events", []) if ev.get("instability") == index and ev.get("located")
-                   and ev.get("within_bracket") is not False]
+        ours = [ev for ev in critical.get("events", []) if ev.get("instability") == index]
+        # the located end is the onset only where it lies in the bracket and is the study's critical mode
+        # (``jaxrod.end_check``; files written before that check count as verified)
+        located = [ev for ev in ours if ev.get("located") and ev.get("within_bracket") is not False
+                   and ev.get("onset", True)]
+        if first:
+            critical[key + "_events"] = onset_events(first[0], ours[0] if ours else None)
         if located:
             ev = located[0]
             critical[key + "_bracketed"] = critical[key]

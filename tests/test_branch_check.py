@@ -121,3 +121,41 @@ def test_a_zero_between_two_stable_states_is_predicted():
     assert predicted_crossing(scene, e, dq, 0.95 * phi_star, 1e-10) is None
     found = predicted_crossing(scene, e, dq, 1.3 * phi_star, 1e-10)
     assert found is not None and phi < found.phi < 1.3 * phi_star
+
+
+def test_the_located_onset_is_verified_in_every_output(tightening):
+    out, summary = tightening
+    diagram = json.loads((out / "diagram.json").read_text())
+    onset = diagram["onsets"]["minus"]
+    assert onset["located"] and onset["phi_over_pi"] == summary["phi_minus_over_pi"]
+    end = diagram["ends"][0]
+    assert end["onset"] and end["verified"]["vanishes"] and end["verified"]["overlap"] > 0.9
+
+
+def test_two_events_in_one_bracket_are_both_reported_in_order(tmp_path):
+    """D/L = 0.0202, N = 61, opening side: the lowest eigenvalue crosses zero at 6.74440 pi (a mode
+    that mixes with the material's slide), and 1.7e-4 pi later the branch folds. Depending on the
+    last bits of the arithmetic, the path on the extended system (pinned gauge) locates the crossing
+    (verified: the study's mode, eigenvalue ~1e-15) or meets the fold first and cannot locate it as
+    the study's mode; then the study's bracketed crossing is the onset and the fold is listed
+    after it. Either way the summary, critical.json and diagram.json give the same onset, before the
+    fold."""
+    run = subprocess.run([*EXE, "trefoil", "--D", "5.8984", "--L", "292", "--N", "61", "--phi-min=-0.5pi",
+                          "--phi-max", "7pi", "--out", str(tmp_path), "--json", "--no-figures", "--quiet"],
+                         capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr
+    summary = json.loads(run.stdout)
+    critical = json.loads((tmp_path / "critical.json").read_text())
+    diagram = json.loads((tmp_path / "diagram.json").read_text())
+    events = critical["phi_plus_events"]
+    assert [e["phi"] for e in events] == sorted(e["phi"] for e in events)
+    onset = events[0]
+    assert summary["phi_plus"] == critical["phi_plus"] == onset["phi"] == diagram["onsets"]["plus"]["phi"]
+    assert summary["phi_plus_kind"] == onset["kind"]
+    assert onset["phi_over_pi"] < 6.7445  # the fold, at 6.74458 pi, is not the onset
+    end, event = diagram["ends"][0], critical["events"][0]
+    assert end["onset"] == event["onset"] == (onset["source"] == "extended system")
+    if end["onset"]:
+        assert event["verified"]["vanishes"] and event["verified"]["overlap"] > 0.9 and len(events) == 1
+    else:
+        assert [e["source"] for e in events] == ["study", "extended system"]
