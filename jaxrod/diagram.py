@@ -39,7 +39,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .atomic import savez as _savez, write_json as _write_json, write_rows as _write_rows
-from .end_check import study_mode, verify_end
+from .end_check import VANISHING_EIGENVALUE, study_mode, verify_end
 
 __all__ = ["DiagramOptions", "BranchEnd", "Diagram", "follow_branch_end", "locate_end", "end_capacity", "end_rows",
            "unstable_branches", "in_bracket", "UNSTABLE_PREFIX"]
@@ -48,7 +48,8 @@ from .equilibrium import equilibrium_from_solution
 from .records import step_record
 from .solvers import Solution
 from .stability import DEFAULT_NEGATIVE_TOL
-from .study import UNSTABLE_PREFIX, _Cancelled, _final_header, _is_unstable, _run_all, _summarise, read_table
+from .study import (UNSTABLE_PREFIX, _Cancelled, _final_header, _is_unstable, _run_all, _summarise, critical_mode,
+                    read_table)
 
 
 # points kept past the event where a followed unstable branch restabilises (DiagramOptions.until_restable)
@@ -118,7 +119,7 @@ class BranchEnd:
     seconds: float = 0.0
     within_bracket: bool | None = None  # whether the located end lies in the study's bracket
     verified: dict | None = None  # ``end_check.verify_end`` at the located state
-    onset: bool = False  # located, in the study's bracket, and the study's critical mode: the first instability
+    confirmed: bool = False  # located, in the study's bracket, and the study's critical mode (``end_check``)
     restabilised: object = None  # with until_restable: the Event where the unstable branch regains stability
     rows: list | None = field(default=None, repr=False)  # ``end_rows``, once computed
     rows_k: tuple | None = field(default=None, repr=False)  # (k, negative_tol) they were computed with
@@ -283,7 +284,8 @@ def _first_end(events):
     return next((e for e in events if e.kind in ("fold", "branch_point") and e.morse_after > e.morse_before), None)
 
 
-def locate_end(scene, inst, state, options=None, *, p_min, p_max, capacity=None, progress=None, observer=None):
+def locate_end(scene, inst, state, options=None, *, p_min, p_max, capacity=None, progress=None, observer=None,
+               mode=None):
     """One branch end of a twist study, located exactly, and the unstable branch beyond it.
 
     inst: the end's critical.json entry (``direction``, ``from_branch``, ``bracket``, ``phi``,
@@ -291,8 +293,11 @@ def locate_end(scene, inst, state, options=None, *, p_min, p_max, capacity=None,
     state before it (None: nothing to start from); p_min, p_max: the twist range of the path (the
     study's, 0.5 pi wider); capacity: the contact list's padded size (the same for every end of a
     study: a new size compiles every program again); progress: optional callable(str);
-    observer(point): called after each point (an exception raised there stops the run). Warns where
-    the located end lies outside the study's bracket. Returns a ``BranchEnd``."""
+    observer(point): called after each point (an exception raised there stops the run); mode: (n,)
+    the study's critical eigenvector at ``state`` (scaled DOFs; ``study.critical_mode``), which the
+    located end's null vector is checked against (``end_check.verify_end``; None: the eigenvector
+    there whose eigenvalue is nearest the study's critical one). Warns where the located end lies
+    outside the study's bracket, or is not the study's critical mode. Returns a ``BranchEnd``."""
     o = options or DiagramOptions()
     say = progress or (lambda line: None)
     if state is None:
@@ -300,7 +305,7 @@ def locate_end(scene, inst, state, options=None, *, p_min, p_max, capacity=None,
     q, phi = state
     lo, hi = inst["bracket"][0], inst["bracket"][1]
     sign = 1.0 if hi > lo else -1.0
-    reference = study_mode(scene, q, phi, float(inst.get("eigenvalue", 0.0)))
+    reference = mode if mode is not None else study_mode(scene, q, phi, float(inst.get("eigenvalue", 0.0)))
     q, phi = backed_off_start(scene, q, phi, float(inst.get("eigenvalue", math.nan)),
                               float(inst.get("dlambda_dphi", math.nan)), sign)
     say(f"{inst['direction']}: locating the end of {inst['from_branch']} (bracketed at "
@@ -317,9 +322,10 @@ def locate_end(scene, inst, state, options=None, *, p_min, p_max, capacity=None,
         f"{inst['phi'] / math.pi:+.6f} +- {inst['phi_error'] / math.pi:.1e} pi), "
         f"{len(end.unstable)} unstable points, {end.seconds:.1f} s")
     end.within_bracket = in_bracket(ev.p, inst)
-    end.verified = verify_end(scene, end.rod.q(ev.u), float(ev.p), reference)
-    end.onset = bool(end.within_bracket and end.verified["same_mode"])
-    if end.within_bracket and not end.onset:
+    end.verified = verify_end(scene, end.rod.q(ev.u), float(ev.p), reference,
+                              band=float(inst.get("negative_tol") or VANISHING_EIGENVALUE))
+    end.confirmed = bool(end.within_bracket and end.verified["same_mode"])
+    if end.within_bracket and not end.confirmed:
         v = end.verified
         warnings.warn(f"{inst['direction']}: the {ev.kind} located at {ev.p / math.pi:+.8f} pi is not the study's "
                       f"critical mode (eigenvalue {v['eigenvalue']:.1e} there, overlap {v['overlap']:.2f}): two events "
@@ -390,7 +396,7 @@ def unstable_branches(scene, study, options=None, *, progress=None, parallel=Tru
     def run_direction(items):
         for i, inst, state in items:
             ends[i] = locate_end(scene, inst, state, o, p_min=p_min, p_max=p_max, capacity=capacity,
-                                 progress=say, observer=stop_if_cancelled)
+                                 progress=say, observer=stop_if_cancelled, mode=critical_mode(study.out, inst))
 
     _run_all(run_direction, [(items,) for items in todo.values()], parallel, cancel)
     rows, table = _unstable_rows(scene, study, ends)
@@ -418,7 +424,7 @@ def _event_dict(end, index):
               # more than the multiplicity: another crossing within the same step (a near-double event)
               "morse_jump": int(ev.morse_after) - int(ev.morse_before),
               "unstable_branch": UNSTABLE_PREFIX + end.from_branch,
-              "verified": end.verified, "onset": bool(end.onset)})
+              "verified": end.verified, "confirmed": bool(end.confirmed)})
     return d
 
 
@@ -468,8 +474,8 @@ def _diagram_dict(diagram, options):
         row = {"direction": e.direction, "from_branch": e.from_branch, "kind": e.kind,
                "phi_over_pi": None if e.phi is None else e.phi / math.pi, "points": len(e.points),
                "unstable_points": len(e.unstable), "message": e.message, "seconds": e.seconds,
-               # whether this end is the side's first instability (``end_check``), and what vanishes there
-               "located": e.event is not None and bool(e.event.converged), "onset": bool(e.onset),
+               # whether this end is the study's instability, confirmed (``end_check``), and what vanishes there
+               "located": e.event is not None and bool(e.event.converged), "confirmed": bool(e.confirmed),
                "verified": e.verified}
         if options.until_restable:
             back = e.restabilised

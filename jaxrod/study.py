@@ -575,6 +575,18 @@ def _add_branch_columns(rows, states):
         row["morse_index"] = row.get("n_negative")
 
 
+def critical_mode(out, inst):
+    """(n,) the critical eigenvector (scaled DOFs) at the last stable state before the instability
+    ``inst`` (a critical.json entry), from its mode file in the folder ``out``; None without one."""
+    if not out or not inst.get("mode_file"):
+        return None
+    try:
+        with np.load(os.path.join(out, inst["mode_file"])) as f:
+            return np.asarray(f["mode_scaled"])
+    except (OSError, KeyError):
+        return None
+
+
 def _end_states(critical, memory, out):
     """(q, phi) of the last stable state before each instability (critical order): from this run,
     or from the instability's mode file; None where neither has it."""
@@ -611,7 +623,7 @@ def _summarise(critical, table=None):
         # the located end is the onset only where it lies in the bracket and is the study's critical mode
         # (``jaxrod.end_check``; files written before that check count as verified)
         located = [ev for ev in ours if ev.get("located") and ev.get("within_bracket") is not False
-                   and ev.get("onset", True)]
+                   and ev.get("confirmed", True)]
         if first:
             critical[key + "_events"] = onset_events(first[0], ours[0] if ours else None)
         if located:

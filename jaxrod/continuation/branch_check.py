@@ -17,13 +17,16 @@ A mode predicted to cross zero inside a step (lam_j > 0, lam_j + s_j dphi < 0) i
 locate, even when both ends of the step are stable: the step is refused and the end located as
 any other; from a closer state whose prediction no longer crosses, the continuation goes on.
 
-A general consistency test (every low eigenvalue at the corrected state, matched by eigenvector
-overlap, within a tolerance of its prediction) is not used to refuse steps. Measured on the trefoil
-at N = 61: with a tolerance of the predicted change it failed in 30 of 81 ordinary 0.5 pi steps
-(the lowest eigenvalues of a loose knot, 1e-5 in scaled units, change with the contact set, which
-is not smooth on that scale); with a tolerance of the predicted change plus half the eigenvalue it
-still ended a branch 0.9 pi early at step pi (the three-fold knot's near-degenerate pairs rotate
-inside their plane from one step to the next, so a single mode's partner is not defined there).
+A consistency test of the corrected state (its lowest eigenvalues against their prediction) is
+not used to refuse steps. Measured on the trefoil: matched mode by mode by eigenvector overlap, with
+a tolerance of the predicted change, it failed in 30 of 81 ordinary 0.5 pi steps at N = 61 (the
+lowest eigenvalues of a loose knot, 1e-5 in scaled units, change with the contact set); predicted
+as a block (degenerate perturbation theory) and compared in ascending order, with a tolerance of
+the predicted change, half the eigenvalue and 50 times the near-zero band, it still ended the
+N = 61 opening branch 0.9 pi early at step pi: the minimiser corrector lands on another placement
+of the nodes along the nearly null slides, whose soft spectrum differs by more than that, even
+for steps of 3e-4 pi. The same test found a fold at 13.2218 pi on command 1's third buckled
+branch that the path steps over (the minimiser jumps less than D/2 there).
 """
 from __future__ import annotations
 
@@ -126,3 +129,4 @@ def predicted_crossing(scene, prev, tangent, phi, floor, modes=CHECKED_MODES, ke
     j = int(candidates[first])
     return Crossing(index=j, eigenvalue=float(lam[j]), slope=float(slopes[first]), phi=float(zero[first]),
                     mode=vec[:, j].copy())
+
