@@ -324,13 +324,14 @@ def locate_end(scene, inst, state, options=None, *, p_min, p_max, capacity=None,
     end.within_bracket = in_bracket(ev.p, inst)
     end.verified = verify_end(scene, end.rod.q(ev.u), float(ev.p), reference,
                               band=float(inst.get("negative_tol") or VANISHING_EIGENVALUE))
-    end.confirmed = bool(end.within_bracket and end.verified["same_mode"])
+    v = end.verified
+    end.confirmed = bool(end.within_bracket and v["vanishes"] and v["first"])
     if end.within_bracket and not end.confirmed:
-        v = end.verified
-        warnings.warn(f"{inst['direction']}: the {ev.kind} located at {ev.p / math.pi:+.8f} pi is not the study's "
-                      f"critical mode (eigenvalue {v['eigenvalue']:.1e} there, overlap {v['overlap']:.2f}): two events "
-                      f"lie within the study's bracket; the study's crossing at {inst['phi'] / math.pi:+.8f} pi is kept "
-                      "as the onset and both are reported", stacklevel=3)
+        why = "another mode is negative there already" if v["vanishes"] else \
+            f"no eigenvalue of the study's Hessian vanishes there (nearest {v['eigenvalue']:.1e})"
+        warnings.warn(f"{inst['direction']}: the {ev.kind} located at {ev.p / math.pi:+.8f} pi is not the branch's "
+                      f"first instability ({why}): two events lie within the study's bracket; the study's estimate "
+                      f"{inst['phi'] / math.pi:+.8f} pi is kept as the onset and both are reported", stacklevel=3)
     extra = extra_crossings(ev)
     if extra:
         warnings.warn(f"{inst['direction']}: {extra}", stacklevel=3)

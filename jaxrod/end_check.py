@@ -9,8 +9,9 @@ loose knot), or the pinned gauge constrains a mode that mixes with the material'
 may meet the second one first. The located end is then not the onset, however exactly it is
 located.
 
-``verify_end`` says which eigenvalue vanishes at the located state, in the study's own gauge, and
-whether its eigenvector is the study's critical mode (overlap) with which two-fold parity.
+``verify_end`` says which eigenvalue vanishes at the located state, in the study's own gauge,
+whether every other one is still positive there (the zero is the branch's first), its overlap with
+the study's critical mode and its two-fold parity.
 ``onset_events`` orders what is known of one side's first instability: the study's bracket and the
 located or detected event of the extended system, in the order the branch meets them; the first
 is the onset.
@@ -24,11 +25,7 @@ import numpy as np
 from .stability import stability
 from .symmetry import SYMMETRIC_TOL, joint_two_fold, symmetrize
 
-__all__ = ["verify_end", "study_mode", "SAME_MODE_OVERLAP", "VANISHING_EIGENVALUE"]
-
-# The located null vector is the study's critical mode where their overlap (unit vectors in the
-# scaled DOFs, at states a study step apart) is at least this.
-SAME_MODE_OVERLAP = 0.5
+__all__ = ["verify_end", "study_mode", "onset_events", "VANISHING_EIGENVALUE"]
 # Without a band (``verify_end``'s ``band``), an eigenvalue of the projected Hessian this close to
 # zero (scaled units) vanishes at the located state: a located end has its critical eigenvalue at
 # ~1e-14 in the pinned gauge.
@@ -60,32 +57,28 @@ def _parity(scene, q, v):
 
 
 def verify_end(scene, q, phi, reference_mode, band=VANISHING_EIGENVALUE, k=6):
-    """Which eigenvalue vanishes at the located state (q (n,) physical DOFs, phi), with the zero
-    modes projected out as the study does, and whether it is the study's critical mode.
+    """What vanishes at the located state (q (n,) physical DOFs, phi), with the zero modes
+    projected out as the study does, and whether the state is otherwise stable there.
 
     reference_mode: (n,) the study's critical eigenvector (``study_mode``), or None; band: the
     study's near-zero band (``negative_tol``): an eigenvalue inside it vanishes (the projected and
     the pinned gauge of the extended system agree on a zero to ~1e-8 on a loose knot, whose slides
     mix with the gauge's rotations; the trefoil's opening fold at N = 121: -3.1e-8). Returns a dict:
-    eigenvalue_index (the mode of the k lowest that overlaps the reference most, or the one nearest
-    zero without a reference), eigenvalue, overlap (with the reference; None without one),
-    vanishes (|eigenvalue| <= band), same_mode (vanishes and overlap >=
-    SAME_MODE_OVERLAP; True without a reference when it vanishes), parity ('even', 'odd' under the
-    joint's two-fold symmetry, or None where the state has none)."""
+    eigenvalue_index (of the k lowest, the one nearest zero), eigenvalue, vanishes (|eigenvalue| <=
+    band), first (no other eigenvalue below -band: the branch is stable up to this zero, so it is
+    the first one; past an earlier zero a mode is negative already), overlap (of the vanishing mode
+    with the reference; None without one: a study that ended at a jump recorded the mode of the
+    fold it jumped from, not that of a branch point just before it), parity ('even', 'odd' under
+    the joint's two-fold symmetry, or None where the state has none)."""
     q = np.asarray(q, dtype=float)
     st = stability(scene, q, float(phi), k=k)
     lam, vec = np.asarray(st.eigenvalues), np.asarray(st.eigenvectors)
-    overlap = None
-    if reference_mode is not None:
-        overlaps = np.abs(vec.T @ np.asarray(reference_mode, dtype=float))
-        j = int(np.argmax(overlaps))
-        overlap = float(overlaps[j])
-    else:
-        j = int(np.argmin(np.abs(lam)))
-    vanishes = bool(abs(lam[j]) <= band)
+    j = int(np.argmin(np.abs(lam)))
+    overlap = None if reference_mode is None else float(abs(vec[:, j] @ np.asarray(reference_mode, dtype=float)))
+    others = np.delete(lam, j)
     parity = _parity(scene, q, vec[:, j])
-    return {"eigenvalue_index": j, "eigenvalue": float(lam[j]), "overlap": overlap, "vanishes": vanishes,
-            "same_mode": vanishes and (overlap is None or overlap >= SAME_MODE_OVERLAP),
+    return {"eigenvalue_index": j, "eigenvalue": float(lam[j]), "vanishes": bool(abs(lam[j]) <= band),
+            "first": bool(not np.any(others < -band)), "overlap": overlap,
             "parity": None if parity is None else ("even" if parity > 0 else "odd")}
 
 
@@ -93,7 +86,7 @@ def onset_events(instability, event):
     """What is known of one side's first instability, in the order the branch meets it: a list
     of dicts (kind, phi, phi_over_pi, located, source: 'study' for the study's bracket, 'extended
     system' for the diagram's event). The located event alone where it is the onset (located,
-    within the study's bracket, its mode verified); else the study's bracket first and, after
+    within the study's bracket, a zero of the study's Hessian with no other mode negative); else the study's bracket first and, after
     it, the event the extended system met (located or only detected). instability: the study's
     critical.json entry; event: the diagram's event dict for it (critical.json ``events``), or
     None."""

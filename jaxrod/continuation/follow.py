@@ -53,7 +53,10 @@ def follow_twist(scene, phi_start=0.0, phi_stop=None, options=None, *, start=Non
     A step is accepted when the corrector converges, the state stays within ``jump_tol``
     (default D/2) of the predicted shape (a distance blind to material sliding along the
     centreline), the linking number is Lk0 + phi/2 pi (closed rods) and no eigenvalue is below
-    -negative_tol (see ``_Engine``). Otherwise the step is halved; once the failing twist is
+    -negative_tol (see ``_Engine``), and none of the last state's lowest shape modes is predicted,
+    by its eigenvalue's derivative along the branch, to cross zero inside the step
+    (``branch_check``: a minimiser past a branch point lands on a stable state beside the branch;
+    ``options.check_branch``). Otherwise the step is halved; once the failing twist is
     within ``tol`` of the last accepted one, the branch has ended there (a failure that persists
     as the step goes to zero is not a step-size artefact). Near-zero modes (|lambda| <
     negative_tol: strands sliding in a loose knot, ~1e-7) never count.
