@@ -17,16 +17,17 @@ A mode predicted to cross zero inside a step (lam_j > 0, lam_j + s_j dphi < 0) i
 locate, even when both ends of the step are stable: the step is refused and the end located as
 any other; from a closer state whose prediction no longer crosses, the continuation goes on.
 
-A consistency test of the corrected state (its lowest eigenvalues against their prediction) is
-not used to refuse steps. Measured on the trefoil: matched mode by mode by eigenvector overlap, with
-a tolerance of the predicted change, it failed in 30 of 81 ordinary 0.5 pi steps at N = 61 (the
-lowest eigenvalues of a loose knot, 1e-5 in scaled units, change with the contact set); predicted
-as a block (degenerate perturbation theory) and compared in ascending order, with a tolerance of
-the predicted change, half the eigenvalue and 50 times the near-zero band, it still ended the
-N = 61 opening branch 0.9 pi early at step pi: the minimiser corrector lands on another placement
-of the nodes along the nearly null slides, whose soft spectrum differs by more than that, even
-for steps of 3e-4 pi. The same test found a fold at 13.2218 pi on command 1's third buckled
-branch that the path steps over (the minimiser jumps less than D/2 there).
+The corrected state is also compared with the prediction (``departure``): its lowest
+eigenvalues against the last state's, predicted as a block (degenerate perturbation theory) and
+compared in ascending order. A step that fails is retried at half the length, down to an eighth of
+the largest step; one that still fails is accepted with a warning, not taken for a branch end.
+Measured on the trefoil: taken as an end, with a tolerance of the predicted change, half the
+eigenvalue and 50 times the near-zero band, it ended the N = 61 opening branch 0.9 pi early at
+step pi: the minimiser corrector lands on another placement of the nodes along the nearly null
+slides, whose soft spectrum differs by more than that, even for steps of 3e-4 pi. Matched mode by
+mode by eigenvector overlap it failed in 30 of 81 ordinary 0.5 pi steps at N = 61. It also finds
+where the corrector steps over a fold by less than D/2 (command 1's third buckled branch, next to a
+fold at 13.2218 pi): that is what the warning says.
 """
 from __future__ import annotations
 
@@ -130,3 +131,70 @@ def predicted_crossing(scene, prev, tangent, phi, floor, modes=CHECKED_MODES, ke
     return Crossing(index=j, eigenvalue=float(lam[j]), slope=float(slopes[first]), phi=float(zero[first]),
                     mode=vec[:, j].copy())
 
+
+
+# A corrected state's lowest eigenvalues may differ from their prediction by the predicted change
+# plus this fraction of the eigenvalue, and by DEPARTURE_FLOOR times the near-zero band, before the
+# state counts as another one (``departure``).
+DEPARTURE_RELATIVE = 0.5
+DEPARTURE_FLOOR = 50.0
+
+
+@dataclass(frozen=True)
+class Departure:
+    """The corrected state's lowest eigenvalues are not those predicted along the branch.
+
+    index: the position (ascending) of the eigenvalue furthest off; predicted, measured: (m,) the
+    predicted and the corrected state's eigenvalues, ascending; tolerance: (m,) what was allowed."""
+
+    index: int
+    predicted: np.ndarray
+    measured: np.ndarray
+    tolerance: np.ndarray
+
+    def detail(self):
+        j = self.index
+        return (f"eigenvalue {j} is {self.measured[j]:.3e}, predicted {self.predicted[j]:.3e} along the branch "
+                f"(more than {self.tolerance[j]:.1e} off)")
+
+
+def predicted_block(scene, prev, du, modes=CHECKED_MODES):
+    """The lowest eigenvalues of the accepted equilibrium ``prev`` predicted to first order, as a
+    function dphi -> ascending (m,): the eigenvalues of diag(lam) + dphi M, M_ij = v_i^T (dH
+    along the branch du) v_j over the lowest m eigenvectors (degenerate perturbation theory: a
+    near-degenerate pair of a three-fold knot turns inside its plane from step to step, so its
+    members are predicted together, not one by one)."""
+    st = prev.stability
+    m = min(modes, len(st.eigenvalues))
+    lam = np.asarray(st.eigenvalues[:m], dtype=float)
+    vec = np.asarray(st.eigenvectors)[:, :m]
+    u = scene.to_scaled(np.asarray(prev.q, dtype=float))
+    block = np.zeros((m, m))
+    for i in range(m):
+        for j in range(i, m):
+            gu, gp = scene_bilinear_gradient(scene, u, prev.phi, prev.neighbourhood, vec[:, i], vec[:, j], 0.0)
+            block[i, j] = block[j, i] = float(np.dot(np.asarray(gu), du) + float(gp))
+    return lambda dphi: np.linalg.eigvalsh(np.diag(lam) + dphi * block)
+
+
+def departure(scene, prev, tangent, new, floor, modes=CHECKED_MODES):
+    """A ``Departure`` where the corrected equilibrium ``new``'s lowest eigenvalues are not the
+    accepted equilibrium ``prev``'s predicted along the branch (``predicted_block``), compared in
+    ascending order (no eigenvector matching is needed), all but the highest of the m (an
+    eigenvalue may come down from above it), each allowed |predicted - lam| + DEPARTURE_RELATIVE
+    |predicted| + DEPARTURE_FLOOR floor; None where they agree. The contact energy is C2, so the
+    eigenvalues are continuous along a branch: a shorter step meets the tolerance, unless the
+    corrector lands on another state."""
+    st = prev.stability
+    m = min(modes, len(st.eigenvalues), len(new.stability.eigenvalues))
+    if m < 2:
+        return None
+    lam = np.asarray(st.eigenvalues[:m], dtype=float)
+    du = branch_tangent(scene, prev, tangent, floor, m)
+    predicted = predicted_block(scene, prev, du, m)(float(new.phi - prev.phi))
+    measured = np.sort(np.asarray(new.stability.eigenvalues[:m], dtype=float))
+    tolerance = np.abs(predicted - lam) + DEPARTURE_RELATIVE * np.abs(predicted) + DEPARTURE_FLOOR * floor
+    miss = (np.abs(measured - predicted) - tolerance)[:m - 1]
+    if not np.any(miss > 0.0):
+        return None
+    return Departure(int(np.argmax(miss)), predicted, measured, tolerance)

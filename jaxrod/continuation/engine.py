@@ -23,7 +23,7 @@ from ..sparse_branch import EXTRA_PAIRS, solve_equilibrium_sparse, sparse_branch
 from ..sparse_contact import SPARSE_MIN_DOF, deflated_newton_direction, use_sparse
 from ..equilibrium import equilibrium_from_solution, scaled_energy
 from ..stability import SLIDING_FRACTION, branch_analysis, sliding_fraction
-from .branch_check import predicted_crossing
+from .branch_check import departure, predicted_crossing
 from ..symmetry import ROUND_OFF_ASYMMETRY, SYMMETRIC_TOL, joint_two_fold, symmetrize, two_fold_asymmetry
 from .options import ContinuationOptions, Task
 
@@ -226,6 +226,13 @@ class _Engine:
         if not self.opts.check_branch or prev.stability is None:
             return None
         return predicted_crossing(self.scene, prev, tangent, phi, self.opts.negative_tol, keep=self._shape_modes(prev))
+
+    def departure(self, prev, tangent, e):
+        """A ``branch_check.Departure`` where the corrected state e's lowest eigenvalues are not
+        prev's predicted along the branch, or None (also where ``check_branch`` is off)."""
+        if not self.opts.check_branch or prev.stability is None or e.stability is None:
+            return None
+        return departure(self.scene, prev, tangent, e, self.opts.negative_tol)
 
     def _shape_modes(self, prev):
         """None, or for a knot with contact the filter that leaves its slides out of a check."""

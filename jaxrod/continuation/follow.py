@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -20,6 +21,11 @@ from .options import Task, checked_options, observed
 from .results import BranchEnd, BranchPoint, PathStop, TwistPath
 from .state import PathState, Phase, _StoredPathState
 from .switching import _next_branch_name, _switch_branch
+
+
+# A step whose corrected state's spectrum is not the predicted one is halved down to the largest
+# step over this (``branch_check.departure``); below, it is accepted with a warning.
+DEPARTURE_REFINE = 8.0
 
 
 def _follow_engine(scene, opts):
@@ -192,6 +198,13 @@ class _Follower:
         s = self.engine.step(prev, state.tangent, phi_next)
         hidden = _hidden_shape_modes(self.engine, s.equilibrium) if s.ok else None
         if s.ok and hidden is None:
+            gone = self.engine.departure(prev, state.tangent, s.equilibrium)
+            if gone is not None and abs(phi_next - prev.phi) > step / DEPARTURE_REFINE:
+                # the corrected state's spectrum is not the one predicted along the branch: shorter
+                self.say(f"[{state.branch}] phi = {phi_next / math.pi:+.5f} pi not as predicted ({gone.detail()}): "
+                         "step halved")
+                return replace(state, h=0.5 * abs(phi_next - prev.phi))
+            self._warn_if_departed(state, s, gone)
             return self._accept(state, s, h=min(step, 2.0 * state.h))
         if hidden is not None:
             # Converged, every eigenvalue above -negative_tol, but a mode that changes the shape
@@ -221,6 +234,20 @@ class _Follower:
         return replace(state, phase=Phase.LOCATE, lost_phi=phi_next, lost_refusal=s.refusal,
                        lost_equilibrium=s.equilibrium, lost_from=prev.phi, failures=0, successes=0, probe_held=False,
                        critical_modes=critical)
+
+    def _warn_if_departed(self, state, s, gone=False):
+        """Warn where the accepted step s's corrected state is not the one predicted along the
+        branch (``branch_check.departure``; gone: already computed, or False to compute it)."""
+        prev = state.prev
+        if gone is False:
+            gone = self.engine.departure(prev, state.tangent, s.equilibrium)
+        if gone is None:
+            return
+        phi = s.equilibrium.phi
+        warnings.warn(f"[{state.branch}] phi = {prev.phi / math.pi:+.5f} -> {phi / math.pi:+.5f} pi: the corrected state "
+                      f"is not the one predicted along the branch ({gone.detail()}) at a step of "
+                      f"{abs(phi - prev.phi) / math.pi:.2g} pi; the corrector may have stepped over a fold or slid to "
+                      "another placement of the nodes; accepted", stacklevel=3)
 
     def _critical_modes(self, s, current):
         """The critical modes for ``PathState.critical_modes`` after the refused step s: the
@@ -265,8 +292,10 @@ class _Follower:
             # the branch was refused on a predicted zero that the closer state no longer predicts:
             # the eigenvalue turned before zero; go on from there (no bracket to shrink)
             self.say(f"[{state.branch}] no zero predicted from phi = {trial / math.pi:+.5f} pi any more: going on")
+            self._warn_if_departed(state, s)
             return self._accept(state, s, phase=Phase.FOLLOW, h=self.engine.opts.step, critical_modes=None)
         if s.ok:
+            self._warn_if_departed(state, s)
             return self._accept(state, s, failures=0, successes=state.successes + 1, probe_held=probe)
         self.say(f"[{state.branch}] phi = {trial / math.pi:+.5f} pi refused ({s.refusal})")
         return replace(state, lost_phi=trial, lost_refusal=s.refusal, lost_equilibrium=s.equilibrium,
@@ -277,6 +306,7 @@ class _Follower:
         s = self._unless_past_zero(state, self.engine.step(state.prev, state.tangent, state.lost_phi))
         if not s.ok:
             return replace(state, phase=Phase.END, lost_refusal=s.refusal, lost_equilibrium=s.equilibrium)
+        self._warn_if_departed(state, s)
         self.say(f"[{state.branch}] phi = {state.lost_phi / math.pi:+.5f} pi reached from closer by: going on")
         # The step that failed was too long for the predictor, not past the end: go on with half
         # of it (not from 2 tol, which needs ~10 doublings back to ``step``).
