@@ -1,5 +1,5 @@
 """Command line: ``jaxrod michell ...``, ``jaxrod trefoil ...``, ``jaxrod knot ...``, ``jaxrod atlas ...``,
-``jaxrod analyze CENTRELINE ECCENTRIC ...``.
+``jaxrod analyze CENTRELINE ECCENTRIC ...``, ``jaxrod helix ...``, ``jaxrod critical-curve ...``.
 
 Progress goes to stderr; results to stdout (``--json``: one JSON object); figures and data
 (PNG, CSV, JSON) into ``--out DIR``. Bad input exits with status 2, a computation that fails
@@ -26,6 +26,11 @@ PAPER_YOUNG_MODULUS = 0.474
 # A ring of fewer nodes does not buckle within twice Michell's twist (N = 4 to 6 were seen to
 # scan the whole range in vain).
 MICHELL_MIN_NODES = 8
+
+# trefoil / knot: --N when not given (the twist study; with --accuracy the coarsest level is the
+# larger of ACCURACY_NODES and L/D).
+STUDY_NODES = 121
+ACCURACY_NODES = 61
 
 
 def _angle(text):
@@ -142,14 +147,15 @@ def _version():
 
 def _build_parser():
     p = _Parser(prog="jaxrod", description="Equilibria and buckling of twisted elastic rods: Michell's ring, "
-                "the twisted trefoil and other knots, the twisted-knot atlas, and the analysis of measured rods. "
+                "the twisted trefoil and other knots, the twisted-knot atlas, a knot's critical twists as curves "
+                "in D/L, the localized helix of a clamped rod, and the analysis of measured rods. "
                 "Give a command and --help for its options.",
                 formatter_class=argparse.RawDescriptionHelpFormatter,
                 epilog="examples:\n  jaxrod trefoil --N 121 --out results/trefoil\n"
                        "  jaxrod atlas --knots 3_1,4_1 --ratios 0.01,0.02,0.03 --N 101 --out results/atlas\n"
                        "  jaxrod michell --N 128 --out results/michell\n  jaxrod trefoil --help")
     p.add_argument("--version", action="version", version=f"jaxrod {_version()}")
-    sub = p.add_subparsers(dest="command", parser_class=_Parser, metavar="{michell,trefoil,knot,atlas,analyze,helix}")
+    sub = p.add_subparsers(dest="command", parser_class=_Parser)
     raw = argparse.RawDescriptionHelpFormatter
     m = sub.add_parser("michell", help="critical twist of Michell's ring, against 2 pi sqrt(3)(1+nu)",
                        description=_MICHELL_HELP, formatter_class=raw)
@@ -157,7 +163,8 @@ def _build_parser():
     m.add_argument("--nu", type=float, default=0.5, help="Poisson ratio in (-1, 0.5], B/C = 1 + nu (default 0.5)")
     m.add_argument("--slenderness", type=float, default=0.01, help="rod diameter over ring radius, D/R (default 0.01)")
     m.add_argument("--tol", type=_angle, default=1e-6 * math.pi, help="accuracy of phi* (default 1e-6pi)")
-    m.add_argument("--json", action="store_true", help="print one JSON object")
+    m.add_argument("--json", action="store_true",
+                   help="print one JSON object (its keys: python -m jaxrod.schema, and the README)")
     m.add_argument("--out", default=None, help="folder for michell.json, scan.csv and figures (default: none)")
     m.add_argument("--quiet", action="store_true", help="no progress on stderr")
     m.add_argument("--no-cache", action="store_true",
@@ -176,9 +183,11 @@ def _build_parser():
                         "for other files none)")
     a.add_argument("--open", action="store_true", help="open curves (default: closed loops)")
     a.add_argument("--n-samples", type=int, default=None,
-                   help="number of nodes, equally spaced in arc length (default: as many as centreline points)")
-    a.add_argument("--smoothing-modes", type=int, default=None,
-                   help="least-squares smoothing with K modes (Fourier, closed) or K spline intervals (open)")
+                   help="number of nodes, at least 4, equally spaced in arc length (default: as many as "
+                        "centreline points)")
+    a.add_argument("--smoothing-modes", type=int, default=None, metavar="K",
+                   help="least-squares smoothing with K modes (Fourier, closed) or K spline intervals (open), "
+                        "at least 1 (default: none)")
     a.add_argument("--out", default=None, help="folder for profiles.csv, summary.json, profiles.png")
     a.add_argument("--json", action="store_true", help="print one JSON object")
     a.add_argument("--quiet", action="store_true", help="no progress on stderr")
@@ -201,7 +210,8 @@ def _build_parser():
                          "(default 0.01,0.015,0.02,0.0274,0.03,0.035)")
     at.add_argument("--N", default="101", help="number of nodes, or a comma-separated list (default 101; "
                                                "each at least 24 and L/D)")
-    at.add_argument("--sides", default="plus,minus", help="plus (phi > 0), minus (phi < 0) or both (default)")
+    at.add_argument("--sides", default="plus,minus",
+                    help="plus (phi > 0), minus (phi < 0) or both (default plus,minus)")
     at.add_argument("--nu", type=float, default=0.5, help="Poisson ratio in (-1, 0.5] (default 0.5)")
     at.add_argument("--contact-stiffness", type=float, default=100.0,
                     help="contact penalty kappa_c in units of B/D^3 (default 100)")
@@ -214,7 +224,8 @@ def _build_parser():
     at.add_argument("--out", default="results/atlas", help="output folder (default results/atlas)")
     at.add_argument("--fresh", action="store_true", help="start over even if --out holds an interrupted atlas")
     at.add_argument("--no-figures", action="store_true", help="data only")
-    at.add_argument("--json", action="store_true", help="print the rows as one JSON object")
+    at.add_argument("--json", action="store_true", help="print the rows as one JSON object (the critical twists' "
+                                                        "keys: python -m jaxrod.schema, and the README)")
     at.add_argument("--quiet", action="store_true", help="no progress on stderr")
     hx = sub.add_parser("helix", help="localized helical buckling of a clamped rod with end shortening and "
                         "rotation, against NvdHT 2002 (M, T, stability, figures)", description=_HELIX_HELP,
@@ -223,13 +234,27 @@ def _build_parser():
     hx.add_argument("--t", type=float, default=None, help="tension T L^2/B (with --m)")
     hx.add_argument("--d", type=float, default=None, help="end shortening / L, in (0, 1) (with --R)")
     hx.add_argument("--R", type=_angle, default=None, metavar="R", help="end rotation in rad, e.g. 10pi (with --d)")
-    hx.add_argument("--nu", type=float, default=0.5, help="Poisson ratio in (-1, 0.5], B/C = 1 + nu (default 0.5)")
+    hx.add_argument("--nu", type=float, default=None,
+                    help="Poisson ratio in (-1, 0.5]: C/B = 1/(1 + nu); nu = 0.5 where none of --nu, --gamma, --C is given")
+    hx.add_argument("--gamma", type=float, default=None, help="twist over bending stiffness C/B, any positive value")
+    hx.add_argument("--B", type=float, default=None,
+                    help="bending stiffness B (1 where not given); m = M L/B and t = T L^2/B, L = 1")
+    hx.add_argument("--C", type=float, default=None, help="twist stiffness C (C/B any positive value)")
+    hx.add_argument("--EA", type=float, default=None, help="stretching stiffness EA (16 B / slenderness^2 where not given)")
+    hx.add_argument("--root", choices=("stable", "small", "large", "both"), default="stable",
+                    help="with --d/--R, which of the (up to two) analytic loops: stable (each solved, the one of Morse "
+                         "index 0 taken), small or large t, or both (each reported in full) (default stable)")
+    hx.add_argument("--strict", action="store_true",
+                    help="refuse a case outside the analytic formulas' range (lambda < 13, or a stretch that shifts "
+                         "t by more than 1e-4) instead of reporting it without the comparison")
+    hx.add_argument("--no-extrapolate", action="store_true",
+                    help="skip the coarse solve (N/2 + 1 nodes) for Richardson's extrapolation of m and t")
     hx.add_argument("--N", type=int, default=240, help="number of nodes (default 240; at least 6 per loop core "
                                                       "width L/lambda and 2 per radian of R)")
     hx.add_argument("--slenderness", type=float, default=2e-4,
-                    help="rod diameter over length D/L: the stretch stiffness (default 2e-4: inextensible)")
+                    help="rod diameter over length D/L: EA = 16 B / (D/L)^2 unless --EA (default 2e-4: inextensible)")
     hx.add_argument("--sweep", type=int, default=0, metavar="K",
-                    help="also solve K end rotations from 0.9 R to 1.1 R at the same shortening (default 0)")
+                    help="also solve K end rotations from 0.8 R to 1.1 R at the same shortening (default 0)")
     hx.add_argument("--out", default=None, help="folder for helix.json, CSV files and figures (default: none)")
     hx.add_argument("--json", action="store_true", help="print one JSON object")
     hx.add_argument("--quiet", action="store_true", help="no progress on stderr")
@@ -237,15 +262,19 @@ def _build_parser():
                     help="do not keep compiled code in ~/.cache/jaxrod (later runs then compile again)")
     at.add_argument("--no-cache", action="store_true", help="do not keep compiled code in ~/.cache/jaxrod")
     cc = sub.add_parser("critical-curve", help="a knot's critical twists as curves phi*+-(D/L): each side's first "
-                        "instability followed in D (CSV, JSON, figure)", description=_CURVE_HELP,
+                        "instability at each D/L, as the point study finds it (CSV, JSON, figure)",
+                        description=_CURVE_HELP,
                         formatter_class=raw)
     cc.add_argument("--knot", choices=("3_1", "4_1", "5_1", "5_2"), default="3_1", help="the knot (default 3_1)")
-    cc.add_argument("--N", type=int, default=128, help="number of nodes, at least L/D over the range (default 128)")
+    cc.add_argument("--N", type=int, default=128,
+                    help="number of nodes, at least 24 and L/D over the range (default 128)")
     cc.add_argument("--ratios", default="0.008:0.045:0.001",
                     help="D/L values: first:last:step or a comma-separated list (default 0.008:0.045:0.001)")
     cc.add_argument("--start", type=float, default=None,
-                    help="the D/L where each side's event is first located (default: mid-range)")
-    cc.add_argument("--sides", default="plus,minus", help="plus (phi > 0), minus (phi < 0) or both (default)")
+                    help="the D/L done first, then those above it, then those below (default: mid-range; "
+                         "the rows do not depend on it)")
+    cc.add_argument("--sides", default="plus,minus",
+                    help="plus (phi > 0), minus (phi < 0) or both (default plus,minus)")
     cc.add_argument("--nu", type=float, default=0.5, help="Poisson ratio in (-1, 0.5] (default 0.5)")
     cc.add_argument("--contact-stiffness", type=float, default=100.0,
                     help="contact penalty kappa_c in units of B/D^3 (default 100)")
@@ -256,6 +285,7 @@ def _build_parser():
     cc.add_argument("--json", action="store_true", help="print the result as one JSON object")
     cc.add_argument("--quiet", action="store_true", help="no progress on stderr")
     cc.add_argument("--no-cache", action="store_true", help="do not keep compiled code in ~/.cache/jaxrod")
+    sub.metavar = "{" + ",".join(sub.choices) + "}"  # every command, in the order of the list below it
     return p
 
 
@@ -264,8 +294,8 @@ def _study_arguments(t, default_out, length_rule):
     t.add_argument("--D", type=float, default=8.0, help="rod diameter (default 8, mm)")
     t.add_argument("--L", type=float, default=292.0, help=f"rod length, {length_rule} (default 292, mm)")
     t.add_argument("--N", type=int, default=None,
-                   help="number of nodes, at least 24 and L/D (default 121; with --accuracy the coarsest level, "
-                        "default the larger of 61 and L/D)")
+                   help=f"number of nodes, at least 24 and L/D (default {STUDY_NODES}; with --accuracy the coarsest "
+                        f"level, default: the larger of {ACCURACY_NODES} and L/D)")
     t.add_argument("--E", type=float, default=PAPER_YOUNG_MODULUS,
                    help=f"Young's modulus (default {PAPER_YOUNG_MODULUS:g}, the seed paper's elastomer, as in the API; "
                         "MPa = N/mm^2)")
@@ -296,7 +326,8 @@ def _study_arguments(t, default_out, length_rule):
                         "branches beyond them")
     t.add_argument("--vtk", action="store_true",
                    help="also write every step as a VTK polyline file (vtk/*.vtk, for ParaView)")
-    t.add_argument("--json", action="store_true", help="print one JSON summary object")
+    t.add_argument("--json", action="store_true", help="print one JSON summary object (the critical twists' keys: "
+                                                       "python -m jaxrod.schema, and the README)")
     t.add_argument("--quiet", action="store_true", help="no progress on stderr")
     t.add_argument("--no-cache", action="store_true", help="do not keep compiled code in ~/.cache/jaxrod")
 
@@ -460,18 +491,7 @@ def _michell(args):
         bar.close()
     seconds = time.perf_counter() - t0
     rel = (cp.phi - analytic) / analytic
-    result = {
-        "phi_star": cp.phi,
-        "phi_star_analytic": analytic,
-        "rel_error": rel,
-        "N": args.N,
-        "nu": nu,
-        "seconds": seconds,
-        "phi_error_bound": cp.phi_error,
-        "multiplicity": cp.multiplicity,
-        "dlambda_dphi": cp.dlambda_dphi,
-        "hessian_evaluations": cp.hessian_evaluations,
-    }
+    result = _michell_json(cp, analytic, args.N, nu, seconds)
     if args.out:
         with open(os.path.join(args.out, "michell.json"), "w") as f:
             json.dump(result, f, indent=2)
@@ -500,6 +520,26 @@ def _michell(args):
         print(f"rel. error    = {rel:.3e}")
         print(f"time          = {seconds:.2f} s ({cp.hessian_evaluations} Hessian evaluations in the refinement)")
     return 0
+
+
+def _michell_json(cp, analytic, N, nu, seconds):
+    """michell's JSON (printed by --json, written to michell.json): the critical twist under
+    jaxrod.schema's one-side keys, and the comparison with Michell's value."""
+    from . import schema
+
+    result = schema.side_record("plus", cp.phi, cp.phi_error, "unstable")  # an eigenvalue pair crosses zero
+    result.update({
+        "phi_star_analytic": analytic,
+        "rel_error": (cp.phi - analytic) / analytic,
+        "N": N,
+        "nu": nu,
+        "seconds": seconds,
+        "phi_error_bound": cp.phi_error,  # the former name of phi_error
+        "multiplicity": cp.multiplicity,
+        "dlambda_dphi": cp.dlambda_dphi,
+        "hessian_evaluations": cp.hessian_evaluations,
+    })
+    return schema.json_safe(result)
 
 
 def _json_number(v):
@@ -612,7 +652,7 @@ def _trefoil(args):
                          f"{IDEAL_ROPELENGTH[knot_name]}: no such knot exists (raise --L or lower --D)")
     need = math.ceil(L / D - 1e-9)
     if args.N is None:
-        args.N = 121 if args.accuracy is None else max(61, need)
+        args.N = STUDY_NODES if args.accuracy is None else max(ACCURACY_NODES, need)
     check_int_at_least("N", args.N, MIN_TREFOIL_NODES)
     if args.N < need:
         raise ValueError(f"--N {args.N} gives edges of {L / args.N / D:.2f} D: self-contact needs edges no longer "
@@ -681,6 +721,7 @@ def _trefoil(args):
         """The exact location of one branch end and its unstable branch (``diagram.locate_end``)."""
         def job(cancel):
             from .diagram import end_capacity, end_rows, locate_end
+            from .study import critical_mode
 
             def stop(point):
                 if cancel.is_set():
@@ -688,7 +729,8 @@ def _trefoil(args):
             # this end's own contact-list size: the same for every end of a loose knot (the size
             # does not depend on the state until a segment has more than 8 candidates)
             end = locate_end(scene, entry, state, p_min=args.phi_min, p_max=args.phi_max,
-                             capacity=end_capacity(scene, [state]), progress=say, observer=stop)
+                             capacity=end_capacity(scene, [state]), progress=say, observer=stop,
+                             mode=critical_mode(args.out, entry))
             if end.event is not None and end.event.converged:  # its rows too, while the study goes on
                 end_rows(scene, end, options_k, entry["negative_tol"])
             return end
@@ -782,6 +824,7 @@ def _trefoil(args):
         summary["chirality"] = args.chirality
     else:
         summary.update({"knot": knot_name, "curve": args.curve})
+    summary = _critical_json(summary, critical=result.critical)
     with open(os.path.join(args.out, "summary.json"), "w") as f:
         json.dump(summary, f, indent=2)
     if not args.no_figures:
@@ -815,6 +858,37 @@ def _trefoil(args):
             side = "neither (the two sides are mirror images within round-off)"
         print(f"tightening side: {side}; time {summary['seconds']:.1f} s{resumed}; data in {args.out}/")
     return 0
+
+
+def _critical_json(summary, critical=None, convergence=None):
+    """The JSON object of a trefoil or knot run, whichever the mode (printed by --json; the twist
+    study writes it to summary.json too): the critical twists first, under jaxrod.schema's
+    both-sides keys (phi_plus, phi_plus_over_pi, phi_plus_error, phi_plus_kind, phi_minus, ...),
+    then the mode's other keys from ``summary``. The one place where these commands name them.
+
+    The twist study (with or without --stable-only): ``summary`` is its study_summary (phi_plus,
+    phi_plus_error, phi_plus_located, ...) and ``critical`` its critical.json; each side's kind is
+    that of its located end, else that of its first instability. --accuracy: ``convergence``
+    {side: SideConvergence}; each side's details (levels, extrapolation, reached, ...) under
+    "plus" / "minus", with the one-side keys (phi_star, phi_error, kind, ...) among them."""
+    from . import schema
+
+    records, details = {}, {}
+    if convergence is not None:
+        for side, r in convergence.items():
+            records[side] = schema.side_record(side, r.phi_star, r.error, r.levels[-1].kind if r.levels else None)
+            details[side] = {**r.as_json(), **records[side]}  # "error": the former name of phi_error
+    else:
+        for side in schema.SIDES:
+            located = summary.get(f"phi_{side}_located")
+            firsts = [c for c in (critical or {}).get("instabilities", []) if c.get("direction") == side]
+            kind = located.get("kind") if isinstance(located, dict) else firsts[0].get("kind") if firsts else None
+            records[side] = schema.side_record(side, summary.get(f"phi_{side}"), summary.get(f"phi_{side}_error"),
+                                               kind)
+    out = schema.both_sides(records)
+    out.update(details)
+    out.update((key, value) for key, value in summary.items() if key not in out)
+    return schema.json_safe(out)
 
 
 class _Workers:
@@ -943,9 +1017,8 @@ def _accuracy(args, scene, stiffness):
         plot_resolution_convergence(result, path, title=f"{scene.name}, D/L = {args.D / args.L:.4f}: "
                                                         f"critical twists converged in N")
         say(f"wrote {path}")
-    summary = {side: r.as_json() for side, r in result.items()}
-    summary.update({"D": args.D, "L": args.L, "nu": args.nu, "contact_stiffness": stiffness,
-                    "accuracy": args.accuracy, "seconds": seconds, "out": args.out})
+    summary = _critical_json({"D": args.D, "L": args.L, "nu": args.nu, "contact_stiffness": stiffness,
+                              "accuracy": args.accuracy, "seconds": seconds, "out": args.out}, convergence=result)
     if args.json:
         print(json.dumps(summary))
     else:
@@ -1059,14 +1132,23 @@ def _atlas(args):
     if not args.no_figures:
         say(f"wrote {atlas.figures(args.out)}")
     if args.json:
-        print(json.dumps({"rows": [{k: _json_number(v) if isinstance(v, float) else v for k, v in r.items()}
-                                   for r in rows]}))
+        print(json.dumps(_atlas_json(rows)))
     else:
         for r in rows:
             phi = f"{r['phi_star'] / math.pi:+.4f} pi" if math.isfinite(r["phi_star"]) else "none"
             print(f"{r['knot']:4s} D/L = {r['D_over_L']:<7g} N = {r['N']:<4d} {r['side']:5s} phi* = {phi}")
         print(f"time {time.perf_counter() - t0:.1f} s; data in {args.out}/")
     return 0
+
+
+def _atlas_json(rows):
+    """atlas's JSON: {"rows": [...]}, a row per case with atlas.csv's columns, its critical twist
+    under jaxrod.schema's one-side keys (side, phi_star, phi_star_over_pi, phi_error, kind: null,
+    not NaN or 'none', where the side has no end within the span)."""
+    from . import schema
+
+    return schema.json_safe({"rows": [{**r, **schema.side_record(r["side"], r["phi_star"], r["phi_error"], r["kind"])}
+                                      for r in rows]})
 
 
 def _number_list(flag, text, kind):
@@ -1080,7 +1162,7 @@ def _number_list(flag, text, kind):
 
 
 # Options whose value is an angle such as -12pi: argparse would read a leading '-' as an option.
-_ANGLE_OPTIONS = ("--phi-min", "--phi-max", "--step", "--tol", "--span", "--accuracy")
+_ANGLE_OPTIONS = ("--phi-min", "--phi-max", "--step", "--tol", "--span", "--accuracy", "--joint-twist", "--R")
 
 
 def _join_angle_values(argv):
@@ -1101,22 +1183,26 @@ def _warn_in_one_line(message, category, filename, lineno, file=None, line=None)
 
 _CURVE_HELP = """\
 A knot's critical twists as curves in its slenderness, phi*+-(D/L): D varied at fixed L, N, E and
-nu (B, C ~ D^4, contact at D). On each side the knot at the start ratio is followed from phi = 0
-to near its branch end, the first instability is located on its extended system (a fold or a
-branch point), then followed in D up and down the ratios (jaxrod.bifurcation.event_curve: the
-implicit function theorem predicts it at the next D, and it is located again there on a short
-pseudo-arclength run in phi). Each row gives the event's kind, Morse index across it, critical
-eigenvalue, residual and dphi*/d(D/L) from the implicit function theorem, checked at the end
-against the secant of its neighbours (secant_slope, slope_disagreement; a line names the points
-where they differ by more than 50 %: a nearly degenerate event, whose slope holds only locally).
+nu (B, C ~ D^4, contact at D). Each row is the first instability of the branch from phi = 0 at its
+ratio, found as the point study (jaxrod trefoil / jaxrod knot) finds it: the knot relaxed to a
+minimum at phi = 0, followed by the stable-only engine to each side's first end, and that end
+located on its extended system (a fold or a branch point); so a row equals the point study's
+phi_plus / phi_minus at the same N. Each located row also gives its Morse index across the event,
+critical eigenvalue, residual and dphi*/d(D/L) from the implicit function theorem on its extended
+system, checked at the end against the secant of its neighbours of the same kind (secant_slope,
+slope_disagreement; a warning names the rows where they differ by more than 50 %). Where the kind
+of the first instability changes from one ratio to the next, the row is marked (switched,
+previous_kind) and a warning names it; no slope is compared across it. Where the point study does
+not take its located end as the onset (outside its bracket, or not its critical mode) the row keeps
+the study's bracket estimate, as the point study does (kind "bracketed", a warning).
 
 Writes into --out: critical_curve.csv (a row per point, as they come), critical_curve.json and
-critical_curve.png (with Michell's ring line and its double). Each point is also kept whole
-(points/, legs/, start_*.npz): an interrupted run given the same command goes on from its last
-point; --fresh starts over.
+critical_curve.png (with Michell's ring line and its double). Each ratio's result is also kept
+(points/): an interrupted run given the same command does only the ratios not on file; --fresh
+starts over.
 
 examples:
-  jaxrod critical-curve --ratios 0.008:0.045:0.001 --N 128 --out results/critical_curve
+  jaxrod critical-curve --ratios 0.018:0.032:0.002 --N 61 --out results/critical_curve
   jaxrod critical-curve --ratios 0.026,0.0274,0.029 --N 121 --sides plus --out results/curve_plus
 """
 
@@ -1127,7 +1213,7 @@ def _critical_curve(args):
     import matplotlib
 
     matplotlib.use("Agg")
-    from .critical_curve import CriticalCurveOptions, check_ratio_range, critical_twist_curve
+    from .critical_curve import CriticalCurveOptions, check_ratio_range, critical_twist_curve, json_ready
     from .locking import folder_lock
     from .validation import check_poisson_ratio
 
@@ -1141,7 +1227,7 @@ def _critical_curve(args):
 
     def say(line):
         bar.say(line)
-        if "D/L = " in line and "Morse" in line:
+        if line.startswith("[") and "D/L = " in line and ("Morse" in line or ": no row:" in line):
             done[0] += 1
             bar.update(done[0])
 
@@ -1150,12 +1236,11 @@ def _critical_curve(args):
         result = critical_twist_curve(args.knot, args.N, ratios, opts, out=args.out, progress=say, fresh=args.fresh)
     finally:
         bar.close()
-    for key, leg in result["legs"].items():
-        if leg["message"]:
-            say(f"{key}: ended early: {leg['message']}")
-    say(f"{len(result['rows'])} points in {result['seconds']:.0f} s; results in {args.out}/")
+    switched = f", {len(result['switches'])} switch(es) of kind" if result["switches"] else ""
+    missing = f", {len(result['failures'])} without an instability" if result["failures"] else ""
+    say(f"{len(result['rows'])} points{switched}{missing} in {result['seconds']:.0f} s; results in {args.out}/")
     if args.json:
-        print(json.dumps(result))
+        print(json.dumps(json_ready(result), allow_nan=False))
     return 0
 
 
@@ -1163,22 +1248,34 @@ _HELIX_HELP = """\
 Localized helical buckling of a clamped rod (Neukirch, van der Heijden & Thompson 2002, J. Mech.
 Phys. Solids 50, eqs. 14-15): a rod of length L clamped at both ends along one axis, the far clamp
 moved closer by the end shortening d L and turned by the end rotation R, solved from the analytic
-loop by Newton. Give the loads (--m M L/B, --t T L^2/B) or the imposed ends (--d, --R); with
---nu (B/C = 1 + nu). Reports the end moment M and tension T (exact derivatives of the energy),
-theta_max, Lk = Wr + Tw (= R / 2 pi), the Morse index, and the analytic values beside them.
---sweep K also follows the loop along K end rotations around R at the same shortening (M, T and
-stability along the path).
+loop by Newton. Give the loads (--m M L/B, --t T L^2/B) or the imposed ends (--d, --R; either
+sign: the mirror image has (-m, t)); the material by --nu (C/B = 1/(1 + nu)), --gamma (C/B) or
+--B and --C, and EA by --slenderness or --EA. Reports the end moment M and tension T (exact
+derivatives of the energy), theta_max, Lk = Wr + Tw (= R / 2 pi), the Morse index, and the
+analytic values beside them, with Richardson's extrapolation from N and about N/2 where both
+resolve the loop. The formulas are those of an infinite inextensible rod: where the loop is not
+localized (lambda = sqrt(t - m^2/4) < 13) or the stretch shifts t by more than 1e-4, the
+analytic values are reported as not applicable (reference_valid: false, with the reason) and
+no error is computed; --strict refuses such a case instead.
+At given (d, R) the formulas have up to two loops (small and large t): --root stable (default)
+solves each and takes the stable one (Morse index 0 under fixed ends; if none or both are, the
+larger t), --root small / large takes that one, --root both reports both in full.
+--sweep K also follows the loop along K end rotations from 0.8 R to 1.1 R at the same shortening
+(M, T and stability along the path).
 
 Writes into --out: helix.json (summary), centreline.csv, envelope.csv (s/L, theta numeric and
 analytic), centreline.png, envelope.png and, with --sweep, path.csv and loads.png.
 
 examples:
   jaxrod helix --m 20 --t 300 --N 240 --out results/helix
-  jaxrod helix --d 0.13 --R 13pi --nu 0.3 --sweep 9 --out results/helix_sweep
+  jaxrod helix --d 0.13 --R 13pi --nu 0.3 --root large --sweep 9 --out results/helix_sweep
+  jaxrod helix --d 0.1886 --R=-43.82 --B 2 --C 1 --root both
 """
 
 
 def _helix(args):
+    import warnings
+
     import matplotlib
 
     matplotlib.use("Agg")
@@ -1187,46 +1284,89 @@ def _helix(args):
     from . import endloads as el
     from .locking import folder_lock
     from .material import Material
+    from .solvers import ConvergenceError
     from .validation import check_finite, check_int_at_least, check_poisson_ratio, check_positive
 
     N = check_int_at_least("N", args.N, 8)
-    nu = check_poisson_ratio("nu", args.nu)
-    gamma = 1.0 / (1.0 + nu)
+    # material: B (default 1) and C = gamma B, gamma from --C, --gamma or --nu (one of them)
+    B = 1.0 if args.B is None else check_positive("B", args.B)
+    given = [flag for flag, v in (("--nu", args.nu), ("--gamma", args.gamma), ("--C", args.C)) if v is not None]
+    if len(given) > 1:
+        raise ValueError(f"give one of --nu, --gamma and --C (the twist stiffness), not {' and '.join(given)}")
+    if args.C is not None:
+        gamma = check_positive("C", args.C) / B
+    elif args.gamma is not None:
+        gamma = check_positive("gamma", args.gamma)
+    else:
+        gamma = 1.0 / (1.0 + check_poisson_ratio("nu", 0.5 if args.nu is None else args.nu))
+    C, nu = gamma * B, 1.0 / gamma - 1.0
     D = check_positive("slenderness", args.slenderness)
     if not D < 0.1:
         raise ValueError(f"--slenderness (D/L) must be below 0.1, got {D!r}")
+    EA = 16.0 * B / D ** 2 if args.EA is None else check_positive("EA", args.EA)
+    ea = EA / B  # EA L^2 / B, L = 1
     sweep = check_int_at_least("sweep", args.sweep, 0)
     by_loads, by_ends = args.m is not None or args.t is not None, args.d is not None or args.R is not None
     if by_loads == by_ends or (by_loads and (args.m is None or args.t is None)) or \
             (by_ends and (args.d is None or args.R is None)):
         raise ValueError("give either --m and --t (loads) or --d and --R (end shortening and rotation)")
     if by_loads:
-        ref = el.localized_helix(check_finite("m", args.m), args.t, gamma)
+        if args.root not in ("stable", "both"):
+            raise ValueError(f"--root {args.root} chooses between the loops at given --d and --R; --m and --t give one")
+        refs = [("only", el.localized_helix(check_finite("m", args.m), args.t, gamma))]
+        n_found = 1
     else:
         d = check_positive("d", args.d)
         if not d < 1.0:
             raise ValueError(f"--d (end shortening / L) must be below 1, got {d!r}")
-        found = el.localized_helix_from_shortening(d, check_finite("R", args.R), gamma)
+        found = el.localized_helix_from_shortening(d, check_finite("R", args.R), gamma)  # ascending in t
         if not found:
             raise ValueError(f"--d {d:g} --R {args.R:g}: no localized helix (NvdHT 2002 eqs. 14-15) has this end "
-                             "shortening and rotation at this --nu: change --R or --d")
-        ref = max(found, key=lambda h: h.t)  # the most localized loop
-    el.check_helix_resolution(N, ref.m, ref.t, ref.R)
+                             f"shortening and rotation at gamma = C/B = {gamma:.4g}: change --R or --d")
+        n_found = len(found)
+        names = ["only"] if len(found) == 1 else ["small", "large"] + [f"t{i}" for i in range(2, len(found))]
+        refs = list(zip(names, found))
+        if args.root in ("small", "large") and len(found) > 1:
+            refs = [refs[0] if args.root == "small" else refs[-1]]
+    checks = {name: el.reference_check(h, ea) for name, h in refs}
+    if args.strict:
+        invalid = [f"{name} root (m = {h.m:.4g}, t = {h.t:.4g}): {checks[name].reason}" for name, h in refs
+                   if not checks[name].valid]
+        refs = [(name, h) for name, h in refs if checks[name].valid]
+        if not refs:
+            raise ValueError("--strict: the analytic reference (NvdHT 2002) does not apply: " + "; ".join(invalid))
+    # every loop solved must be resolved; with --root stable / both an unresolved loop is left out
+    resolved, refused = [], []
+    for name, h in refs:
+        try:
+            el.check_helix_resolution(N, h.m, h.t, h.R)
+            resolved.append((name, h))
+        except ValueError as exc:
+            refused.append((name, h, str(exc)))
+    if not resolved:
+        raise ValueError(refused[0][2])
     if args.out:
         _output_folder(args.out)
         args.hold(folder_lock(args.out))
-    bar = _Progress(args, 1 + sweep, "helix", counting="states")
+    coarse_N = (N - 2) // 2 + 2  # edges twice as long (exactly, for even N)
+    extrapolate = not args.no_extrapolate
+    bar = _Progress(args, len(resolved) + sweep + int(extrapolate), "helix", counting="states")
     say = bar.say
-    say(f"localized helix: m = {ref.m:.6g}, t = {ref.t:.6g}, gamma = {gamma:.4g}: d = {ref.d:.6g}, "
-        f"R = {ref.R:.6g} rad ({ref.R / (2 * math.pi):.4g} turns); N = {N}")
+    for name, h in resolved:
+        say(f"localized helix ({name} root): m = {h.m:.6g}, t = {h.t:.6g}, gamma = {gamma:.4g}: d = {h.d:.6g}, "
+            f"R = {h.R:.6g} rad ({h.R / (2 * math.pi):.4g} turns), lambda = {h.lam:.4g}; N = {N}")
+    for name, h, why in refused:
+        say(f"{name} root (m = {h.m:.6g}, t = {h.t:.6g}) left out: {why}")
     say(args.compile_notice)
     t0 = time.perf_counter()
-    rod = el.shortened_rod(N, 1.0, Material.from_ratio(B=1.0, nu=nu, D=D), shortening=ref.d)
+    material = Material(B=B, C=C, EA=EA, D=D)
 
-    def state(e, R, h):
+    def state(rod, e, R, h):
         loads = el.end_loads(rod, e.q, R, e.neighbourhood)
-        return {"R": R, "M": loads.M, "T": loads.T, "m": loads.M, "t": loads.T,  # L = B = 1
+        ok = None if h is None else el.reference_check(h, ea).valid
+        return {"R": R, "M": loads.M, "T": loads.T, "m": loads.M / B, "t": loads.T / B,  # L = 1
                 "m_analytic": None if h is None else h.m, "t_analytic": None if h is None else h.t,
+                "reference_valid": ok,
                 "theta_max": float(el.tangent_angles(e.x).max()),
                 "theta_max_analytic": None if h is None else h.theta_max,
                 "Lk": e.Lk, "Wr": e.Wr, "Tw": e.Tw, "Lk_expected": R / (2 * math.pi),
@@ -1234,20 +1374,85 @@ def _helix(args):
                 "morse": e.stability.n_negative, "stable": bool(e.stability.stable),
                 "lowest_eigenvalue": float(e.stability.eigenvalues[0])}
 
+    def rel(a, b, ok):
+        return a / b - 1.0 if ok else None
+
+    solved = {}
     try:
-        e = el.solve(rod, ref.R, el.helical_start(rod, ref.m, ref.t, ref.R), k=4)
-        main = state(e, ref.R, ref)
-        bar.update(1)
-        say(f"solved: m = {main['m']:.6g} (analytic {ref.m:.6g}), t = {main['t']:.6g} (analytic {ref.t:.6g}), "
-            f"Morse index {main['morse']} ({e.solution.iterations} Newton steps)")
+        for name, h in resolved:
+            rod = el.shortened_rod(N, 1.0, material, shortening=h.d)
+            try:
+                e = el.solve_from_helix(rod, h.m, h.t, h.R, k=4)
+            except ConvergenceError as exc:
+                sol = exc.solution
+                say(f"{name} root: no equilibrium reached from the analytic loop" + ("" if sol is None else
+                    f" ({sol.reason} after {sol.iterations} Newton steps, |gradient| {sol.grad_norm:.2e})"))
+                solved[name] = (h, rod, None, None, exc)
+                continue
+            st = state(rod, e, h.R, h)
+            solved[name] = (h, rod, e, st, None)
+            bar.update(len(solved))
+            say(f"{name} root solved: m = {st['m']:.6g} (analytic {h.m:.6g}), t = {st['t']:.6g} (analytic "
+                f"{h.t:.6g}), Morse index {st['morse']} ({e.solution.iterations} Newton steps in the last stage)")
+        ok = [name for name, (_, _, e, _, _) in solved.items() if e is not None]
+        if not ok:
+            exc = next(iter(solved.values()))[4]
+            print(f"jaxrod: error: no equilibrium found near the analytic loop: raise --N (at least 6 edges per "
+                  f"loop core L/lambda), or move the loads away from the straight rod's threshold m^2 = 4 t "
+                  f"({str(exc).splitlines()[0][:160]})", file=sys.stderr)
+            return 1
+        # the loop taken: the named root, else the stable one (the larger t among several or none)
+        if n_found == 1 or args.root in ("small", "large") or len(ok) == 1:
+            taken = ok[0]
+            why = "the only root" if n_found == 1 else f"--root {args.root}" \
+                if args.root in ("small", "large") else "the only root solved"
+        else:
+            stable = [name for name in ok if solved[name][3]["stable"]]
+            pool = stable or ok
+            taken = max(pool, key=lambda name: solved[name][0].t)
+            why = ("the stable root" if len(stable) == 1 else
+                   "no root is stable: the larger t" if not stable else "both roots are stable: the larger t")
+        ref, rod, e, main, _ = solved[taken]
+        check = checks[taken]
+        say(f"taken: the {taken} root (t = {ref.t:.6g}): {why}")
+        if not check.valid:
+            warnings.warn(f"the analytic reference (NvdHT 2002) does not apply to the {taken} root: {check.reason}; "
+                          "no error against it is computed", stacklevel=1)
+        # T is EA times a strain: its roundoff, ~ eps (L/h) EA, relative to T
+        t_roundoff = el.ROUNDOFF_ULPS * np.finfo(float).eps * (N - 2) * EA / max(abs(main["T"]), 1e-300)
+        if t_roundoff > 1e-4:
+            warnings.warn(f"EA L^2/B = {ea:.3g} is so stiff that T carries a roundoff of ~{t_roundoff:.1e} relative "
+                          "(EA times the roundoff of a strain)", stacklevel=1)
+        # Richardson's extrapolation (O(h^2)) from the coarse rod (edges twice as long)
+        extra = {"N_coarse": None, "m_extrapolated": None, "t_extrapolated": None,
+                 "m_extrapolated_rel_error": None, "t_extrapolated_rel_error": None, "extrapolation_note": None}
+        if extrapolate:
+            try:
+                el.check_helix_resolution(coarse_N, ref.m, ref.t, ref.R)
+                rod_c = el.shortened_rod(coarse_N, 1.0, material, shortening=ref.d)
+                e_c = el.solve_from_helix(rod_c, ref.m, ref.t, ref.R, with_stability=False)
+                loads_c = el.end_loads(rod_c, e_c.q, ref.R, e_c.neighbourhood)
+                r2 = ((N - 2) / (coarse_N - 2)) ** 2
+                m_x = (r2 * main["m"] - loads_c.M / B) / (r2 - 1.0)
+                t_x = (r2 * main["t"] - loads_c.T / B) / (r2 - 1.0)
+                extra.update(N_coarse=coarse_N, m_extrapolated=m_x, t_extrapolated=t_x,
+                             m_extrapolated_rel_error=rel(m_x, ref.m, check.valid),
+                             t_extrapolated_rel_error=rel(t_x, ref.t, check.valid))
+                say(f"Richardson (N = {coarse_N}, {N}): m = {m_x:.6g}, t = {t_x:.6g}")
+            except ValueError as exc:
+                extra["extrapolation_note"] = f"not extrapolated: the coarse rod (N = {coarse_N}) is refused: {exc}"
+                say(extra["extrapolation_note"])
+            except ConvergenceError:
+                extra["extrapolation_note"] = f"not extrapolated: no equilibrium reached at N = {coarse_N}"
+                say(extra["extrapolation_note"])
+            bar.update(len(solved) + 1)
         path, stopped = [main] if sweep else [], []
         if sweep:
-            # end rotations around R at the same shortening, each solved from its neighbour
-            # (at fixed d the analytic loop exists up to a fold in R: the sweep stops where Newton finds none)
-            from .solvers import ConvergenceError
-
+            # end rotations from 0.8 R to 1.1 R at the same shortening, each solved from its
+            # neighbour outwards from R (at fixed d the analytic loop exists up to a fold in R: the
+            # sweep stops where Newton finds none)
             Rs = np.linspace(0.8 * ref.R, 1.1 * ref.R, sweep)
-            for side in (Rs[Rs >= ref.R], Rs[Rs < ref.R][::-1]):
+            for side in (np.sort(Rs[Rs >= ref.R]), np.sort(Rs[Rs < ref.R])[::-1]):
                 prev = e
                 for R in side:
                     try:
@@ -1262,10 +1467,11 @@ def _helix(args):
                         # one nearest the computed loads
                         loads = el.end_loads(rod, prev.q, float(R), prev.neighbourhood)
                         found = el.localized_helix_from_shortening(ref.d, float(R), gamma)
-                        h = min(found, key=lambda x: abs(x.t / loads.T - 1) + abs(x.m / loads.M - 1)) if found else None
-                        path.append(state(prev, float(R), h))
-                        bar.update(1 + len(path))
-                        say(f"R = {R:.5g}: M = {path[-1]['M']:.6g}, T = {path[-1]['T']:.6g}, Morse {path[-1]['morse']}")
+                        h = min(found, key=lambda x: abs(x.t / (loads.T / B) - 1) + abs(x.m / (loads.M / B) - 1)) \
+                            if found else None
+                        path.append(state(rod, prev, float(R), h))
+                        bar.update(len(solved) + int(extrapolate) + len(path))
+                        say(f"R = {R:.5g}: m = {path[-1]['m']:.6g}, t = {path[-1]['t']:.6g}, Morse {path[-1]['morse']}")
                     except ConvergenceError:
                         say(f"R = {R:.5g}: no equilibrium reached from R = {float(prev.phi):.5g} (past a fold?): "
                             "this side of the sweep stops")
@@ -1275,6 +1481,7 @@ def _helix(args):
     finally:
         bar.close()
     seconds = time.perf_counter() - t0
+    valid = check.valid
     # envelope (edge midpoints, s from the rod's middle) and centreline against the closed form
     L = 1.0
     theta = el.tangent_angles(e.x)
@@ -1289,10 +1496,26 @@ def _helix(args):
     ang = math.atan2(float(np.sum(x[:, 0] * r[:, 1] - x[:, 1] * r[:, 0])), float(np.sum(x[:, :2] * r[:, :2])))
     c, s_ = math.cos(ang), math.sin(ang)
     x = np.stack([c * x[:, 0] - s_ * x[:, 1], s_ * x[:, 0] + c * x[:, 1], x[:, 2]], axis=1)
-    result = {"N": N, "nu": nu, "gamma": gamma, "slenderness": D, "d": ref.d, "lambda": ref.lam, **main,
-              "m_rel_error": main["m"] / ref.m - 1.0, "t_rel_error": main["t"] / ref.t - 1.0,
-              "envelope_L1": el.envelope_error(e.x, ref.m, ref.t, L),
-              "centreline_max_distance": float(np.max(np.linalg.norm(x - r, axis=1))),
+    roots = []
+    for name, h in refs:
+        row = {"root": name, "m_analytic": h.m, "t_analytic": h.t, "lambda": h.lam,
+               "reference_valid": checks[name].valid, "reference_reason": checks[name].reason}
+        if name in solved and solved[name][2] is not None:
+            st = solved[name][3]
+            row.update(m=st["m"], t=st["t"], m_rel_error=rel(st["m"], h.m, checks[name].valid),
+                       t_rel_error=rel(st["t"], h.t, checks[name].valid), morse=st["morse"], stable=st["stable"],
+                       converged=True)
+        else:
+            row.update(m=None, t=None, m_rel_error=None, t_rel_error=None, morse=None, stable=None,
+                       converged=False if name in solved else None,
+                       note=next((w for n_, _, w in refused if n_ == name), None) if name not in solved else None)
+        roots.append(row)
+    result = {"N": N, "B": B, "C": C, "EA": EA, "nu": nu, "gamma": gamma, "slenderness": D, "d": ref.d,
+              "lambda": ref.lam, **main, "reference_valid": valid, "reference_reason": check.reason,
+              "stretch": check.stretch, "t_roundoff": t_roundoff, "root": taken, "root_reason": why, "roots": roots,
+              "m_rel_error": rel(main["m"], ref.m, valid), "t_rel_error": rel(main["t"], ref.t, valid), **extra,
+              "envelope_L1": el.envelope_error(e.x, ref.m, ref.t, L) if valid else None,
+              "centreline_max_distance": float(np.max(np.linalg.norm(x - r, axis=1))) if valid else None,
               "newton_steps": e.solution.iterations, "seconds": seconds, "path": path, "sweep_stopped_at": stopped}
     if args.out:
         from . import plotting  # noqa: F401  (matplotlib's style)
@@ -1313,18 +1536,19 @@ def _helix(args):
         title = f"m = {ref.m:.4g}, t = {ref.t:.4g}, gamma = {gamma:.3g}, N = {N}"
         fig = plt.figure(figsize=(6, 6))
         ax = fig.add_subplot(projection="3d")
-        ax.plot(*r.T, "k--", lw=1, label="analytic (NvdHT 2002)")
+        ax.plot(*r.T, "k--", lw=1, label="analytic (NvdHT 2002)" if valid else "analytic (not applicable)")
         ax.plot(*x.T, "C0", lw=2, label="jaxrod")
         ax.set_title(title)
         ax.legend()
         fig.savefig(os.path.join(args.out, "centreline.png"), dpi=120)
         plt.close(fig)
         fig, ax = plt.subplots(figsize=(7, 4))
-        ax.plot(s_edge / L, theta_exact, "k--", lw=1, label="analytic")
+        ax.plot(s_edge / L, theta_exact, "k--", lw=1, label="analytic" if valid else "analytic (not applicable)")
         ax.plot(s_edge / L, theta, "C0.", ms=3, label="jaxrod (edges)")
         ax.set_xlabel("s / L (from the middle)")
         ax.set_ylabel("tangent angle to the axis theta (rad)")
-        ax.set_title(f"{title}: L1 error {result['envelope_L1']:.2e}")
+        ax.set_title(f"{title}: L1 error {result['envelope_L1']:.2e}" if valid else
+                     f"{title}: the analytic reference does not apply")
         ax.legend()
         fig.tight_layout()
         fig.savefig(os.path.join(args.out, "envelope.png"), dpi=120)
@@ -1359,13 +1583,45 @@ def _helix(args):
         print(json.dumps(result))
     else:
         fmt = lambda v: "-" if v is None else f"{v:.6g}"  # noqa: E731
-        print(f"{'':14s}{'jaxrod':>14s}{'analytic':>14s}")
-        for label, a, b in (("m = M L/B", main["m"], ref.m), ("t = T L^2/B", main["t"], ref.t),
-                            ("theta_max", main["theta_max"], ref.theta_max), ("Lk", main["Lk"], main["Lk_expected"]),
-                            ("Wr", main["Wr"], ref.Wr), ("Tw", main["Tw"], ref.Tw)):
-            print(f"{label:14s}{fmt(a):>14s}{fmt(b):>14s}")
-        print(f"Morse index   {main['morse']:>14d}  ({'stable' if main['stable'] else 'unstable'} under fixed ends)")
-        print(f"envelope L1   {result['envelope_L1']:>14.3e}")
+        if len(roots) > 1 or refused:
+            for row in roots:
+                err = "" if row["m_rel_error"] is None else \
+                    f", errors m {row['m_rel_error']:+.2e}, t {row['t_rel_error']:+.2e}"
+                got = ("not solved" + (f": {row['note']}" if row.get("note") else "")) if row["m"] is None else \
+                    f"m = {row['m']:.6g}, t = {row['t']:.6g}, Morse index {row['morse']}{err}"
+                print(f"{row['root']} root (analytic m = {row['m_analytic']:.6g}, t = {row['t_analytic']:.6g}): {got}"
+                      + ("" if row["reference_valid"] else " [reference not applicable]"))
+        if n_found > 1:
+            print(f"taken: the {taken} root ({why})")
+        shown = [name for name, _ in refs if name in solved and solved[name][2] is not None] \
+            if args.root == "both" else [taken]
+        for name in shown:
+            h, st, ok_ = solved[name][0], solved[name][3], checks[name].valid
+            if len(shown) > 1:
+                print(f"-- {name} root" + (" (taken)" if name == taken else ""))
+            rows = [("m = M L/B", st["m"], h.m), ("t = T L^2/B", st["t"], h.t),
+                    ("theta_max", st["theta_max"], h.theta_max), ("Lk", st["Lk"], st["Lk_expected"]),
+                    ("Wr", st["Wr"], h.Wr), ("Tw", st["Tw"], h.Tw)]
+            if ok_:
+                print(f"{'':14s}{'jaxrod':>14s}{'analytic':>14s}")
+                for label, a, b in rows:
+                    print(f"{label:14s}{fmt(a):>14s}{fmt(b):>14s}")
+            else:
+                print(f"analytic reference (NvdHT 2002): not applicable: {checks[name].reason}")
+                print(f"{'':14s}{'jaxrod':>14s}")
+                for label, a, _ in rows[:3]:
+                    print(f"{label:14s}{fmt(a):>14s}")
+                print(f"{'Lk':14s}{fmt(st['Lk']):>14s}  (R / 2 pi = {st['Lk_expected']:.6g})")
+                for label, a, _ in rows[4:]:
+                    print(f"{label:14s}{fmt(a):>14s}")
+            print(f"Morse index   {st['morse']:>14d}  ({'stable' if st['stable'] else 'unstable'} under fixed ends)")
+        if extra["m_extrapolated"] is not None:
+            err = "" if not valid else (f"; errors {extra['m_extrapolated_rel_error']:+.1e}, "
+                                        f"{extra['t_extrapolated_rel_error']:+.1e}")
+            print(f"Richardson    m = {extra['m_extrapolated']:.6g}, t = {extra['t_extrapolated']:.6g}  "
+                  f"(N = {coarse_N} and {N}{err}" + (f"; the {taken} root)" if len(shown) > 1 else ")"))
+        if valid:
+            print(f"envelope L1   {result['envelope_L1']:>14.3e}")
         print(f"time          {seconds:>14.2f} s")
     return 0
 

@@ -64,6 +64,15 @@ __all__ = [
     "localized_helix",
     "localized_helix_from_shortening",
     "LocalizedHelix",
+    "localization_parameter",
+    "LOCALIZATION_MIN",
+    "reference_check",
+    "ReferenceCheck",
+    "stretch_shift",
+    "gradient_tolerance",
+    "with_material",
+    "stiffening_stages",
+    "solve_from_helix",
     "localized_helix_curve",
     "plectoneme_plateau",
     "Plectoneme",
@@ -258,10 +267,18 @@ def _offset_coupling(scene, u, phi, nbr):
     return jax.jacfwd(g)(scene.end_offset)
 
 
+# Eigenvalues of the scaled Hessian are known to ~ eps max|H_ii| only; a stiff rod's stretching
+# entries, EA h^2/B ~ 1e8 at EA L^2/B ~ 1e12, then lift that noise (the projected-out axial
+# rotation's eigenvalue, ~1e-8) above DEFAULT_NEGATIVE_TOL: it is not counted as negative.
+EIGEN_ROUNDOFF_ULPS = 256.0
+
+
 def _rod_stability(scene, u, phi, nbr, k, tol=DEFAULT_NEGATIVE_TOL):
     """``jaxrod.stability.stability`` on the shared compiled Hessian (same projection, same
-    lowest-eigenpair routine and tolerance)."""
+    lowest-eigenpair routine and tolerance, raised to the Hessian's roundoff,
+    EIGEN_ROUNDOFF_ULPS eps max|H_ii|, where that is larger)."""
     h, z = _rod_hessian(scene, u, phi, nbr)
+    tol = max(float(tol), EIGEN_ROUNDOFF_ULPS * np.finfo(float).eps * float(np.max(np.abs(np.diag(np.asarray(h))))))
     hp, n_zero = _project(h, z)
     lam, vec, n_neg = _lowest_of(hp, tol)
     return _stability_from_lowest(np.asarray(lam), np.asarray(vec), int(n_zero), int(n_neg), k, tol)
@@ -385,17 +402,52 @@ def _check_q(scene, name, q):
     return q
 
 
-def solve(scene, phi, q0, gtol=1e-8, max_step=0.5, max_steps=200, k=8, throw=True, with_stability=True):
+# Newton's stopping test for a rod under end loads, in the rod's own force units: the residual
+# force on every node below BEND_RTOL * B/L^2 (the bending scale; T L^2/B of the loops solved
+# here is 1e2 ... 1e3) plus ROUNDOFF_ULPS roundoffs of the stretching and bending forces. A node's
+# stretching force EA (|e|/h - 1) is computed from coordinates of size ~L: its roundoff is
+# ~ eps (L/h) EA, which passes 1e-8 of the scaled gradient (a force of 1e-8 B/h^2) from
+# EA ~ 1e10 B/L^2 at N = 240 on; the bending forces' (B/h^2 in place of EA) matters only at large N.
+BEND_RTOL = 1e-6
+ROUNDOFF_ULPS = 4.0
+
+
+def gradient_tolerance(scene):
+    """Newton's tolerance on the max |gradient| of ``scene``'s scaled energy (``solve``'s default):
+    a residual force per node of BEND_RTOL B/L^2 + ROUNDOFF_ULPS eps (L/h) (EA + B/h^2), in the
+    scaled gradient's unit B/h^2 (h the edge length, L the clamps' distance): the same relative
+    accuracy at every EA, never below the roundoff of the stretching forces (a stiff rod,
+    EA L^2/B ~ 1e9 and more, reaches no fixed tolerance). The twist angles' components (moments
+    in units of B/h) are held to the same number, which is stricter for them."""
+    _check_scene(scene)
+    B, EA = float(scene.material.B), float(scene.material.EA)
+    L, h = float(scene.clamp_length), float(scene.length_scale)
+    force = BEND_RTOL * B / L ** 2 + ROUNDOFF_ULPS * np.finfo(float).eps * (L / h) * (EA + B / h ** 2)
+    return force * h * h / B
+
+
+def with_material(scene, material):
+    """``scene`` with its material replaced (a shallow copy: the same compiled programs, the
+    material's stiffnesses being leaves)."""
+    if not isinstance(material, Material):
+        raise TypeError(f"material must be a jaxrod.material.Material, got {type(material).__name__}")
+    new = copy.copy(scene)
+    object.__setattr__(new, "material", material)
+    return new
+
+
+def solve(scene, phi, q0, gtol=None, max_step=0.5, max_steps=200, k=8, throw=True, with_stability=True):
     """Equilibrium (``jaxrod.Equilibrium``, with its stability) of an ``EndLoadedRod`` at end
     rotation phi nearest q0 (physical DOFs), by ``newton`` on the scaled energy (the axial
-    rotation lifted out). Without contact only (the exact writhe fixes the twist's branch).
+    rotation lifted out) to max |gradient| <= gtol (None: ``gradient_tolerance(scene)``). Without
+    contact only (the exact writhe fixes the twist's branch).
     Refused: a scene too coarse for its end rotation (more than ``MAX_TWIST_PER_EDGE`` rad of
     imposed twist per edge: N named), non-finite phi or q0, non-positive gtol or max_step."""
     from .equilibrium import equilibrium_from_solution  # noqa: PLC0415
 
     _check_scene(scene)
     phi = check_finite("phi", phi)
-    check_positive("gtol", gtol)
+    gtol = gradient_tolerance(scene) if gtol is None else check_positive("gtol", gtol)
     check_positive("max_step", max_step)
     check_rotation_resolution(scene.n_nodes, phi)
     q0 = _check_q(scene, "q0", q0)
@@ -408,6 +460,49 @@ def solve(scene, phi, q0, gtol=1e-8, max_step=0.5, max_steps=200, k=8, throw=Tru
     if with_stability:
         e = dataclasses.replace(e, stability=_rod_stability(scene, sol.y, phi, nbr, k))
     return e
+
+
+# A Newton step moves nodes across their edges, and the second-order stretch that causes, EA times
+# (step / h)^2, dwarfs the loads of a stiff rod: from the analytic loop (a few per cent off the
+# discrete one at the N used) Newton then wanders, or lands on the other loop of the same (d, R)
+# (measured at N = 120: EA L^2/B = 1e8 gave t = 176 for 320; 1e12 did not converge).
+# ``solve_from_helix`` solves a softer rod first, EA_0 = STIFFEN_FROM max(t, 4 pi^2) B/L^2 (never so
+# soft that compressing the rod by the shortening costs less than buckling it, 4 pi^2 B/L^2), then
+# stiffens it by at most STIFFEN_FACTOR per stage, each stage started from the last's state with
+# its strains scaled down to the new EA (``_restretched``: the tension kept; started as it was, the
+# state's tension jumps by the stage's factor, and at N = 400 the loop slid off along its soft
+# modes, eigenvalues ~1e-7 in scaled units, to the other loop).
+STIFFEN_FROM = 1e3
+STIFFEN_FACTOR = 100.0
+
+
+def stiffening_stages(scene, t):
+    """The stretch stiffnesses EA (ascending, the last the scene's own) at which
+    ``solve_from_helix`` solves a rod carrying t = TL^2/B."""
+    _check_scene(scene)
+    B, EA, L = float(scene.material.B), float(scene.material.EA), float(scene.clamp_length)
+    ea0 = STIFFEN_FROM * max(float(t), 4.0 * math.pi ** 2) * B / L ** 2
+    if EA <= ea0:
+        return [EA]
+    n = math.ceil(math.log(EA / ea0) / math.log(STIFFEN_FACTOR) - 1e-12)
+    return [ea0 * (EA / ea0) ** (j / n) for j in range(n)] + [EA]
+
+
+def solve_from_helix(scene, m, t, phi, gtol=None, max_steps=200, k=8, throw=True, with_stability=True):
+    """Equilibrium of ``scene`` (an ``EndLoadedRod``) at end rotation phi, from NvdHT's loop (m, t)
+    (``helical_start``; either sign of m), by ``solve``: through ``stiffening_stages`` (the same
+    rod at increasing EA, each stage started from the last's state restretched to its EA; the
+    compiled programs shared), the last to gtol (None: ``gradient_tolerance``). Refused: as
+    ``helical_start`` and ``solve``.
+    Raises ``jaxrod.solvers.ConvergenceError`` (with ``throw``) where a stage does not converge."""
+    _check_scene(scene)
+    q = helical_start(scene, m, t, phi)
+    stages = stiffening_stages(scene, t)
+    for EA, stiffer in zip(stages[:-1], stages[1:]):
+        soft = with_material(scene, dataclasses.replace(scene.material, EA=EA))
+        q = solve(soft, phi, q, max_steps=max_steps, throw=throw, with_stability=False).q
+        q = _restretched(scene, q, EA / stiffer)
+    return solve(scene, phi, q, gtol=gtol, max_steps=max_steps, k=k, throw=throw, with_stability=with_stability)
 
 
 # ---------------------------------------------------------------------- force control
@@ -737,28 +832,35 @@ class LocalizedHelix:
 
 
 def localized_helix(m, t, gamma):
-    """NvdHT 2002 eqs. 14-15 for m = ML/B, t = TL^2/B, gamma = C/B (needs m^2 < 4t)."""
+    """NvdHT 2002 eqs. 14-15 for m = ML/B, t = TL^2/B, gamma = C/B (needs m^2 < 4t). Either sign
+    of m: the mirror image (x, y, z) -> (x, -y, z) of the loop with moment m is the loop with -m
+    at the same t, its end rotation and writhe of the opposite sign, R(-m) = -R(m) (eq. 14 as
+    printed, R = m/gamma + 4 arccos(m / 2 sqrt t), is the m > 0 branch)."""
     m, t, gamma = check_finite("m", m), check_positive("t", t), check_positive("gamma", gamma)
     if not m * m < 4.0 * t:
         raise ValueError(f"need m^2 < 4 t (below the straight rod's threshold M = 2 sqrt(BT)), got m = {m}, t = {t}")
-    lam = math.sqrt(t - m * m / 4.0)
-    ac = math.acos(m / (2.0 * math.sqrt(t)))
-    return LocalizedHelix(m=m, t=t, gamma=gamma, lam=lam, R=m / gamma + 4.0 * ac,
+    lam = localization_parameter(m, t)
+    sign = math.copysign(1.0, m)
+    ac = math.acos(abs(m) / (2.0 * math.sqrt(t)))
+    return LocalizedHelix(m=m, t=t, gamma=gamma, lam=lam, R=m / gamma + sign * 4.0 * ac,
                           d=math.sqrt(16.0 / t * (1.0 - m * m / (4.0 * t))),
-                          theta_max=math.acos(m * m / (2.0 * t) - 1.0), Wr=2.0 * ac / math.pi,
+                          theta_max=math.acos(m * m / (2.0 * t) - 1.0), Wr=sign * 2.0 * ac / math.pi,
                           Tw=m / (TWO_PI * gamma))
 
 
 def localized_helix_from_shortening(d, R, gamma):
     """The (m, t) of every localized helix with end shortening d (per length) and end rotation R
     (rad) at gamma, from NvdHT eqs. 14-15: with u = d^2 t / 16 in (0, 1), m = 8 sqrt(u(1-u)) / d and
-    R = m / gamma + 4 arcsin(sqrt u), solved for u (all roots). Returns a list of LocalizedHelix."""
+    |R| = |m| / gamma + 4 arcsin(sqrt u), solved for u (all roots), m taking the sign of R (the
+    mirror image: (d, -R) has the loops (-m, t) of (d, R)). Returns a list of LocalizedHelix,
+    ascending in t (none for R = 0)."""
     from scipy.optimize import brentq  # noqa: PLC0415
 
     d, gamma = check_positive("d", d), check_positive("gamma", gamma)
     if not d < 1.0:
         raise ValueError(f"d (end shortening / L) must be below 1, got {d!r}")
     R = check_finite("R", R)
+    sign, R = math.copysign(1.0, R), abs(R)
 
     def f(u):
         return 8.0 * math.sqrt(u * (1.0 - u)) / (d * gamma) + 4.0 * math.asin(math.sqrt(u)) - R
@@ -769,8 +871,89 @@ def localized_helix_from_shortening(d, R, gamma):
     for i in np.nonzero(np.sign(vals[:-1]) * np.sign(vals[1:]) <= 0)[0]:
         u = brentq(f, grid[i], grid[i + 1], xtol=1e-15, rtol=1e-15)
         t = 16.0 * u / d ** 2
-        out.append(localized_helix(8.0 * math.sqrt(u * (1.0 - u)) / d, t, gamma))
+        if out and abs(t / out[-1].t - 1.0) < 1e-9:  # a root on a grid point, found from both sides
+            continue
+        out.append(localized_helix(sign * 8.0 * math.sqrt(u * (1.0 - u)) / d, t, gamma))
     return out
+
+
+# ---------------------------------------------------------------------- where the formulas hold
+# NvdHT's eqs. 14-15 describe a loop on an infinite, inextensible rod. They are taken as the
+# reference of a clamped rod of length L while both errors are small: the finite length's (the
+# loop's tails cut at the clamps, ~ e^-lambda) and the stretch's.
+LOCALIZATION_MIN = 13.0
+# The largest relative shift of t that the stretch T/EA may cause (first-order estimate,
+# ``stretch_shift``) for the inextensible formulas to stand as the reference.
+STRETCH_SHIFT_MAX = 1e-4
+
+
+def localization_parameter(m, t):
+    """The localization parameter lambda = sqrt(t - m^2/4) of NvdHT's loop (m = ML/B, t = TL^2/B;
+    0 where m^2 >= 4t: no loop). The loop's core is L/lambda wide: 1 - cos theta = (2 lambda^2/t)
+    sech^2(lambda s/L), so at the clamps (s = +-L/2) the infinite rod's tails have decayed to
+    ~ 8 (lambda^2/t) e^-lambda, and the clamped rod of length L differs from the infinite one by
+    O(e^-lambda). The formulas are a reference for lambda >= ``LOCALIZATION_MIN`` = 13
+    (e^-13 = 2e-6: below the discretisation error of the N used; at lambda ~ 1 the loop is no
+    loop but a buckle as long as the rod)."""
+    m, t = float(m), float(t)
+    return math.sqrt(max(t - 0.25 * m * m, 0.0))
+
+
+def stretch_shift(ref, ea):
+    """First-order estimate of the relative change of t = TL^2/B that stretching causes at the
+    imposed (d, R) of the localized helix ``ref``, for a rod of stretch stiffness ea = EA L^2/B
+    (None or inf: inextensible, 0). The stretch eps = T/EA = t/ea lengthens the rod to L(1 + eps):
+    the inextensible loop of that length with the same end distance L(1 - d) has the shortening
+    d' = (d + eps)/(1 + eps) of its own length and t' = T L'^2/B = t (1 + eps)^2; t' is followed
+    from ``ref`` to d' along eqs. 14-15 at fixed R (the root nearest ref)."""
+    if ea is None or math.isinf(ea):
+        return 0.0
+    ea = check_positive("ea", ea)
+    eps = ref.t / ea
+    d2 = (ref.d + eps) / (1.0 + eps)
+    if not d2 < 1.0:
+        return math.inf
+    found = localized_helix_from_shortening(d2, ref.R, ref.gamma) if ref.R != 0.0 else []
+    if not found:
+        return math.inf
+    t2 = min(found, key=lambda h: abs(h.t - ref.t)).t
+    return abs(t2 / (1.0 + eps) ** 2 / ref.t - 1.0)
+
+
+@dataclass(frozen=True)
+class ReferenceCheck:
+    """Whether NvdHT's formulas are the reference of a clamped rod at ``LocalizedHelix`` ref:
+    valid, and the reasons (tuple of str, empty when valid) otherwise; lam the localization
+    parameter, stretch = T/EA, shift the estimated relative change of t by the stretch."""
+
+    valid: bool
+    reasons: tuple
+    lam: float
+    stretch: float
+    shift: float
+
+    @property
+    def reason(self):
+        """The reasons in one line, or None when valid."""
+        return "; ".join(self.reasons) if self.reasons else None
+
+
+def reference_check(ref, ea=None):
+    """``ReferenceCheck`` of the localized helix ``ref`` (``localized_helix``) as the reference of
+    a clamped rod of length L with stretch stiffness ea = EA L^2/B (None: inextensible): valid
+    when the loop is localized (lambda >= ``LOCALIZATION_MIN``) and the stretch shifts t by less
+    than ``STRETCH_SHIFT_MAX`` (``stretch_shift``)."""
+    lam = localization_parameter(ref.m, ref.t)
+    reasons = []
+    if lam < LOCALIZATION_MIN:
+        reasons.append(f"not localized: lambda = sqrt(t - m^2/4) = {lam:.3g} < {LOCALIZATION_MIN:g} (the formulas "
+                       f"are for a loop much shorter than the rod; its tails reach the clamps, error ~ e^-lambda)")
+    stretch = 0.0 if ea is None or math.isinf(ea) else ref.t / float(ea)
+    shift = stretch_shift(ref, ea)
+    if shift > STRETCH_SHIFT_MAX:
+        reasons.append(f"extensible: the stretch T/EA = {stretch:.2g} shifts t by ~{shift:.1e} "
+                       f"(> {STRETCH_SHIFT_MAX:g}; the formulas are for an inextensible rod)")
+    return ReferenceCheck(valid=not reasons, reasons=tuple(reasons), lam=lam, stretch=stretch, shift=shift)
 
 
 def localized_helix_curve(m, t, s, L=1.0):
@@ -785,7 +968,7 @@ def localized_helix_curve(m, t, s, L=1.0):
     s = np.asarray(s, dtype=float)
     if not np.all(np.isfinite(s)):
         raise ValueError("s must be finite")
-    lam = math.sqrt(t - m * m / 4.0)
+    lam = localization_parameter(m, t)
     c = 2.0 * lam * lam / t
 
     def one_minus_cos(x):
@@ -885,7 +1068,7 @@ def check_helix_resolution(N, m, t, R):
     """N as an int, or ValueError naming N: the localized helix (m, t) with end rotation R needs
     N - 2 >= 6 lambda edges (6 per core width L / lambda) and at most pi/2 rad of twist per edge."""
     N = check_int_at_least("N", N, 8)
-    lam = math.sqrt(max(t - m * m / 4.0, 0.0))
+    lam = localization_parameter(m, t)
     need = max(math.ceil(EDGES_PER_CORE * lam), math.ceil(abs(R) / MAX_TWIST_PER_EDGE)) + 2
     if N < need:
         raise ValueError(f"N = {N} is too few nodes for the loop asked (lambda = {lam:.3g}, end rotation "
@@ -893,11 +1076,88 @@ def check_helix_resolution(N, m, t, R):
     return N
 
 
+def _closed_tangents(theta, psi, span, lengths=None, sweeps=20):
+    """Unit tangents (n, 3) near the polar angles theta (n,) and azimuths psi (n,) to the axis z
+    such that the edges of ``lengths`` (n,; None: 1) along them sum to (0, 0, span): an open
+    polyline that meets the far clamp. Alternately, the polar angles are scaled by one factor k
+    (the axial span: k = 1 + O(e^-lambda) for a localized loop; a loop wider than the rod, whose
+    shortening lies mostly outside it, is steepened rather than compressed) and the lateral sum is
+    removed, mostly from the edges nearest the axis (a lateral shift of an axial edge stretches
+    nothing)."""
+    from scipy.optimize import brentq  # noqa: PLC0415
+
+    theta, psi = np.asarray(theta, dtype=float), np.asarray(psi, dtype=float)
+    ell = np.ones_like(theta) if lengths is None else np.asarray(lengths, dtype=float)
+    w = 1.0 / (np.sin(theta) ** 2 + 1e-4)
+    w /= np.sum(w)
+    for _ in range(sweeps):
+        top = math.pi / max(float(np.max(theta)), 1e-300)
+        gap = lambda k: float(np.sum(ell * np.cos(np.minimum(k * theta, math.pi)))) - span  # noqa: E731, B023
+        g1 = gap(1.0)
+        if g1 > 0.0 and gap(top) < 0.0:
+            theta = np.minimum(brentq(gap, 1.0, top, xtol=1e-15) * theta, math.pi)
+        elif g1 < 0.0:
+            theta = brentq(gap, 0.0, 1.0, xtol=1e-15) * theta
+        tangent = np.stack([np.sin(theta) * np.cos(psi), np.sin(theta) * np.sin(psi), np.cos(theta)], axis=1)
+        lateral = np.sum(ell[:, None] * tangent[:, :2], axis=0)
+        if float(np.max(np.abs(lateral))) < 1e-13 * len(theta):
+            break
+        tangent[:, :2] -= (w / ell)[:, None] * lateral[None, :]
+        tangent /= np.linalg.norm(tangent, axis=1)[:, None]
+        theta, psi = np.arccos(np.clip(tangent[:, 2], -1.0, 1.0)), np.arctan2(tangent[:, 1], tangent[:, 0])
+    return tangent
+
+
+def _frame(scene):
+    """(e1, e2, e3): the near clamp's director, e3 x e1, the clamp axis."""
+    e3 = np.asarray(scene.axis, dtype=float)
+    e1 = np.asarray(scene.director_start, dtype=float)
+    return e1, np.cross(e3, e1), e3
+
+
+def _interior_from_tangents(scene, theta, psi, lengths=None):
+    """The interior nodes (n - 4, 3) of ``scene`` on the polyline from the near clamp's node 1
+    whose free edges 1 ... n - 3 have ``lengths`` (in edge lengths h; None: 1) and lie near the
+    polar angles theta and azimuths psi in the clamps' frame (``_frame``), closed onto the far
+    clamp's node n - 2 (``_closed_tangents``; the roundoff left spread evenly)."""
+    n, h = scene.n_nodes, float(scene.length_scale)
+    xc = np.asarray(scene.x_clamped)
+    start, stop = xc[1], xc[2] + np.asarray(scene.end_offset)
+    e1, e2, e3 = _frame(scene)
+    ell = np.ones(n - 3) if lengths is None else np.asarray(lengths, dtype=float)
+    tangent = _closed_tangents(theta, psi, float(np.dot(stop - start, e3)) / h, ell)
+    r = h * np.cumsum(ell[:, None] * tangent, axis=0)  # nodes 2 ... n - 2 from node 1, in the frame
+    x = start + r[:, :1] * e1 + r[:, 1:2] * e2 + r[:, 2:3] * e3
+    miss = x[-1] - stop
+    return x[:-1] - (np.arange(1, n - 3) / (n - 3))[:, None] * miss[None, :]
+
+
+def _restretched(scene, q, ratio):
+    """q with every free edge's strain multiplied by ``ratio``, the edges' directions kept but
+    re-closed onto the far clamp (``_interior_from_tangents``), the twist angles unchanged: the
+    predictor of a stiffening stage, EA -> EA / ratio at nearly the same tension."""
+    q = np.asarray(q, dtype=float)
+    n = scene.n_nodes
+    x = np.asarray(scene.nodes(jnp.asarray(q)))
+    e = np.diff(x, axis=0)[1:n - 2]
+    ell = np.linalg.norm(e, axis=1)
+    rest = np.asarray(scene.rest_lengths)[1:n - 2]
+    e1, e2, e3 = _frame(scene)
+    tau = e / ell[:, None]
+    theta = np.arccos(np.clip(tau @ e3, -1.0, 1.0))
+    psi = np.arctan2(tau @ e2, tau @ e1)
+    lengths = rest * (1.0 + (ell / rest - 1.0) * ratio) / float(scene.length_scale)
+    xi = _interior_from_tangents(scene, theta, psi, lengths)
+    return np.concatenate([xi.ravel(), q[3 * (n - 4):]])
+
+
 def helical_start(scene, m, t, phi):
     """A starting state q for ``scene`` (an ``EndLoadedRod``) near the localized helix (m, t): the
-    analytic centreline at the interior nodes' arc lengths (centred on the rod's midpoint, the near
-    clamp's point at the origin of s = -L/2), the twist spread evenly so the far clamp's frame is
-    turned by phi. Refused: N too few for the loop (``check_helix_resolution``), m^2 >= 4 t."""
+    interior nodes on a polyline of the rest edge length along the analytic tangent (s measured
+    from the rod's midpoint, the near clamp's point at s = -L/2), closed onto the far clamp, and
+    the twist spread evenly so the far clamp's frame is
+    turned by phi (m < 0: the mirror image of the loop with -m, for phi < 0). Refused: N too few
+    for the loop (``check_helix_resolution``), m^2 >= 4 t."""
     _check_scene(scene)
     phi = check_finite("phi", phi)
     localized_helix(m, t, 1.0)  # m finite, t positive, m^2 < 4 t
@@ -905,19 +1165,14 @@ def helical_start(scene, m, t, phi):
     L = float(scene.clamp_length)
     n = scene.n_nodes
     h = L / (n - 2)
-    s = (np.arange(n) - 0.5) * h - 0.5 * L
-    _, _, r = localized_helix_curve(m, t, s, L)
-    a = np.asarray(scene.axis)
-    xc = np.asarray(scene.x_clamped)
-    # rotate the analytic frame (axis z) onto the scene's axis, its origin on the near clamp's point
-    e3 = a
-    e1 = np.asarray(scene.director_start)
-    e2 = np.cross(e3, e1)
-    origin = 0.5 * (xc[0] + xc[1]) - r[0] @ np.zeros(3)
-    r0 = r - 0.5 * (r[0] + r[1])  # the near clamp's point
-    x = origin + r0[:, :1] * e1 + r0[:, 1:2] * e2 + r0[:, 2:3] * e3
-    n_free = n - 4
-    xi = x[2:n - 2]
+    # edges of the rest length h along the analytic tangent at their midpoints, s_i = -L/2 + i h
+    # (edge 0 and edge n - 2 the clamped ones, on the axis), closed onto the far clamp
+    # (``_closed_tangents``: the tails' slope cut at the clamps, ~ e^-lambda/2, leaves a lateral
+    # miss). Chords of the analytic curve instead are short by ~(kappa h)^2 / 24, a strain whose
+    # force EA (kappa h)^2 / 24 dwarfs the loads of a stiff rod.
+    s_mid = -0.5 * L + h * np.arange(1, n - 2)
+    theta_a, psi_a, _ = localized_helix_curve(m, t, s_mid, L)
+    xi = _interior_from_tangents(scene, theta_a, psi_a)
     # twist: theta_end = phi + end angle, spread over the edges
     probe = np.concatenate([xi.ravel(), np.zeros(n - 3)])
     x_full = np.asarray(scene.nodes(jnp.asarray(probe)))
@@ -1070,7 +1325,7 @@ def envelope_error(x, m, t, L=1.0, axis=(0.0, 0.0, 1.0)):
     n_edges = th.size
     h = L / (n_edges - 1)
     s = np.arange(n_edges) * h - 0.5 * L
-    lam = math.sqrt(t - m * m / 4.0)
+    lam = localization_parameter(m, t)
     exact = np.arccos(np.clip(1.0 - 2.0 * lam * lam / t / np.cosh(lam * s / L) ** 2, -1.0, 1.0))
     w = np.full(n_edges, h)
     w[[0, -1]] = 0.5 * h  # trapezoidal weights between the clamps

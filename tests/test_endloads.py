@@ -269,10 +269,11 @@ def test_cli_helix(helices, tmp_path, capsys):
                  "--json", "--quiet", "--no-cache"]) == 0
     res = json.loads(capsys.readouterr().out)
     ref, rod, e, loads = helices[NS[0], 20.0]
-    assert abs(res["M"] - loads.M) < 1e-9 * abs(loads.M) and abs(res["T"] - loads.T) < 1e-9 * loads.T
+    # the same equilibrium, reached through stiffening stages (``solve_from_helix``): equal to Newton's tolerance
+    assert abs(res["M"] - loads.M) < 1e-6 * abs(loads.M) and abs(res["T"] - loads.T) < 1e-6 * loads.T
     assert res["m_analytic"] == ref.m and res["t_analytic"] == ref.t and res["morse"] == 1
     assert abs(res["Lk"] - ref.R / (2 * math.pi)) < 1e-10
-    assert abs(res["envelope_L1"] - el.envelope_error(e.x, 20.0, 300.0)) < 1e-12
+    assert abs(res["envelope_L1"] - el.envelope_error(e.x, 20.0, 300.0)) < 1e-7
     assert res["centreline_max_distance"] < 0.05  # the computed loop turned onto the analytic one (L = 1)
     assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) == ["centreline.csv", "centreline.png", "envelope.csv",
                                                      "envelope.png", "helix.json"]

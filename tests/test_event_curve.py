@@ -149,74 +149,67 @@ def test_a_curve_resumed_from_its_last_point_goes_on_as_the_whole_run():
         run([0.3], resume=[replace(first.points[-1], anchor_u=None)])
 
 
-def _ratio_crossing_energy(u, p, ratio):
-    return _crossing_energy(u, p, 10.0 * ratio)  # one function for every leg: compiled once
+def _stub_first_instabilities(monkeypatch, calls):
+    """critical_twist_curve with each ratio's point study replaced by the analytic crossing system's
+    first instability (mu = 10 D/L: a branch point p* = 0.5 - mu, then a fold p* = mu from D/L =
+    0.025 on), so that its files and resume are tested in seconds; the point study it calls is tested
+    on the knot in test_critical_curve_checks.py. calls: the ratios studied, in order."""
+    import jaxrod.critical_curve as cc
 
+    def first_instabilities(knot, n, ratio, options=None, *, progress=None):
+        calls.append(float(ratio))
+        mu = 10.0 * float(ratio)
+        kind, phi, slope = ("branch_point", 0.5 - mu, -10.0) if mu < 0.25 else ("fold", mu, 10.0)
+        return {"minus": dict(side="minus", D_over_L=float(ratio), phi_star=phi, phi_star_over_pi=phi / math.pi,
+                              kind=kind, located=True, morse_before=0, morse_after=1, critical_eigenvalue=1e-15,
+                              residual=1e-14, dphi_dratio=slope, phi_bracketed=phi, phi_located=phi, seconds=0.0)}
 
-def _stub_rods(monkeypatch):
-    """critical_twist_curve on the analytic crossing system instead of a knot (mu = 10 D/L: its
-    change of kind at D/L = 0.025), so that its files and resume are tested in seconds; the knot
-    machinery it drives is tested on rods elsewhere (test_bifurcation_knots.py)."""
-    from types import SimpleNamespace
-
-    import jaxrod.bifurcation.rods as rods
-    import jaxrod.continuation as continuation
-
-    def follow_twist(scene, phi_start, phi_stop, options):
-        state = SimpleNamespace(branch="symmetric", equilibrium=SimpleNamespace(phi=-0.5, q=np.zeros(scene.n_dof)))
-        return SimpleNamespace(instabilities=[SimpleNamespace(phi=-1.0)], points=[state], reason="")
-
-    def knot_problem(scene, q, phi):
-        return SimpleNamespace(problem=BifurcationProblem(_ratio_crossing_energy, jnp.array([1.0, 0.0]), 1.0,
-                                                          jnp.asarray(0.02)))
-
-    monkeypatch.setattr(continuation, "follow_twist", follow_twist)
-    monkeypatch.setattr(rods, "knot_problem", knot_problem)
-    monkeypatch.setattr(rods, "set_diameter", _set_mu)
+    monkeypatch.setattr(cc, "first_instabilities", first_instabilities)
 
 
 def test_an_interrupted_critical_curve_resumes_to_the_files_of_a_whole_run(tmp_path, monkeypatch):
     import jaxrod.critical_curve as cc
 
-    _stub_rods(monkeypatch)
+    calls = []
+    _stub_first_instabilities(monkeypatch, calls)
     ratios = [0.01, 0.02, 0.03, 0.04]
-    opts = cc.CriticalCurveOptions(sides=("minus",), start_ratio=0.02, delta=0.05, ds_max=0.05, span=2.0)
-    said = []
-    monkeypatch.setattr(cc, "SLOPE_DOUBT", 0.4)  # the kink below is a mild one: flag it
-    whole = cc.critical_twist_curve("3_1", 101, ratios, opts, out=str(tmp_path / "whole"), progress=said.append)
+    opts = cc.CriticalCurveOptions(sides=("minus",), start_ratio=0.02, span=2.0)
+    with pytest.warns(UserWarning, match="switches from a branch_point"):
+        whole = cc.critical_twist_curve("3_1", 101, ratios, opts, out=str(tmp_path / "whole"))
+    assert calls == [0.02, 0.03, 0.04, 0.01]  # from the start ratio up, then down
     assert [r["kind"] for r in whole["rows"]] == ["branch_point"] * 2 + ["fold"] * 2
     np.testing.assert_allclose([r["phi_star"] for r in whole["rows"]], [0.4, 0.3, 0.3, 0.4], atol=1e-10)
-    # each slope checked against its neighbours' secant: exact at the ends (straight pieces), off by half
-    # next to the kink at D/L = 0.025 where two event curves cross (slopes -10 / +10, secants -5 / +5)
-    np.testing.assert_allclose([r["slope_disagreement"] for r in whole["rows"]], [0.0, 0.5, 0.5, 0.0], atol=1e-7)
-    assert any("minus D/L = 0.02000, minus D/L = 0.03000" in m and "disagrees with the secant" in m for m in said)
 
-    real_save, saved = cc._save_point, []
+    real_save, saved = cc.write_json, []
 
-    def save_then_die(path, point, recorded):
-        real_save(path, point, recorded)
+    def save_then_die(path, obj):
+        real_save(path, obj)
         saved.append(path)
-        if len(saved) == 2:  # killed with the up leg half done (0.02 and 0.03 on file, 0.04 not)
+        if len(saved) == 3:  # the settings, then 0.02 and 0.03 on file, then killed
             raise KeyboardInterrupt
 
-    monkeypatch.setattr(cc, "_save_point", save_then_die)
+    monkeypatch.setattr(cc, "write_json", save_then_die)
     cut = str(tmp_path / "cut")
     with pytest.raises(KeyboardInterrupt):
         cc.critical_twist_curve("3_1", 101, ratios, opts, out=cut)
-    monkeypatch.setattr(cc, "_save_point", real_save)
-    said = []
-    resumed = cc.critical_twist_curve("3_1", 101, ratios, opts, out=cut, progress=said.append)
-    assert resumed["resumed_points"] == 2 and any("going on from D/L = 0.03000" in m for m in said), said
+    monkeypatch.setattr(cc, "write_json", real_save)
+    said, calls[:] = [], []
+    with pytest.warns(UserWarning, match="switches"):
+        resumed = cc.critical_twist_curve("3_1", 101, ratios, opts, out=cut, progress=said.append)
+    assert resumed["resumed_points"] == 2 and calls == [0.04, 0.01] and "resuming from" in said[0], (said, calls)
     timeless = lambda rows: [{k: v for k, v in r.items() if k != "seconds"} for r in rows]  # noqa: E731
-    assert timeless(resumed["rows"]) == timeless(whole["rows"]) and resumed["legs"] == whole["legs"]
+    assert timeless(resumed["rows"]) == timeless(whole["rows"]) and resumed["switches"] == whole["switches"]
     # the CSV as a whole run writes it: the same rows in the same order, digit for digit
     read = lambda folder: timeless(csv.DictReader(open(os.path.join(folder, "critical_curve.csv"))))  # noqa: E731
     assert read(cut) == read(tmp_path / "whole") and len(read(cut)) == 4
     # run again on the finished folder: nothing computed, the same rows
-    again = cc.critical_twist_curve("3_1", 101, ratios, opts, out=cut)
-    assert again["resumed_points"] == 4 and timeless(again["rows"]) == timeless(whole["rows"])
+    calls[:] = []
+    with pytest.warns(UserWarning, match="switches"):
+        again = cc.critical_twist_curve("3_1", 101, ratios, opts, out=cut)
+    assert again["resumed_points"] == 4 and not calls and timeless(again["rows"]) == timeless(whole["rows"])
     # another setting on the same folder is refused by name; fresh starts over
     with pytest.raises(ValueError, match="ratios"):
         cc.critical_twist_curve("3_1", 101, ratios[:3], opts, out=cut)
-    fresh = cc.critical_twist_curve("3_1", 101, ratios[:3], opts, out=cut, fresh=True)
+    with pytest.warns(UserWarning, match="switches"):
+        fresh = cc.critical_twist_curve("3_1", 101, ratios[:3], opts, out=cut, fresh=True)
     assert fresh["resumed_points"] == 0 and len(fresh["rows"]) == 3

@@ -1,7 +1,7 @@
 """The first instability of a branch followed in a second parameter, through changes of its kind.
 
 ``fold_curve`` and ``branch_point_curve`` continue one event on its own extended system. On a
-loose knot that is not enough to draw phi*(D/L) (issue 17, item 5): the knot has a sliding mode
+loose knot that is not enough to draw phi*(D/L): the knot has a sliding mode
 whose eigenvalue (~1e-9 in scaled units) is far below the fold system's conditioning, so Newton on
 (F, sigma) = 0 at a new D drifts onto the slide's singular set (measured at N = 128: after one
 step of 0.001 L in D, a "fold" with a negative shape eigenvalue -6e-6 and the slide at 2e-9), and
@@ -25,9 +25,12 @@ shape mode comes down first).
    (``fold_sensitivity``, ``branch_point_sensitivity``).
 
 It is natural-parameter continuation in mu whose corrector is the event locator on the branch in
-p, so each point of the curve is an event located as a point study locates it, and nothing
-assumes the kind stays the same: a change of kind, or a jump of the first instability to another
-event (two event curves crossing), shows in the rows (``kind``, and p* against the prediction).
+p, and nothing assumes the kind stays the same: a change of kind, or a jump of the first
+instability to another event (two event curves crossing), shows in the rows (``kind``, and p*
+against the prediction). It follows the branch through its start, not the branch from p = 0 at
+each mu: where the problem has many nearly equal equilibria (a loose knot's placements of its
+nodes along the slide) the two can differ, so it does not guarantee a point study's value at each
+mu (``jaxrod.critical_curve`` runs a point study per ratio for that).
 """
 from __future__ import annotations
 
