@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import csv
+import dataclasses
 import json
 import math
 import os
@@ -1273,22 +1274,117 @@ examples:
 """
 
 
-def _helix(args):
-    import warnings
+@dataclasses.dataclass
+class _HelixCase:
+    """The helix command's input, checked: N nodes; the material (B, C, nu, gamma = C/B, D the
+    slenderness, EA, ea = EA L^2/B with L = 1); sweep, the number of end rotations to follow;
+    refs, the analytic loops to solve as (name, LocalizedHelix), of n_found at the imposed ends;
+    checks, each one's ReferenceCheck by name; resolved, those N resolves, and refused, those it
+    does not, as (name, LocalizedHelix, why)."""
 
+    N: int
+    B: float
+    C: float
+    nu: float
+    gamma: float
+    D: float
+    EA: float
+    sweep: int
+    refs: list
+    n_found: int
+    checks: dict
+    resolved: list
+    refused: list
+
+    @property
+    def ea(self):
+        return self.EA / self.B  # EA L^2 / B, L = 1
+
+
+@dataclasses.dataclass
+class _SolvedHelixRoot:
+    """A root as solved at N: its analytic loop ref, the rod, its equilibrium eq and state
+    (``endloads.helix_state``), or eq and state None and the ConvergenceError where Newton failed."""
+
+    ref: object
+    rod: object
+    eq: object
+    state: dict
+    error: Exception
+
+
+def _helix(args):
     import matplotlib
 
     matplotlib.use("Agg")
-    import numpy as np
-
     from . import endloads as el
     from .locking import folder_lock
     from .material import Material
-    from .solvers import ConvergenceError
-    from .validation import check_finite, check_int_at_least, check_poisson_ratio, check_positive
+
+    case = _helix_case(args)
+    if args.out:
+        _output_folder(args.out)
+        args.hold(folder_lock(args.out))
+    extrapolate = not args.no_extrapolate
+    bar = _Progress(args, len(case.resolved) + case.sweep + int(extrapolate), "helix", counting="states")
+    _announce_helix_roots(bar.say, case)
+    bar.say(args.compile_notice)
+    t0 = time.perf_counter()
+    material = Material(B=case.B, C=case.C, EA=case.EA, D=case.D)
+    try:
+        solved = _solve_helix_roots(case, material, bar)
+        if all(root.eq is None for root in solved.values()):
+            return _no_helix_equilibrium(solved)
+        taken, why = _take_helix_root(args, case, solved)
+        root = solved[taken]
+        bar.say(f"taken: the {taken} root (t = {root.ref.t:.6g}): {why}")
+        t_roundoff = _warn_about_helix_reference(case, taken, root.state["T"])
+        extra = _no_helix_extrapolation()
+        if extrapolate:
+            extra = _helix_extrapolation(case, material, root, case.checks[taken].valid, bar.say)
+            bar.update(len(solved) + 1)
+        path, stopped = [], []
+        if case.sweep:
+            path, stopped = _helix_sweep(case, root, bar, len(solved) + int(extrapolate))
+    finally:
+        bar.close()
+    seconds = time.perf_counter() - t0
+    profiles = el.helix_profiles(root.eq.x, root.ref)
+    result = _helix_result(case, solved, taken, why, t_roundoff, extra)
+    result.update(_helix_shape_errors(root, profiles, result["reference_valid"]),
+                  newton_steps=root.eq.solution.iterations, seconds=seconds, path=path, sweep_stopped_at=stopped)
+    if args.out:
+        _write_helix_files(args.out, case, result, profiles, bar.say)
+    if args.json:
+        print(json.dumps(result))
+    else:
+        _print_helix(args, case, solved, result)
+    return 0
+
+
+def _helix_case(args):
+    """The helix command's ``_HelixCase`` from its arguments; ValueError (bad input) naming the flag."""
+    from . import endloads as el
+    from .validation import check_int_at_least
 
     N = check_int_at_least("N", args.N, 8)
-    # material: B (default 1) and C = gamma B, gamma from --C, --gamma or --nu (one of them)
+    B, C, nu, gamma, D, EA = _helix_material(args)
+    sweep = check_int_at_least("sweep", args.sweep, 0)
+    refs, n_found = _helix_roots_asked(args, gamma)
+    checks = {name: el.reference_check(h, EA / B) for name, h in refs}
+    if args.strict:
+        refs = _helix_roots_that_apply(refs, checks)
+    resolved, refused = _helix_roots_resolved(N, refs)
+    return _HelixCase(N=N, B=B, C=C, nu=nu, gamma=gamma, D=D, EA=EA, sweep=sweep, refs=refs, n_found=n_found,
+                      checks=checks, resolved=resolved, refused=refused)
+
+
+def _helix_material(args):
+    """(B, C, nu, gamma, D, EA): B from --B (default 1) and C = gamma B, gamma from one of --C,
+    --gamma and --nu (default nu = 0.5); the slenderness D = D/L (below 0.1) and EA from --EA or
+    16 B / D^2 (a solid round rod)."""
+    from .validation import check_poisson_ratio, check_positive
+
     B = 1.0 if args.B is None else check_positive("B", args.B)
     given = [flag for flag, v in (("--nu", args.nu), ("--gamma", args.gamma), ("--C", args.C)) if v is not None]
     if len(given) > 1:
@@ -1304,38 +1400,54 @@ def _helix(args):
     if not D < 0.1:
         raise ValueError(f"--slenderness (D/L) must be below 0.1, got {D!r}")
     EA = 16.0 * B / D ** 2 if args.EA is None else check_positive("EA", args.EA)
-    ea = EA / B  # EA L^2 / B, L = 1
-    sweep = check_int_at_least("sweep", args.sweep, 0)
+    return B, C, nu, gamma, D, EA
+
+
+def _helix_given_by_loads(args):
+    """True for --m and --t (the loads), False for --d and --R (the ends); ValueError unless one
+    pair is given, in full."""
     by_loads, by_ends = args.m is not None or args.t is not None, args.d is not None or args.R is not None
     if by_loads == by_ends or (by_loads and (args.m is None or args.t is None)) or \
             (by_ends and (args.d is None or args.R is None)):
         raise ValueError("give either --m and --t (loads) or --d and --R (end shortening and rotation)")
-    if by_loads:
+    return by_loads
+
+
+def _helix_roots_asked(args, gamma):
+    """(refs, n_found): the analytic loops to solve, as (name, LocalizedHelix), for the loads or
+    the ends given and --root, and how many loops the ends have (1 for given loads)."""
+    from . import endloads as el
+    from .validation import check_finite, check_positive
+
+    if _helix_given_by_loads(args):
         if args.root not in ("stable", "both"):
             raise ValueError(f"--root {args.root} chooses between the loops at given --d and --R; --m and --t give one")
-        refs = [("only", el.localized_helix(check_finite("m", args.m), args.t, gamma))]
-        n_found = 1
-    else:
-        d = check_positive("d", args.d)
-        if not d < 1.0:
-            raise ValueError(f"--d (end shortening / L) must be below 1, got {d!r}")
-        found = el.localized_helix_from_shortening(d, check_finite("R", args.R), gamma)  # ascending in t
-        if not found:
-            raise ValueError(f"--d {d:g} --R {args.R:g}: no localized helix (NvdHT 2002 eqs. 14-15) has this end "
-                             f"shortening and rotation at gamma = C/B = {gamma:.4g}: change --R or --d")
-        n_found = len(found)
-        names = ["only"] if len(found) == 1 else ["small", "large"] + [f"t{i}" for i in range(2, len(found))]
-        refs = list(zip(names, found))
-        if args.root in ("small", "large") and len(found) > 1:
-            refs = [refs[0] if args.root == "small" else refs[-1]]
-    checks = {name: el.reference_check(h, ea) for name, h in refs}
-    if args.strict:
-        invalid = [f"{name} root (m = {h.m:.4g}, t = {h.t:.4g}): {checks[name].reason}" for name, h in refs
-                   if not checks[name].valid]
-        refs = [(name, h) for name, h in refs if checks[name].valid]
-        if not refs:
-            raise ValueError("--strict: the analytic reference (NvdHT 2002) does not apply: " + "; ".join(invalid))
-    # every loop solved must be resolved; with --root stable / both an unresolved loop is left out
+        return [("only", el.localized_helix(check_finite("m", args.m), args.t, gamma))], 1
+    d = check_positive("d", args.d)
+    if not d < 1.0:
+        raise ValueError(f"--d (end shortening / L) must be below 1, got {d!r}")
+    found = el.localized_helix_from_shortening(d, check_finite("R", args.R), gamma)  # ascending in t
+    if not found:
+        raise ValueError(f"--d {d:g} --R {args.R:g}: no localized helix (NvdHT 2002 eqs. 14-15) has this end "
+                         f"shortening and rotation at gamma = C/B = {gamma:.4g}: change --R or --d")
+    return el.select_helix_roots(el.named_helix_roots(found), args.root), len(found)
+
+
+def _helix_roots_that_apply(refs, checks):
+    """--strict: the roots whose analytic reference applies; ValueError with the reasons if none does."""
+    invalid = [f"{name} root (m = {h.m:.4g}, t = {h.t:.4g}): {checks[name].reason}" for name, h in refs
+               if not checks[name].valid]
+    refs = [(name, h) for name, h in refs if checks[name].valid]
+    if not refs:
+        raise ValueError("--strict: the analytic reference (NvdHT 2002) does not apply: " + "; ".join(invalid))
+    return refs
+
+
+def _helix_roots_resolved(N, refs):
+    """(resolved, refused): the roots N nodes resolve, and those it does not as (name, helix,
+    why); every loop solved must be resolved, so ValueError (the first why) where none is."""
+    from . import endloads as el
+
     resolved, refused = [], []
     for name, h in refs:
         try:
@@ -1345,285 +1457,335 @@ def _helix(args):
             refused.append((name, h, str(exc)))
     if not resolved:
         raise ValueError(refused[0][2])
-    if args.out:
-        _output_folder(args.out)
-        args.hold(folder_lock(args.out))
-    coarse_N = (N - 2) // 2 + 2  # edges twice as long (exactly, for even N)
-    extrapolate = not args.no_extrapolate
-    bar = _Progress(args, len(resolved) + sweep + int(extrapolate), "helix", counting="states")
-    say = bar.say
-    for name, h in resolved:
-        say(f"localized helix ({name} root): m = {h.m:.6g}, t = {h.t:.6g}, gamma = {gamma:.4g}: d = {h.d:.6g}, "
-            f"R = {h.R:.6g} rad ({h.R / (2 * math.pi):.4g} turns), lambda = {h.lam:.4g}; N = {N}")
-    for name, h, why in refused:
+    return resolved, refused
+
+
+def _announce_helix_roots(say, case):
+    """The roots to solve, and those left out, on the progress line."""
+    for name, h in case.resolved:
+        say(f"localized helix ({name} root): m = {h.m:.6g}, t = {h.t:.6g}, gamma = {case.gamma:.4g}: d = {h.d:.6g}, "
+            f"R = {h.R:.6g} rad ({h.R / (2 * math.pi):.4g} turns), lambda = {h.lam:.4g}; N = {case.N}")
+    for name, h, why in case.refused:
         say(f"{name} root (m = {h.m:.6g}, t = {h.t:.6g}) left out: {why}")
-    say(args.compile_notice)
-    t0 = time.perf_counter()
-    material = Material(B=B, C=C, EA=EA, D=D)
 
-    def state(rod, e, R, h):
-        loads = el.end_loads(rod, e.q, R, e.neighbourhood)
-        ok = None if h is None else el.reference_check(h, ea).valid
-        return {"R": R, "M": loads.M, "T": loads.T, "m": loads.M / B, "t": loads.T / B,  # L = 1
-                "m_analytic": None if h is None else h.m, "t_analytic": None if h is None else h.t,
-                "reference_valid": ok,
-                "theta_max": float(el.tangent_angles(e.x).max()),
-                "theta_max_analytic": None if h is None else h.theta_max,
-                "Lk": e.Lk, "Wr": e.Wr, "Tw": e.Tw, "Lk_expected": R / (2 * math.pi),
-                "Wr_analytic": None if h is None else h.Wr, "Tw_analytic": None if h is None else h.Tw,
-                "morse": e.stability.n_negative, "stable": bool(e.stability.stable),
-                "lowest_eigenvalue": float(e.stability.eigenvalues[0])}
 
-    def rel(a, b, ok):
-        return a / b - 1.0 if ok else None
+def _solve_helix_roots(case, material, bar):
+    """{name: _SolvedHelixRoot} of each resolved root, solved from its analytic loop, in order."""
+    from . import endloads as el
+    from .solvers import ConvergenceError
 
     solved = {}
-    try:
-        for name, h in resolved:
-            rod = el.shortened_rod(N, 1.0, material, shortening=h.d)
-            try:
-                e = el.solve_from_helix(rod, h.m, h.t, h.R, k=4)
-            except ConvergenceError as exc:
-                sol = exc.solution
-                say(f"{name} root: no equilibrium reached from the analytic loop" + ("" if sol is None else
+    for name, h in case.resolved:
+        rod = el.shortened_rod(case.N, 1.0, material, shortening=h.d)
+        try:
+            e = el.solve_from_helix(rod, h.m, h.t, h.R, k=4)
+        except ConvergenceError as exc:
+            sol = exc.solution
+            bar.say(f"{name} root: no equilibrium reached from the analytic loop" + ("" if sol is None else
                     f" ({sol.reason} after {sol.iterations} Newton steps, |gradient| {sol.grad_norm:.2e})"))
-                solved[name] = (h, rod, None, None, exc)
-                continue
-            st = state(rod, e, h.R, h)
-            solved[name] = (h, rod, e, st, None)
-            bar.update(len(solved))
-            say(f"{name} root solved: m = {st['m']:.6g} (analytic {h.m:.6g}), t = {st['t']:.6g} (analytic "
+            solved[name] = _SolvedHelixRoot(h, rod, None, None, exc)
+            continue
+        st = el.helix_state(rod, e, h.R, h, case.B, case.ea)
+        solved[name] = _SolvedHelixRoot(h, rod, e, st, None)
+        bar.update(len(solved))
+        bar.say(f"{name} root solved: m = {st['m']:.6g} (analytic {h.m:.6g}), t = {st['t']:.6g} (analytic "
                 f"{h.t:.6g}), Morse index {st['morse']} ({e.solution.iterations} Newton steps in the last stage)")
-        ok = [name for name, (_, _, e, _, _) in solved.items() if e is not None]
-        if not ok:
-            exc = next(iter(solved.values()))[4]
-            print(f"jaxrod: error: no equilibrium found near the analytic loop: raise --N (at least 6 edges per "
-                  f"loop core L/lambda), or move the loads away from the straight rod's threshold m^2 = 4 t "
-                  f"({str(exc).splitlines()[0][:160]})", file=sys.stderr)
-            return 1
-        # the loop taken: the named root, else the stable one (the larger t among several or none)
-        if n_found == 1 or args.root in ("small", "large") or len(ok) == 1:
-            taken = ok[0]
-            why = "the only root" if n_found == 1 else f"--root {args.root}" \
-                if args.root in ("small", "large") else "the only root solved"
-        else:
-            stable = [name for name in ok if solved[name][3]["stable"]]
-            pool = stable or ok
-            taken = max(pool, key=lambda name: solved[name][0].t)
-            why = ("the stable root" if len(stable) == 1 else
-                   "no root is stable: the larger t" if not stable else "both roots are stable: the larger t")
-        ref, rod, e, main, _ = solved[taken]
-        check = checks[taken]
-        say(f"taken: the {taken} root (t = {ref.t:.6g}): {why}")
-        if not check.valid:
-            warnings.warn(f"the analytic reference (NvdHT 2002) does not apply to the {taken} root: {check.reason}; "
-                          "no error against it is computed", stacklevel=1)
-        # T is EA times a strain: its roundoff, ~ eps (L/h) EA, relative to T
-        t_roundoff = el.ROUNDOFF_ULPS * np.finfo(float).eps * (N - 2) * EA / max(abs(main["T"]), 1e-300)
-        if t_roundoff > 1e-4:
-            warnings.warn(f"EA L^2/B = {ea:.3g} is so stiff that T carries a roundoff of ~{t_roundoff:.1e} relative "
-                          "(EA times the roundoff of a strain)", stacklevel=1)
-        # Richardson's extrapolation (O(h^2)) from the coarse rod (edges twice as long)
-        extra = {"N_coarse": None, "m_extrapolated": None, "t_extrapolated": None,
-                 "m_extrapolated_rel_error": None, "t_extrapolated_rel_error": None, "extrapolation_note": None}
-        if extrapolate:
-            try:
-                el.check_helix_resolution(coarse_N, ref.m, ref.t, ref.R)
-                rod_c = el.shortened_rod(coarse_N, 1.0, material, shortening=ref.d)
-                e_c = el.solve_from_helix(rod_c, ref.m, ref.t, ref.R, with_stability=False)
-                loads_c = el.end_loads(rod_c, e_c.q, ref.R, e_c.neighbourhood)
-                r2 = ((N - 2) / (coarse_N - 2)) ** 2
-                m_x = (r2 * main["m"] - loads_c.M / B) / (r2 - 1.0)
-                t_x = (r2 * main["t"] - loads_c.T / B) / (r2 - 1.0)
-                extra.update(N_coarse=coarse_N, m_extrapolated=m_x, t_extrapolated=t_x,
-                             m_extrapolated_rel_error=rel(m_x, ref.m, check.valid),
-                             t_extrapolated_rel_error=rel(t_x, ref.t, check.valid))
-                say(f"Richardson (N = {coarse_N}, {N}): m = {m_x:.6g}, t = {t_x:.6g}")
-            except ValueError as exc:
-                extra["extrapolation_note"] = f"not extrapolated: the coarse rod (N = {coarse_N}) is refused: {exc}"
-                say(extra["extrapolation_note"])
-            except ConvergenceError:
-                extra["extrapolation_note"] = f"not extrapolated: no equilibrium reached at N = {coarse_N}"
-                say(extra["extrapolation_note"])
-            bar.update(len(solved) + 1)
-        path, stopped = [main] if sweep else [], []
-        if sweep:
-            # end rotations from 0.8 R to 1.1 R at the same shortening, each solved from its
-            # neighbour outwards from R (at fixed d the analytic loop exists up to a fold in R: the
-            # sweep stops where Newton finds none)
-            Rs = np.linspace(0.8 * ref.R, 1.1 * ref.R, sweep)
-            for side in (np.sort(Rs[Rs >= ref.R]), np.sort(Rs[Rs < ref.R])[::-1]):
-                prev = e
-                for R in side:
-                    try:
-                        el.check_rotation_resolution(N, R)
-                        # continuation in sub-steps of at most 0.25 rad (Newton alone does not follow larger ones)
-                        R0 = float(prev.phi)
-                        n_sub = max(1, math.ceil(abs(float(R) - R0) / 0.25))
-                        for j in range(1, n_sub):
-                            prev = el.solve(rod, R0 + (float(R) - R0) * j / n_sub, prev.q, with_stability=False)
-                        prev = el.solve(rod, float(R), prev.q, k=4)
-                        # the analytic loop at (d, R): of the two branches meeting at the fold, the
-                        # one nearest the computed loads
-                        loads = el.end_loads(rod, prev.q, float(R), prev.neighbourhood)
-                        found = el.localized_helix_from_shortening(ref.d, float(R), gamma)
-                        h = min(found, key=lambda x: abs(x.t / (loads.T / B) - 1) + abs(x.m / (loads.M / B) - 1)) \
-                            if found else None
-                        path.append(state(rod, prev, float(R), h))
-                        bar.update(len(solved) + int(extrapolate) + len(path))
-                        say(f"R = {R:.5g}: m = {path[-1]['m']:.6g}, t = {path[-1]['t']:.6g}, Morse {path[-1]['morse']}")
-                    except ConvergenceError:
-                        say(f"R = {R:.5g}: no equilibrium reached from R = {float(prev.phi):.5g} (past a fold?): "
-                            "this side of the sweep stops")
-                        stopped.append(float(R))
-                        break
-            path.sort(key=lambda r: r["R"])
-    finally:
-        bar.close()
-    seconds = time.perf_counter() - t0
-    valid = check.valid
-    # envelope (edge midpoints, s from the rod's middle) and centreline against the closed form
-    L = 1.0
-    theta = el.tangent_angles(e.x)
-    h_edge = L / (theta.size - 1)
-    s_edge = np.arange(theta.size) * h_edge - 0.5 * L
-    theta_exact = np.arccos(np.clip(1.0 - 2.0 * ref.lam ** 2 / ref.t / np.cosh(ref.lam * s_edge / L) ** 2, -1, 1))
-    s_node = (np.arange(N) - 0.5) * h_edge - 0.5 * L
-    _, _, r = el.localized_helix_curve(ref.m, ref.t, s_node, L)
-    r = r - 0.5 * (r[0] + r[1])
-    x = e.x - 0.5 * (e.x[0] + e.x[1])
-    # the rotation about the axis is a symmetry: turn the computed loop onto the analytic one
-    ang = math.atan2(float(np.sum(x[:, 0] * r[:, 1] - x[:, 1] * r[:, 0])), float(np.sum(x[:, :2] * r[:, :2])))
-    c, s_ = math.cos(ang), math.sin(ang)
-    x = np.stack([c * x[:, 0] - s_ * x[:, 1], s_ * x[:, 0] + c * x[:, 1], x[:, 2]], axis=1)
-    roots = []
-    for name, h in refs:
-        row = {"root": name, "m_analytic": h.m, "t_analytic": h.t, "lambda": h.lam,
-               "reference_valid": checks[name].valid, "reference_reason": checks[name].reason}
-        if name in solved and solved[name][2] is not None:
-            st = solved[name][3]
-            row.update(m=st["m"], t=st["t"], m_rel_error=rel(st["m"], h.m, checks[name].valid),
-                       t_rel_error=rel(st["t"], h.t, checks[name].valid), morse=st["morse"], stable=st["stable"],
-                       converged=True)
-        else:
-            row.update(m=None, t=None, m_rel_error=None, t_rel_error=None, morse=None, stable=None,
-                       converged=False if name in solved else None,
-                       note=next((w for n_, _, w in refused if n_ == name), None) if name not in solved else None)
-        roots.append(row)
-    result = {"N": N, "B": B, "C": C, "EA": EA, "nu": nu, "gamma": gamma, "slenderness": D, "d": ref.d,
-              "lambda": ref.lam, **main, "reference_valid": valid, "reference_reason": check.reason,
-              "stretch": check.stretch, "t_roundoff": t_roundoff, "root": taken, "root_reason": why, "roots": roots,
-              "m_rel_error": rel(main["m"], ref.m, valid), "t_rel_error": rel(main["t"], ref.t, valid), **extra,
-              "envelope_L1": el.envelope_error(e.x, ref.m, ref.t, L) if valid else None,
-              "centreline_max_distance": float(np.max(np.linalg.norm(x - r, axis=1))) if valid else None,
-              "newton_steps": e.solution.iterations, "seconds": seconds, "path": path, "sweep_stopped_at": stopped}
-    if args.out:
-        from . import plotting  # noqa: F401  (matplotlib's style)
-        import matplotlib.pyplot as plt
+    return solved
 
-        with open(os.path.join(args.out, "helix.json"), "w") as f:
-            json.dump(result, f, indent=2)
-        with open(os.path.join(args.out, "centreline.csv"), "w", newline="") as f:
-            w = csv.writer(f)
-            w.writerow(["s_over_L", "x", "y", "z", "x_analytic", "y_analytic", "z_analytic"])
-            for k in range(N):
-                w.writerow([s_node[k] / L, *x[k], *r[k]])
-        with open(os.path.join(args.out, "envelope.csv"), "w", newline="") as f:
-            w = csv.writer(f)
-            w.writerow(["s_over_L", "theta", "theta_analytic"])
-            for k in range(theta.size):
-                w.writerow([s_edge[k] / L, theta[k], theta_exact[k]])
-        title = f"m = {ref.m:.4g}, t = {ref.t:.4g}, gamma = {gamma:.3g}, N = {N}"
-        fig = plt.figure(figsize=(6, 6))
-        ax = fig.add_subplot(projection="3d")
-        ax.plot(*r.T, "k--", lw=1, label="analytic (NvdHT 2002)" if valid else "analytic (not applicable)")
-        ax.plot(*x.T, "C0", lw=2, label="jaxrod")
-        ax.set_title(title)
-        ax.legend()
-        fig.savefig(os.path.join(args.out, "centreline.png"), dpi=120)
-        plt.close(fig)
-        fig, ax = plt.subplots(figsize=(7, 4))
-        ax.plot(s_edge / L, theta_exact, "k--", lw=1, label="analytic" if valid else "analytic (not applicable)")
-        ax.plot(s_edge / L, theta, "C0.", ms=3, label="jaxrod (edges)")
-        ax.set_xlabel("s / L (from the middle)")
-        ax.set_ylabel("tangent angle to the axis theta (rad)")
-        ax.set_title(f"{title}: L1 error {result['envelope_L1']:.2e}" if valid else
-                     f"{title}: the analytic reference does not apply")
-        ax.legend()
-        fig.tight_layout()
-        fig.savefig(os.path.join(args.out, "envelope.png"), dpi=120)
-        plt.close(fig)
-        written = "helix.json, centreline.csv, envelope.csv, centreline.png, envelope.png"
-        if path:
-            keys = list(path[0])
-            with open(os.path.join(args.out, "path.csv"), "w", newline="") as f:
-                w = csv.writer(f)
-                w.writerow(keys)
-                for row in path:
-                    w.writerow(["" if row[k] is None else row[k] for k in keys])
-            fig, axes = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
-            R_ = np.array([p["R"] for p in path])
-            st = np.array([p["stable"] for p in path])
-            for ax, key, label in ((axes[0], "m", "M L / B"), (axes[1], "t", "T L^2 / B")):
-                v = np.array([p[key] for p in path])
-                va = np.array([np.nan if p[key + "_analytic"] is None else p[key + "_analytic"] for p in path])
-                ax.plot(R_, va, "k--", lw=1, label="analytic")
-                ax.plot(R_[st], v[st], "C0o", label="jaxrod, stable")
-                ax.plot(R_[~st], v[~st], "C3o", mfc="none", label="jaxrod, unstable")
-                ax.set_ylabel(label)
-            axes[0].legend()
-            axes[1].set_xlabel(f"end rotation R (rad), d = {ref.d:.4g}")
-            axes[0].set_title(f"gamma = {gamma:.3g}, N = {N} (stability under fixed ends)")
-            fig.tight_layout()
-            fig.savefig(os.path.join(args.out, "loads.png"), dpi=120)
-            plt.close(fig)
-            written += ", path.csv, loads.png"
-        say(f"wrote {args.out}/{written}")
-    if args.json:
-        print(json.dumps(result))
+
+def _no_helix_equilibrium(solved):
+    """Exit status 1, with the first root's failure on stderr and what to change."""
+    exc = next(iter(solved.values())).error
+    print(f"jaxrod: error: no equilibrium found near the analytic loop: raise --N (at least 6 edges per "
+          f"loop core L/lambda), or move the loads away from the straight rod's threshold m^2 = 4 t "
+          f"({str(exc).splitlines()[0][:160]})", file=sys.stderr)
+    return 1
+
+
+def _take_helix_root(args, case, solved):
+    """(name, reason) of the root taken among those solved (``endloads.choose_helix_root``)."""
+    from . import endloads as el
+
+    candidates = [(name, root.ref.t, root.state["stable"]) for name, root in solved.items() if root.eq is not None]
+    return el.choose_helix_root(candidates, case.n_found, args.root)
+
+
+def _warn_about_helix_reference(case, taken, T):
+    """Warns where the analytic reference does not apply to the root taken, or where its tension
+    T carries a roundoff above 1e-4 relative; returns that roundoff."""
+    import warnings
+
+    from . import endloads as el
+
+    check = case.checks[taken]
+    if not check.valid:
+        warnings.warn(f"the analytic reference (NvdHT 2002) does not apply to the {taken} root: {check.reason}; "
+                      "no error against it is computed", stacklevel=1)
+    t_roundoff = el.tension_roundoff(case.N, case.EA, T)
+    if t_roundoff > 1e-4:
+        warnings.warn(f"EA L^2/B = {case.ea:.3g} is so stiff that T carries a roundoff of ~{t_roundoff:.1e} "
+                      "relative (EA times the roundoff of a strain)", stacklevel=1)
+    return t_roundoff
+
+
+def _no_helix_extrapolation():
+    return {"N_coarse": None, "m_extrapolated": None, "t_extrapolated": None,
+            "m_extrapolated_rel_error": None, "t_extrapolated_rel_error": None, "extrapolation_note": None}
+
+
+def _helix_extrapolation(case, material, root, valid, say):
+    """The extrapolation's result keys (``_no_helix_extrapolation``) for the root taken: Richardson's
+    (O(h^2)) from N and the coarse rod (edges twice as long), relative errors where the reference
+    applies (valid), or the note why it is not extrapolated."""
+    from . import endloads as el
+    from .solvers import ConvergenceError
+
+    N, ref, coarse_N = case.N, root.ref, el.coarse_nodes(case.N)
+    extra = _no_helix_extrapolation()
+    try:
+        el.check_helix_resolution(coarse_N, ref.m, ref.t, ref.R)
+        rod_c = el.shortened_rod(coarse_N, 1.0, material, shortening=ref.d)
+        e_c = el.solve_from_helix(rod_c, ref.m, ref.t, ref.R, with_stability=False)
+        loads_c = el.end_loads(rod_c, e_c.q, ref.R, e_c.neighbourhood)
+        m_x = el.richardson_extrapolation(root.state["m"], loads_c.M / case.B, N, coarse_N)
+        t_x = el.richardson_extrapolation(root.state["t"], loads_c.T / case.B, N, coarse_N)
+        extra.update(N_coarse=coarse_N, m_extrapolated=m_x, t_extrapolated=t_x,
+                     m_extrapolated_rel_error=el.relative_error(m_x, ref.m, valid),
+                     t_extrapolated_rel_error=el.relative_error(t_x, ref.t, valid))
+        say(f"Richardson (N = {coarse_N}, {N}): m = {m_x:.6g}, t = {t_x:.6g}")
+    except ValueError as exc:
+        extra["extrapolation_note"] = f"not extrapolated: the coarse rod (N = {coarse_N}) is refused: {exc}"
+        say(extra["extrapolation_note"])
+    except ConvergenceError:
+        extra["extrapolation_note"] = f"not extrapolated: no equilibrium reached at N = {coarse_N}"
+        say(extra["extrapolation_note"])
+    return extra
+
+
+def _helix_sweep(case, root, bar, done):
+    """(path, stopped): the root taken followed along case.sweep end rotations from 0.8 R to 1.1 R
+    at the same shortening, each solved from its neighbour outwards from R (at fixed d the
+    analytic loop exists up to a fold in R: a side stops where Newton finds none); path, the
+    states (``endloads.helix_state``) ascending in R, and stopped, the rotations where a side
+    stopped. done: the states counted on the bar before the sweep."""
+    import numpy as np
+
+    R = root.ref.R
+    Rs = np.linspace(0.8 * R, 1.1 * R, case.sweep)
+    path, stopped = [root.state], []
+    for side in (np.sort(Rs[Rs >= R]), np.sort(Rs[Rs < R])[::-1]):
+        stop = _helix_sweep_side(case, root, side, path, bar, done)
+        if stop is not None:
+            stopped.append(stop)
+    path.sort(key=lambda r: r["R"])
+    return path, stopped
+
+
+def _helix_sweep_side(case, root, side, path, bar, done):
+    """Follows the root taken along the end rotations ``side`` (outwards from its own), appending
+    each state to path; returns the rotation where Newton found no equilibrium, or None."""
+    from . import endloads as el
+    from .solvers import ConvergenceError
+
+    rod, prev = root.rod, root.eq
+    for R in side:
+        try:
+            el.check_rotation_resolution(case.N, R)
+            # continuation in sub-steps of at most 0.25 rad (Newton alone does not follow larger ones)
+            R0 = float(prev.phi)
+            n_sub = max(1, math.ceil(abs(float(R) - R0) / 0.25))
+            for j in range(1, n_sub):
+                prev = el.solve(rod, R0 + (float(R) - R0) * j / n_sub, prev.q, with_stability=False)
+            prev = el.solve(rod, float(R), prev.q, k=4)
+            loads = el.end_loads(rod, prev.q, float(R), prev.neighbourhood)
+            h = el.nearest_localized_helix(root.ref.d, float(R), case.gamma, loads.M / case.B, loads.T / case.B)
+            path.append(el.helix_state(rod, prev, float(R), h, case.B, case.ea))
+            bar.update(done + len(path))
+            bar.say(f"R = {R:.5g}: m = {path[-1]['m']:.6g}, t = {path[-1]['t']:.6g}, Morse {path[-1]['morse']}")
+        except ConvergenceError:
+            bar.say(f"R = {R:.5g}: no equilibrium reached from R = {float(prev.phi):.5g} (past a fold?): "
+                    "this side of the sweep stops")
+            return float(R)
+    return None
+
+
+def _helix_result(case, solved, taken, why, t_roundoff, extra):
+    """The helix summary (helix.json, --json) up to the envelope's comparison: the input, the
+    taken root's state beside its reference, every root's comparison, the extrapolation."""
+    from . import endloads as el
+
+    root, check = solved[taken], case.checks[taken]
+    ref, main, valid = root.ref, root.state, check.valid
+    roots = []
+    for name, h in case.refs:
+        r = solved.get(name)
+        note = None if r is not None else next((w for n_, _, w in case.refused if n_ == name), None)
+        roots.append(el.helix_root_row(name, h, case.checks[name], None if r is None else r.state,
+                                       attempted=r is not None, note=note))
+    return {"N": case.N, "B": case.B, "C": case.C, "EA": case.EA, "nu": case.nu, "gamma": case.gamma,
+            "slenderness": case.D, "d": ref.d, "lambda": ref.lam, **main, "reference_valid": valid,
+            "reference_reason": check.reason, "stretch": check.stretch, "t_roundoff": t_roundoff, "root": taken,
+            "root_reason": why, "roots": roots, "m_rel_error": el.relative_error(main["m"], ref.m, valid),
+            "t_rel_error": el.relative_error(main["t"], ref.t, valid), **extra}
+
+
+def _helix_shape_errors(root, profiles, valid):
+    """The loop's shape against the reference where it applies (valid; else None): envelope_L1,
+    the L1 error of the tangent angle, and centreline_max_distance (units of L)."""
+    from . import endloads as el
+
+    return {"envelope_L1": el.envelope_error(root.eq.x, root.ref.m, root.ref.t, 1.0) if valid else None,
+            "centreline_max_distance": profiles.max_distance() if valid else None}
+
+
+def _write_helix_files(out, case, result, profiles, say):
+    """Writes helix.json, centreline.csv, envelope.csv, centreline.png, envelope.png and, with a
+    sweep, path.csv and loads.png into out."""
+    from . import plotting  # noqa: F401  (matplotlib's style)
+
+    with open(os.path.join(out, "helix.json"), "w") as f:
+        json.dump(result, f, indent=2)
+    p = profiles
+    _write_helix_csv(os.path.join(out, "centreline.csv"), ["s_over_L", "x", "y", "z", "x_analytic", "y_analytic",
+                                                          "z_analytic"],
+                     ([p.s_node[k], *p.x[k], *p.r[k]] for k in range(case.N)))
+    _write_helix_csv(os.path.join(out, "envelope.csv"), ["s_over_L", "theta", "theta_analytic"],
+                     ([p.s_edge[k], p.theta[k], p.theta_analytic[k]] for k in range(p.theta.size)))
+    title = f"m = {result['m_analytic']:.4g}, t = {result['t_analytic']:.4g}, gamma = {case.gamma:.3g}, N = {case.N}"
+    _plot_helix_centreline(os.path.join(out, "centreline.png"), profiles, title, result["reference_valid"])
+    _plot_helix_envelope(os.path.join(out, "envelope.png"), profiles, title, result["envelope_L1"])
+    written = "helix.json, centreline.csv, envelope.csv, centreline.png, envelope.png"
+    path = result["path"]
+    if path:
+        keys = list(path[0])
+        _write_helix_csv(os.path.join(out, "path.csv"), keys,
+                         (["" if row[k] is None else row[k] for k in keys] for row in path))
+        _plot_helix_loads(os.path.join(out, "loads.png"), path, result["d"], case)
+        written += ", path.csv, loads.png"
+    say(f"wrote {out}/{written}")
+
+
+def _write_helix_csv(file, header, rows):
+    with open(file, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(header)
+        for row in rows:
+            w.writerow(row)
+
+
+def _plot_helix_centreline(file, profiles, title, valid):
+    """The computed centreline beside the analytic one, in 3-D."""
+    import matplotlib.pyplot as plt
+
+    fig = plt.figure(figsize=(6, 6))
+    ax = fig.add_subplot(projection="3d")
+    ax.plot(*profiles.r.T, "k--", lw=1, label="analytic (NvdHT 2002)" if valid else "analytic (not applicable)")
+    ax.plot(*profiles.x.T, "C0", lw=2, label="jaxrod")
+    ax.set_title(title)
+    ax.legend()
+    fig.savefig(file, dpi=120)
+    plt.close(fig)
+
+
+def _plot_helix_envelope(file, profiles, title, envelope_L1):
+    """The edges' tangent angle beside the analytic one (envelope_L1 None: the reference does not apply)."""
+    import matplotlib.pyplot as plt
+
+    valid = envelope_L1 is not None
+    fig, ax = plt.subplots(figsize=(7, 4))
+    ax.plot(profiles.s_edge, profiles.theta_analytic, "k--", lw=1,
+            label="analytic" if valid else "analytic (not applicable)")
+    ax.plot(profiles.s_edge, profiles.theta, "C0.", ms=3, label="jaxrod (edges)")
+    ax.set_xlabel("s / L (from the middle)")
+    ax.set_ylabel("tangent angle to the axis theta (rad)")
+    ax.set_title(f"{title}: L1 error {envelope_L1:.2e}" if valid else
+                 f"{title}: the analytic reference does not apply")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(file, dpi=120)
+    plt.close(fig)
+
+
+def _plot_helix_loads(file, path, d, case):
+    """M and T along the sweep's path, stable and unstable states apart, beside the analytic ones."""
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    fig, axes = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
+    R_ = np.array([p["R"] for p in path])
+    st = np.array([p["stable"] for p in path])
+    for ax, key, label in ((axes[0], "m", "M L / B"), (axes[1], "t", "T L^2 / B")):
+        v = np.array([p[key] for p in path])
+        va = np.array([np.nan if p[key + "_analytic"] is None else p[key + "_analytic"] for p in path])
+        ax.plot(R_, va, "k--", lw=1, label="analytic")
+        ax.plot(R_[st], v[st], "C0o", label="jaxrod, stable")
+        ax.plot(R_[~st], v[~st], "C3o", mfc="none", label="jaxrod, unstable")
+        ax.set_ylabel(label)
+    axes[0].legend()
+    axes[1].set_xlabel(f"end rotation R (rad), d = {d:.4g}")
+    axes[0].set_title(f"gamma = {case.gamma:.3g}, N = {case.N} (stability under fixed ends)")
+    fig.tight_layout()
+    fig.savefig(file, dpi=120)
+    plt.close(fig)
+
+
+def _helix_number(v):
+    return "-" if v is None else f"{v:.6g}"
+
+
+def _print_helix(args, case, solved, result):
+    """The helix summary as text on stdout: the roots (where several), the table of each root
+    shown (the taken one; all solved with --root both), the extrapolation, envelope and time."""
+    taken = result["root"]
+    if len(result["roots"]) > 1 or case.refused:
+        _print_helix_roots(result["roots"])
+    if case.n_found > 1:
+        print(f"taken: the {taken} root ({result['root_reason']})")
+    shown = [name for name, _ in case.refs if name in solved and solved[name].eq is not None] \
+        if args.root == "both" else [taken]
+    for name in shown:
+        if len(shown) > 1:
+            print(f"-- {name} root" + (" (taken)" if name == taken else ""))
+        _print_helix_table(solved[name], case.checks[name])
+    if result["m_extrapolated"] is not None:
+        err = "" if not result["reference_valid"] else (f"; errors {result['m_extrapolated_rel_error']:+.1e}, "
+                                                        f"{result['t_extrapolated_rel_error']:+.1e}")
+        print(f"Richardson    m = {result['m_extrapolated']:.6g}, t = {result['t_extrapolated']:.6g}  "
+              f"(N = {result['N_coarse']} and {case.N}{err}" + (f"; the {taken} root)" if len(shown) > 1 else ")"))
+    if result["reference_valid"]:
+        print(f"envelope L1   {result['envelope_L1']:>14.3e}")
+    print(f"time          {result['seconds']:>14.2f} s")
+
+
+def _print_helix_roots(roots):
+    for row in roots:
+        err = "" if row["m_rel_error"] is None else \
+            f", errors m {row['m_rel_error']:+.2e}, t {row['t_rel_error']:+.2e}"
+        got = ("not solved" + (f": {row['note']}" if row.get("note") else "")) if row["m"] is None else \
+            f"m = {row['m']:.6g}, t = {row['t']:.6g}, Morse index {row['morse']}{err}"
+        print(f"{row['root']} root (analytic m = {row['m_analytic']:.6g}, t = {row['t_analytic']:.6g}): {got}"
+              + ("" if row["reference_valid"] else " [reference not applicable]"))
+
+
+def _print_helix_table(root, check):
+    """One solved root's values beside the analytic ones (only its own where they do not apply)."""
+    h, st, fmt = root.ref, root.state, _helix_number
+    rows = [("m = M L/B", st["m"], h.m), ("t = T L^2/B", st["t"], h.t),
+            ("theta_max", st["theta_max"], h.theta_max), ("Lk", st["Lk"], st["Lk_expected"]),
+            ("Wr", st["Wr"], h.Wr), ("Tw", st["Tw"], h.Tw)]
+    if check.valid:
+        print(f"{'':14s}{'jaxrod':>14s}{'analytic':>14s}")
+        for label, a, b in rows:
+            print(f"{label:14s}{fmt(a):>14s}{fmt(b):>14s}")
     else:
-        fmt = lambda v: "-" if v is None else f"{v:.6g}"  # noqa: E731
-        if len(roots) > 1 or refused:
-            for row in roots:
-                err = "" if row["m_rel_error"] is None else \
-                    f", errors m {row['m_rel_error']:+.2e}, t {row['t_rel_error']:+.2e}"
-                got = ("not solved" + (f": {row['note']}" if row.get("note") else "")) if row["m"] is None else \
-                    f"m = {row['m']:.6g}, t = {row['t']:.6g}, Morse index {row['morse']}{err}"
-                print(f"{row['root']} root (analytic m = {row['m_analytic']:.6g}, t = {row['t_analytic']:.6g}): {got}"
-                      + ("" if row["reference_valid"] else " [reference not applicable]"))
-        if n_found > 1:
-            print(f"taken: the {taken} root ({why})")
-        shown = [name for name, _ in refs if name in solved and solved[name][2] is not None] \
-            if args.root == "both" else [taken]
-        for name in shown:
-            h, st, ok_ = solved[name][0], solved[name][3], checks[name].valid
-            if len(shown) > 1:
-                print(f"-- {name} root" + (" (taken)" if name == taken else ""))
-            rows = [("m = M L/B", st["m"], h.m), ("t = T L^2/B", st["t"], h.t),
-                    ("theta_max", st["theta_max"], h.theta_max), ("Lk", st["Lk"], st["Lk_expected"]),
-                    ("Wr", st["Wr"], h.Wr), ("Tw", st["Tw"], h.Tw)]
-            if ok_:
-                print(f"{'':14s}{'jaxrod':>14s}{'analytic':>14s}")
-                for label, a, b in rows:
-                    print(f"{label:14s}{fmt(a):>14s}{fmt(b):>14s}")
-            else:
-                print(f"analytic reference (NvdHT 2002): not applicable: {checks[name].reason}")
-                print(f"{'':14s}{'jaxrod':>14s}")
-                for label, a, _ in rows[:3]:
-                    print(f"{label:14s}{fmt(a):>14s}")
-                print(f"{'Lk':14s}{fmt(st['Lk']):>14s}  (R / 2 pi = {st['Lk_expected']:.6g})")
-                for label, a, _ in rows[4:]:
-                    print(f"{label:14s}{fmt(a):>14s}")
-            print(f"Morse index   {st['morse']:>14d}  ({'stable' if st['stable'] else 'unstable'} under fixed ends)")
-        if extra["m_extrapolated"] is not None:
-            err = "" if not valid else (f"; errors {extra['m_extrapolated_rel_error']:+.1e}, "
-                                        f"{extra['t_extrapolated_rel_error']:+.1e}")
-            print(f"Richardson    m = {extra['m_extrapolated']:.6g}, t = {extra['t_extrapolated']:.6g}  "
-                  f"(N = {coarse_N} and {N}{err}" + (f"; the {taken} root)" if len(shown) > 1 else ")"))
-        if valid:
-            print(f"envelope L1   {result['envelope_L1']:>14.3e}")
-        print(f"time          {seconds:>14.2f} s")
-    return 0
+        print(f"analytic reference (NvdHT 2002): not applicable: {check.reason}")
+        print(f"{'':14s}{'jaxrod':>14s}")
+        for label, a, _ in rows[:3]:
+            print(f"{label:14s}{fmt(a):>14s}")
+        print(f"{'Lk':14s}{fmt(st['Lk']):>14s}  (R / 2 pi = {st['Lk_expected']:.6g})")
+        for label, a, _ in rows[4:]:
+            print(f"{label:14s}{fmt(a):>14s}")
+    print(f"Morse index   {st['morse']:>14d}  ({'stable' if st['stable'] else 'unstable'} under fixed ends)")
 
 
 def _interrupt(signum, frame):

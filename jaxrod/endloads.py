@@ -84,6 +84,18 @@ __all__ = [
     "check_rotation_resolution",
     "tangent_angles",
     "envelope_error",
+    "named_helix_roots",
+    "select_helix_roots",
+    "choose_helix_root",
+    "nearest_localized_helix",
+    "relative_error",
+    "tension_roundoff",
+    "coarse_nodes",
+    "richardson_extrapolation",
+    "helix_state",
+    "helix_root_row",
+    "helix_profiles",
+    "HelixProfiles",
     "solve",
     "newton",
 ]
@@ -1330,3 +1342,150 @@ def envelope_error(x, m, t, L=1.0, axis=(0.0, 0.0, 1.0)):
     w = np.full(n_edges, h)
     w[[0, -1]] = 0.5 * h  # trapezoidal weights between the clamps
     return float(np.sum(w * np.abs(th - exact)) / L)
+
+
+# ---------------------------------------------------------------------- a solved loop against the reference
+def named_helix_roots(found):
+    """Names of the localized helices ``found`` at one end shortening and rotation (a list of
+    ``LocalizedHelix``, ascending in t, as ``localized_helix_from_shortening`` gives them): a list
+    of (name, LocalizedHelix) in the same order, "only" for one root, else "small" and "large"
+    for the first two and "t2", "t3", ... for any further ones."""
+    names = ["only"] if len(found) == 1 else ["small", "large"] + [f"t{i}" for i in range(2, len(found))]
+    return list(zip(names, found))
+
+
+def select_helix_roots(named, root):
+    """The named roots (``named_helix_roots``) to solve for the choice ``root``: "small" or
+    "large" keeps the first or last of several, anything else ("stable", "both") all of them."""
+    if root in ("small", "large") and len(named) > 1:
+        return [named[0] if root == "small" else named[-1]]
+    return list(named)
+
+
+def choose_helix_root(candidates, n_found, root):
+    """(name, reason) of the loop taken among the solved roots ``candidates``, a non-empty list of
+    (name, t, stable) in the order solved (t = TL^2/B of the analytic loop, stable the computed
+    stability under fixed ends), of the ``n_found`` roots at the imposed ends, for the choice
+    ``root`` ("stable", "small", "large" or "both"): the one solved where only one is (or was
+    asked for), else the stable one; where none or several are stable, the larger t."""
+    if n_found == 1 or root in ("small", "large") or len(candidates) == 1:
+        why = "the only root" if n_found == 1 else f"--root {root}" \
+            if root in ("small", "large") else "the only root solved"
+        return candidates[0][0], why
+    stable = [c for c in candidates if c[2]]
+    taken = max(stable or candidates, key=lambda c: c[1])[0]
+    why = ("the stable root" if len(stable) == 1 else
+           "no root is stable: the larger t" if not stable else "both roots are stable: the larger t")
+    return taken, why
+
+
+def nearest_localized_helix(d, R, gamma, m, t):
+    """The localized helix at end shortening d (per length) and end rotation R (rad) nearest the
+    computed loads m = ML/B, t = TL^2/B (of the two branches meeting at the fold in R, the one
+    with the least |t_h/t - 1| + |m_h/m - 1|), or None where there is none at (d, R)."""
+    found = localized_helix_from_shortening(d, R, gamma)
+    return min(found, key=lambda x: abs(x.t / t - 1) + abs(x.m / m - 1)) if found else None
+
+
+def relative_error(value, reference, valid=True):
+    """value / reference - 1, or None where the reference does not apply (not valid)."""
+    return value / reference - 1.0 if valid else None
+
+
+def tension_roundoff(N, EA, T):
+    """The relative roundoff of the tension T (force) of a rod of N nodes and stretch stiffness
+    EA (force): T is EA times a strain, whose roundoff is ~ ``ROUNDOFF_ULPS`` eps (L/h)."""
+    return ROUNDOFF_ULPS * np.finfo(float).eps * (N - 2) * EA / max(abs(T), 1e-300)
+
+
+def coarse_nodes(N):
+    """The node count of the rod with edges twice as long as those of N nodes (exactly, for even
+    N): the coarse level of ``richardson_extrapolation``."""
+    return (N - 2) // 2 + 2
+
+
+def richardson_extrapolation(fine, coarse, N_fine, N_coarse):
+    """Richardson's O(h^2) extrapolation of a quantity (scalar, any units) computed on clamped
+    rods of N_fine and N_coarse nodes (edge length h = L / (N - 2)): (r^2 fine - coarse) / (r^2 - 1),
+    r = h_coarse / h_fine."""
+    r2 = ((N_fine - 2) / (N_coarse - 2)) ** 2
+    return (r2 * fine - coarse) / (r2 - 1.0)
+
+
+def helix_state(scene, eq, R, ref, B, ea):
+    """One equilibrium ``eq`` of the ``EndLoadedRod`` ``scene`` (length L = 1) at end rotation R
+    (rad) beside the localized helix ``ref`` (or None: no analytic loop): a dict of the end
+    loads R, M (moment), T (force), m = ML/B, t = TL^2/B (B the bending stiffness), theta_max
+    (rad), Lk, Wr, Tw, Lk_expected = R / 2 pi, the Morse index (morse, stable,
+    lowest_eigenvalue), and the analytic m, t, theta_max, Wr, Tw (None without ref) with
+    reference_valid (``reference_check`` at ea = EA L^2/B; None without ref)."""
+    loads = end_loads(scene, eq.q, R, eq.neighbourhood)
+    ok = None if ref is None else reference_check(ref, ea).valid
+    return {"R": R, "M": loads.M, "T": loads.T, "m": loads.M / B, "t": loads.T / B,  # L = 1
+            "m_analytic": None if ref is None else ref.m, "t_analytic": None if ref is None else ref.t,
+            "reference_valid": ok,
+            "theta_max": float(tangent_angles(eq.x).max()),
+            "theta_max_analytic": None if ref is None else ref.theta_max,
+            "Lk": eq.Lk, "Wr": eq.Wr, "Tw": eq.Tw, "Lk_expected": R / (2 * math.pi),
+            "Wr_analytic": None if ref is None else ref.Wr, "Tw_analytic": None if ref is None else ref.Tw,
+            "morse": eq.stability.n_negative, "stable": bool(eq.stability.stable),
+            "lowest_eigenvalue": float(eq.stability.eigenvalues[0])}
+
+
+def helix_root_row(name, ref, check, state=None, attempted=False, note=None):
+    """One root's comparison with its analytic loop: the dict of its name, the analytic m, t and
+    lambda of ``ref`` (``LocalizedHelix``), whether the reference applies (``check``, a
+    ``ReferenceCheck``: reference_valid, reference_reason), and from ``state`` (``helix_state``,
+    None where not solved) the computed m, t, their relative errors (None where the reference
+    does not apply), morse, stable and converged (True; where not solved None, or False where
+    Newton was ``attempted`` and failed, with ``note``, why it was left out)."""
+    row = {"root": name, "m_analytic": ref.m, "t_analytic": ref.t, "lambda": ref.lam,
+           "reference_valid": check.valid, "reference_reason": check.reason}
+    if state is not None:
+        row.update(m=state["m"], t=state["t"], m_rel_error=relative_error(state["m"], ref.m, check.valid),
+                   t_rel_error=relative_error(state["t"], ref.t, check.valid), morse=state["morse"],
+                   stable=state["stable"], converged=True)
+    else:
+        row.update(m=None, t=None, m_rel_error=None, t_rel_error=None, morse=None, stable=None,
+                   converged=False if attempted else None, note=note)
+    return row
+
+
+@dataclass(frozen=True)
+class HelixProfiles:
+    """A clamped rod's loop beside the localized helix (``helix_profiles``), lengths in units of L:
+    s_edge (N-1,) the edges' midpoints from the rod's middle, theta (N-1,) their tangent angles
+    to the axis (rad) and theta_analytic (N-1,) the helix's; s_node (N,) the nodes' arc lengths,
+    x (N, 3) the nodes turned about the axis onto the helix and r (N, 3) the helix's centreline,
+    both shifted so that the first edge's midpoint is at the origin."""
+
+    s_edge: np.ndarray
+    theta: np.ndarray
+    theta_analytic: np.ndarray
+    s_node: np.ndarray
+    x: np.ndarray
+    r: np.ndarray
+
+    def max_distance(self):
+        """The largest distance (units of L) between a node and its analytic counterpart."""
+        return float(np.max(np.linalg.norm(self.x - self.r, axis=1)))
+
+
+def helix_profiles(x, ref, L=1.0):
+    """``HelixProfiles`` of the nodes x (N, 3) of a clamped rod of length L along z (edges 0 and
+    N-2 the clamps) against the localized helix ``ref`` (``LocalizedHelix``): the tangent angles
+    of the edges and the centreline, the computed loop turned about the axis (a symmetry) onto
+    the analytic one."""
+    N = len(x)
+    theta = tangent_angles(x)
+    h_edge = L / (theta.size - 1)
+    s_edge = np.arange(theta.size) * h_edge - 0.5 * L
+    theta_exact = np.arccos(np.clip(1.0 - 2.0 * ref.lam ** 2 / ref.t / np.cosh(ref.lam * s_edge / L) ** 2, -1, 1))
+    s_node = (np.arange(N) - 0.5) * h_edge - 0.5 * L
+    _, _, r = localized_helix_curve(ref.m, ref.t, s_node, L)
+    r = r - 0.5 * (r[0] + r[1])
+    x = x - 0.5 * (x[0] + x[1])
+    ang = math.atan2(float(np.sum(x[:, 0] * r[:, 1] - x[:, 1] * r[:, 0])), float(np.sum(x[:, :2] * r[:, :2])))
+    c, s_ = math.cos(ang), math.sin(ang)
+    x = np.stack([c * x[:, 0] - s_ * x[:, 1], s_ * x[:, 0] + c * x[:, 1], x[:, 2]], axis=1)
+    return HelixProfiles(s_edge=s_edge, theta=theta, theta_analytic=theta_exact, s_node=s_node, x=x, r=r)
