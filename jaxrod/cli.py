@@ -1869,8 +1869,8 @@ def _main(argv):
 
         if isinstance(exc, NoCrossingError):
             advice = {"michell": "no critical twist up to twice Michell's value: raise --N",
-                      "critical-curve": "no instability at the start ratio: widen --span, start at another ratio "
-                                        "(--start) or raise --N"}.get(
+                      "critical-curve": "no instability within --span at a ratio of --ratios: widen --span or "
+                                        "raise --N"}.get(
                 args.command, "no critical twist in the range: widen it (--phi-min / --phi-max) or raise --N")
         elif isinstance(exc, ConvergenceError):
             advice = ("no equilibrium found: raise --N (for a knot, edges no longer than the diameter: "
