@@ -74,7 +74,9 @@ class ContinuationOptions:
     check_branch: refuse a stable step across which one of the last state's lowest shape modes is
       predicted, by its eigenvalue's derivative along the branch, to cross zero; the end is then
       located as any other (``continuation.branch_check``: a minimiser past a branch point lands
-      on the stable state beside the branch, and the instability was reported late). Default True.
+      on the stable state beside the branch, and the instability was reported late); and halve,
+      then accept with a warning, a step whose corrected state's lowest eigenvalues are not those
+      predicted along the branch (``branch_check.departure``). Default True.
 
     ``updated(**values)`` is a copy with the values that are not None replaced.
     """
