@@ -32,7 +32,8 @@ fold at 13.2218 pi): that is what the warning says.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import cached_property
 
 import jax
 import jax.numpy as jnp
@@ -88,49 +89,101 @@ def branch_tangent(scene, e, tangent, floor, modes=CHECKED_MODES):
     return du
 
 
-def mode_slopes(scene, e, du, vectors):
-    """(m,) d lam_j / d phi along the branch at the equilibrium e for the unit eigenvectors
-    ``vectors`` (n, m) (scaled DOFs): v^T (D_u H [du] + d_phi H) v with du the scaled branch
-    tangent (``branch_tangent``), by one third-derivative contraction per mode
-    (``scene_bilinear_gradient``)."""
-    u = scene.to_scaled(np.asarray(e.q, dtype=float))
-    out = []
-    for v in np.asarray(vectors, dtype=float).T:
-        gu, gp = scene_bilinear_gradient(scene, u, e.phi, e.neighbourhood, v, v, 0.0)
-        out.append(float(np.dot(np.asarray(gu), du) + float(gp)))
-    return np.asarray(out)
+@dataclass(frozen=True)
+class BranchModel:
+    """The lowest eigenpairs of an accepted equilibrium and their first-order change along the
+    branch: one model per step, shared by the crossing and the departure tests.
+
+    prev: the equilibrium (with its stability); du: (n,) its scaled branch tangent
+    (``branch_tangent``); eigenvalues: (m,); vectors: (n, m) scaled DOFs. ``slopes`` (m,) d lam / d
+    phi and ``block`` (m, m) v_i^T (dH along the branch) v_j are computed when first asked for
+    (``scene_bilinear_gradient``: m contractions for the slopes, m (m - 1) / 2 more for the block)."""
+
+    scene: object
+    prev: object
+    du: np.ndarray = field(repr=False)
+    eigenvalues: np.ndarray
+    vectors: np.ndarray = field(repr=False)
+
+    def _contraction(self, a, c):
+        u = self.scene.to_scaled(np.asarray(self.prev.q, dtype=float))
+        gu, gp = scene_bilinear_gradient(self.scene, u, self.prev.phi, self.prev.neighbourhood, a, c, 0.0)
+        return float(np.dot(np.asarray(gu), self.du) + float(gp))
+
+    @cached_property
+    def slopes(self):
+        return np.asarray([self._contraction(v, v) for v in self.vectors.T])
+
+    @cached_property
+    def block(self):
+        m = self.eigenvalues.size
+        block = np.diag(self.slopes)
+        for i in range(m):
+            for j in range(i + 1, m):
+                block[i, j] = block[j, i] = self._contraction(self.vectors[:, i], self.vectors[:, j])
+        return block
+
+    def crossing(self, phi, floor, keep=None):
+        """The first mode predicted to cross zero between prev.phi and phi, as a ``Crossing``, or
+        None: where lam > 0, lam + s dphi < 0 and the predicted change |s dphi| exceeds ``floor``
+        (the near-zero band of a loose knot's sliding modes, ``negative_tol``: a change inside it
+        is not resolved). keep: a function (n, k) vectors -> (k,) bools, the modes that may count
+        (a knot's slides are left out by the caller)."""
+        lam, vec = self.eigenvalues, self.vectors
+        candidates = np.nonzero(lam > 0.0)[0]
+        if not candidates.size:
+            return None
+        slopes = self.slopes[candidates]
+        dphi = float(phi - self.prev.phi)
+        linear = lam[candidates] + slopes * dphi
+        crossing = (linear < 0.0) & (np.abs(slopes * dphi) > floor)
+        if keep is not None and np.any(crossing):
+            crossing[crossing] = np.asarray(keep(vec[:, candidates[crossing]]), dtype=bool)
+        if not np.any(crossing):
+            return None
+        zero = np.where(crossing, self.prev.phi - lam[candidates] / np.where(slopes != 0.0, slopes, np.inf), np.inf)
+        first = int(np.argmin(np.abs(zero - self.prev.phi)))
+        j = int(candidates[first])
+        return Crossing(index=j, eigenvalue=float(lam[j]), slope=float(slopes[first]), phi=float(zero[first]),
+                        mode=vec[:, j].copy())
+
+    def departure(self, new, floor):
+        """A ``Departure`` where the corrected equilibrium ``new``'s lowest eigenvalues are not the
+        model's predicted to its twist: the eigenvalues of diag(lam) + dphi block (degenerate
+        perturbation theory: a near-degenerate pair of a three-fold knot turns inside its plane
+        from step to step, so its members are predicted together, not one by one), compared in
+        ascending order (no eigenvector matching is needed), all but the highest (an eigenvalue may
+        come down from above it), each allowed |predicted - lam| + DEPARTURE_RELATIVE |predicted| +
+        DEPARTURE_FLOOR floor; None where they agree. The contact energy is C2, so the eigenvalues
+        are continuous along a branch: a shorter step meets the tolerance, unless the corrector
+        lands on another state."""
+        m = min(self.eigenvalues.size, len(new.stability.eigenvalues))
+        if m < 2:
+            return None
+        lam = self.eigenvalues[:m]
+        predicted = np.linalg.eigvalsh(np.diag(lam) + float(new.phi - self.prev.phi) * self.block[:m, :m])
+        measured = np.sort(np.asarray(new.stability.eigenvalues[:m], dtype=float))
+        tolerance = np.abs(predicted - lam) + DEPARTURE_RELATIVE * np.abs(predicted) + DEPARTURE_FLOOR * floor
+        miss = (np.abs(measured - predicted) - tolerance)[:m - 1]
+        if not np.any(miss > 0.0):
+            return None
+        return Departure(int(np.argmax(miss)), predicted, measured, tolerance)
+
+
+def branch_model(scene, prev, tangent, floor, modes=CHECKED_MODES):
+    """The ``BranchModel`` of the accepted equilibrium ``prev`` (with its stability; ``tangent``
+    dq/dphi there, physical DOFs) over its lowest ``modes`` eigenpairs; floor: as in
+    ``branch_tangent``."""
+    st = prev.stability
+    m = min(modes, len(st.eigenvalues))
+    return BranchModel(scene, prev, branch_tangent(scene, prev, tangent, floor, modes),
+                       np.asarray(st.eigenvalues[:m], dtype=float), np.asarray(st.eigenvectors)[:, :m])
 
 
 def predicted_crossing(scene, prev, tangent, phi, floor, modes=CHECKED_MODES, keep=None):
-    """The first of the lowest ``modes`` eigenpairs of the accepted equilibrium ``prev`` (with
-    its stability; ``tangent`` dq/dphi there) predicted to cross zero between prev.phi and phi,
-    as a ``Crossing``, or None.
-
-    A mode crosses where lam > 0, lam + s dphi < 0 and the predicted change |s dphi| exceeds
-    ``floor`` (the near-zero band of a loose knot's sliding modes, ``negative_tol``: a change
-    inside it is not resolved). keep: a function (n, m) vectors -> (m,) bools, the modes that may
-    count (a knot's slides are left out by the caller)."""
-    st = prev.stability
-    m = min(modes, len(st.eigenvalues))
-    lam = np.asarray(st.eigenvalues[:m], dtype=float)
-    vec = np.asarray(st.eigenvectors)[:, :m]
-    candidates = np.nonzero(lam > 0.0)[0]
-    if not candidates.size:
-        return None
-    slopes = mode_slopes(scene, prev, branch_tangent(scene, prev, tangent, floor, modes), vec[:, candidates])
-    dphi = float(phi - prev.phi)
-    linear = lam[candidates] + slopes * dphi
-    crossing = (linear < 0.0) & (np.abs(slopes * dphi) > floor)
-    if keep is not None and np.any(crossing):
-        crossing[crossing] = np.asarray(keep(vec[:, candidates[crossing]]), dtype=bool)
-    if not np.any(crossing):
-        return None
-    zero = np.where(crossing, prev.phi - lam[candidates] / np.where(slopes != 0.0, slopes, np.inf), np.inf)
-    first = int(np.argmin(np.abs(zero - prev.phi)))
-    j = int(candidates[first])
-    return Crossing(index=j, eigenvalue=float(lam[j]), slope=float(slopes[first]), phi=float(zero[first]),
-                    mode=vec[:, j].copy())
-
+    """The first of the lowest ``modes`` eigenpairs of the accepted equilibrium ``prev`` predicted
+    to cross zero between prev.phi and phi (``BranchModel.crossing``), or None."""
+    return branch_model(scene, prev, tangent, floor, modes).crossing(phi, floor, keep)
 
 
 # A corrected state's lowest eigenvalues may differ from their prediction by the predicted change
@@ -158,43 +211,8 @@ class Departure:
                 f"(more than {self.tolerance[j]:.1e} off)")
 
 
-def predicted_block(scene, prev, du, modes=CHECKED_MODES):
-    """The lowest eigenvalues of the accepted equilibrium ``prev`` predicted to first order, as a
-    function dphi -> ascending (m,): the eigenvalues of diag(lam) + dphi M, M_ij = v_i^T (dH
-    along the branch du) v_j over the lowest m eigenvectors (degenerate perturbation theory: a
-    near-degenerate pair of a three-fold knot turns inside its plane from step to step, so its
-    members are predicted together, not one by one)."""
-    st = prev.stability
-    m = min(modes, len(st.eigenvalues))
-    lam = np.asarray(st.eigenvalues[:m], dtype=float)
-    vec = np.asarray(st.eigenvectors)[:, :m]
-    u = scene.to_scaled(np.asarray(prev.q, dtype=float))
-    block = np.zeros((m, m))
-    for i in range(m):
-        for j in range(i, m):
-            gu, gp = scene_bilinear_gradient(scene, u, prev.phi, prev.neighbourhood, vec[:, i], vec[:, j], 0.0)
-            block[i, j] = block[j, i] = float(np.dot(np.asarray(gu), du) + float(gp))
-    return lambda dphi: np.linalg.eigvalsh(np.diag(lam) + dphi * block)
-
-
 def departure(scene, prev, tangent, new, floor, modes=CHECKED_MODES):
     """A ``Departure`` where the corrected equilibrium ``new``'s lowest eigenvalues are not the
-    accepted equilibrium ``prev``'s predicted along the branch (``predicted_block``), compared in
-    ascending order (no eigenvector matching is needed), all but the highest of the m (an
-    eigenvalue may come down from above it), each allowed |predicted - lam| + DEPARTURE_RELATIVE
-    |predicted| + DEPARTURE_FLOOR floor; None where they agree. The contact energy is C2, so the
-    eigenvalues are continuous along a branch: a shorter step meets the tolerance, unless the
-    corrector lands on another state."""
-    st = prev.stability
-    m = min(modes, len(st.eigenvalues), len(new.stability.eigenvalues))
-    if m < 2:
-        return None
-    lam = np.asarray(st.eigenvalues[:m], dtype=float)
-    du = branch_tangent(scene, prev, tangent, floor, m)
-    predicted = predicted_block(scene, prev, du, m)(float(new.phi - prev.phi))
-    measured = np.sort(np.asarray(new.stability.eigenvalues[:m], dtype=float))
-    tolerance = np.abs(predicted - lam) + DEPARTURE_RELATIVE * np.abs(predicted) + DEPARTURE_FLOOR * floor
-    miss = (np.abs(measured - predicted) - tolerance)[:m - 1]
-    if not np.any(miss > 0.0):
-        return None
-    return Departure(int(np.argmax(miss)), predicted, measured, tolerance)
+    accepted equilibrium ``prev``'s predicted along the branch (``BranchModel.departure``), or
+    None."""
+    return branch_model(scene, prev, tangent, floor, modes).departure(new, floor)

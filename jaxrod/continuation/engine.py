@@ -23,7 +23,7 @@ from ..sparse_branch import EXTRA_PAIRS, solve_equilibrium_sparse, sparse_branch
 from ..sparse_contact import SPARSE_MIN_DOF, deflated_newton_direction, use_sparse
 from ..equilibrium import equilibrium_from_solution, scaled_energy
 from ..stability import SLIDING_FRACTION, branch_analysis, sliding_fraction
-from .branch_check import departure, predicted_crossing
+from .branch_check import branch_model
 from ..symmetry import ROUND_OFF_ASYMMETRY, SYMMETRIC_TOL, joint_two_fold, symmetrize, two_fold_asymmetry
 from .options import ContinuationOptions, Task
 
@@ -68,6 +68,9 @@ class _Step:
     dlambda_dphi: float = math.nan
     mode: np.ndarray | None = field(default=None, repr=False)
     refusal: _Refusal | None = None
+    # an accepted minimiser step whose lowest eigenvalues are not those predicted along the branch
+    # (``branch_check.Departure``), or None
+    departure: object = None
 
     @property
     def ok(self):
@@ -210,29 +213,31 @@ class _Engine:
         n_negative = s.equilibrium.stability.n_negative
         if n_negative > 0:
             return replace(s, refusal=_Refusal(StepFailure.UNSTABLE, f"{n_negative} negative eigenvalue(s)"))
-        crossing = self.predicted_crossing(prev, tangent, phi)
+        model = self.branch_model(prev, tangent)
+        if model is None:
+            return s
+        crossing = model.crossing(phi, self.opts.negative_tol, self._shape_modes(prev))
         if crossing is not None:
             # stable at both ends, but a mode is predicted to cross zero in between: locate it (a
             # minimiser past a branch point lands on the stable state beside the branch)
             return replace(s, refusal=_Refusal(StepFailure.UNSTABLE, crossing.detail(), modes=crossing.mode[:, None],
                                                predicted=True))
-        return s
+        return replace(s, departure=model.departure(s.equilibrium, self.opts.negative_tol))
+
+    def branch_model(self, prev, tangent):
+        """prev's ``branch_check.BranchModel`` (its lowest eigenpairs predicted along the branch),
+        or None where ``check_branch`` is off or prev has no stability."""
+        if not self.opts.check_branch or prev.stability is None:
+            return None
+        return branch_model(self.scene, prev, tangent, self.opts.negative_tol)
 
     def predicted_crossing(self, prev, tangent, phi):
         """The first of prev's lowest shape modes predicted, by its eigenvalue's derivative along
         the branch, to cross zero between prev.phi and phi (``branch_check.Crossing``), or None
         (also where ``check_branch`` is off or prev has no stability). A loose knot's near-zero
         slides are not judged: they change sign from step to step without changing the shape."""
-        if not self.opts.check_branch or prev.stability is None:
-            return None
-        return predicted_crossing(self.scene, prev, tangent, phi, self.opts.negative_tol, keep=self._shape_modes(prev))
-
-    def departure(self, prev, tangent, e):
-        """A ``branch_check.Departure`` where the corrected state e's lowest eigenvalues are not
-        prev's predicted along the branch, or None (also where ``check_branch`` is off)."""
-        if not self.opts.check_branch or prev.stability is None or e.stability is None:
-            return None
-        return departure(self.scene, prev, tangent, e, self.opts.negative_tol)
+        model = self.branch_model(prev, tangent)
+        return None if model is None else model.crossing(phi, self.opts.negative_tol, self._shape_modes(prev))
 
     def _shape_modes(self, prev):
         """None, or for a knot with contact the filter that leaves its slides out of a check."""

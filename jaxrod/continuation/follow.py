@@ -198,13 +198,13 @@ class _Follower:
         s = self.engine.step(prev, state.tangent, phi_next)
         hidden = _hidden_shape_modes(self.engine, s.equilibrium) if s.ok else None
         if s.ok and hidden is None:
-            gone = self.engine.departure(prev, state.tangent, s.equilibrium)
+            gone = s.departure
             if gone is not None and abs(phi_next - prev.phi) > step / DEPARTURE_REFINE:
                 # the corrected state's spectrum is not the one predicted along the branch: shorter
                 self.say(f"[{state.branch}] phi = {phi_next / math.pi:+.5f} pi not as predicted ({gone.detail()}): "
                          "step halved")
                 return replace(state, h=0.5 * abs(phi_next - prev.phi))
-            self._warn_if_departed(state, s, gone)
+            self._warn_if_departed(state, s)
             return self._accept(state, s, h=min(step, 2.0 * state.h))
         if hidden is not None:
             # Converged, every eigenvalue above -negative_tol, but a mode that changes the shape
@@ -235,12 +235,10 @@ class _Follower:
                        lost_equilibrium=s.equilibrium, lost_from=prev.phi, failures=0, successes=0, probe_held=False,
                        critical_modes=critical)
 
-    def _warn_if_departed(self, state, s, gone=False):
+    def _warn_if_departed(self, state, s):
         """Warn where the accepted step s's corrected state is not the one predicted along the
-        branch (``branch_check.departure``; gone: already computed, or False to compute it)."""
-        prev = state.prev
-        if gone is False:
-            gone = self.engine.departure(prev, state.tangent, s.equilibrium)
+        branch (``_Step.departure``)."""
+        prev, gone = state.prev, s.departure
         if gone is None:
             return
         phi = s.equilibrium.phi
