@@ -1,5 +1,5 @@
 """Accuracy asked for (issue 18, item 2): both critical twists of the trefoil (8, 292) to 0.01 pi by
-``jaxrod.convergence.converged_critical_twists`` (levels N = 61, 121, 241, ...; Richardson with the
+``jaxrod.studies.accuracy.converged_critical_twists`` (levels N = 61, 121, 241, ...; Richardson with the
 order measured), in one process, compiled as it runs (a cold start). Writes
 benchmarks/results/accuracy_trefoil.json (levels, extrapolations, seconds) and .png.
 
@@ -20,8 +20,8 @@ import matplotlib  # noqa: E402
 matplotlib.use("Agg")
 
 import jaxrod as jr  # noqa: E402
-from jaxrod.convergence import converged_critical_twists  # noqa: E402
-from jaxrod.plotting import plot_resolution_convergence  # noqa: E402
+from jaxrod.studies.accuracy import converged_critical_twists  # noqa: E402
+from jaxrod.io.plotting import plot_resolution_convergence  # noqa: E402
 
 RESULTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results")
 

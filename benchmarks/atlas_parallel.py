@@ -26,7 +26,7 @@ RATIOS = [0.01, 0.015, 0.02, 0.0274, 0.03, 0.035]
 def main(argv):
     from distributed import Client, LocalCluster
 
-    from jaxrod import atlas
+    from jaxrod.studies import atlas
 
     workers = int(argv[0]) if argv else 2
     tmp = tempfile.mkdtemp(prefix="atlas_parallel_")

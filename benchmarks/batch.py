@@ -2,7 +2,7 @@
 
 Two kinds of work, each on B independent members of equal size (the trefoil (8, 292) mm, N = 61):
 
-* dynamics: B noisy damped-dynamics chunks (200 steps each, ``jaxrod.dynamics._run_chunk``), one
+* dynamics: B noisy damped-dynamics chunks (200 steps each, ``jaxrod.solve.dynamics._run_chunk``), one
   member per seed: a serial loop of the jitted chunk against one ``jax.vmap`` of it over the seeds
   (the ramp-rate / noise study of issue 9 is such a batch);
 * stability: the B Hessians' full eigen-decompositions (``jnp.linalg.eigh``, 366 x 366, the
@@ -40,15 +40,15 @@ def main(argv):
     import numpy as np
 
     import jaxrod as jr
-    from jaxrod.dynamics import _run_chunk
-    from jaxrod.hessian import scaled_hessian
+    from jaxrod.solve.dynamics import _run_chunk
+    from jaxrod.model.hessian import scaled_hessian
 
     sizes = [int(a) for a in argv] or [2, 4, 8]
     knot = jr.trefoil(D=8.0, L=292.0, N=61)
     start = jr.relax(knot, 0.0, options=jr.RelaxOptions(with_stability=False))
     nbr = start.neighbourhood
     u0 = jnp.asarray(knot.to_scaled(start.q))
-    dt = jr.dynamics.stable_time_step(knot, start.q, 0.0)
+    dt = jr.solve.dynamics.stable_time_step(knot, start.q, 0.0)
     args = (jnp.asarray(0.0), nbr)
     consts = (jnp.asarray(1e-2 * dt), jnp.asarray(dt), jnp.asarray(1.0), jnp.asarray(math.sqrt(2e-6 * dt)))
 

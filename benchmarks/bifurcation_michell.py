@@ -1,11 +1,11 @@
-"""Michell's ring through jaxrod.bifurcation (issue 17, acceptance 4): the double branch point from
+"""Michell's ring through jaxrod.continuation.arclength (issue 17, acceptance 4): the double branch point from
 the extended system against ``critical_twist``, and the buckled branch switched onto from it and
 continued, with its Morse index, until the rod touches itself (or 2 phi*).
 
 Steps, in one process (times include JIT compilation, one per problem shape):
   1. ``critical_twist`` (tol 1e-10 pi) at the default gtol (1e-9) and at gtol = 3e-11: the reference.
   2. The trivial branch (planar circle, uniform twist) with the gauge pinned (7 DOFs,
-     ``jaxrod.bifurcation.rods.pinned_problem``), phi = 0 .. 1.2 phi_Michell; the degenerate pair's
+     ``jaxrod.continuation.arclength.rods.pinned_problem``), phi = 0 .. 1.2 phi_Michell; the degenerate pair's
      crossing located by Brent on each eigenvalue and grouped into one double branch point.
   3. ``emanating_directions`` there: the reduced equations say whether the buckled solutions are
      isolated or a circle (the buckle slid along the ring), pitchfork or transcritical, and the
@@ -36,10 +36,10 @@ import numpy as np  # noqa: E402
 from scipy.optimize import brentq  # noqa: E402
 
 import jaxrod as jr  # noqa: E402
-from jaxrod.bifurcation import (ContinuationOptions, PseudoArclength, Result, continuation,  # noqa: E402
+from jaxrod.continuation.arclength import (ContinuationOptions, PseudoArclength, Result, continuation,  # noqa: E402
                                 emanating_directions, switch_branches)
-from jaxrod.bifurcation.corrector import correct  # noqa: E402
-from jaxrod.bifurcation.rods import pinned_problem, sliding_slice  # noqa: E402
+from jaxrod.continuation.arclength.corrector import correct  # noqa: E402
+from jaxrod.continuation.arclength.rods import pinned_problem, sliding_slice  # noqa: E402
 
 NU = 0.5
 N = int(sys.argv[1]) if len(sys.argv) > 1 else 64
@@ -115,10 +115,10 @@ def locate_contact(rod8, a, b, D, opts):
 
 
 def exact_circle_roots(scene, phi_guess):
-    """phi where each of the two lowest eigenvalues of the projected Hessian (``jaxrod.stability.
+    """phi where each of the two lowest eigenvalues of the projected Hessian (``jaxrod.linalg.stability.
     spectrum``, critical_twist's matrix) vanishes on the exactly built twisted circle (nodes of the
     regular polygon, theta_i = i phi / N): Brent on each, a reference free of any equilibrium solve."""
-    from jaxrod.stability import spectrum
+    from jaxrod.linalg.stability import spectrum
 
     n = scene.n_nodes
     q0 = np.asarray(scene.q_init, dtype=float)
@@ -301,7 +301,7 @@ def write_md(v):
     last = rows[-1]
     morse = sorted({r["morse_index"] for r in rows})
     L = []
-    L.append(f"# Michell's ring through jaxrod.bifurcation (issue 17, acceptance 4), N = {N}\n")
+    L.append(f"# Michell's ring through jaxrod.continuation.arclength (issue 17, acceptance 4), N = {N}\n")
     L.append(f"nu = {NU} (C = B/(1 + nu)), D/R = {D:g}, B = R = 1; Michell's continuum phi* = "
              f"{PHI_M / PI:.10f} pi. Machine: {platform.machine()}, {os.cpu_count()} cores, jax {jax.__version__}. "
              f"Produced by `python benchmarks/bifurcation_michell.py {N}`.\n")

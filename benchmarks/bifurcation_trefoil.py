@@ -1,11 +1,11 @@
-"""The twisted trefoil's branch ends through jaxrod.bifurcation (issue 17, acceptance 1 in part):
+"""The twisted trefoil's branch ends through jaxrod.continuation.arclength (issue 17, acceptance 1 in part):
 the symmetric branch followed by pseudo-arclength continuation through each branch end onto the
 unstable branch, each end located by Newton on the minimally augmented fold system, from several
 starts and step limits.
 
 The paper's rod (D, L) = (8, 292) mm, N = 121 (command 1). For each side (opening phi > 0,
 tightening phi < 0): states on the symmetric branch from the stable-only engine (``follow_twist``,
-big steps), then ``jaxrod.bifurcation.continuation`` on ``knot_problem`` (gauge pinned, contact and
+big steps), then ``jaxrod.continuation.arclength.continuation`` on ``knot_problem`` (gauge pinned, contact and
 writhe through a neighbourhood, sliding modes split off by their shape) from two starts and with
 three step limits, until the path is well past the fold. The located folds are compared with one
 another (step and start independence) and with the README's values of today's engine.
@@ -31,8 +31,8 @@ from dataclasses import replace  # noqa: E402
 import numpy as np  # noqa: E402
 
 import jaxrod as jr  # noqa: E402
-from jaxrod.bifurcation import ContinuationOptions, PseudoArclength, Result, continuation  # noqa: E402
-from jaxrod.bifurcation.rods import knot_problem  # noqa: E402
+from jaxrod.continuation.arclength import ContinuationOptions, PseudoArclength, Result, continuation  # noqa: E402
+from jaxrod.continuation.arclength.rods import knot_problem  # noqa: E402
 
 PI = math.pi
 N = 121
@@ -157,7 +157,7 @@ def plot(rows, summary):
         ax.set_title(f"{'tightening' if side == 'minus' else 'opening'} end: fold at "
                      f"{summary[side]['phi_over_pi']:+.7f} pi")
         ax.legend(fontsize=8)
-    fig.suptitle(f"Trefoil (8, 292) mm, N = {N}: the symmetric branch through its folds (jaxrod.bifurcation)")
+    fig.suptitle(f"Trefoil (8, 292) mm, N = {N}: the symmetric branch through its folds (jaxrod.continuation.arclength)")
     fig.tight_layout()
     fig.savefig(os.path.join(OUT, "bifurcation_trefoil.png"), dpi=120)
 

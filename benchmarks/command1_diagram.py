@@ -1,5 +1,5 @@
 """Command 1 with its whole bifurcation diagram (each branch end located on the extended system,
-the unstable branch beyond it: ``jaxrod.diagram``) against the stable-only study (``--stable-only``,
+the unstable branch beyond it: ``jaxrod.studies.diagram``) against the stable-only study (``--stable-only``,
 today's engine), as a user runs it: two CLI processes per setting, the second reusing the first's
 compile cache (XDG_CACHE_HOME in a fresh temporary folder per setting and round), side by side.
 

@@ -10,7 +10,7 @@ instability against a fine-step reference.
    followed by pseudo-arclength continuation in small steps (``ds_max`` 0.05, scaled arclength:
    under 0.016 pi of twist per step), the Morse index of the shape modes (sliding modes split off by
    their shape) watched at every point, and the first fold or branch point at which it grows located
-   on its extended system (``jaxrod.diagram.follow_branch_end``). Newton keeps that path on the one
+   on its extended system (``jaxrod.studies.diagram.follow_branch_end``). Newton keeps that path on the one
    branch of equilibria through the start; the stable-only study can leave it (a jump) or pass an
    event between two of its steps. Where the two differ, the reference's value is the first
    instability of the equilibrium branch through the study's start.
@@ -93,8 +93,8 @@ def run_study(ratio):
 def run_reference(ratio, side, study_out):
     """The first fold or branch point on the branch through the point study's state at phi = 0,
     followed in small pseudo-arclength steps (see the module docstring)."""
-    from jaxrod.diagram import DiagramOptions, follow_branch_end
-    from jaxrod.scenes import trefoil
+    from jaxrod.studies.diagram import DiagramOptions, follow_branch_end
+    from jaxrod.model.scenes import trefoil
 
     t = time.perf_counter()
     with np.load(os.path.join(study_out, "steps", f"{side}_0000.npz")) as f:

@@ -3,7 +3,7 @@
 ``jaxrod trefoil --D 8 --L 292 --N 121 --phi-min -12pi --phi-max 14pi --step S`` for S = 0.25, 0.5
 and 1 pi, one after another on one compile cache (XDG_CACHE_HOME in a fresh temporary folder).
 Each study's last stable state before a branch end is the start of that end's pseudo-arclength
-path (``jaxrod.diagram``), so the step changes the start; the located end must not change (1e-8 pi).
+path (``jaxrod.studies.diagram``), so the step changes the start; the located end must not change (1e-8 pi).
 Reports, per step and end: kind, located phi, within the study's bracket or not, and the spread
 over the steps of each end located inside its bracket.
 

@@ -46,7 +46,7 @@ def main(argv):
     t_cont = time.perf_counter() - t0
     phi_c, err_c = path.instabilities[0].phi, path.instabilities[0].phi_error
     print(f"continuation: branch end {phi_c / PI:.4f} pi +- {err_c / PI:.1e} in {t_cont:.1f} s (compilation included)")
-    dt = jr.dynamics.stable_time_step(knot, start.q, 0.0)
+    dt = jr.solve.dynamics.stable_time_step(knot, start.q, 0.0)
     rows, traces = [], []
     for rate in rates:
         r = jr.damped_dynamics(knot, 0.0, PHI_STOP, rate, start.q,

@@ -70,7 +70,7 @@ def run(N=121, rates=(1e-2, 3e-3, 1e-3)):
     t0 = time.perf_counter()
     start = jr.relax_to_minimum(knot, 0.0)
     t_relax = time.perf_counter() - t0
-    dt = jr.dynamics.stable_time_step(knot, start.q, 0.0)
+    dt = jr.solve.dynamics.stable_time_step(knot, start.q, 0.0)
     for side, stop in SIDES.items():
         ends = {}
         for tol in (TARGET, 2e-4 * PI):

@@ -35,8 +35,8 @@ SEEDS = (1, 2)
 
 def main(argv):
     import jaxrod as jr
-    from jaxrod.analysis import count_peaks, symmetry_order
-    from jaxrod.records import step_record
+    from jaxrod.measure.analysis import count_peaks, symmetry_order
+    from jaxrod.io.records import step_record
 
     N = int(argv[0]) if argv else 121
     rate = float(argv[1]) if len(argv) > 1 else 1e-2
@@ -55,7 +55,7 @@ def main(argv):
                  "Wr": first.equilibrium.Wr, "peaks": count_peaks(extra["kappa_L"]),
                  "symmetry_order": symmetry_order(extra["kappa_L"]), "seconds": time.perf_counter() - t0})
     print(rows[-1], flush=True)
-    dt = jr.dynamics.stable_time_step(knot, start.q, 0.0)
+    dt = jr.solve.dynamics.stable_time_step(knot, start.q, 0.0)
     end = path.instabilities[0]
     last = end.equilibrium  # the last stable symmetric state, just before the branch end
 

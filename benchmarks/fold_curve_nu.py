@@ -2,7 +2,7 @@
 Poisson ratio), by two-parameter continuation of the located fold, against point studies.
 
 The paper's rod (D, L) = (8, 292) mm, N = 121. The opening branch end (a fold) is located at nu = 0.5
-by ``jaxrod.bifurcation.continuation`` on ``knot_problem``, then followed in nu by ``fold_curve``
+by ``jaxrod.continuation.arclength.continuation`` on ``knot_problem``, then followed in nu by ``fold_curve``
 with ``set_poisson_ratio`` (C = B/(1 + nu), B fixed) down to nu = 0: pseudo-arclength on the fold
 system, with dphi*/dnu from the implicit function theorem at every point.
 
@@ -33,8 +33,8 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 import jaxrod as jr  # noqa: E402
-from jaxrod.bifurcation import ContinuationOptions, PseudoArclength, continuation, fold_at, fold_curve  # noqa: E402
-from jaxrod.bifurcation.rods import knot_problem, set_poisson_ratio  # noqa: E402
+from jaxrod.continuation.arclength import ContinuationOptions, PseudoArclength, continuation, fold_at, fold_curve  # noqa: E402
+from jaxrod.continuation.arclength.rods import knot_problem, set_poisson_ratio  # noqa: E402
 
 PI = math.pi
 D, L, N = 8.0, 292.0, 121

@@ -1,10 +1,10 @@
 """The trefoil's critical twists as curves phi*+-(D/L) (issue 17, item 5 / acceptance 6).
 
 D is varied at fixed L = 292 mm and N = 128 (N >= L/D down to D/L = 0.0079), E and nu fixed, so
-B, C ~ D^4, EA ~ D^2 and the contact distance is D (``jaxrod.bifurcation.rods.set_diameter``).
+B, C ~ D^4, EA ~ D^2 and the contact distance is D (``jaxrod.continuation.arclength.rods.set_diameter``).
 Each side's first instability is located at the paper's D/L = 8/292 (the symmetric branch from
 phi = 0 by the stable-only engine, then pseudo-arclength continuation through the event), then
-followed in D by ``jaxrod.bifurcation.event_curve``: natural-parameter continuation in D, whose
+followed in D by ``jaxrod.continuation.arclength.event_curve``: natural-parameter continuation in D, whose
 predictor is the implicit function theorem on the event's extended system and whose corrector is
 the event located again on a short pseudo-arclength run in phi at the new D (the fold system
 alone, Newton in (u, phi) at fixed D, drifts onto the knot's sliding mode: see the module
@@ -37,10 +37,10 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 import jaxrod as jr  # noqa: E402
-from jaxrod.bifurcation import ContinuationOptions, PseudoArclength  # noqa: E402
-from jaxrod.bifurcation.event_curve import EventCurveOptions, event_curve  # noqa: E402
-from jaxrod.bifurcation.rods import knot_problem, set_diameter  # noqa: E402
-from jaxrod.symmetry import two_fold_asymmetry  # noqa: E402
+from jaxrod.continuation.arclength import ContinuationOptions, PseudoArclength  # noqa: E402
+from jaxrod.continuation.arclength.event_curve import EventCurveOptions, event_curve  # noqa: E402
+from jaxrod.continuation.arclength.rods import knot_problem, set_diameter  # noqa: E402
+from jaxrod.model.symmetry import two_fold_asymmetry  # noqa: E402
 
 PI = math.pi
 L, N, D0, NU = 292.0, 128, 8.0, 0.5
@@ -273,7 +273,7 @@ def report(s):
     lines = ["# The trefoil's critical twists against D/L: event curves against point studies", "",
              f"L = {s['L']:g} mm, N = {s['N']}, nu = {s['nu']}, D varied at fixed E (B, C ~ D^4), contact at D; "
              f"`benchmarks/fold_curve_ratio.py`. Each side's first instability followed in D/L by "
-             f"`jaxrod.bifurcation.event_curve` from D/L = {s['D0'] / s['L']:.4f} up and down.", ""]
+             f"`jaxrod.continuation.arclength.event_curve` from D/L = {s['D0'] / s['L']:.4f} up and down.", ""]
     lines += _curve_lines(s, rows)
     lines += ["", "Point studies (a new scene at that D, followed from phi = 0 on the two-fold symmetry through the joint; "
               "its event located on its own) and, for each, dphi*/d(D/L) from the IFT against central differences of two "

@@ -29,10 +29,10 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 import jaxrod as jr  # noqa: E402
-from jaxrod.bifurcation.event_curve import event_curve  # noqa: E402
-from jaxrod.bifurcation.rods import knot_problem, set_diameter  # noqa: E402
-from jaxrod.material import Material  # noqa: E402
-from jaxrod.scenes import DEFAULT_CONTACT_STIFFNESS, PAPER_YOUNG_MODULUS, trefoil_points  # noqa: E402
+from jaxrod.continuation.arclength.event_curve import event_curve  # noqa: E402
+from jaxrod.continuation.arclength.rods import knot_problem, set_diameter  # noqa: E402
+from jaxrod.model.material import Material  # noqa: E402
+from jaxrod.model.scenes import DEFAULT_CONTACT_STIFFNESS, PAPER_YOUNG_MODULUS, trefoil_points  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from fold_curve_ratio import CHECKS, L, N, NU, OUT, SIDES, options  # noqa: E402

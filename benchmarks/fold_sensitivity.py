@@ -2,7 +2,7 @@
 implicit function theorem against central differences of point studies).
 
 The twisted trefoil (D, L) = (8, 292) mm, the paper's rod. Each side's branch end is a fold, located
-by ``jaxrod.bifurcation.continuation`` on ``knot_problem`` (the minimally augmented fold system,
+by ``jaxrod.continuation.arclength.continuation`` on ``knot_problem`` (the minimally augmented fold system,
 Newton to roundoff). At the fold:
 
 - IFT: ``fold_sensitivity`` -- one bordered solve with the fold system's Jacobian, dphi*/dmu for
@@ -31,8 +31,8 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 import jaxrod as jr  # noqa: E402
-from jaxrod.bifurcation import ContinuationOptions, PseudoArclength, continuation, fold_at, fold_sensitivity  # noqa: E402
-from jaxrod.bifurcation.rods import knot_problem, set_diameter, set_poisson_ratio  # noqa: E402
+from jaxrod.continuation.arclength import ContinuationOptions, PseudoArclength, continuation, fold_at, fold_sensitivity  # noqa: E402
+from jaxrod.continuation.arclength.rods import knot_problem, set_diameter, set_poisson_ratio  # noqa: E402
 
 PI = math.pi
 D, L = 8.0, 292.0

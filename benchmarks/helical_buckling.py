@@ -16,8 +16,8 @@ for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import numpy as np  # noqa: E402
 
-from jaxrod import endloads as el  # noqa: E402
-from jaxrod.material import Material  # noqa: E402
+from jaxrod.studies import endloads as el  # noqa: E402
+from jaxrod.model.material import Material  # noqa: E402
 
 SETS = ((20.0, 300.0, 0.5), (30.0, 400.0, 0.3), (10.0, 300.0, 0.0), (15.0, 250.0, 0.5))
 NS = (120, 240, 480)

@@ -17,7 +17,7 @@ import time
 for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
-from jaxrod import endloads as el  # noqa: E402
+from jaxrod.studies import endloads as el  # noqa: E402
 from jaxrod.cli import main as cli  # noqa: E402
 
 N = 400

@@ -4,7 +4,7 @@ being stable, i.e. where it snaps back.
 
 The paper's rod (D, L) = (8, 292) mm, N = 121 (command 1). For each side: ``follow_twist`` (the
 stable-only engine) from phi = 0 through the symmetric branch's end onto the buckled branch, to
-7 pi (opening) or -12 pi (tightening); from that buckled state, ``jaxrod.bifurcation.continuation``
+7 pi (opening) or -12 pi (tightening); from that buckled state, ``jaxrod.continuation.arclength.continuation``
 on ``knot_problem`` towards phi = 0, with two step limits, until the first event that costs the
 buckled branch its stability (a fold or a branch point: the Morse index goes 0 -> 1). Soft folds
 (the path turning back along the sliding mode, a saddle-node of the discretisation's tiny
@@ -31,9 +31,9 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 import jaxrod as jr  # noqa: E402
-from jaxrod.bifurcation import ContinuationOptions, PseudoArclength, continuation  # noqa: E402
-from jaxrod.bifurcation.rods import knot_problem  # noqa: E402
-from jaxrod.topology import writhe  # noqa: E402
+from jaxrod.continuation.arclength import ContinuationOptions, PseudoArclength, continuation  # noqa: E402
+from jaxrod.continuation.arclength.rods import knot_problem  # noqa: E402
+from jaxrod.model.topology import writhe  # noqa: E402
 
 PI = math.pi
 N = 121

@@ -23,7 +23,7 @@ import jaxrod  # noqa: E402
 from jaxrod import EquilibriumOptions, critical_twist, michell_critical_twist, michell_ring, solve_equilibrium  # noqa: E402,E501
 
 NEWTON_EXACT_COUNT = EquilibriumOptions(method="newton", negative_tol=0.0)
-from jaxrod.plotting import plot_convergence  # noqa: E402
+from jaxrod.io.plotting import plot_convergence  # noqa: E402
 
 NU = 0.5
 TOL = 1e-6 * math.pi

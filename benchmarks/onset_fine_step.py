@@ -18,8 +18,8 @@ import tempfile
 
 import numpy as np
 
-from jaxrod.equilibrium import EquilibriumOptions, solve_equilibrium
-from jaxrod.scenes import trefoil
+from jaxrod.solve.equilibrium import EquilibriumOptions, solve_equilibrium
+from jaxrod.model.scenes import trefoil
 
 NEWTON = EquilibriumOptions(method="newton", gtol=1e-11, near_null_tol=1e-6)
 L, N = 292.0, 61
@@ -53,7 +53,7 @@ def fine_step_zero(scene, q, phi, h):
     regula falsi on that mode, tracked by eigenvector overlap), or, where Newton finds no equilibrium
     past a twist even in steps of 1e-7 pi, the fold's twist from lambda^2, linear in phi next to a
     fold, fitted through the last three states ('fold')."""
-    from jaxrod.solvers import ConvergenceError
+    from jaxrod.solve.solvers import ConvergenceError
 
     e = solve_equilibrium(scene, phi, q, NEWTON)
     assert e.stability.eigenvalues[0] > 0.0

@@ -1,6 +1,6 @@
 """An open overhand knot pulled tight (issue 19, item 4): loop size against the tension T.
 
-A trefoil-shaped open knot (``jaxrod.open_knot.open_overhand_knot``, loop unit 0.012 L) in a rod of
+A trefoil-shaped open knot (``jaxrod.studies.open_knot.open_overhand_knot``, loop unit 0.012 L) in a rod of
 length L = 1, B = 1, nu = 0.5, diameter D, clamped on the z axis with soft self-contact
 (kappa_c = 100), is pulled by displacement control: the excess length e = L - end distance is set,
 and each state is relaxed from the last (damped Newton, strand passage refused). At each state:
@@ -57,7 +57,7 @@ def run_case(name, path):
     import numpy as np
 
     sys.path.insert(0, os.path.dirname(HERE))
-    from jaxrod import open_knot as ok
+    from jaxrod.studies import open_knot as ok
 
     (_, D, N, phi), = [c for c in CASES if c[0] == name]
     t0 = time.time()
@@ -107,7 +107,7 @@ def combine():
     import numpy as np
 
     sys.path.insert(0, os.path.dirname(HERE))
-    from jaxrod.open_knot import fit_loose_limit, fit_prefactor, mean_tension
+    from jaxrod.studies.open_knot import fit_loose_limit, fit_prefactor, mean_tension
 
     results = {}
     for name, *_ in CASES:

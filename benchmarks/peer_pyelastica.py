@@ -216,9 +216,9 @@ def pyelastica_run(n, final_time, checkpoint, dt_factor=DT_FACTOR, m_t=None, log
 def jaxrod_worker(N):
     """jaxrod's static solve of the case at N nodes, in a fresh process (so that 'cold' really
     includes JAX's start and every JIT compilation): returns a dict. The solve: the rod clamped
-    at both ends with the far clamp SLACK closer (``jaxrod.endloads.shortened_rod``), started on
+    at both ends with the far clamp SLACK closer (``jaxrod.studies.endloads.shortened_rod``), started on
     the analytic localized helix of the imposed (d, R, gamma) (``helical_start``) and solved by
-    ``jaxrod.endloads.solve`` (Newton with the exact Hessian, then the stability of the
+    ``jaxrod.studies.endloads.solve`` (Newton with the exact Hessian, then the stability of the
     equilibrium: its lowest eigenvalues), the end loads T, M by autodiff (``end_loads``).
     cold = scene build + start + solve + end loads, first time in the process (JIT compile
     included; JAX and jaxrod already imported, their import time reported apart); warm = the
@@ -231,7 +231,7 @@ def jaxrod_worker(N):
     import jax.numpy as jnp
 
     from jaxrod import Material
-    from jaxrod import endloads as el
+    from jaxrod.studies import endloads as el
 
     import_s = time.perf_counter() - w0
     m_an, t_an = solve_mt(D_SHORT, R_ROT, GAMMA)
@@ -256,15 +256,15 @@ def jaxrod_worker(N):
 
 def _path_energy(u, args):
     scene, phi, shortening = args
-    from jaxrod import endloads as el
+    from jaxrod.studies import endloads as el
 
     return el.with_shortening(scene, shortening).scaled_energy(u, phi)
 
 
 def _path_hessian(u, args):
     scene, phi, shortening = args
-    from jaxrod import endloads as el
-    from jaxrod.hessian import scaled_hessian
+    from jaxrod.studies import endloads as el
+    from jaxrod.model.hessian import scaled_hessian
 
     return scaled_hessian(el.with_shortening(scene, shortening), u, phi, None)
 
@@ -282,8 +282,8 @@ def jaxrod_path_worker(N, K):
     import jax.numpy as jnp
 
     from jaxrod import Material
-    from jaxrod import endloads as el
-    from jaxrod.solvers import DampedNewton, minimise
+    from jaxrod.studies import endloads as el
+    from jaxrod.solve.solvers import DampedNewton, minimise
 
     m_an, t_an = solve_mt(D_SHORT, R_ROT, GAMMA)
     scene = el.shortened_rod(N, L, Material(B=B, C=C, EA=STIFF), shortening=0.0)
@@ -472,7 +472,7 @@ def main(argv=None):
     ap.add_argument("--final-time", type=float, default=2000.0, help="simulated time of each PyElastica run "
                     "(the example's 10500; its error settles by ~1500 here)")
     ap.add_argument("--checkpoint", type=float, default=100.0, help="simulated time between error checkpoints")
-    ap.add_argument("--N", default="342,402,502,602", help="jaxrod resolutions (nodes; jaxrod.endloads "
+    ap.add_argument("--N", default="342,402,502,602", help="jaxrod resolutions (nodes; jaxrod.studies.endloads "
                     "refuses fewer than 342 for this loop and turn count)")
     ap.add_argument("--out", default=str(RESULTS))
     ap.add_argument("--path-only", type=int, default=None, metavar="N",

@@ -41,9 +41,9 @@ for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import numpy as np  # noqa: E402
 
-from jaxrod import endloads as el  # noqa: E402
-from jaxrod.contact import contact_count  # noqa: E402
-from jaxrod.material import Material  # noqa: E402
+from jaxrod.studies import endloads as el  # noqa: E402
+from jaxrod.model.contact import contact_count  # noqa: E402
+from jaxrod.model.material import Material  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 TWO_PI = 2.0 * math.pi

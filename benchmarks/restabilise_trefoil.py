@@ -1,9 +1,9 @@
 """Where the trefoil's unstable branches lead (issue 17, item 3): each symmetric branch's end
 located, then the unstable branch beyond it followed until it restabilises
-(``jaxrod.diagram.DiagramOptions(until_restable=True)``: a fold or branch point where the Morse
+(``jaxrod.studies.diagram.DiagramOptions(until_restable=True)``: a fold or branch point where the Morse
 index comes back to 0) -- the stated alternative to the study's relaxation along the critical mode.
 Where it restabilises at a branch point it crosses another branch: that branch is switched onto
-(``jaxrod.bifurcation.switch_branches``) and both its halves followed for a few steps, with their
+(``jaxrod.continuation.arclength.switch_branches``) and both its halves followed for a few steps, with their
 Morse index.
 
 Trefoil (8, 292), N = 121, nu = 0.5. Each side starts on the symmetric branch (the stable-only
@@ -26,9 +26,9 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 import jaxrod as jr  # noqa: E402
-from jaxrod.bifurcation import ContinuationOptions, PseudoArclength, emanating_directions, switch_branches  # noqa: E402
-from jaxrod.diagram import DiagramOptions, follow_branch_end  # noqa: E402
-from jaxrod.topology import writhe  # noqa: E402
+from jaxrod.continuation.arclength import ContinuationOptions, PseudoArclength, emanating_directions, switch_branches  # noqa: E402
+from jaxrod.studies.diagram import DiagramOptions, follow_branch_end  # noqa: E402
+from jaxrod.model.topology import writhe  # noqa: E402
 
 PI = math.pi
 HERE = os.path.dirname(os.path.abspath(__file__))

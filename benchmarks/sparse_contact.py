@@ -84,11 +84,11 @@ def accuracy_lines(rows, plt):
     """Accuracy against time (issue 18, item 4): each run's |phi*(N) - phi_inf|, phi_inf the
     Richardson extrapolation (order measured) of the sparse path's levels; a chart of it against
     the warm time."""
-    from jaxrod.convergence import richardson
+    from jaxrod.studies.accuracy import richardson
 
     out = ["## Accuracy against time", "",
            "|phi*(N) - phi_inf| with phi_inf extrapolated from the sparse path's levels (Richardson, order measured "
-           "from the three finest; `jaxrod.convergence.richardson`). The branch ends here are located by failed "
+           "from the three finest; `jaxrod.studies.accuracy.richardson`). The branch ends here are located by failed "
            "corrector trials to tol = 1e-3 pi, so each phi*(N) carries up to ~5e-4 pi of bracket error too.", "",
            "| side | phi_inf / pi | error estimate / pi | order | levels |", "|---|---|---|---|---|"]
     fig, ax = plt.subplots(figsize=(6.4, 4.4))

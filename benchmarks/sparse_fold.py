@@ -1,4 +1,4 @@
-"""The trefoil's opening fold located on the extended system (``jaxrod.bifurcation``) with the O(n)
+"""The trefoil's opening fold located on the extended system (``jaxrod.continuation.arclength``) with the O(n)
 host backend (``SparseBackend``: SciPy's sparse factorisations) against the dense one, side by side
 in one process per N (issue 18, acceptance 1: phi* equal to 1e-8 pi wherever both run).
 
@@ -35,9 +35,9 @@ def child(N, backends):
     import numpy as np
 
     import jaxrod as jr
-    from jaxrod.bifurcation import ContinuationOptions, PseudoArclength, continuation
-    from jaxrod.bifurcation.linalg import DenseBackend, SparseBackend
-    from jaxrod.bifurcation.rods import _assemble_pinned, knot_problem
+    from jaxrod.continuation.arclength import ContinuationOptions, PseudoArclength, continuation
+    from jaxrod.linalg.bordered import DenseBackend, SparseBackend
+    from jaxrod.continuation.arclength.rods import _assemble_pinned, knot_problem
 
     scene = jr.trefoil(D=8.0, L=292.0, N=N)
     t = time.perf_counter()

@@ -36,9 +36,9 @@ def child(N):
     import numpy as np
 
     import jaxrod as jr
-    from jaxrod.bifurcation import ContinuationOptions, PseudoArclength, continuation
-    from jaxrod.bifurcation.linalg import DenseBackend, SparseBackend
-    from jaxrod.bifurcation.rods import _assemble_pinned, knot_problem
+    from jaxrod.continuation.arclength import ContinuationOptions, PseudoArclength, continuation
+    from jaxrod.linalg.bordered import DenseBackend, SparseBackend
+    from jaxrod.continuation.arclength.rods import _assemble_pinned, knot_problem
 
     scene = jr.trefoil(D=8.0, L=292.0, N=N)
     path = jr.follow_twist(scene, 0.0, -10.3 * PI, jr.ContinuationOptions(step=2 * PI, max_switches=0))

@@ -3,7 +3,7 @@ the first instability on each side, classified (fold or double branch point) and
 distance from N = 121's fold.
 
 The paper's rod (D, L) = (8, 292) mm. From the stable-only engine's state at 6.3 pi (opening) or
--11.0 pi (tightening), ``jaxrod.bifurcation.continuation`` on ``knot_problem`` with the step control
+-11.0 pi (tightening), ``jaxrod.continuation.arclength.continuation`` on ``knot_problem`` with the step control
 that watches the spectrum (``ContinuationOptions.resolve_crossings``: a step across which the Morse
 index changes by more than 1 is retried at half the step, down to 1e-5). Without it, the opening
 side's symmetry pair and the fold fall into one step (Morse 0 -> 3), and the fold system's Newton
@@ -24,8 +24,8 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 import jaxrod as jr  # noqa: E402
-from jaxrod.bifurcation import ContinuationOptions, PseudoArclength, continuation  # noqa: E402
-from jaxrod.bifurcation.rods import knot_problem  # noqa: E402
+from jaxrod.continuation.arclength import ContinuationOptions, PseudoArclength, continuation  # noqa: E402
+from jaxrod.continuation.arclength.rods import knot_problem  # noqa: E402
 
 PI = math.pi
 HERE = os.path.dirname(os.path.abspath(__file__))

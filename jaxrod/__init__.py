@@ -16,8 +16,8 @@ import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
 
-from .material import Material  # noqa: E402
-from .scenes import (  # noqa: E402
+from .model.material import Material  # noqa: E402
+from .model.scenes import (  # noqa: E402
     ClampedRod,
     ClosedRod,
     FreeRod,
@@ -32,30 +32,30 @@ from .scenes import (  # noqa: E402
     torus_knot,
     trefoil,
 )
-from .solvers import LBFGS, ConvergenceError, DampedNewton, Newton, Solution, StopReason, minimise  # noqa: E402
-from .stability import Stability, critical_twist_derivative, eigenvalue_phi_derivative, stability  # noqa: E402
-from .equilibrium import (  # noqa: E402
+from .solve.solvers import LBFGS, ConvergenceError, DampedNewton, Newton, Solution, StopReason, minimise  # noqa: E402
+from .linalg.stability import Stability, critical_twist_derivative, eigenvalue_phi_derivative, stability  # noqa: E402
+from .solve.equilibrium import (  # noqa: E402
     Equilibrium, EquilibriumOptions, RelaxOptions, TopologyChangeError, relax, relax_to_minimum, solve_equilibrium,
 )
 from .continuation import (  # noqa: E402
     BranchPoint, ContinuationOptions, CriticalPoint, Instability, NoCrossingError, Observer, PathStop, TwistPath,
     critical_twist, follow_twist,
 )
-from .dynamics import DynamicsOptions, DynamicsResult, damped_dynamics  # noqa: E402
-from . import contact, topology  # noqa: E402
-from . import endloads  # noqa: E402  (rods under end loads: jaxrod.endloads)
+from .solve.dynamics import DynamicsOptions, DynamicsResult, damped_dynamics  # noqa: E402
+from .model import contact, topology  # noqa: E402
+from .studies import endloads  # noqa: E402  (rods under end loads: jaxrod.studies.endloads)
 
-# analysis (scipy.interpolate) and plotting (matplotlib) load on first use, e.g. ``jaxrod.plotting``:
+# analysis (scipy.interpolate) and plotting (matplotlib) load on first use, e.g. ``jaxrod.io.plotting``:
 # together they were 0.6 s of the 2.0 s ``import jaxrod`` (measured with -X importtime), paid by
 # every script and CLI process that draws nothing.
-_LAZY_SUBMODULES = ("analysis", "plotting")
+_LAZY_SUBMODULES = {"analysis": ".measure.analysis", "plotting": ".io.plotting"}
 
 
 def __getattr__(name):
     if name in _LAZY_SUBMODULES:
         import importlib
 
-        return importlib.import_module(f".{name}", __name__)
+        return importlib.import_module(_LAZY_SUBMODULES[name], __name__)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 __version__ = "0.1.0"

@@ -76,6 +76,6 @@ def refuse_knot(scene, what):
         raise ValueError(
             f"{what} does not handle knots (a closed rod with self-contact): their sliding modes are taken "
             "for instabilities and their branch ends are folds. Locate a knot's branch ends with "
-            "follow_twist / twist_study, or exactly with jaxrod.bifurcation.rods.knot_problem and "
-            "jaxrod.bifurcation.continuation (folds of the extended system); the derivative of a fold's phi* "
-            "with jaxrod.bifurcation.fold_sensitivity")
+            "follow_twist / twist_study, or exactly with jaxrod.continuation.arclength.rods.knot_problem and "
+            "jaxrod.continuation.arclength.continuation (folds of the extended system); the derivative of a fold's phi* "
+            "with jaxrod.continuation.arclength.fold_sensitivity")

@@ -2,13 +2,14 @@
 import numpy as np
 import jax.numpy as jnp
 
-from jaxrod import Material, closed_curve, clamped_rod, free_rod, scenes
+from jaxrod import Material, closed_curve, clamped_rod, free_rod
+from jaxrod.model import scenes
 
 MAT = Material(B=1.3, C=0.9, EA=40.0)
 
 
 def trefoil_points(n, scale=1.0):
-    """The left-handed trefoil (z = -sin 3t) of ``jaxrod.scenes.trefoil_points``, scaled."""
+    """The left-handed trefoil (z = -sin 3t) of ``jaxrod.model.scenes.trefoil_points``, scaled."""
     return scale * scenes.trefoil_points(n, chirality="left")
 
 
@@ -49,10 +50,10 @@ def random_free_state(n=8, seed=0, material=MAT):
 
 
 def analyze_checked(*args, **kwargs):
-    """jaxrod.analysis.analyze, with the warnings it issued checked against the ones it returns."""
+    """jaxrod.measure.analysis.analyze, with the warnings it issued checked against the ones it returns."""
     import warnings
 
-    from jaxrod.analysis import analyze
+    from jaxrod.measure.analysis import analyze
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")

@@ -1,4 +1,4 @@
-"""Analysis of rod data (jaxrod.analysis): frames, kappa1/kappa2/tau profiles, Wr, Tw, Lk from a
+"""Analysis of rod data (jaxrod.measure.analysis): frames, kappa1/kappa2/tau profiles, Wr, Tw, Lk from a
 centreline and an eccentric line, as in the seed paper; file input and profile output."""
 import math
 
@@ -8,9 +8,9 @@ import pytest
 from scipy.interpolate import CubicSpline
 
 from jaxrod import Material, closed_curve
-from jaxrod.analysis import RodAnalysis, analyze, load_polyline, write_profiles_csv
-from jaxrod.energy import vertex_curvature_binormals
-from jaxrod.geometry import node_directors
+from jaxrod.measure.analysis import RodAnalysis, analyze, load_polyline, write_profiles_csv
+from jaxrod.model.energy import vertex_curvature_binormals
+from jaxrod.model.geometry import node_directors
 from helpers import trefoil_points
 
 TWO_PI = 2 * math.pi
@@ -419,7 +419,7 @@ def _profile(n=240, L=2.0, phase=0.4):
 
 
 def test_symmetry_order_and_peaks_of_a_threefold_profile():
-    from jaxrod.analysis import count_peaks, symmetry_order
+    from jaxrod.measure.analysis import count_peaks, symmetry_order
 
     s, L, ph = _profile()
     k = 1 + 0.5 * np.cos(3 * TWO_PI * s / L + ph)
@@ -439,7 +439,7 @@ def test_symmetry_order_and_peaks_of_a_threefold_profile():
 
 
 def test_symmetry_order_and_peaks_of_bumps():
-    from jaxrod.analysis import count_peaks, symmetry_order
+    from jaxrod.measure.analysis import count_peaks, symmetry_order
 
     s, L, _ = _profile(n=400)
 
@@ -472,7 +472,7 @@ def test_symmetry_order_and_peaks_of_bumps():
     ],
 )
 def test_profile_descriptors_reject_bad_input(bad, problem):
-    from jaxrod.analysis import count_peaks, symmetry_order
+    from jaxrod.measure.analysis import count_peaks, symmetry_order
 
     with pytest.raises(ValueError, match=problem):
         symmetry_order(bad)
@@ -481,7 +481,7 @@ def test_profile_descriptors_reject_bad_input(bad, problem):
 
 
 def test_profile_descriptors_reject_bad_parameters():
-    from jaxrod.analysis import count_peaks, symmetry_order
+    from jaxrod.measure.analysis import count_peaks, symmetry_order
 
     k = 1 + np.cos(3 * TWO_PI * np.arange(32) / 32)
     for bad in (0, -1, 2.5, "3", True, None):
@@ -503,8 +503,8 @@ def _frenet_offset(x, offset):
 
 
 def test_trefoil_curvature_is_threefold():
-    from jaxrod.analysis import count_peaks, symmetry_order
-    from jaxrod.scenes import trefoil_points
+    from jaxrod.measure.analysis import count_peaks, symmetry_order
+    from jaxrod.model.scenes import trefoil_points
 
     x = trefoil_points(240)
     res = analyze(x, _frenet_offset(x, 0.1))

@@ -23,10 +23,10 @@ import numpy as np
 import pytest
 
 import jaxrod
-from jaxrod import analysis
-from jaxrod.analysis import analyze, load_polyline
-from jaxrod.atomic import savez
-from jaxrod.records import step_record
+from jaxrod.measure import analysis
+from jaxrod.measure.analysis import analyze, load_polyline
+from jaxrod.io.atomic import savez
+from jaxrod.io.records import step_record
 from helpers import analyze_checked
 
 PI = math.pi
@@ -186,8 +186,8 @@ def test_step_record_lk_gauss_only_at_whole_turns(states, tmp_path):
     assert quarter["Lk_frames"] == pytest.approx(6.25, abs=1e-8) and half["Lk_frames"] == pytest.approx(6.5, abs=1e-8)
     # branch.csv: an empty (or nan) Lk_gauss cell reads back as NaN; the linking figure plots
     # Lk_gauss at whole turns only and copes with the NaN.
-    from jaxrod import plotting
-    from jaxrod.study import read_table
+    from jaxrod.io import plotting
+    from jaxrod.studies.twist import read_table
 
     csv_path = tmp_path / "branch.csv"
     csv_path.write_text("branch,phi,Lk_frames,Lk_gauss,Wr,Tw\n" + "".join(

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import jaxrod as jr
-from jaxrod import atlas
+from jaxrod.studies import atlas
 from jaxrod.cli import main
 
 PI = math.pi
@@ -132,7 +132,7 @@ def test_relax_to_minimum_leaves_the_saddle_of_a_symmetric_drawing():
 def test_cli_knot_from_a_curve_file_equals_the_named_knot(tmp_path, capsys):
     """Any closed curve from a file: the trefoil's own points, written to CSV, give the study of
     `jaxrod knot 3_1` exactly."""
-    points = jr.scenes.knot_points("3_1", 400)  # the points jr.knot samples for N <= 100
+    points = jr.model.scenes.knot_points("3_1", 400)  # the points jr.knot samples for N <= 100
     np.savetxt(tmp_path / "trefoil.csv", points, delimiter=",", header="x,y,z", comments="")
     common = ["--D", "8", "--L", "300", "--N", "40", "--phi-min", "-0.5pi", "--phi-max", "0.5pi", "--quiet",
               "--no-figures", "--json"]

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 import jaxrod as jr
-from jaxrod.analysis import analyze, load_polyline
+from jaxrod.measure.analysis import analyze, load_polyline
 from jaxrod.cli import main
-from jaxrod.study import twist_study
+from jaxrod.studies.twist import twist_study
 
 NAN, INF, PI = math.nan, math.inf, math.pi
 

@@ -1,4 +1,4 @@
-"""jaxrod.banded: block-tridiagonal (+ cyclic corner, + low rank) factor/inertia/solve/eigenpairs.
+"""jaxrod.linalg.banded: block-tridiagonal (+ cyclic corner, + low rank) factor/inertia/solve/eigenpairs.
 
 Everything is checked against the same matrix assembled densely in numpy.  Shapes are few and
 reused on purpose: every distinct (K, b, r, cyclic) compiles the scans again.
@@ -10,11 +10,11 @@ import jax
 import numpy as np
 import pytest
 
-from jaxrod import banded
+from jaxrod.linalg import banded
 
 
 def dense(diag, off, cyclic, U=None, c=None):
-    """The (n, n) matrix T + U diag(c) U^T, following the block conventions of jaxrod.banded."""
+    """The (n, n) matrix T + U diag(c) U^T, following the block conventions of jaxrod.linalg.banded."""
     K, b, _ = diag.shape
     T = np.zeros((K * b, K * b))
     for k in range(K):

@@ -1,13 +1,13 @@
-"""jaxrod.bifurcation on small gradient systems whose folds, branch points and branches are known
+"""jaxrod.continuation.arclength on small gradient systems whose folds, branch points and branches are known
 in closed form (issue 17, acceptance 9, first part: each event type on an analytic system)."""
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxrod.bifurcation import (BifurcationProblem, ContinuationError, ContinuationOptions, PseudoArclength, Result,
+from jaxrod.continuation.arclength import (BifurcationProblem, ContinuationError, ContinuationOptions, PseudoArclength, Result,
                                 continuation, emanating_directions, fold_at, fold_curve, fold_sensitivity,
                                 switch_branches)
-from jaxrod.bifurcation.locate import FOLD_QUADRATIC_ITERATIONS
+from jaxrod.continuation.arclength.locate import FOLD_QUADRATIC_ITERATIONS
 
 ALG = PseudoArclength()
 
@@ -348,8 +348,8 @@ def test_an_unlocated_event_says_why():
     # Newton converged (residual and eigenvalue below event_tol) but along a soft mode, with the
     # Morse index changed: the message must not claim the values exceed event_tol (it did, on the
     # trefoil at N = 61: "residual 3.12e-14, critical eigenvalue 1.07e-14 > event_tol = 1e-10")
-    from jaxrod.bifurcation.continuation import _not_located
-    from jaxrod.bifurcation.results import Event
+    from jaxrod.continuation.arclength.continuation import _not_located
+    from jaxrod.continuation.arclength.results import Event
 
     def event(residual, eigenvalue):
         return Event("fold", 20.7419, np.zeros(2), np.ones((2, 1)), np.array([eigenvalue]), residual, 4, 1, 1, 2, 7,
@@ -365,7 +365,7 @@ def test_the_dense_backends_lowest_pairs_equal_the_full_decomposition(n_zero):
     # DenseBackend.spectrum takes only the lowest eigenpairs from PARTIAL_MIN_SIZE on; the Morse
     # index (with an eigenvalue just inside and one just outside the band -rtol ||J||_2) and the
     # gauge modes' removal must be those of the full decomposition
-    from jaxrod.bifurcation.linalg import PARTIAL_MIN_SIZE, DenseBackend, _lowest_pairs
+    from jaxrod.linalg.bordered import PARTIAL_MIN_SIZE, DenseBackend, _lowest_pairs
 
     n, rtol = PARTIAL_MIN_SIZE + 40, 1e-6
     rng = np.random.default_rng(3)
@@ -394,7 +394,7 @@ def s_curve_energy(u, p, args):
 
 
 def test_an_unstable_branch_is_followed_until_it_restabilises():
-    from jaxrod.bifurcation import until_stable
+    from jaxrod.continuation.arclength import until_stable
 
     x0 = -1.2
     prob = BifurcationProblem(s_curve_energy, [x0, 0.0], x0 ** 3 - x0)
@@ -419,7 +419,7 @@ def test_the_branch_met_where_an_unstable_branch_restabilises():
     # System 2's branch y = 1, x^2 = p - 1 (Morse 1) restabilises at p = 2, where it crosses the
     # branch x^2 = y, p = y + y^2 (a transcritical point at x = y = 1). switch_branches from the
     # restabilising event gives that branch: stable (Morse 0) towards p < 2, unstable beyond.
-    from jaxrod.bifurcation import switch_branches, until_stable
+    from jaxrod.continuation.arclength import switch_branches, until_stable
 
     p0 = 1.2
     prob = BifurcationProblem(pitchfork_energy, [np.sqrt(p0 - 1.0), 1.0], p0)
@@ -522,8 +522,8 @@ def test_a_morse_change_one_step_after_a_turn_is_that_folds_crossing():
     turn where the fold's mode mixes with a slide; the trefoil's tightening side at N = 121), so the
     fold is reported again with the new index and no branch point is sought. Further away, or a
     change by two, goes to the branch-point locator as before."""
-    from jaxrod.bifurcation.events import find_events
-    from jaxrod.bifurcation.results import Event, Point
+    from jaxrod.continuation.arclength.events import find_events
+    from jaxrod.continuation.arclength.results import Event, Point
 
     def point(p, tp, morse):
         return Point(np.zeros(2), p, np.array([0.0, 0.0, tp]), np.zeros(2), np.eye(2), morse, 1, 0.1, 0.0)
@@ -540,7 +540,7 @@ def test_a_morse_change_one_step_after_a_turn_is_that_folds_crossing():
     def no_locator(*args, **kwargs):
         raise Refused
 
-    import jaxrod.bifurcation.events as events
+    import jaxrod.continuation.arclength.events as events
 
     saved = events.locate_branch_points
     events.locate_branch_points = no_locator
@@ -571,7 +571,7 @@ def mixed_slide_energy(u, p, args):
 
 def a_is_soft(u, p, values, vectors, threshold=5e-3):
     """Split the direction of the span nearest to pure a off as soft (its fraction of b below
-    threshold), the rest as Ritz pairs, as ``jaxrod.stability.split_slide`` does for a slide."""
+    threshold), the rest as Ritz pairs, as ``jaxrod.linalg.stability.split_slide`` does for a slide."""
     lam, V = np.asarray(values, dtype=float), np.asarray(vectors, dtype=float)
     along = V[0]
     if 1.0 - float(along @ along) >= threshold:

@@ -1,4 +1,4 @@
-"""jaxrod.bifurcation on a knot with self-contact (issue 17, items 1-2 on rods): the twisted trefoil's
+"""jaxrod.continuation.arclength on a knot with self-contact (issue 17, items 1-2 on rods): the twisted trefoil's
 opening branch end as a fold located by Newton on the minimally augmented system, the path going
 through it onto the unstable branch, and the sliding modes of the loose knot told apart by their shape.
 
@@ -25,12 +25,12 @@ import numpy as np
 import pytest
 
 import jaxrod as jr
-from jaxrod.bifurcation import ContinuationOptions, PseudoArclength, Result, continuation, fold_at, fold_curve, \
+from jaxrod.continuation.arclength import ContinuationOptions, PseudoArclength, Result, continuation, fold_at, fold_curve, \
     fold_sensitivity
-from jaxrod.bifurcation.rods import _pinned_energy, _scaled_gradient, knot_problem, set_diameter, set_poisson_ratio
-from jaxrod.diagram import UNSTABLE_PREFIX, DiagramOptions, unstable_branches
-from jaxrod.study import study_summary, twist_study
-from jaxrod.stability import sliding_fraction
+from jaxrod.continuation.arclength.rods import _pinned_energy, _scaled_gradient, knot_problem, set_diameter, set_poisson_ratio
+from jaxrod.studies.diagram import UNSTABLE_PREFIX, DiagramOptions, unstable_branches
+from jaxrod.studies.twist import study_summary, twist_study
+from jaxrod.linalg.stability import sliding_fraction
 
 PI = math.pi
 ALG = PseudoArclength()
@@ -148,8 +148,8 @@ def test_only_a_clean_slide_is_split_off():
     computed eigenpairs unchanged."""
     import inspect
 
-    from jaxrod.bifurcation.rods import split_sliding
-    from jaxrod.stability import CLEAN_SLIDE_FRACTION
+    from jaxrod.continuation.arclength.rods import split_sliding
+    from jaxrod.linalg.stability import CLEAN_SLIDE_FRACTION
 
     threshold = inspect.signature(knot_problem).parameters["sliding"].default
     assert threshold == CLEAN_SLIDE_FRACTION < 0.05
@@ -198,8 +198,8 @@ def test_a_slide_coupled_to_a_shape_mode_does_not_hide_its_instability():
     the complement shows (the trefoil's buckled+ branch at N = 121, --step 0.25pi: 2.1e-7, 1.7e-7,
     J's lowest -1.3e-9; the branch point at 7.041 pi went unseen). The split is then not made. A
     negative direction that is the slide itself (a saddle of the sliding landscape) is split off."""
-    from jaxrod.bifurcation.rods import split_sliding
-    from jaxrod.stability import CLEAN_SLIDE_FRACTION
+    from jaxrod.continuation.arclength.rods import split_sliding
+    from jaxrod.linalg.stability import CLEAN_SLIDE_FRACTION
 
     scene, q, slide = _drawn_trefoil_and_its_slide()
     n_full = q.size
@@ -220,7 +220,7 @@ def test_a_slide_coupled_to_a_shape_mode_does_not_hide_its_instability():
     assert not soft.any() and np.array_equal(vals, values)
     assert int(np.sum(vals[~soft] < 0)) == 1
     # what the split alone would count: no negative Ritz value on the complement of the slide
-    from jaxrod.stability import split_slide
+    from jaxrod.linalg.stability import split_slide
 
     full_vals, _, full_soft = split_slide(scene, q, values, V, CLEAN_SLIDE_FRACTION)
     assert full_soft.any() and int(np.sum(full_vals[~full_soft] < 0)) == 0
@@ -312,7 +312,7 @@ def test_fold_curve_in_nu_follows_the_located_fold(paths):
 
 
 # ---------------------------------------------------------------------------------------------
-# The bifurcation diagram of a twist study (``jaxrod.diagram``; issue 17, items 1-3 and 7): each
+# The bifurcation diagram of a twist study (``jaxrod.studies.diagram``; issue 17, items 1-3 and 7): each
 # stable branch's end located on the extended system and the unstable branch beyond it, written
 # into the study's files. The same rod, opening side only (the minus side stops at -0.25 pi, before
 # anything happens there); in this file so that it shares the compiled functions above. The located
@@ -411,7 +411,7 @@ def test_ends_located_while_the_study_runs_give_the_same_files(on_file, paths, t
     # rows, end_rows) as soon as twist_study hands it over (on_instability; tests/test_convergence.py),
     # while the study goes on, and unstable_branches only assembles: the same files as the diagram
     # computed after the study. (The study here is the fixture's, resumed in a copy: cheap.)
-    from jaxrod.diagram import end_capacity, end_rows, locate_end
+    from jaxrod.studies.diagram import end_capacity, end_rows, locate_end
 
     scene = paths[0]
     out, study0, _ = on_file
@@ -453,8 +453,8 @@ def test_a_located_end_outside_the_studys_bracket_does_not_replace_phi_star():
     """Where the study and the path disagree (measured: with --step 0.25pi at N = 121 the study's
     first tightening instability is at -11.10996 pi, the path's first event at -11.18414 pi), the
     study's value stays phi* and the event says so; inside the bracket the located value replaces it."""
-    from jaxrod.diagram import in_bracket
-    from jaxrod.study import _summarise
+    from jaxrod.studies.diagram import in_bracket
+    from jaxrod.studies.twist import _summarise
 
     inst = {"direction": "minus", "phi": -11.10996 * PI, "phi_error": 3e-5 * PI, "bracket": [0, 0],
             "dlambda_dphi": 0.0, "from_branch": "symmetric-"}
@@ -474,7 +474,7 @@ def test_an_end_that_changes_the_morse_index_by_more_than_its_multiplicity_is_fl
     ``morse_jump``; the simple fold at N = 121 is not."""
     from types import SimpleNamespace
 
-    from jaxrod.diagram import extra_crossings
+    from jaxrod.studies.diagram import extra_crossings
 
     out, _, diagram = on_file
     (end,) = diagram.ends
@@ -494,7 +494,7 @@ def test_the_knot_problem_linearises_with_the_scene_programs_to_roundoff(paths):
     Hessian of the embedded state), which the traced paths (``fold_curve``) still use."""
     import importlib
 
-    problem_module = importlib.import_module("jaxrod.bifurcation.problem")
+    problem_module = importlib.import_module("jaxrod.continuation.arclength.problem")
     scene, runs = paths
     rod, branch = runs[6.0, 1.0]
     prob = rod.problem

@@ -1,8 +1,8 @@
-"""jaxrod.bifurcation on a rod: Michell's ring (issue 17, acceptance 4; acceptance 9, second part:
+"""jaxrod.continuation.arclength on a rod: Michell's ring (issue 17, acceptance 4; acceptance 9, second part:
 the double branch point on a rod).
 
 The ring's trivial branch (the planar circle, twist uniform) is exact for every phi; with the gauge
-pinned (``jaxrod.bifurcation.rods``) a degenerate pair crosses at phi*, located by Brent on each
+pinned (``jaxrod.continuation.arclength.rods``) a degenerate pair crosses at phi*, located by Brent on each
 eigenvalue and grouped into one double branch point, which must equal ``critical_twist``'s phi* to
 1e-9 relative. The buckled solutions form a circle (the buckle slid along the ring); one more pin
 (``sliding_slice``) picks one, and the branch switched onto from the branch point goes backwards
@@ -18,9 +18,9 @@ import pytest
 
 import jaxrod as jr
 from jaxrod import critical_twist, michell_critical_twist, michell_ring
-from jaxrod.bifurcation import ContinuationOptions, PseudoArclength, Result, continuation, emanating_directions, \
+from jaxrod.continuation.arclength import ContinuationOptions, PseudoArclength, Result, continuation, emanating_directions, \
     switch_branches, branch_point_curve
-from jaxrod.bifurcation.rods import pinned_problem, set_poisson_ratio, sliding_slice
+from jaxrod.continuation.arclength.rods import pinned_problem, set_poisson_ratio, sliding_slice
 
 N = 32
 ALG = PseudoArclength()

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from jaxrod.continuation.branch_check import predicted_crossing
-from jaxrod.equilibrium import EquilibriumOptions, solve_equilibrium
-from jaxrod.scenes import trefoil
+from jaxrod.solve.equilibrium import EquilibriumOptions, solve_equilibrium
+from jaxrod.model.scenes import trefoil
 
 EXE = [shutil.which("jaxrod") or os.path.join(os.path.dirname(sys.executable), "jaxrod")]
 NEWTON = EquilibriumOptions(method="newton", gtol=1e-11, near_null_tol=1e-6)
@@ -109,7 +109,7 @@ def test_a_zero_between_two_stable_states_is_predicted():
     from dataclasses import replace
 
     from jaxrod import michell_critical_twist, michell_ring
-    from jaxrod.stability import branch_analysis
+    from jaxrod.linalg.stability import branch_analysis
 
     scene = michell_ring(32)
     phi_star = michell_critical_twist(0.5)

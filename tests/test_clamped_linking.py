@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import jaxrod as jr
-from jaxrod.material import Material
-from jaxrod.topology import linking_number, writhe
+from jaxrod.model.material import Material
+from jaxrod.model.topology import linking_number, writhe
 
 N = 24  # the size test_solvers and test_sparse_stability compile for clamped rods
 SHORTENING = 0.1

@@ -42,7 +42,7 @@ def _trefoil_files(tmp_path, n=160, offset=0.1):
     normal, at other points than the centreline (a shifted parameter, another count)."""
     import numpy as np
 
-    from jaxrod.scenes import trefoil_points
+    from jaxrod.model.scenes import trefoil_points
 
     def curve(t):
         return np.stack([np.sin(t) + 2 * np.sin(2 * t), np.cos(t) - 2 * np.cos(2 * t), np.sin(3 * t)], axis=1)
@@ -205,7 +205,7 @@ def test_failed_computation_is_one_line_with_advice(monkeypatch, capsys, tmp_pat
     # interrupted ends in one line that says what to do, not a traceback.
     import jaxrod.cli as cli
     from jaxrod import NoCrossingError
-    from jaxrod.solvers import ConvergenceError
+    from jaxrod.solve.solvers import ConvergenceError
 
     errors = {"no_crossing": NoCrossingError("negative count stayed 0 from phi = 0 to 20"),
               "convergence": ConvergenceError("relaxation did not converge: Solution(...)\nmore"),

@@ -1,5 +1,5 @@
 """The command line's help texts agree with its parser and with the code behind it, and every
-command's --json names the critical twists with jaxrod.schema's keys.
+command's --json names the critical twists with jaxrod.io.schema's keys.
 
 The JSON tests run each command's own JSON path on real results without computing them again:
 command 1's critical.json and the committed atlas (benchmarks/results), and, for --accuracy, a
@@ -76,7 +76,7 @@ def _stated_defaults(text):
 def _resolved_in_code():
     """Defaults that a help text states for an option whose parser default is None (the command
     resolves it): (command, dest) -> the values, from the code's own constants."""
-    from jaxrod.scenes import DEFAULT_CONTACT_STIFFNESS
+    from jaxrod.model.scenes import DEFAULT_CONTACT_STIFFNESS
 
     return {("trefoil", "N"): [cli.STUDY_NODES, cli.ACCURACY_NODES], ("knot", "N"): [cli.STUDY_NODES, cli.ACCURACY_NODES],
             ("trefoil", "contact_stiffness"): [DEFAULT_CONTACT_STIFFNESS],
@@ -98,7 +98,8 @@ def _same(action, text):
 
 
 def test_every_stated_default_and_choice_is_the_codes():
-    from jaxrod import atlas, critical_curve, scenes
+    from jaxrod.studies import atlas, critical_curve
+    from jaxrod.model import scenes
 
     resolved = _resolved_in_code()
     problems = []
@@ -145,7 +146,7 @@ def test_every_stated_default_and_choice_is_the_codes():
 
 def _minimums():
     """(command, flag) -> the smallest value the command takes, from the code."""
-    from jaxrod.scenes import MIN_TREFOIL_NODES
+    from jaxrod.model.scenes import MIN_TREFOIL_NODES
 
     return {("michell", "--N"): cli.MICHELL_MIN_NODES, ("trefoil", "--N"): MIN_TREFOIL_NODES,
             ("knot", "--N"): MIN_TREFOIL_NODES, ("atlas", "--N"): MIN_TREFOIL_NODES,
@@ -189,7 +190,7 @@ def _strict(text):
 
 
 def _check_side(record):
-    from jaxrod import schema
+    from jaxrod.io import schema
 
     assert set(schema.SIDE_KEYS) <= set(record), record
     assert record["side"] in schema.SIDES
@@ -204,7 +205,7 @@ def _check_side(record):
 
 def _check_both_sides(obj):
     """The both-sides keys, each side's four quantities as a one-side record would have them."""
-    from jaxrod import schema
+    from jaxrod.io import schema
 
     for side in schema.SIDES:
         _check_side({"side": side, **{key: obj[schema.side_key(side, key)] for key in schema.SUFFIXES}})
@@ -218,7 +219,7 @@ def _command1():
 
 def test_trefoil_and_knot_study_json(monkeypatch, tmp_path, capsys):
     # The study's JSON path with command 1's results (critical.json) in place of the continuation.
-    import jaxrod.study as study
+    import jaxrod.studies.twist as study
 
     critical = _command1()
 
@@ -252,8 +253,8 @@ def test_trefoil_accuracy_json_has_the_studys_keys(monkeypatch, tmp_path, capsys
     # --accuracy with a known convergence phi*(N) = phi_inf + c / N^2 + d / N^3 in place of the levels
     import numpy as np
 
-    import jaxrod.convergence as conv
-    import jaxrod.equilibrium as equilibrium
+    import jaxrod.studies.accuracy as conv
+    import jaxrod.solve.equilibrium as equilibrium
 
     limits = {"plus": 6.42 * PI, "minus": -11.09 * PI}
 
@@ -301,7 +302,8 @@ def test_michell_json(monkeypatch, capsys):
 
 
 def test_atlas_and_critical_curve_rows_are_one_side_records(monkeypatch, tmp_path, capsys):
-    from jaxrod import atlas, critical_curve, schema
+    from jaxrod.studies import atlas, critical_curve
+    from jaxrod.io import schema
 
     rows = atlas.read_atlas(str(REPO / "benchmarks" / "results" / "atlas"))  # 48 cases, 16 without an end
     monkeypatch.setattr(atlas, "run_atlas", lambda *a, **k: rows)
@@ -318,7 +320,7 @@ def test_atlas_and_critical_curve_rows_are_one_side_records(monkeypatch, tmp_pat
 
 
 def test_the_schema_is_one_table_in_the_readme():
-    from jaxrod import schema
+    from jaxrod.io import schema
 
     readme = (REPO / "README.md").read_text(encoding="utf-8")
     assert schema.markdown_table() in readme
@@ -328,4 +330,4 @@ def test_the_schema_is_one_table_in_the_readme():
         assert unit and meaning, key
     for command in ("michell", "trefoil", "knot", "atlas"):
         help_text = next(a.help for a in _commands()[command]._actions if a.dest == "json")
-        assert "jaxrod.schema" in help_text, command
+        assert "jaxrod.io.schema" in help_text, command

@@ -6,8 +6,8 @@ included) during the continuation's own analysis of the relaxed state."""
 import jax.monitoring as monitoring
 
 import jaxrod as jr
-from jaxrod.stability import CONTACT_NEGATIVE_TOL, branch_analysis
-from jaxrod.study import _compile_ahead
+from jaxrod.linalg.stability import CONTACT_NEGATIVE_TOL, branch_analysis
+from jaxrod.studies.twist import _compile_ahead
 
 COMPILE_EVENT = "/jax/core/compile/backend_compile_duration"
 

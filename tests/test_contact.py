@@ -6,8 +6,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxrod.contact import all_pairs, candidate_pairs, contact_count, contact_energy, contact_pair_hessian
-from jaxrod.neighbourhood import build_neighbourhood
+from jaxrod.model.contact import all_pairs, candidate_pairs, contact_count, contact_energy, contact_pair_hessian
+from jaxrod.model.neighbourhood import build_neighbourhood
 from helpers import trefoil_points
 
 

@@ -5,8 +5,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxrod import EquilibriumOptions, Material, clamped_rod, closed_curve, ring, solve_equilibrium, topology
-from jaxrod.geometry import signed_angle
+from jaxrod import EquilibriumOptions, Material, clamped_rod, closed_curve, ring, solve_equilibrium
+from jaxrod.model import topology
+from jaxrod.model.geometry import signed_angle
 from helpers import MAT, trefoil_points, wobbly_loop
 
 TWO_PI = 2 * math.pi

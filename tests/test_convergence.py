@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import jaxrod as jr
-from jaxrod.convergence import THEORETICAL_ORDER, converged_critical_twists, resolution_levels, richardson
+from jaxrod.studies.accuracy import THEORETICAL_ORDER, converged_critical_twists, resolution_levels, richardson
 
 PI = math.pi
 
@@ -122,8 +122,8 @@ def test_cli_accuracy_writes_its_files_and_resumes_from_the_finished_levels(tmp_
     # is tested above on Michell's ring and in test_trefoil_twist.py).
     import numpy as np
 
-    import jaxrod.convergence as conv
-    import jaxrod.equilibrium as equilibrium
+    import jaxrod.studies.accuracy as conv
+    import jaxrod.solve.equilibrium as equilibrium
     from jaxrod.cli import main
 
     limits = {"plus": 6.42 * PI, "minus": -11.09 * PI}
@@ -164,8 +164,8 @@ def test_cli_accuracy_writes_its_files_and_resumes_from_the_finished_levels(tmp_
 def test_coarse_companion_of_a_study_brackets_the_converged_value(tmp_path):
     # What the CLI prints after a study: each end found again at (N + 1) / 2 from the study's own
     # state, and a rough extrapolation (order assumed, factor 3) that covers the converged value.
-    from jaxrod.convergence import coarse_companion
-    from jaxrod.study import twist_study
+    from jaxrod.studies.accuracy import coarse_companion
+    from jaxrod.studies.twist import twist_study
 
     from jaxrod.continuation import Observer
 
@@ -196,7 +196,7 @@ def test_a_level_sequence_out_of_its_asymptotic_range_is_not_called_converged_no
     # N = 61, 121, then a shape-mode pair crossing zero at 241, 481. The last change is tiny (5.6e-4 pi)
     # but the measured order (7.4) says the levels are not one asymptotic sequence; the message said
     # "error estimate 5.6e-04 pi > 1.0e-02 pi" before.
-    from jaxrod.convergence import Level, _unconverged_reason
+    from jaxrod.studies.accuracy import Level, _unconverged_reason
 
     pis = (-11.475440, -11.184210, -11.093990, -11.093434)
     kinds = ("jump", "jump", "unstable", "unstable")

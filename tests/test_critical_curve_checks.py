@@ -10,7 +10,7 @@ import warnings
 import numpy as np
 import pytest
 
-import jaxrod.critical_curve as cc
+import jaxrod.studies.critical_curve as cc
 
 N = 61
 # 0.0187: the symmetric state at phi = 0 is a saddle of a shape mode (lowest eigenvalue -6.6e-5), so
@@ -23,9 +23,9 @@ def _point_study(ratio):
     (phi_plus: the located end, or the study's bracket where the two disagree). No branch
     switching and a short phi < 0 side: neither changes the first end on the phi > 0 side."""
     from jaxrod.continuation import ContinuationOptions
-    from jaxrod.diagram import unstable_branches
-    from jaxrod.scenes import knot
-    from jaxrod.study import twist_study
+    from jaxrod.studies.diagram import unstable_branches
+    from jaxrod.model.scenes import knot
+    from jaxrod.studies.twist import twist_study
 
     scene = knot("3_1", ratio * cc.LENGTH, cc.LENGTH, N)  # as jaxrod trefoil --D ratio*292 --L 292 builds it
     study = twist_study(scene, -0.5 * math.pi, 16.0 * math.pi, ContinuationOptions(max_switches=0))

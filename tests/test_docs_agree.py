@@ -7,7 +7,9 @@ import pathlib
 import re
 
 import jaxrod as jr
-from jaxrod import atlas, cli, contact, scenes
+from jaxrod import cli
+from jaxrod.studies import atlas
+from jaxrod.model import contact, scenes
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
 README = (REPO / "README.md").read_text(encoding="utf-8")
@@ -23,7 +25,7 @@ def test_the_contact_stiffness_has_one_unit_everywhere():
     # contact_energy multiplies the double integral by kappa_c * B / D**3.
     x = jr.trefoil(8.0, 292.0, 61)
     assert x.contact_stiffness == scenes.DEFAULT_CONTACT_STIFFNESS
-    texts = {"jaxrod.contact": contact.__doc__, "closed_curve": scenes.closed_curve.__doc__,
+    texts = {"jaxrod.model.contact": contact.__doc__, "closed_curve": scenes.closed_curve.__doc__,
              "trefoil --contact-stiffness": _help_of("trefoil", "--contact-stiffness"),
              "atlas --contact-stiffness": _help_of("atlas", "--contact-stiffness"), "README": README}
     for where, text in texts.items():

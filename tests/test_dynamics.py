@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import jaxrod as jr
-from jaxrod.dynamics import DynamicsOptions, damped_dynamics, stable_time_step
+from jaxrod.solve.dynamics import DynamicsOptions, damped_dynamics, stable_time_step
 
 
 @pytest.fixture(scope="module")

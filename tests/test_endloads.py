@@ -15,9 +15,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxrod import endloads as el
-from jaxrod.material import Material
-from jaxrod.topology import writhe
+from jaxrod.studies import endloads as el
+from jaxrod.model.material import Material
+from jaxrod.model.topology import writhe
 
 NS = (120, 240)
 # (m, t, nu): lambda = 14.1 and 16.6; theta_max = 109 and 147 degrees; gamma = 2/3 and 1
@@ -221,7 +221,7 @@ def test_contact_hessian_of_a_pair_at_a_clamp(quadrature):
     of the same energy."""
     import jax
 
-    from jaxrod.hessian import dense_autodiff_hessian, scaled_hessian
+    from jaxrod.model.hessian import dense_autodiff_hessian, scaled_hessian
 
     N, D = 12, 0.1
     rod = el.shortened_rod(N, 1.0, Material.from_ratio(B=1.0, nu=0.5, D=D), shortening=0.3, contact_stiffness=10.0,
@@ -241,7 +241,7 @@ def test_contact_hessian_of_a_pair_at_a_clamp(quadrature):
     ref = np.asarray(jax.jit(dense_autodiff_hessian)(rod, jnp.asarray(u), 0.4, nbr))
     assert np.max(np.abs(fast - ref)) < 1e-11 * np.max(np.abs(ref)), np.unravel_index(np.argmax(np.abs(fast - ref)), ref.shape)
     # the scene's quadrature is the one both use (3 Gauss points per segment: another energy)
-    from jaxrod.contact import contact_energy
+    from jaxrod.model.contact import contact_energy
 
     pairs, mask = rod.contact_candidates(nbr)
     x = rod.nodes(jnp.asarray(q))

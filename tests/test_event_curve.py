@@ -10,8 +10,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxrod.bifurcation import BifurcationProblem, ContinuationOptions
-from jaxrod.bifurcation.event_curve import EventCurveOptions, event_curve
+from jaxrod.continuation.arclength import BifurcationProblem, ContinuationOptions
+from jaxrod.continuation.arclength.event_curve import EventCurveOptions, event_curve
 
 
 def _set_mu(args, mu):
@@ -122,7 +122,7 @@ def test_no_instability_at_the_start_ratio_is_one_line_naming_the_flags(tmp_path
 
 
 def test_ratio_range_parsing():
-    from jaxrod.critical_curve import check_ratio_range
+    from jaxrod.studies.critical_curve import check_ratio_range
 
     np.testing.assert_allclose(check_ratio_range("0.008:0.010:0.001"), [0.008, 0.009, 0.010])
     np.testing.assert_allclose(check_ratio_range("0.03, 0.01,0.02"), [0.01, 0.02, 0.03])
@@ -154,7 +154,7 @@ def _stub_first_instabilities(monkeypatch, calls):
     first instability (mu = 10 D/L: a branch point p* = 0.5 - mu, then a fold p* = mu from D/L =
     0.025 on), so that its files and resume are tested in seconds; the point study it calls is tested
     on the knot in test_critical_curve_checks.py. calls: the ratios studied, in order."""
-    import jaxrod.critical_curve as cc
+    import jaxrod.studies.critical_curve as cc
 
     def first_instabilities(knot, n, ratio, options=None, *, progress=None):
         calls.append(float(ratio))
@@ -168,7 +168,7 @@ def _stub_first_instabilities(monkeypatch, calls):
 
 
 def test_an_interrupted_critical_curve_resumes_to_the_files_of_a_whole_run(tmp_path, monkeypatch):
-    import jaxrod.critical_curve as cc
+    import jaxrod.studies.critical_curve as cc
 
     calls = []
     _stub_first_instabilities(monkeypatch, calls)

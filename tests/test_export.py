@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from jaxrod.export import write_vtk
-from jaxrod.scenes import trefoil_points
+from jaxrod.io.export import write_vtk
+from jaxrod.model.scenes import trefoil_points
 
 
 def _read_legacy_vtk(path):
@@ -51,6 +51,6 @@ def test_write_vtk_round_trip(tmp_path):
 
 
 def test_every_branch_column_has_a_unit():
-    from jaxrod.records import ROW_KEYS, ROW_UNITS
+    from jaxrod.io.records import ROW_KEYS, ROW_UNITS
 
     assert set(ROW_KEYS) <= set(ROW_UNITS) and "lambda_j" in ROW_UNITS and "direction" in ROW_UNITS

@@ -10,9 +10,9 @@ import json
 import math
 import re
 
-from jaxrod import endloads as el
+from jaxrod.studies import endloads as el
 from jaxrod.cli import main
-from jaxrod.material import Material
+from jaxrod.model.material import Material
 
 N = 120
 # (m, t, gamma): lambda = 14.1, 13.9, 16.4 (each the larger-t root at its (d, R), far from the fold)
@@ -147,7 +147,7 @@ def test_stiff_rods_converge_to_the_same_relative_accuracy(capsys):
 
 def test_failed_solve_advises_for_the_helix(capsys, monkeypatch):
     """No equilibrium: one line on stderr, exit 1, advice about this command's flags (no knot)."""
-    from jaxrod.solvers import ConvergenceError
+    from jaxrod.solve.solvers import ConvergenceError
 
     def fail(*args, **kwargs):
         raise ConvergenceError("capped Newton did not converge")

@@ -1,11 +1,11 @@
-"""Structured Hessian assembly (jaxrod.hessian) against jax.hessian of the exact energy, and the
+"""Structured Hessian assembly (jaxrod.model.hessian) against jax.hessian of the exact energy, and the
 neighbourhood (frozen writhe, contact candidates) against the exact energy."""
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 import jaxrod as jr
-from jaxrod.hessian import dense_autodiff_hessian, hessian_pattern, project_out, scaled_hessian
+from jaxrod.model.hessian import dense_autodiff_hessian, hessian_pattern, project_out, scaled_hessian
 from helpers import random_clamped_state, random_closed_state, random_free_state
 
 BUILDERS = {"closed": random_closed_state, "clamped": random_clamped_state, "free": random_free_state}

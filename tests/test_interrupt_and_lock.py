@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from jaxrod.locking import LOCK_NAME, FolderInUseError, folder_lock
+from jaxrod.io.locking import LOCK_NAME, FolderInUseError, folder_lock
 
 from test_cli import EXE
 
@@ -59,12 +59,12 @@ def test_the_lock_is_released_when_its_holder_is_killed_and_refuses_the_api_mean
     import math
 
     import jaxrod as jr
-    from jaxrod.study import twist_study
+    from jaxrod.studies.twist import twist_study
 
     out = tmp_path / "held"
     holder = subprocess.Popen([sys.executable, "-c", textwrap.dedent(f"""
         import sys, time
-        from jaxrod.locking import folder_lock
+        from jaxrod.io.locking import folder_lock
         with folder_lock({str(out)!r}):
             print("held", flush=True)
             time.sleep(120)

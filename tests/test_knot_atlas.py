@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 import jaxrod as jr
-from jaxrod.geometry import closest_approach
-from jaxrod.scenes import IDEAL_ROPELENGTH, knot_points
-from jaxrod.topology import writhe
+from jaxrod.model.geometry import closest_approach
+from jaxrod.model.scenes import IDEAL_ROPELENGTH, knot_points
+from jaxrod.model.topology import writhe
 
 # |Lk0| = |round(Wr)| of each parametrisation (4_1 is achiral: its writhe is ~0).
 LINKING = {"3_1": 3, "4_1": 0, "5_1": 7, "5_2": 4}

@@ -85,7 +85,7 @@ def test_fast_stability_equals_dense_spectrum_on_knots_with_contact(relaxed):
     # the whole spectrum only when all 24 are below the threshold. Against the full eigh, on 126
     # states of the N = 61 trefoil in contact: the relaxed knot and random perturbations of it
     # (0 to 60 negative eigenvalues), at twists it is not relaxed for (-12 pi ... 14 pi).
-    from jaxrod.stability import _lowest_spectrum, _spectrum
+    from jaxrod.linalg.stability import _lowest_spectrum, _spectrum
 
     eq, scene = relaxed
     rng = np.random.default_rng(7)
@@ -124,7 +124,7 @@ def _mixed_state(eq, scene, mu_slide, mu_shape, angle, third=None):
     ``third`` = (value, weight) the slide is instead mixed into a mode at that value as well."""
     from types import SimpleNamespace
 
-    from jaxrod.stability import sliding_fraction
+    from jaxrod.linalg.stability import sliding_fraction
 
     vec = np.asarray(eq.stability.eigenvectors)
     frac = sliding_fraction(scene, eq.q, vec)
@@ -147,7 +147,7 @@ def test_a_buckling_mode_mixed_with_the_slide_is_judged_by_its_own_eigenvalue(re
     # was half slide, half buckling mode, at -1.9e-7: judged as one mode it looked like a buckling
     # mode negative inside the sliding band, and the study ended 0.074 pi early. With the slide split
     # off the span, the buckling direction's own Ritz value (here +8.75e-8) decides.
-    from jaxrod.stability import band_shape_modes, shape_modes_in_band
+    from jaxrod.linalg.stability import band_shape_modes, shape_modes_in_band
 
     eq, scene = relaxed
     e, slide_frac, shape_frac = _mixed_state(eq, scene, -2.5e-7, 2.0e-7, np.pi / 6)

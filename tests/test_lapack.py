@@ -1,10 +1,10 @@
-"""jaxrod.lapack: SciPy's LAPACK routines called without holding the GIL give SciPy's results to
+"""jaxrod.linalg.lapack: SciPy's LAPACK routines called without holding the GIL give SciPy's results to
 the last bit (the dense path's eigenpairs and branch tangents must not change with the caller)."""
 import numpy as np
 import pytest
 import scipy.linalg
 
-from jaxrod import lapack
+from jaxrod.linalg import lapack
 
 
 @pytest.mark.parametrize("n, m", [(484, 12), (120, 6), (40, 1), (9, 9)])

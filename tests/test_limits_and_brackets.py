@@ -26,7 +26,7 @@ import pytest
 import jaxrod as jr
 from jaxrod import continuation as cont
 from jaxrod.cli import main
-from jaxrod.stability import Stability
+from jaxrod.linalg.stability import Stability
 
 # `jaxrod trefoil --N 10000`: n = 4 N = 40000 DOFs, and the allocation that failed.
 ISSUE_16_BYTES = 81663845416
@@ -78,7 +78,7 @@ def test_the_api_refuses_before_compiling(monkeypatch):
         jr.follow_twist(ring, 0.0, 1.0)
     with pytest.raises(ValueError, match=r"^N 10000 needs about 82 GB"):
         jr.critical_twist(ring, 0.0, 1.0, jr.ContinuationOptions(linear_algebra="dense"))
-    from jaxrod.study import twist_study
+    from jaxrod.studies.twist import twist_study
 
     with pytest.raises(ValueError, match=r"^N 10000 needs about 82 GB"):
         twist_study(ring, -1.0, 1.0)

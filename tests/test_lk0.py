@@ -52,7 +52,7 @@ def test_a_writhe_near_a_half_integer_is_flagged():
 
 
 def test_cli_lk0_reaches_the_study_and_the_header_says_which(tmp_path, monkeypatch, capsys):
-    import jaxrod.study as study
+    import jaxrod.studies.twist as study
     from jaxrod.cli import main
 
     curve = tmp_path / "five.csv"
@@ -76,7 +76,8 @@ def test_one_default_young_modulus_for_the_api_and_the_cli():
     # Issue 16, defect 9: trefoil() defaulted to E = 1 while the CLI used 0.474 MPa.
     import inspect
 
-    from jaxrod import cli, scenes
+    from jaxrod import cli
+    from jaxrod.model import scenes
 
     assert cli.PAPER_YOUNG_MODULUS == scenes.PAPER_YOUNG_MODULUS == 0.474
     for factory in (scenes.trefoil, scenes.knot, scenes.torus_knot):

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from jaxrod import ContinuationOptions, critical_twist, michell_critical_twist, michell_ring
-from jaxrod.solvers import ConvergenceError
+from jaxrod.solve.solvers import ConvergenceError
 
 
 def _phi_star(N, nu, slenderness=0.01):

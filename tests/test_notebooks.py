@@ -5,7 +5,7 @@ import pathlib
 
 import pytest
 
-from jaxrod.paths import benchmark_results
+from jaxrod.io.paths import benchmark_results
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
 NOTEBOOKS = sorted((REPO / "notebooks").glob("*.ipynb"))

@@ -8,7 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxrod import open_knot as ok
+from jaxrod.studies import open_knot as ok
 
 N, L, D, LOOP = 60, 1.0, 1.0 / 55, 0.015
 

@@ -1,4 +1,4 @@
-"""Figures of jaxrod.plotting on small synthetic data: each writes a PNG or returns a Figure."""
+"""Figures of jaxrod.io.plotting on small synthetic data: each writes a PNG or returns a Figure."""
 import math
 
 import matplotlib
@@ -10,8 +10,8 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
-from jaxrod import plotting  # noqa: E402
-from jaxrod.scenes import trefoil_points  # noqa: E402
+from jaxrod.io import plotting  # noqa: E402
+from jaxrod.model.scenes import trefoil_points  # noqa: E402
 
 CRITICAL = [{"phi": 2.5 * math.pi, "label": "phi+"}, {"phi": -1.5 * math.pi, "label": "phi-"}]
 

@@ -22,9 +22,9 @@ from hypothesis import HealthCheck, assume, event, given, settings
 from hypothesis import strategies as st
 
 import jaxrod as jr
-from jaxrod.analysis import analyze
-from jaxrod.geometry import closest_approach, resample_closed
-from jaxrod.topology import linking_number, writhe
+from jaxrod.measure.analysis import analyze
+from jaxrod.model.geometry import closest_approach, resample_closed
+from jaxrod.model.topology import linking_number, writhe
 
 N = 40
 PI = math.pi

@@ -44,8 +44,8 @@ def test_analyze_on_a_twisted_knot_state_is_right():
     import numpy as np
 
     import jaxrod as jr
-    from jaxrod.analysis import analyze
-    from jaxrod.records import step_record
+    from jaxrod.measure.analysis import analyze
+    from jaxrod.io.records import step_record
 
     knot = jr.trefoil(D=8.0, L=292.0, N=61)
     state = jr.relax(knot, phi=2 * math.pi)

@@ -15,7 +15,7 @@ import textwrap
 
 import numpy as np
 import jaxrod as jr
-from jaxrod.study import twist_study
+from jaxrod.studies.twist import twist_study
 
 PI = math.pi
 RANGE = (-0.5 * PI, 7.5 * PI)  # the opening side's fold at 6.60 pi, a switch, the buckled branch
@@ -28,7 +28,7 @@ STEP = 1.0 * PI  # 7 steps to the fold: the sixth step file is written before th
 SCRIPT = textwrap.dedent("""
     import math, os, signal, sys
     import jaxrod as jr
-    import jaxrod.study as study
+    import jaxrod.studies.twist as study
 
     out = sys.argv[1]
 

@@ -1,4 +1,4 @@
-"""O(N) linear algebra with self-contact (jaxrod.sparse_contact) against the dense path, on a trefoil
+"""O(N) linear algebra with self-contact (jaxrod.linalg.sparse_contact) against the dense path, on a trefoil
 small enough for both (N = 61, n = 244), at a state with contact pairs in reach and a slightly
 negative eigenvalue."""
 import math
@@ -9,12 +9,12 @@ import pytest
 import scipy.sparse as sp
 
 import jaxrod as jr
-from jaxrod import sparse_contact as spc
+from jaxrod.linalg import sparse_contact as spc
 from jaxrod.continuation import ContinuationOptions, _use_sparse, follow_twist
-from jaxrod.hessian import scaled_hessian
-from jaxrod.sparse_branch import sparse_branch_analysis
-from jaxrod.solvers import HostDampedNewton, StopReason, minimise
-from jaxrod.stability import _projected_hessian, branch_analysis, stability
+from jaxrod.model.hessian import scaled_hessian
+from jaxrod.continuation.sparse_branch import sparse_branch_analysis
+from jaxrod.solve.solvers import HostDampedNewton, StopReason, minimise
+from jaxrod.linalg.stability import _projected_hessian, branch_analysis, stability
 
 N = 61
 PHI = 3.0 * math.pi
@@ -65,7 +65,7 @@ def test_sparse_hessian_equals_the_dense_structured_hessian(knot):
 def test_polyline_distance_is_exact_on_large_rods():
     """The KD-tree path of ``polyline_distance`` (large rods, O(N log N)) gives exactly the
     all-pairs value: the candidate radius d + h/2 keeps every segment that can be nearest."""
-    from jaxrod.geometry import _point_polyline_distances, polyline_distance
+    from jaxrod.model.geometry import _point_polyline_distances, polyline_distance
 
     rng = np.random.default_rng(1)
     t = np.linspace(0.0, 2 * np.pi, 400, endpoint=False)
@@ -212,11 +212,11 @@ def test_host_damped_newton_descends_from_a_saddle_and_reports_honestly():
 
 
 def test_sparse_bifurcation_backend_equals_the_dense_one(knot):
-    # jaxrod.bifurcation's host backend (issue 18: the extended-system locators at O(N)) on the
+    # jaxrod.continuation.arclength's host backend (issue 18: the extended-system locators at O(N)) on the
     # knot's pinned problem: solves with vector and matrix borders, the spectrum with its Morse
     # index, and the branch-point test function sigma, against DenseBackend
-    from jaxrod.bifurcation.linalg import DenseBackend, SparseBackend
-    from jaxrod.bifurcation.rods import _assemble_pinned, knot_problem
+    from jaxrod.linalg.bordered import DenseBackend, SparseBackend
+    from jaxrod.continuation.arclength.rods import _assemble_pinned, knot_problem
 
     scene, _, e, _, _, _ = knot
     rods = {name: knot_problem(scene, np.asarray(e.q), PHI, backend=be)

@@ -1,4 +1,4 @@
-"""jaxrod.sparse_stability: the O(N) block path against the dense one (jaxrod.stability).
+"""jaxrod.linalg.sparse: the O(N) block path against the dense one (jaxrod.linalg.stability).
 
 Compilation dominates the run time (each scene shape compiles the dense Newton loop, the dense
 spectrum, the block Hessian, ...), so every test works on the same two small scenes: a Michell ring
@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 import jaxrod as jr
-from jaxrod import sparse_stability as ss
-from jaxrod.stability import DEFAULT_NEGATIVE_TOL, spectrum, stability
+from jaxrod.linalg import sparse as ss
+from jaxrod.linalg.stability import DEFAULT_NEGATIVE_TOL, spectrum, stability
 
 N = 24
 RING_NUS = (0.0, 0.25, 0.5)
@@ -68,7 +68,7 @@ def ring_state(scene, phi):
 def clamped_state(scene, phi):
     """The twisted straight clamped rod, solved by the pinned Newton of the block path (nothing
     is pinned on a clamped rod) -- so that the dense Newton loop is compiled for one shape only;
-    the dense count below is still ``jaxrod.stability.stability``."""
+    the dense count below is still ``jaxrod.linalg.stability.stability``."""
     q = jnp.asarray(scene.q_init)
     nbr = scene.neighbourhood(q, phi)
     u = scene.to_scaled(q)
@@ -166,7 +166,7 @@ def test_block_hessian_equals_dense_hessian_on_a_wobbly_twisted_ring():
 
 
 def test_block_hessian_equals_dense_hessian_on_a_clamped_rod():
-    # The dense reference is the structured Hessian that jaxrod.stability diagonalises: without
+    # The dense reference is the structured Hessian that jaxrod.linalg.stability diagonalises: without
     # zero modes, V diag(lambda) V^T of ``spectrum`` is that matrix (eigh round-off ~1e-15), and
     # ``spectrum`` is compiled for this shape anyway (a separate ``scaled_hessian`` would cost
     # another compilation).
@@ -278,7 +278,7 @@ def dense_tangent(st):
 
 @pytest.mark.parametrize("kind, frac", [("ring", 0.63), ("ring", 1.41), ("clamped", 0.77)])
 def test_tangent_matches_dense_pseudo_inverse(states, kind, frac):
-    # (jaxrod.stability.branch_analysis gives the same tangent, in physical DOFs, with the tracked
+    # (jaxrod.linalg.stability.branch_analysis gives the same tangent, in physical DOFs, with the tracked
     # mode left out -- here it is formed from the dense spectrum to save its compilation.)
     nu = 0.5 if kind == "ring" else 0.0
     pc, sts = states[kind, nu]
@@ -314,8 +314,8 @@ def test_critical_twist_sparse_equals_dense(kind):
 
 
 def test_sparse_branch_analysis_matches_dense():
-    from jaxrod.sparse_branch import solve_equilibrium_sparse, sparse_branch_analysis
-    from jaxrod.stability import branch_analysis
+    from jaxrod.continuation.sparse_branch import solve_equilibrium_sparse, sparse_branch_analysis
+    from jaxrod.linalg.stability import branch_analysis
 
     scene = ring_scene(0.5)
     phi = 0.9 * jr.michell_critical_twist(0.5)

@@ -17,7 +17,7 @@ def test_zero_modes_removed_and_counted():
     st = eq.stability
     assert st.n_zero_modes == 7 and st.stable and st.n_negative == 0
     # Without removal the raw Hessian has 7 eigenvalues ~0 (3 translations, 3 rotations, twist shift).
-    from jaxrod.stability import scaled_hessian
+    from jaxrod.linalg.stability import scaled_hessian
 
     raw = np.linalg.eigvalsh(np.asarray(scaled_hessian(scene, scene.to_scaled(jnp.asarray(eq.q)), math.pi)))
     assert np.sum(np.abs(raw) < 1e-9) == 7
@@ -67,8 +67,8 @@ def test_the_shape_band_scales_with_N_like_the_shape_modes():
     from types import SimpleNamespace
 
     import jaxrod as jr
-    from jaxrod.stability import shape_modes_in_band
-    from jaxrod.tolerances import DEFAULT_NEGATIVE_TOL, scaled_negative_tol
+    from jaxrod.linalg.stability import shape_modes_in_band
+    from jaxrod.linalg.tolerances import DEFAULT_NEGATIVE_TOL, scaled_negative_tol
 
     rng = np.random.default_rng(3)
     for N, counted in ((121, False), (961, True)):

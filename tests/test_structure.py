@@ -81,8 +81,8 @@ def _cycle(graph):
 
 def test_the_import_graph_is_read():
     graph = _graph()
-    assert "jaxrod.equilibrium" in graph["jaxrod.continuation.engine"]
-    assert "jaxrod.stability" in graph["jaxrod.equilibrium"]
+    assert "jaxrod.solve.equilibrium" in graph["jaxrod.continuation.engine"]
+    assert "jaxrod.linalg.stability" in graph["jaxrod.solve.equilibrium"]
 
 
 def test_no_import_cycle():

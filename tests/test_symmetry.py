@@ -1,4 +1,4 @@
-"""The two-fold symmetry through a closed rod's joint (jaxrod.symmetry), and the stable-only
+"""The two-fold symmetry through a closed rod's joint (jaxrod.model.symmetry), and the stable-only
 continuation keeping a symmetric branch on it (``ContinuationOptions.keep_symmetry``)."""
 import math
 from dataclasses import replace
@@ -10,10 +10,10 @@ import pytest
 from jaxrod.continuation import ContinuationOptions
 from jaxrod.continuation.engine import ROUND_OFF_ASYMMETRY, SYMMETRIC_TOL, _Engine
 from jaxrod.continuation.options import Task
-from jaxrod.equilibrium import relax
-from jaxrod.geometry import resample_closed
-from jaxrod.scenes import clamped_rod, trefoil
-from jaxrod.symmetry import joint_two_fold, symmetrize, two_fold_asymmetry
+from jaxrod.solve.equilibrium import relax
+from jaxrod.model.geometry import resample_closed
+from jaxrod.model.scenes import clamped_rod, trefoil
+from jaxrod.model.symmetry import joint_two_fold, symmetrize, two_fold_asymmetry
 
 N = 41
 
@@ -65,7 +65,7 @@ def test_the_drawn_trefoil_is_symmetric_and_a_slid_one_is_not(knot):
 
 
 def test_rods_without_the_symmetry_are_left_alone():
-    from jaxrod.material import Material
+    from jaxrod.model.material import Material
 
     rod = clamped_rod(12, 1.0, Material(B=1.0, C=1.0, EA=1e3))
     assert joint_two_fold(rod, np.asarray(rod.q_init), 1.0) is None
@@ -101,8 +101,8 @@ def test_a_diagram_path_starts_where_the_critical_eigenvalue_is_resolved(knot):
     # diagram.backed_off_start: the study's last stable state as it is where its critical
     # eigenvalue is resolved (or the model says nothing), else relaxed at the twist where the
     # linear model puts the eigenvalue at START_EIGENVALUE, keeping the joint's symmetry.
-    from jaxrod.diagram import MAX_START_BACK, START_EIGENVALUE, backed_off_start
-    from jaxrod.equilibrium import solve_equilibrium
+    from jaxrod.studies.diagram import MAX_START_BACK, START_EIGENVALUE, backed_off_start
+    from jaxrod.solve.equilibrium import solve_equilibrium
 
     q0 = np.asarray(knot.q_init)
     for eigenvalue, rate in ((2 * START_EIGENVALUE, -1e-6), (1e-9, -1e-6 * -1), (math.nan, -1e-6), (1e-9, math.nan)):
@@ -119,7 +119,7 @@ def test_a_diagram_path_starts_where_the_critical_eigenvalue_is_resolved(knot):
 
 
 def _newton_options():
-    from jaxrod.equilibrium import EquilibriumOptions
+    from jaxrod.solve.equilibrium import EquilibriumOptions
 
     return EquilibriumOptions(method="newton", with_stability=False)
 
@@ -169,8 +169,8 @@ def test_a_pinned_knot_problem_is_projected_onto_the_symmetry_with_its_gauge_kep
     # knot_problem's symmetrize hook: the state projected in all DOFs, then moved rigidly (and its
     # twist angles shifted) until the 7 pinned DOFs are back at their values, so that the free DOFs
     # alone describe a symmetric state; event_curve's relaxation keeps a symmetric start symmetric
-    from jaxrod.bifurcation.event_curve import _relaxed
-    from jaxrod.bifurcation.rods import knot_problem
+    from jaxrod.continuation.arclength.event_curve import _relaxed
+    from jaxrod.continuation.arclength.rods import knot_problem
 
     edge = knot.length / N
     phi = -2.0 * math.pi

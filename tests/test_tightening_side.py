@@ -5,8 +5,8 @@ import pathlib
 
 import numpy as np
 
-from jaxrod import atlas
-from jaxrod.study import _summarise, tightening_side
+from jaxrod.studies import atlas
+from jaxrod.studies.twist import _summarise, tightening_side
 
 RESULTS = pathlib.Path(__file__).resolve().parent.parent / "benchmarks" / "results" / "atlas"
 

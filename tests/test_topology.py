@@ -1,4 +1,4 @@
-"""Tests for jaxrod.topology: writhe, linking number and their quadratures."""
+"""Tests for jaxrod.model.topology: writhe, linking number and their quadratures."""
 import numpy as np
 import pytest
 
@@ -6,8 +6,8 @@ import jax
 import jax.numpy as jnp
 
 import jaxrod  # noqa: F401  (enables float64)
-from jaxrod import topology
-from jaxrod.topology import (
+from jaxrod.model import topology
+from jaxrod.model.topology import (
     eccentric_line,
     gauss_linking_quadrature,
     linking_number,

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import jaxrod as jr
-from jaxrod.records import step_record
-from jaxrod.study import read_table, twist_study
+from jaxrod.io.records import step_record
+from jaxrod.studies.twist import read_table, twist_study
 
 PI = math.pi
 HALF_PI_STEP = jr.ContinuationOptions(step=0.5 * PI)
@@ -225,7 +225,7 @@ def test_sliding_modes_are_told_from_shape_modes_by_their_shape(opening):
     # Issue 17: a fixed band (-1e-6, 0) of "zero" eigenvalues for the sliding modes of loose knots
     # also hides real instabilities. The sliding mode moves material along the knot's own
     # centreline (plus a rigid motion); a buckling mode changes the shape.
-    from jaxrod.stability import SLIDING_FRACTION, sliding_fraction
+    from jaxrod.linalg.stability import SLIDING_FRACTION, sliding_fraction
 
     path, _ = opening
     for point in path.points:
@@ -243,7 +243,7 @@ def test_a_shape_mode_inside_the_near_zero_band_is_flagged(opening):
     import warnings
 
     from jaxrod.continuation import CONTACT_NEGATIVE_TOL, ContinuationOptions, Task, _warn_if_band_hides_shape_modes
-    from jaxrod.stability import shape_modes_in_band
+    from jaxrod.linalg.stability import shape_modes_in_band
 
     path, _ = opening
     point = path.points[2]

@@ -25,7 +25,7 @@ instabilities, states). Read in this order:
 * ``switching`` the switch to the buckled branch
 * ``follow``    follow_twist and its loop (_Follower)
 """
-from ..stability import CONTACT_NEGATIVE_TOL, DEFAULT_NEGATIVE_TOL  # noqa: F401 (where callers have found them)
+from ..linalg.stability import CONTACT_NEGATIVE_TOL, DEFAULT_NEGATIVE_TOL  # noqa: F401 (where callers have found them)
 from .options import (CONTACT_GTOL, CORRECTOR_MAX_STEPS, LINEAR_ALGEBRA, MAX_REFINE,  # noqa: F401
                       NEGATIVE_TOL_FRACTION, ContinuationOptions, Observer, Task, default_negative_tol)
 from .memory import (DENSE_BYTES_PER_DOF, DENSE_HESSIAN_COPIES, PROCESS_BASE_BYTES,  # noqa: F401

@@ -40,7 +40,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..aot import cached_jit
-from ..stability import scene_bilinear_gradient
+from ..linalg.stability import scene_bilinear_gradient
 
 # Modes checked: the lowest few physical eigenpairs (the ones that go soft first).
 CHECKED_MODES = 4

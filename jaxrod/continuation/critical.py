@@ -15,9 +15,9 @@ import time
 
 import numpy as np
 
-from ..equilibrium import EquilibriumOptions, RelaxOptions, relax, solve_equilibrium
-from ..solvers import ConvergenceError
-from ..sparse_branch import solve_equilibrium_sparse
+from ..solve.equilibrium import EquilibriumOptions, RelaxOptions, relax, solve_equilibrium
+from ..solve.solvers import ConvergenceError
+from .sparse_branch import solve_equilibrium_sparse
 from ..validation import check_finite, refuse_knot
 from .engine import _SPARSE_MIN_DOF, _Engine, _grown_engine, _use_sparse
 from .memory import check_dense_memory

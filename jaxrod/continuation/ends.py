@@ -9,7 +9,7 @@ import warnings
 
 import numpy as np
 
-from ..stability import DEFAULT_NEGATIVE_TOL, band_shape_modes, shape_modes_in_band, without_slide
+from ..linalg.stability import DEFAULT_NEGATIVE_TOL, band_shape_modes, shape_modes_in_band, without_slide
 from .engine import StepFailure, _Refusal
 from .results import Instability
 

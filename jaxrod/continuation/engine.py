@@ -12,19 +12,19 @@ import numpy as np
 
 import jax.numpy as jnp
 
-from ..equilibrium import (
+from ..solve.equilibrium import (
     Equilibrium, EquilibriumOptions, LeftBranchError, RelaxOptions, TopologyChangeError, mode_step, relax,
     solve_equilibrium,
 )
-from ..geometry import polyline_distance
-from ..solvers import ConvergenceError
-from ..solvers import HostDampedNewton, minimise
-from ..sparse_branch import EXTRA_PAIRS, solve_equilibrium_sparse, sparse_branch_analysis
-from ..sparse_contact import SPARSE_MIN_DOF, deflated_newton_direction, use_sparse
-from ..equilibrium import equilibrium_from_solution, scaled_energy
-from ..stability import SLIDING_FRACTION, branch_analysis, sliding_fraction
+from ..model.geometry import polyline_distance
+from ..solve.solvers import ConvergenceError
+from ..solve.solvers import HostDampedNewton, minimise
+from .sparse_branch import EXTRA_PAIRS, solve_equilibrium_sparse, sparse_branch_analysis
+from ..linalg.sparse_contact import SPARSE_MIN_DOF, deflated_newton_direction, use_sparse
+from ..solve.equilibrium import equilibrium_from_solution, scaled_energy
+from ..linalg.stability import SLIDING_FRACTION, branch_analysis, sliding_fraction
 from .branch_check import branch_model
-from ..symmetry import ROUND_OFF_ASYMMETRY, SYMMETRIC_TOL, joint_two_fold, symmetrize, two_fold_asymmetry
+from ..model.symmetry import ROUND_OFF_ASYMMETRY, SYMMETRIC_TOL, joint_two_fold, symmetrize, two_fold_asymmetry
 from .options import ContinuationOptions, Task
 
 
@@ -250,7 +250,7 @@ class _Engine:
 
     def _kept_symmetric(self, reference_q, e, phi, previous=None):
         """e, or e projected back onto the two-fold symmetry that the state ``reference_q`` it was
-        corrected from has (see ``ContinuationOptions.keep_symmetry`` and ``jaxrod.symmetry``) and
+        corrected from has (see ``ContinuationOptions.keep_symmetry`` and ``jaxrod.model.symmetry``) and
         finished by the corrector, where it drifted off it by more than round-off and less than
         jump_tol. From a symmetric state the gradient is symmetric and the Hessian commutes with the
         map, so the finishing steps (none or one) keep the symmetry; the result is checked like any
@@ -322,8 +322,8 @@ _SPARSE_MIN_DOF = SPARSE_MIN_DOF
 
 def _use_sparse(scene, linear_algebra):
     """Whether a continuation uses the O(n) path (see ``ContinuationOptions.linear_algebra``):
-    block-tridiagonal for rods without contact (``jaxrod.sparse_branch``), SciPy's sparse
-    factorisations with contact (``jaxrod.sparse_contact``)."""
+    block-tridiagonal for rods without contact (``jaxrod.continuation.sparse_branch``), SciPy's sparse
+    factorisations with contact (``jaxrod.linalg.sparse_contact``)."""
     return use_sparse(scene, linear_algebra)
 
 

@@ -11,7 +11,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..equilibrium import Equilibrium, relax
+from ..solve.equilibrium import Equilibrium, relax
 from ..validation import check_finite
 from .engine import StepFailure, _Engine, _Refusal, _use_sparse
 from .ends import (_band_detail, _critical_mode, _end_trial, _hidden_refusal, _hidden_shape_modes, _locate,
@@ -29,7 +29,7 @@ DEPARTURE_REFINE = 8.0
 
 
 def _follow_engine(scene, opts):
-    """follow_twist's engine: the O(n) linear algebra of ``jaxrod.sparse_contact`` for rods with
+    """follow_twist's engine: the O(n) linear algebra of ``jaxrod.linalg.sparse_contact`` for rods with
     contact where ``opts.linear_algebra`` asks for it (or "auto" from SPARSE_MIN_DOF DOFs on);
     dense otherwise (rods without contact: the corrector is the dense minimiser)."""
     return _Engine(scene, Task.FOLLOW_TWIST, opts, _sparse_follow(scene, opts.linear_algebra))

@@ -7,7 +7,7 @@ import math
 
 
 # Memory of the dense path, in bytes: DENSE_HESSIAN_COPIES * 8 n^2 + DENSE_BYTES_PER_DOF * n for n
-# DOFs. The largest buffer is the compiled damped-Newton loop of ``relax`` (jaxrod.solvers: the
+# DOFs. The largest buffer is the compiled damped-Newton loop of ``relax`` (jaxrod.solve.solvers: the
 # Hessian, its symmetrised and shifted copies, an identity, the Cholesky factors of the shift
 # search), allocated by XLA in one piece: its temporary buffer (``memory_analysis``) measured
 # 6.78, 6.59, 6.48 n^2 doubles for the trefoil at N = 121, 242, 484 (n = 4N), i.e. 6.37 n^2 + 241 n

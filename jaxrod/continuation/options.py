@@ -7,8 +7,8 @@ import enum
 import math
 from dataclasses import dataclass, fields, replace
 
-from ..stability import CONTACT_NEGATIVE_TOL
-from ..tolerances import NEGATIVE_TOL_FRACTION, scaled_negative_tol  # noqa: F401  (re-exported)
+from ..linalg.stability import CONTACT_NEGATIVE_TOL
+from ..linalg.tolerances import NEGATIVE_TOL_FRACTION, scaled_negative_tol  # noqa: F401  (re-exported)
 from ..validation import check_int_at_least, check_positive
 
 # Damped-Newton iterations a continuation corrector may take between two neighbourhood pauses.
@@ -53,8 +53,8 @@ class ContinuationOptions:
     max_refine: Newton steps on the crossing eigenvalue (default MAX_REFINE = 30).
     linear_algebra: "dense" (n x n Hessian, ``eigh``: O(n^3) per step), "sparse" (O(n) per step:
       without contact the block-tridiagonal Newton, inertia, eigenpairs and tangent of
-      ``jaxrod.sparse_branch``; with contact SciPy's sparse LDL^T, ARPACK shift-invert and the
-      host damped Newton of ``jaxrod.sparse_contact``) or "auto" (the default: sparse from
+      ``jaxrod.continuation.sparse_branch``; with contact SciPy's sparse LDL^T, ARPACK shift-invert and the
+      host damped Newton of ``jaxrod.linalg.sparse_contact``) or "auto" (the default: sparse from
       n_dof >= 1000 on, else dense). follow_twist on rods without contact is dense only (it
       refuses "sparse").
 
@@ -70,7 +70,7 @@ class ContinuationOptions:
     keep_symmetry: on a closed rod whose joint lies on a two-fold axis of the state followed (the
       trefoil as drawn), keep the states on that symmetry while the branch has it: a corrected
       state that drifted off it by less than ``jump_tol`` (material sliding along nearly null
-      modes) is projected back and finished by the corrector (``jaxrod.symmetry``). Default True.
+      modes) is projected back and finished by the corrector (``jaxrod.model.symmetry``). Default True.
     check_branch: refuse a stable step across which one of the last state's lowest shape modes is
       predicted, by its eigenvalue's derivative along the branch, to cross zero; the end is then
       located as any other (``continuation.branch_check``: a minimiser past a branch point lands
@@ -213,7 +213,7 @@ def observed(observer, what, calls):
 
 def checked_options(options):
     """``options`` (None: ``ContinuationOptions()``); TypeError if it is not this module's
-    ``ContinuationOptions`` (``jaxrod.bifurcation.ContinuationOptions`` is the pseudo-arclength
+    ``ContinuationOptions`` (``jaxrod.continuation.arclength.ContinuationOptions`` is the pseudo-arclength
     engine's, another class of the same name)."""
     if options is None:
         return ContinuationOptions()

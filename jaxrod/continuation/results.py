@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..equilibrium import Equilibrium
+from ..solve.equilibrium import Equilibrium
 
 
 class _ValueEnum(str, enum.Enum):

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..equilibrium import Equilibrium, equilibrium_arrays, equilibrium_from_arrays
+from ..solve.equilibrium import Equilibrium, equilibrium_arrays, equilibrium_from_arrays
 from .engine import StepFailure, _Refusal
 from .results import PathStop, _ValueEnum
 

@@ -9,9 +9,9 @@ import numpy as np
 
 import jax.numpy as jnp
 
-from ..equilibrium import TopologyChangeError, mode_step, relax
-from ..geometry import polyline_distance
-from ..solvers import ConvergenceError
+from ..solve.equilibrium import TopologyChangeError, mode_step, relax
+from ..model.geometry import polyline_distance
+from ..solve.solvers import ConvergenceError
 
 
 def _next_branch_name(name):
@@ -29,7 +29,7 @@ def _next_branch_name(name):
 # Lk, the lowest in energy is taken. Which one that is can change with the code that relaxes them
 # (the README once showed Wr 3.64, then 3.71); the record says which start won and what the others
 # reached, so the choice is stated, not a lottery. Following the unstable branch instead is
-# ``jaxrod.diagram`` (the unstable branches beyond each located end).
+# ``jaxrod.studies.diagram`` (the unstable branches beyond each located end).
 SWITCH_RULE = ("relaxed from the predicted state pushed +-perturbation along the critical mode and from the "
                "state the corrector jumped to; of the stable states that left the old branch with Lk kept, "
                "the lowest in energy")

@@ -1,0 +1,629 @@
+"""O(N) linear algebra for rods WITH self-contact (issue 18): a sparse LDL^T (QDLDL) and its inertia.
+
+The scaled Hessian of a knot is H = S + w a a^T: S sparse (the local part, ~20 entries per row,
+plus one 12 x 12 block per contact pair in reach, ``jaxrod.model.hessian``) and the holonomy's dense
+rank-one term, kept as the vector a. Nothing of size n x n is formed:
+
+* **Factorisation with inertia.** QDLDL (``qdldl``: AMD ordering, then P A P^T = L D L^T
+  without pivoting): the signs of D give the inertia of A (Sylvester's law). Where it meets a zero
+  pivot, ``scipy.sparse.linalg.splu`` (SuperLU) with a symmetric fill-reducing ordering (minimum
+  degree on A + A^T), ``SymmetricMode`` and a diagonal pivot threshold of 0 tries the same
+  diagonal-pivot factorisation (U = D L^T); a run that pivoted off the diagonal (perm_r !=
+  perm_c) is refused, never counted. Why QDLDL: a true LDL^T, half SuperLU's work (see
+  ``_ldlt``); CHOLMOD (scikit-sparse) needs a compiled SuiteSparse that pip cannot always
+  provide, and a Cholesky alone gives definiteness, not the count.
+* **The dense columns as a border.** The 7 pinned DOFs (``sparse_stability.gauge_pins``: the
+  gauge of the rigid motions and of the material twist), the rank-one vector a and, where needed,
+  the zero modes Z and deflated eigenvectors are columns of a bordered matrix
+  [[A, E], [E^T, D]] solved by the Schur complement (one factorisation of the sparse block A,
+  r solves with E). Haynsworth: In(bordered) = In(A) + In(D - E^T A^-1 E).
+* **Counts below a shift.** With the border [pins, a, Z] the bordered matrix of H - s I has the
+  inertia of H - s I projected on Z-perp plus (7, 7) from the Z border and one negative from the
+  rank-one border (-1/w): so the number of eigenvalues of the projected Hessian below s is exact,
+  for any s, at O(N).
+* **Lowest eigenpairs.** ARPACK (``scipy.sparse.linalg.eigsh``) in shift-invert mode, the
+  inverse applied by the same bordered solve (constrained to Z-perp), at a shift proven below the
+  spectrum by the count; eigenvalues are then the Rayleigh quotients of the returned vectors.
+* **Newton steps and the branch tangent** are pinned solves (the pinned Hessian at an equilibrium
+  has the inertia of the projected one; a pinned solution differs from the minimum-norm one by a
+  zero mode, removed afterwards), the near-null sliding modes of a loose knot deflated as
+  border columns.
+
+Entry points: ``sparse_hessian`` (the parts, host CSC), ``count_below``, ``lowest_eigenpairs``,
+``contact_spectrum``, ``contact_branch_analysis`` (wrapped by ``stability.stability`` and
+``sparse_branch.sparse_branch_analysis``)
+and ``damped_newton_direction`` (the direction of ``solvers.HostDampedNewton``).
+"""
+from __future__ import annotations
+
+import collections
+import functools
+import threading
+import weakref
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spl
+
+try:  # a true sparse LDL^T (see _ldlt); SuperLU in symmetric mode stands in without it
+    import qdldl as _qdldl
+except ImportError:  # pragma: no cover
+    _qdldl = None
+
+from ..model.hessian import _pattern_entries, contact_blocks, hessian_pattern, local_entries
+from .sparse import EXTRA_PAIRS, _gauge, eigenvalue_branch_derivative, gradient_and_phi_derivative
+
+__all__ = ["hessian_parts", "assemble", "negative_count", "SPARSE_MIN_DOF", "use_sparse", "deflated_newton_direction", "SparseHessian", "sparse_hessian", "count_below", "lowest_eigenpairs", "contact_spectrum",
+           "contact_branch_analysis", "damped_newton_direction", "FactorisationError"]
+
+
+# "auto" takes the O(n) path from this many DOFs on (N ~ 250 nodes); below it the dense path is
+# fast enough, and compiled already for most small scenes.
+SPARSE_MIN_DOF = 1000
+LINEAR_ALGEBRA = ("auto", "dense", "sparse")
+
+
+def use_sparse(scene, linear_algebra="auto"):
+    """Whether the O(n) linear algebra is used for ``scene``: "sparse", "dense", or "auto" (sparse
+    from SPARSE_MIN_DOF DOFs on). Raises ValueError naming the parameter otherwise."""
+    if linear_algebra not in LINEAR_ALGEBRA:
+        raise ValueError(f"linear_algebra must be 'auto', 'dense' or 'sparse', got {linear_algebra!r}")
+    if linear_algebra == "auto":
+        return int(scene.n_dof) >= SPARSE_MIN_DOF
+    return linear_algebra == "sparse"
+
+
+class FactorisationError(np.linalg.LinAlgError):
+    """The symmetric-mode factorisation pivoted off the diagonal or met a zero pivot: no inertia."""
+
+
+@jax.jit
+def _parts(scene, u, phi, nbr):
+    pat = hessian_pattern(scene)
+    _, _, values, w, a = local_entries(scene, u, phi, nbr, pat)
+    if "contact" in scene.terms and nbr.pairs.shape[0] > 0:
+        blocks, dofs, count = contact_blocks(scene, u, nbr, pat)
+    else:
+        blocks, dofs, count = jnp.zeros((0, 12, 12), u.dtype), jnp.zeros((0, 12), jnp.int32), jnp.asarray(0)
+    return values, w, a, blocks, dofs, count
+
+
+@jax.jit
+def _zero_basis(scene, u, phi):
+    """(Z (n, z) orthonormal zero modes, pins (7,) the gauge DOFs)."""
+    Q, pins, _ = _gauge(scene, u, phi)
+    return Q, pins
+
+
+@dataclass(frozen=True, eq=False)
+class SparseHessian:
+    """H = S + w a a^T. S: (n, n) scipy CSC (local part + contact blocks, symmetric); w: float;
+    a: (n,); Z: (n, z) orthonormal zero modes; pins: (z,) gauge DOFs (q indices)."""
+
+    S: sp.csc_matrix
+    w: float
+    a: np.ndarray
+    Z: np.ndarray
+    pins: np.ndarray
+
+    @property
+    def n(self):
+        return self.S.shape[0]
+
+    def matvec(self, x):
+        return self.S @ x + self.w * self.a * (self.a @ x)
+
+    def diagonal(self):
+        return self.S.diagonal() + self.w * self.a**2
+
+    @functools.cached_property
+    def free(self):
+        """(n - z,) the unpinned DOFs."""
+        mask = np.ones(self.n, bool)
+        mask[self.pins] = False
+        return np.flatnonzero(mask)
+
+    @functools.cached_property
+    def blocks(self):
+        """(S_ff CSC, S_fp dense (n_f, z), S_pp dense (z, z)): S split by free / pinned DOFs, once
+        per Hessian (every factorisation at another shift reuses them)."""
+        S = self.S.tocsr()
+        rows_f, rows_p = S[self.free], S[self.pins]
+        return (rows_f[:, self.free].tocsc(), rows_f[:, self.pins].toarray(), rows_p[:, self.pins].toarray())
+
+
+def sparse_hessian(scene, u, phi, nbr):
+    """The scaled Hessian of ``scene.scaled_energy`` at (u (n,), phi) as a ``SparseHessian``:
+    the local part's ~20 n entries and the contact blocks from one jitted call (O(N)), assembled
+    into CSC on the host (duplicates summed)."""
+    parts = jax.device_get(_parts(scene, jnp.asarray(u), phi, nbr))
+    Z, pins = jax.device_get(_zero_basis(scene, jnp.asarray(u), phi))
+    S, w, a = assemble(scene, parts)
+    return SparseHessian(S=S, w=w, a=a, Z=np.asarray(Z, float), pins=np.asarray(pins, dtype=np.int64))
+
+
+def hessian_parts(scene, u, phi, nbr):
+    """The Hessian's parts as device arrays (values (nnz,), w, a (n,), blocks (P, 12, 12), dofs
+    (P, 12), count): one jitted call, traceable (for ``assemble`` on the host)."""
+    return _parts(scene, u, phi, nbr)
+
+
+def assemble(scene, parts):
+    """(S (n, n) CSC, w, a (n,)) on the host from ``hessian_parts``: (H + H^T)/2 of the local
+    entries and the contact blocks in reach, exactly symmetric (as the inertia needs).
+
+    The contact blocks (P, 12, 12) overlap heavily (neighbouring pairs share nodes): they are
+    first summed per unordered pair of nodes, 3 x 3 each, over 16 P keys, so that scipy's COO ->
+    CSC conversion sorts ~ 20 n + 18 U entries (U node pairs) instead of 2 (20 n + 144 P): at the
+    trefoil's N = 481 the conversion took 28 ms of each Hessian, 3.5 s of its 15.7 s tightening
+    side. Every entry of S is then the sum of at most two terms (local, contact), each of them
+    exactly symmetric, so S is too."""
+    values, w, a, blocks, dofs, count = (np.asarray(x) for x in parts)
+    pat = hessian_pattern(scene)
+    n = pat.n
+    rows, cols, transpose = _local_layout(pat)
+    local = 0.5 * (values + values[transpose])  # (H + H^T)/2 entry by entry: v[k] == v[transpose[k]]
+    count = int(count)
+    R, C, V = _node_pair_entries(blocks[:count], dofs[:count], n)
+    S = sp.csc_matrix((np.concatenate([local, V]), (np.concatenate([rows, R]), np.concatenate([cols, C]))),
+                      shape=(n, n))
+    return S, float(w), np.asarray(a, float)
+
+
+def _local_layout(pat):
+    """(rows, cols, transpose) of the local pattern (symmetric): its entries row-major and, for
+    each, the index of its transposed entry. Kept on ``pat``."""
+    layout = pat.__dict__.get("_layout")
+    if layout is None:
+        rows, cols = _pattern_entries(pat)
+        keys = rows.astype(np.int64) * pat.n + cols  # row-major: sorted
+        transpose = np.searchsorted(keys, cols.astype(np.int64) * pat.n + rows)
+        layout = pat.__dict__["_layout"] = (rows, cols, transpose)
+    return layout
+
+
+def _node_pair_entries(blocks, dofs, n):
+    """COO entries (rows, cols, values) of the contact blocks blocks (P, 12, 12) on dofs (P, 12)
+    (DOF n: a clamped node), summed per unordered pair of nodes: each pair {a, b} appears once as
+    (a, b) and once as (b, a), each diagonal node block once (symmetrised).
+
+    The blocks are exactly symmetric (``contact.contact_pair_hessian``), so only the node blocks
+    (k, l) of a pair with node k <= node l are summed (half the work); the lower triangle is their
+    mirror image, which makes the result exactly symmetric. Node pairs are numbered through a
+    table indexed by (a, b) (a node's id: its first DOF // 3), where there are few enough nodes
+    for it (a sort, ``np.unique``, otherwise): at the trefoil's N = 481, 4.2 ms against 8.9 ms for
+    sorting both orientations."""
+    P = blocks.shape[0]
+    if P == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+    node_dofs = dofs.reshape(P, 4, 3)
+    node = node_dofs[:, :, 0].astype(np.int64) // 3  # a node by its first DOF (n // 3: clamped)
+    free = node_dofs[:, :, 0] < n
+    keep = free[:, :, None] & free[:, None, :] & (node[:, :, None] <= node[:, None, :])
+    p, k, l = np.nonzero(keep)  # node blocks (k, l) of pair p, node k <= node l, neither clamped
+    n_nodes = n // 3 + 1
+    keys = node[p, k] * n_nodes + node[p, l]
+    if n_nodes <= _NODE_TABLE_MAX:
+        seen = np.zeros(n_nodes * n_nodes, bool)
+        seen[keys] = True
+        pairs = np.flatnonzero(seen)
+        slot = np.empty(n_nodes * n_nodes, np.int64)
+        slot[pairs] = np.arange(pairs.size)
+        inverse = slot[keys]
+    else:
+        pairs, inverse = np.unique(keys, return_inverse=True)
+        inverse = inverse.ravel()
+    blk = blocks.reshape(P, 4, 3, 4, 3).transpose(0, 1, 3, 2, 4)[p, k, l]  # (E, 3, 3): rows of k, columns of l
+    index = (inverse[:, None] * 9 + np.arange(9)).ravel()
+    summed = np.bincount(index, weights=blk.reshape(-1), minlength=9 * pairs.size).reshape(-1, 3, 3)
+    first = np.empty(pairs.size, np.int64)
+    first[inverse[::-1]] = np.arange(inverse.size)[::-1]  # an entry of each node pair
+    rd, cd = node_dofs[p[first], k[first]], node_dofs[p[first], l[first]]  # (U, 3)
+    diagonal = (pairs // n_nodes) == (pairs % n_nodes)
+    summed[diagonal] = 0.5 * (summed[diagonal] + np.swapaxes(summed[diagonal], -1, -2))
+    r = np.broadcast_to(rd[:, :, None], summed.shape)
+    c = np.broadcast_to(cd[:, None, :], summed.shape)
+    off = ~diagonal
+    R = np.concatenate([r.ravel(), c[off].ravel()])
+    C = np.concatenate([c.ravel(), r[off].ravel()])
+    V = np.concatenate([summed.ravel(), summed[off].ravel()])
+    return R, C, V
+
+
+# Nodes up to which _node_pair_entries numbers node pairs through an (n_nodes, n_nodes) table (9 MB
+# of flags at this size, touched only where pairs are) rather than by sorting.
+_NODE_TABLE_MAX = 3000
+
+
+class _SymbolicPool:
+    """Idle QDLDL solvers by sparsity pattern, so that a matrix whose pattern was factorised before
+    (the same Hessian at another shift or with another border; the next Newton iterate with the
+    same contact pairs) skips the AMD ordering and the elimination tree: ``Solver.update`` redoes
+    only the numbers (2.5 / 6.3 ms against 4.9 / 9.3 ms for a new solver at the trefoil's N = 481),
+    with the same ordering, hence the same factor bit for bit. A solver is lent to one ``_QDLDL``
+    at a time and comes back when that is freed, so a factorisation still in use is never
+    overwritten; a few patterns are kept, the least recently used dropped. Thread-safe (the CLI
+    runs the two twist directions in two threads)."""
+
+    def __init__(self, patterns=8, per_pattern=3):
+        self._idle = collections.OrderedDict()
+        self._lock = threading.Lock()
+        self._patterns, self._per_pattern = patterns, per_pattern
+
+    @staticmethod
+    def key(A):
+        return A.shape[0], A.nnz, hash(A.indptr.tobytes()), hash(A.indices.tobytes())
+
+    def factorise(self, A):
+        """(key, solver) holding the LDL^T of A (csc, canonical); raises RuntimeError as QDLDL does."""
+        key = self.key(A)
+        with self._lock:
+            idle = self._idle.get(key)
+            solver = idle.pop() if idle else None
+        if solver is None:
+            return key, _qdldl.Solver(A)
+        solver.update(A)  # if this raises, the solver (its numbers now invalid) is dropped, not given back
+        return key, solver
+
+    def give_back(self, key, solver):
+        with self._lock:
+            idle = self._idle.setdefault(key, [])
+            self._idle.move_to_end(key)
+            if len(idle) < self._per_pattern:
+                idle.append(solver)
+            while len(self._idle) > self._patterns:
+                self._idle.popitem(last=False)
+
+
+_POOL = _SymbolicPool()
+
+
+class _QDLDL:
+    """An LDL^T of A from QDLDL (``qdldl.Solver``: AMD ordering, no pivoting): its pivots are D,
+    ``solve`` takes (m,) or (m, k) right-hand sides (QDLDL's takes one vector). Its solver goes
+    back to the pool when this object is freed."""
+
+    def __init__(self, key, solver):
+        self._solver = solver
+        weakref.finalize(self, _POOL.give_back, key, solver)
+
+    def solve(self, b):
+        b = np.asarray(b, float)
+        if b.ndim == 1:
+            return self._solver.solve(b)
+        out = np.empty_like(b)
+        for k in range(b.shape[1]):
+            out[:, k] = self._solver.solve(np.ascontiguousarray(b[:, k]))
+        return out
+
+
+def _ldlt(A):
+    """(factorisation with ``.solve``, pivots (m,)) of the symmetric sparse A with diagonal pivots
+    only, i.e. an LDL^T whose pivots' signs give A's inertia (Sylvester). Raises
+    FactorisationError where A has no such factorisation (exactly singular, a pivot off the
+    diagonal, a zero or non-finite pivot).
+
+    QDLDL first: a true LDL^T (half SuperLU's work: at the trefoil's N = 481, 4.8 / 8.3 ms against
+    SuperLU's 6.1 / 13.8 ms for the matrices at phi = 0 and at the tightening end, pivots
+    included; solves 0.13 / 0.22 ms against 0.19 / 0.37 ms). Where it refuses (a zero pivot, a diagonal entry
+    missing from the pattern) SuperLU in symmetric mode decides, as before: it may still find
+    the diagonal-pivot factorisation, or says why there is none."""
+    A = sp.csc_matrix(A)
+    if _qdldl is not None:
+        A.sort_indices()
+        try:
+            key, solver = _POOL.factorise(A)
+        except RuntimeError:
+            solver = None
+        if solver is not None:
+            fac = _QDLDL(key, solver)
+            pivots = solver.factors()[1]
+            if np.all(np.isfinite(pivots)) and not np.any(pivots == 0.0):
+                return fac, pivots
+    try:
+        lu = spl.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                      options=dict(SymmetricMode=True, Equil=False))
+    except RuntimeError as exc:  # "Factor is exactly singular"
+        raise FactorisationError(str(exc)) from None
+    if not np.array_equal(lu.perm_r, lu.perm_c):
+        raise FactorisationError("the factorisation pivoted off the diagonal")
+    pivots = lu.U.diagonal()
+    if not np.all(np.isfinite(pivots)) or np.any(pivots == 0.0):
+        raise FactorisationError("zero or non-finite pivot")
+    return lu, pivots
+
+
+def negative_count(A, E, D):
+    """Number of negative eigenvalues of the symmetric [[A, E], [E^T, D]]: A (m, m) scipy sparse,
+    factorised with diagonal pivots only (LDL^T, Sylvester), E (m, r), D (r, r) dense (Haynsworth:
+    In = In(A) + In(D - E^T A^-1 E)). Raises FactorisationError where A has no such factorisation."""
+    lu, pivots = _ldlt(A)
+    E = np.asarray(E, float).reshape(A.shape[0], -1)
+    if E.shape[1] == 0:
+        return int(np.sum(pivots < 0.0))
+    schur = np.asarray(D, float) - E.T @ lu.solve(E)
+    return int(np.sum(pivots < 0.0)) + int(np.sum(np.linalg.eigvalsh(0.5 * (schur + schur.T)) < 0.0))
+
+
+class _Bordered:
+    """[[A, E], [E^T, D]] with A = (S + shift I) on the free (unpinned) DOFs, factorised once;
+    E (n_free, r) and D (r, r) dense. ``negative``: its count of negative eigenvalues."""
+
+    def __init__(self, hs, shift, E_cols, D):
+        self.free = hs.free
+        A = hs.blocks[0]
+        if shift != 0.0:
+            A = A + shift * sp.identity(A.shape[0], format="csc")
+        lu, pivots = _ldlt(A)
+        self.lu = lu
+        self.E = np.asarray(E_cols, float).reshape(self.free.size, -1)
+        AE = lu.solve(self.E) if self.E.shape[1] else self.E
+        self.AE = AE
+        self.schur = np.asarray(D, float).reshape(self.E.shape[1], self.E.shape[1]) - self.E.T @ AE
+        self.schur = 0.5 * (self.schur + self.schur.T)
+        neg_border = int(np.sum(np.linalg.eigvalsh(self.schur) < 0.0)) if self.E.shape[1] else 0
+        self.negative = int(np.sum(pivots < 0.0)) + neg_border
+
+    def solve(self, b_free, b_border=None):
+        """(x_free, x_border) of [[A, E], [E^T, D]] [x; y] = [b_free; b_border]."""
+        y0 = self.lu.solve(np.asarray(b_free, float))
+        r = self.E.shape[1]
+        if r == 0:
+            return y0, np.zeros(0)
+        rhs = (np.zeros(r) if b_border is None else np.asarray(b_border, float)) - self.E.T @ y0
+        y = np.linalg.solve(self.schur, rhs)
+        return y0 - self.AE @ y, y
+
+
+def _constrained(hs, shift, C):
+    """The bordered matrix of H + shift I with the border [pins, a, C], C (n, c) constraint
+    columns (the zero modes Z, and deflated eigenvectors): its solutions are those of
+    P (H + shift I) P x = P b with x orthogonal to C (P the projector off C), the pins and the
+    rank-one term entering through the Schur complement. -> _Bordered."""
+    p, f = hs.pins, hs.free
+    _, S_fp, S_pp = hs.blocks
+    cols, top = [S_fp], [S_pp + shift * np.eye(p.size)]
+    rank_one = hs.w != 0.0
+    if rank_one:
+        cols.append(hs.a[f, None])
+        top.append(hs.a[p, None])
+    cols.append(C[f])
+    top.append(C[p])
+    E = np.concatenate(cols, axis=1)
+    r = E.shape[1]
+    D = np.zeros((r, r))
+    D[: p.size] = np.concatenate(top, axis=1)
+    D[:, : p.size] = D[: p.size].T
+    k = p.size
+    if rank_one:
+        D[k, k] = -1.0 / hs.w
+        D[k, k + 1:] = 0.0
+        D[k + 1:, k] = 0.0
+        k += 1
+    D[k:, k:] = 0.0
+    return _Bordered(hs, shift, E, D)
+
+
+def _constrained_solve(fac, hs, off, b):
+    """x (n,) from a ``_constrained`` factorisation, b and x projected off the constraint columns
+    by ``off`` (v -> v without its part along them)."""
+    bp = off(b)
+    p = hs.pins
+    x_f, y = fac.solve(bp[hs.free], np.concatenate([bp[p], np.zeros(fac.E.shape[1] - p.size)]))
+    x = np.zeros(hs.n)
+    x[hs.free] = x_f
+    x[p] = y[: p.size]
+    return off(x)
+
+
+def _projected_border(hs, shift):
+    """The bordered matrix of H + shift I with the border [pins, a, Z] (see module docstring):
+    (factorisation, count offset, free DOFs) so that the count of projected eigenvalues below
+    -shift = factorisation.negative - offset."""
+    offset = hs.Z.shape[1] + (1 if hs.w > 0.0 else 0)  # the Z border adds z negatives, -1/w one more
+    return _constrained(hs, shift, hs.Z), offset, hs.free
+
+
+def count_below(hs, s):
+    """Number of eigenvalues of the projected Hessian (zero modes removed) below s: exact
+    (Sylvester), one factorisation."""
+    fac, offset, _ = _projected_border(hs, -float(s))
+    return fac.negative - offset
+
+
+def _projected_solve(fac, f, hs, b):
+    """x (n,) on Z-perp with P (H + shift I) P x = P b, from the bordered factorisation."""
+    return _constrained_solve(fac, hs, lambda v: v - hs.Z @ (hs.Z.T @ v), b)
+
+
+def _fix_signs(vec):
+    big = np.take_along_axis(vec, np.argmax(np.abs(vec), axis=0)[None, :], axis=0)
+    return vec * np.where(big < 0.0, -1.0, 1.0)
+
+
+def _start_vector(hs):
+    # Deterministic (a resumed run must reproduce the uninterrupted one bit for bit).
+    v = np.cos(0.7 * np.arange(hs.n) + 0.3) + 0.5
+    return v - hs.Z @ (hs.Z.T @ v)
+
+
+def lowest_eigenpairs(hs, m, guess=None, tol=1e-6, start=None):
+    """(values (m,) ascending, vectors (n, m) on Z-perp, shift): the m lowest eigenpairs of the
+    projected Hessian. The shift s is pushed down until ``count_below(s) == 0`` (so the pairs
+    nearest it are the lowest); ARPACK's shift-invert mode then converges in a few dozen solves.
+    guess: an estimate of the lowest eigenvalue (the previous step's), to start the shift there;
+    start: (s, factorisation, free) of ``_projected_border`` already known to count 0 below s
+    (``count_below``'s own, reused: one factorisation fewer)."""
+    m = int(min(m, hs.n - hs.Z.shape[1] - 1))
+    scale = float(np.max(np.abs(hs.diagonal()))) + 1.0
+    if start is None:
+        start = -tol if guess is None or not np.isfinite(guess) else min(float(guess), 0.0) - tol
+    s, fac, f = (start, None, None) if not isinstance(start, tuple) else start
+    tries = 0
+    while fac is None:
+        trial, offset, f_trial = _projected_border(hs, -s)
+        if trial.negative - offset == 0:
+            fac, f = trial, f_trial
+            break
+        tries += 1
+        if tries >= 60:
+            raise FactorisationError("no shift below the spectrum found")
+        s = max(s - 4.0 * max(abs(s), tol), -4.0 * scale)
+    # (H - s I)^-1 on Z-perp: positive definite there, since s is below every eigenvalue.
+    n = hs.n
+    op = spl.LinearOperator((n, n), matvec=lambda b: _projected_solve(fac, f, hs, np.ravel(b)), dtype=float)
+    a_op = spl.LinearOperator((n, n), matvec=lambda x: hs.matvec(np.ravel(x)), dtype=float)
+    ncv = min(n - 1, max(2 * m + 1, 20))
+    nu, vec = spl.eigsh(a_op, k=m, sigma=s, which="LM", OPinv=op, v0=_start_vector(hs), ncv=ncv, tol=1e-13)
+    vec = vec - hs.Z @ (hs.Z.T @ vec)
+    vec, _ = np.linalg.qr(vec)
+    hv = np.column_stack([hs.matvec(vec[:, j]) for j in range(vec.shape[1])])
+    lam_small, rot = np.linalg.eigh(0.5 * (vec.T @ hv + hv.T @ vec))  # Rayleigh-Ritz on the subspace
+    vec = _fix_signs(vec @ rot)
+    return lam_small, vec, s
+
+
+def contact_spectrum(scene, q, phi, k=8, tol=1e-6, nbr=None, guess=None):
+    """What ``jaxrod.linalg.stability.stability`` reports, at O(N): (n_negative, eigenvalues (m,),
+    eigenvectors (n, m)): the exact count of the projected Hessian's eigenvalues below -tol and its
+    m >= k lowest eigenpairs (more where the count needs them)."""
+    u = scene.to_scaled(np.asarray(q, dtype=float))
+    if nbr is None:
+        nbr = scene.neighbourhood(jnp.asarray(q), phi)
+    hs = sparse_hessian(scene, u, phi, nbr)
+    n_neg, start = _count_and_start(hs, tol)
+    lam, vec, _ = lowest_eigenpairs(hs, max(int(k), n_neg + EXTRA_PAIRS), guess=guess, tol=tol, start=start)
+    return n_neg, lam, vec
+
+
+def _count_and_start(hs, tol):
+    """(count below -tol, the eigensolver's start): that factorisation itself when the count is 0."""
+    fac, offset, f = _projected_border(hs, tol)
+    n_neg = fac.negative - offset
+    return n_neg, ((-tol, fac, f) if n_neg == 0 else None)
+
+
+def _deflated_tangent(hs, b, skip_vecs):
+    """x = -H_def^+ b on Z-perp with the flagged eigenvectors (n, r) left out: the constrained
+    solve [[H, Z, V], [Z^T, 0, 0], [V^T, 0, 0]] (exact: V are eigenvectors of the projected
+    Hessian, so the complement is invariant)."""
+    C = np.concatenate([hs.Z, skip_vecs], axis=1)
+    return -_constrained_solve(_constrained(hs, 0.0, C), hs, lambda v: v - C @ np.linalg.lstsq(C, v, rcond=None)[0], b)
+
+
+def contact_branch_analysis(scene, q, phi, index, k=8, tol=1e-6, cluster_rtol=1e-4, ref=None, pinv_tol=0.0, nbr=None,
+                            guess=None):
+    """What ``jaxrod.linalg.stability.branch_analysis`` computes, for rods with contact at O(N):
+    (n_negative, eigenvalues (m,), eigenvectors (n, m), lam, dlam_dphi, v (n,) scaled DOFs,
+    dq_dphi (n,) physical DOFs), m >= k. The tracked mode is number ``index`` of the lowest
+    pairs, or with ``ref`` the one overlapping it most; the tangent leaves out the tracked mode's
+    cluster and the near-null modes |lambda| <= pinv_tol, as the dense analysis does.
+    (``sparse_branch.sparse_branch_analysis`` wraps it into the dense analysis' tuple.)"""
+    u = scene.to_scaled(np.asarray(q, dtype=float))
+    if nbr is None:
+        nbr = scene.neighbourhood(jnp.asarray(q), phi)
+    index = int(index)
+    if index < 0:
+        raise ValueError(f"index must be >= 0, got {index}")
+    hs = sparse_hessian(scene, u, phi, nbr)
+    n_neg, start = _count_and_start(hs, tol)
+    m = max(int(k), index + EXTRA_PAIRS, n_neg + EXTRA_PAIRS)
+    lam, vec, _ = lowest_eigenpairs(hs, m, guess=guess, tol=tol, start=start)
+    if ref is not None and np.any(np.asarray(ref) != 0.0):
+        index = int(np.argmax(np.abs(vec.T @ np.asarray(ref))))
+    if not index < lam.shape[0]:
+        raise ValueError(f"index {index}: only {lam.shape[0]} eigenpairs computed")
+    lam_i = lam[index]
+    skip = (np.abs(lam - lam_i) <= cluster_rtol * max(abs(lam_i), 1e-12) + 1e-14) | (np.abs(lam) <= pinv_tol)
+    _, dg = gradient_and_phi_derivative(scene, jnp.asarray(u), phi, nbr)
+    du = _deflated_tangent(hs, np.asarray(dg), vec[:, skip])
+    v = vec[:, index]
+    dlam = float(eigenvalue_branch_derivative(scene, jnp.asarray(u), jnp.asarray(phi, jnp.float64), jnp.asarray(v),
+                                              jnp.asarray(du), nbr))
+    return n_neg, lam, vec, float(lam_i), dlam, v, np.asarray(scene.from_scaled(du))
+
+
+# ------------------------------------------------------------------------------------------------
+# damped Newton
+
+
+# The shift schedule of ``solvers._damped_newton_loop`` (same constants, same meaning).
+_SHIFT_DOWN, _SHIFT_UP, _SHIFT_REFINE = 0.1, 4.0, 2
+
+
+def _pinned_definite(hs, mu):
+    """The pinned system (H + mu I) on the free DOFs, the rank-one term as a border; None if it is
+    not positive definite."""
+    f = hs.free
+    if hs.w != 0.0:
+        E, D = hs.a[f, None], np.array([[-1.0 / hs.w]])
+        expected = 1 if hs.w > 0.0 else 0
+    else:
+        E, D, expected = np.zeros((f.size, 0)), np.zeros((0, 0)), 0
+    try:
+        fac = _Bordered(hs, mu, E, D)
+    except FactorisationError:
+        return None
+    return (fac, f) if fac.negative == expected else None
+
+
+def damped_newton_direction(y, args, g, mu_prev):
+    """The step of ``solvers.HostDampedNewton`` for ``equilibrium.scaled_energy``: (H + mu I) dy =
+    -g on the gauge-pinned DOFs (dy = 0 on the 7 pins), mu just large enough for the pinned system
+    to be positive definite (inertia, not eigenvalues), chosen as the dense loop chooses it.
+    Returns (dy (n,), mu used: 0 where none was needed)."""
+    scene, phi, nbr = args
+    hs = sparse_hessian(scene, y, phi, nbr)
+    scale = float(np.max(np.abs(hs.diagonal()))) + 1.0
+    # Unlike the dense loop, the shift keeps falling by _SHIFT_DOWN per iteration while the
+    # factorisation succeeds, with no floor at 1e-6: a factorisation costs milliseconds here, and
+    # a floor above the sliding modes' curvature (~1e-8 at N = 121) makes the last iterations
+    # crawl along them (|g| shrinking by mu / (lambda + mu) ~ 0.95 per step; measured: 60 steps
+    # against 7).
+    mu0, mu1 = 1e-10 * scale, 1e-6 + 1e-10 * scale
+    mu_a = mu0 if mu_prev <= 0.0 else max(mu0, _SHIFT_DOWN * mu_prev)
+    got = _pinned_definite(hs, mu_a)
+    mu = mu_a
+    if got is None:
+        lo, hi = mu_a, max(mu1, _SHIFT_UP * mu_a)
+        for _ in range(60):
+            got = _pinned_definite(hs, hi)
+            if got is not None:
+                break
+            lo, hi = hi, _SHIFT_UP * hi
+        else:
+            return np.full(hs.n, np.nan), hi
+        for _ in range(_SHIFT_REFINE):
+            mid = float(np.sqrt(lo * hi))
+            trial = _pinned_definite(hs, mid)
+            if trial is None:
+                lo = mid
+            else:
+                hi, got = mid, trial
+        mu = hi
+    fac, f = got
+    x_f, _ = fac.solve(-np.asarray(g)[f])
+    dy = np.zeros(hs.n)
+    dy[f] = x_f
+    # Without its rigid-motion (and gauge) part: the pinned step moves the whole rod relative to
+    # the pins, which changes nothing in the energy (g is orthogonal to Z, so the slope g . dy is
+    # the same) but moves every node, and pauses the run for neighbourhood rebuilds 3x as often.
+    dy = dy - hs.Z @ (hs.Z.T @ dy)
+    mu_used = 0.0 if (mu == mu_a and mu_a <= mu0) else mu
+    return dy, mu_used
+
+
+def deflated_newton_direction(y, args, g, mu_prev, near_null_tol=1e-6):
+    """A Newton step that leaves the near-null modes alone (``Newton(near_null_tol=...)`` of the
+    dense solvers): dy = -H_def^+ g with the eigen-directions |lambda| <= near_null_tol (strands
+    of a loose knot sliding) deflated; the gradient along them stays as it is. Used where a
+    minimiser stalled on those modes next to an equilibrium (positive definite elsewhere).
+    Returns (dy, 0.0)."""
+    scene, phi, nbr = args
+    hs = sparse_hessian(scene, y, phi, nbr)
+    lam, vec, _ = lowest_eigenpairs(hs, 8, tol=near_null_tol)
+    skip = np.abs(lam) <= near_null_tol
+    return _deflated_tangent(hs, np.asarray(g), vec[:, skip]), 0.0

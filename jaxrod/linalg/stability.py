@@ -1,0 +1,601 @@
+"""Stability by autodiff: Hessian, zero modes removed, lowest eigenpairs, negative count.
+
+Everything works on ``scene.scaled_energy`` (node displacements in units of the edge length,
+angles in radians, energy in units of B / edge length), so eigenvalues are dimensionless and the
+x and theta blocks are comparable. The count of negative eigenvalues does not depend on this
+choice of variables (Sylvester's law of inertia); the eigenvalues' sizes do.
+
+Zero modes (3 translations, 3 rotations, the uniform shift of the twist angles on closed and free
+rods) are removed by projecting the Hessian on their orthogonal complement and lifting them to
+the top of the spectrum, so none of them can be mistaken for a soft or unstable mode.
+"""
+from __future__ import annotations
+
+import functools
+import threading
+from dataclasses import dataclass
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..aot import cached_jit
+from ..model.hessian import project_out, scaled_hessian as structured_scaled_hessian
+from ..validation import check_finite, refuse_knot
+from ..solve.solvers import orthonormal_columns
+from .tolerances import CONTACT_NEGATIVE_TOL, DEFAULT_NEGATIVE_TOL, scaled_negative_tol  # noqa: F401  (re-exported)
+
+__all__ = [
+    "Stability",
+    "scaled_hessian",
+    "spectrum",
+    "stability",
+    "eigenvalue_phi_derivative",
+    "branch_analysis",
+    "critical_twist_derivative",
+    "DEFAULT_NEGATIVE_TOL",
+    "sliding_fraction",
+    "sliding_fields",
+    "shape_modes_in_band",
+    "band_shape_modes",
+    "split_slide",
+    "without_slide",
+    "SLIDING_FRACTION",
+]
+
+
+
+@dataclass(frozen=True)
+class Stability:
+    """Lowest eigenpairs of the Hessian with zero modes removed.
+
+    eigenvalues: (k,) ascending, dimensionless (see module docstring);
+    eigenvectors: (n, k) unit vectors in the scaled DOFs;
+    n_negative: count of eigenvalues below -tol over the whole spectrum;
+    n_zero_modes: number of symmetry directions removed; stable: n_negative == 0.
+    """
+
+    eigenvalues: np.ndarray
+    eigenvectors: np.ndarray
+    n_negative: int
+    n_zero_modes: int
+    stable: bool
+    tol: float
+
+    def __repr__(self):
+        lam = ", ".join(f"{v:.3e}" for v in self.eigenvalues[:6])
+        return (
+            f"Stability(stable={self.stable}, n_negative={self.n_negative}, "
+            f"n_zero_modes={self.n_zero_modes}, lowest=[{lam}])"
+        )
+
+
+def scaled_hessian(scene, u, phi, nbr=None):
+    """Exact Hessian (n, n) of scene.scaled_energy at scaled DOFs u (structured assembly, see
+    ``jaxrod.model.hessian``; the neighbourhood is built at u when not given)."""
+    if nbr is None:
+        nbr = scene.neighbourhood(scene.from_scaled(u), phi)
+    return structured_scaled_hessian(scene, u, phi, nbr)
+
+
+# Eigenpairs computed by the continuation: the lowest LOWEST_COUNT of the projected Hessian (LAPACK
+# dsyevr on that index range: ~3x faster than the full decomposition at n = 484), enough for the
+# k <= 8 reported, the tracked mode and its degenerate partners.
+LOWEST_COUNT = 24
+
+
+# One LAPACK call at a time from this module: with ``twist_study``'s two threads, a
+# multi-threaded OpenBLAS (numpy imported before jaxrod, so its thread count stayed at the core
+# count) must not be entered twice at once.
+_LAPACK_LOCK = threading.Lock()
+
+
+def _fix_signs(vec, xp=jnp):
+    """Eigenvectors (n, m) with their largest-magnitude entry positive: the sign LAPACK returns
+    depends on the routine, and the continuation's choices (which way to push along a mode
+    first) must not. xp: jax.numpy (traced) or numpy (host)."""
+    big = xp.take_along_axis(vec, xp.argmax(xp.abs(vec), axis=0)[None, :], axis=0)
+    return vec * xp.where(big < 0.0, -1.0, 1.0)
+
+
+@functools.partial(jax.jit, static_argnames="m")
+def _lowest_of_small(hp, tol, m):
+    lam, vec = jnp.linalg.eigh(hp)
+    return lam[:m], _fix_signs(vec[:, :m]), jnp.sum(lam < -tol)
+
+
+def _lowest_of(hp, tol):
+    """(lam (m,), vec (n, m), count of eigenvalues below -tol) of the symmetric hp (n, n): the
+    m = LOWEST_COUNT lowest eigenpairs, ascending, each eigenvector's largest entry positive.
+
+    For m much smaller than n, LAPACK's dsyevr with an index range (scipy), on the host: JAX has
+    no partial eigensolver on CPU. Called outside jit, not through ``jax.pure_callback``: two
+    callbacks running at once (``twist_study``'s two threads) each waited for a transfer that
+    needed the other's XLA worker thread, and deadlocked. The count comes from the m lowest,
+    unless all of them are below -tol (a state many times unstable: then the whole spectrum).
+    Otherwise (2 m >= n) the full ``eigh``, jitted."""
+    n = hp.shape[0]
+    m = min(LOWEST_COUNT, n)
+    if 2 * m >= n:
+        return _lowest_of_small(hp, tol, m)
+    from .lapack import lowest_eigenpairs
+
+    h = np.asarray(hp)
+    with _LAPACK_LOCK:
+        lam, vec = lowest_eigenpairs(h, m)  # scipy's dsyevr, without holding the GIL
+    vec = _fix_signs(vec, np)
+    neg = int(np.sum(lam < -tol))
+    if neg == m:
+        with _LAPACK_LOCK:
+            neg = int(np.sum(np.linalg.eigvalsh(h) < -tol))
+    return lam, vec, neg
+
+
+# The analyses below are Python compositions of separately jitted pieces, so that each heavy
+# program is compiled once per scene shape and shared: ``scene_linearisation`` (gradient,
+# structured Hessian, the gradient's phi-derivative) serves ``stability``, ``spectrum``,
+# ``branch_analysis`` and a knot's bifurcation problem (``bifurcation.rods.knot_problem``), and
+# ``scene_bilinear_gradient`` (third derivatives contracted with fixed vectors) serves the branch
+# tangent and that problem's event locators; the projection and the tangent's deflated solve depend
+# on the matrix size only. One jit around each analysis compiled the energy's derivatives into
+# each of them (command 1, cold: ~2-3 s of XLA per program and shape).
+@cached_jit
+def _scene_linearisation(scene, u, phi, nbr):
+    grad = jax.grad(scene.scaled_energy)
+    g, g_phi = jax.jvp(lambda p: grad(u, p, nbr), (phi,), (jnp.ones_like(phi),))
+    return g, structured_scaled_hessian(scene, u, phi, nbr), g_phi
+
+
+@cached_jit
+def _scene_bilinear_gradient(scene, u, phi, nbr, a, c, t):
+    def contracted(x, p):
+        return jnp.dot(a, jax.jvp(lambda y, r: jax.grad(scene.scaled_energy)(y, r, nbr), (x, p), (c, t))[1])
+
+    return jax.grad(contracted, argnums=(0, 1))(u, phi)
+
+
+def _host_vector(v):
+    return np.asarray(v, dtype=float)
+
+
+def scene_linearisation(scene, u, phi, nbr=None):
+    """(g (n,), H (n, n), g_phi (n,)) of ``scene.scaled_energy(u, phi, nbr)`` at the scaled DOFs u:
+    its gradient, its exact structured Hessian (``jaxrod.model.hessian.scaled_hessian``) and the
+    gradient's derivative in phi. One compiled program per scene shape (u and phi are passed as a
+    host array and a Python float, so every caller shares it)."""
+    return _scene_linearisation(scene, _host_vector(u), float(phi), nbr)
+
+
+def scene_bilinear_gradient(scene, u, phi, nbr, a, c, t):
+    """((n,), scalar): the gradient in (u, phi) of a^T (H(u, phi) c + t g_phi(u, phi)), H and g_phi
+    as in ``scene_linearisation``, a and c (n,) fixed: third derivatives of the energy contracted
+    with fixed vectors, by reverse mode over a jvp of the gradient (O(n), exact)."""
+    return _scene_bilinear_gradient(scene, _host_vector(u), float(phi), nbr, _host_vector(a), _host_vector(c),
+                                    float(t))
+
+
+@cached_jit
+def _zero_mode_basis(scene, u, phi):
+    z = orthonormal_columns(scene.scaled_zero_modes(u, phi))
+    return z, jnp.sum(jnp.any(z != 0.0, axis=0))
+
+
+def _projected(scene, u, phi, nbr):
+    """(hp (n, n): H with the zero modes projected out and lifted to the top, z (n, k) their
+    orthonormal basis, n_zero, g_phi (n,) the gradient's phi-derivative), on the host."""
+    _, h, g_phi = scene_linearisation(scene, u, phi, nbr)
+    z, n_zero = _zero_mode_basis(scene, _host_vector(u), float(phi))
+    z = np.asarray(z)
+    return project_out(np.asarray(h), z, xp=np), z, int(n_zero), np.asarray(g_phi)
+
+
+def _projected_hessian(scene, u, phi, nbr):
+    """(H with the zero modes projected out and lifted to the top, z (n, k) their orthonormal
+    basis, n_zero)."""
+    return _projected(scene, u, phi, nbr)[:3]
+
+
+def _lowest_spectrum(scene, u, phi, nbr, tol):
+    """(lam (m,), vec (n, m), n_zero, n_negative): the lowest eigenpairs of the projected Hessian
+    and the count of its eigenvalues below -tol."""
+    hp, _, n_zero = _projected_hessian(scene, u, phi, nbr)
+    lam, vec, n_neg = _lowest_of(hp, tol)
+    return lam, vec, n_zero, n_neg
+
+
+_eigh = jax.jit(jnp.linalg.eigh)
+
+
+def _spectrum(scene, u, phi, nbr):
+    hp, _, n_zero = _projected_hessian(scene, u, phi, nbr)
+    lam, vec = _eigh(hp)
+    return lam, vec, n_zero
+
+
+def spectrum(scene, u, phi, nbr=None):
+    """Full spectrum with zero modes removed.
+
+    Returns (eigenvalues (n,), eigenvectors (n, n), n_zero): ascending; the n_zero symmetry
+    directions are lifted above every physical eigenvalue, so they sit at the top.
+    """
+    if nbr is None:
+        nbr = scene.neighbourhood(scene.from_scaled(u), phi)
+    return _spectrum(scene, u, phi, nbr)
+
+
+def stability(scene, q, phi, k=8, tol=DEFAULT_NEGATIVE_TOL, nbr=None, linear_algebra="auto"):
+    """Stability of the state q (physical DOFs) at imposed twist phi: a ``Stability`` (the k
+    lowest eigenpairs, zero modes removed, and the count of eigenvalues below -tol).
+
+    linear_algebra: "dense" (the n x n projected Hessian), "sparse" (rods with contact:
+    ``jaxrod.linalg.sparse_contact``, O(n), the count exact by Sylvester's law) or "auto" (sparse for
+    rods with contact from ``sparse_contact.SPARSE_MIN_DOF`` DOFs on)."""
+    from . import sparse_contact
+
+    phi = check_finite("phi", phi)
+    u = scene.to_scaled(np.asarray(q, dtype=float))
+    if nbr is None:
+        nbr = scene.neighbourhood(q, phi)
+    if "contact" in scene.terms and sparse_contact.use_sparse(scene, linear_algebra):
+        n_neg, lam, vec = sparse_contact.contact_spectrum(scene, q, phi, k=k, tol=tol, nbr=nbr)
+        return _stability_from_lowest(lam, vec, int(scene.n_zero_modes), n_neg, k, tol)
+    lam, vec, n_zero, n_neg = _lowest_spectrum(scene, u, phi, nbr, tol)
+    return _stability_from_lowest(np.asarray(lam), np.asarray(vec), int(n_zero), int(n_neg), k, tol)
+
+
+def _pinv_motion(lam, vec, skip):
+    """du(dg) = -H^+ dg over a full eigen-decomposition, the flagged directions left out."""
+    safe = jnp.where(skip, 1.0, lam)
+    return lambda dg: -vec @ jnp.where(skip, 0.0, (vec.T @ dg) / safe)
+
+
+@jax.jit
+def _branch_sensitivities(scene, u, phi, v, lam, vec, skip, dscene, dphi, nbr):
+    """``_branch_motion_sensitivities`` with du* from a full eigen-decomposition (lam, vec)."""
+    return _branch_motion_sensitivities(scene, u, phi, v, _pinv_motion(lam, vec, skip), dscene, dphi, nbr)
+
+
+def _branch_motion_sensitivities(scene, u, phi, v, motion, dscene, dphi, nbr):
+    """Derivative of the eigenvalue v^T H v along the equilibrium branch u*(scene, phi), in the
+    direction (dscene, dphi) of the scene's parameters (a pytree tangent: material, rest lengths)
+    and of phi.
+
+    d lambda = v^T (dH) v with the branch's own motion du* = -H^+ d(grad), the pseudo-inverse
+    taken over the eigenvectors not flagged in ``skip`` (zero modes and the critical mode itself,
+    which the perturbation does not excite at a symmetry-breaking bifurcation). Third derivatives
+    come from nested forward-mode jvps: no third-order tensor is formed.
+    Returns (d lambda, du*).
+    """
+    f = lambda uu, sc, pp: sc.scaled_energy(uu, pp, nbr)  # noqa: E731
+    dg = jax.jvp(lambda sc, pp: jax.grad(f)(u, sc, pp), (scene, phi), (dscene, dphi))[1]
+    du = motion(dg)
+
+    def vhv(uu, sc, pp):
+        first = lambda w: jax.jvp(lambda y: f(y, sc, pp), (w,), (v,))[1]  # noqa: E731
+        return jax.jvp(first, (uu,), (v,))[1]
+
+    dlam = jax.jvp(vhv, (u, scene, phi), (du, dscene, dphi))[1]
+    return dlam, du
+
+
+def _zero_tangent(scene):
+    """A zero tangent for every leaf of the scene (integer leaves, e.g. contact pair indices,
+    take JAX's float0 zeros, as jvp requires)."""
+
+    def zero(a):
+        a = jnp.asarray(a)
+        if jnp.issubdtype(a.dtype, jnp.integer) or a.dtype == jnp.bool_:
+            return np.zeros(a.shape, dtype=jax.dtypes.float0)
+        return jnp.zeros_like(a)
+
+    return jax.tree_util.tree_map(zero, scene)
+
+
+def _skip_mask(lam, n_zero, index, cluster_rtol, pinv_tol=0.0, xp=jnp):
+    """Eigen-directions left out of the branch pseudo-inverse: the cluster of the tracked
+    eigenvalue (degenerate partners included), the lifted zero modes at the top, and near-zero
+    modes |lambda| <= pinv_tol (e.g. strands sliding along each other in a loose knot). xp:
+    jax.numpy (traced) or numpy (host)."""
+    n = lam.shape[0]
+    lam_i = lam[index]
+    scale = xp.maximum(xp.abs(lam_i), 1e-12)
+    return (
+        (xp.abs(lam - lam_i) <= cluster_rtol * scale + 1e-14)
+        | (xp.arange(n) >= n - n_zero)
+        | (xp.abs(lam) <= pinv_tol)
+    )
+
+
+def _branch_analysis(scene, u, phi, index, ref, cluster_rtol, pinv_tol, nbr, tol):
+    hp, z, n_zero, g_phi = _projected(scene, u, phi, nbr)
+    lam, vec, n_neg = _lowest_of(hp, tol)
+    dlam, du, index = _branch_tangent(scene, u, phi, index, ref, cluster_rtol, pinv_tol, nbr, hp, z, n_zero, lam, vec,
+                                      g_phi)
+    return lam, vec, n_zero, n_neg, dlam, du, index
+
+
+def _tangent_solve(hp, z, n_zero, lam, vec, index, ref, cluster_rtol, pinv_tol, g_phi):
+    """(du (n,), index, v (n,)): the tracked mode (by index, or by overlap with ref) and the
+    branch tangent du = -H^+ g_phi from the lowest eigenpairs only: the flagged low directions and
+    the zero modes z are removed from g_phi and the flagged eigenvalues moved to the top
+    (deflation), so one solve gives the full pseudo-inverse's result without dividing by a
+    near-zero eigenvalue. On the host: a Cholesky factorisation where the deflated matrix is
+    positive definite (a stable state: half an LU's work), an LU otherwise."""
+    import scipy.linalg
+
+    from .lapack import cholesky_solve
+
+    m = lam.shape[0]
+    # Lifted zero modes (only present when the subset reaches the top of a small spectrum) are
+    # never tracked.
+    physical = np.arange(m) < hp.shape[0] - n_zero
+    # With a reference vector, follow the mode by eigenvector overlap (robust to reordering).
+    ref = np.asarray(ref, dtype=float)
+    if np.any(ref != 0.0):
+        index = int(np.argmax(np.where(physical, np.abs(vec.T @ ref), -1.0)))
+    index = int(index)
+    skip = _skip_mask(lam, 0, index, cluster_rtol, pinv_tol, xp=np) | ~physical
+    top = float(np.max(np.abs(np.diag(hp)))) + 1.0
+    vs = vec[:, skip]
+    h_def = hp + (vs * (top - lam[skip])[None, :]) @ vs.T
+    b = g_phi - z @ (z.T @ g_phi)
+    b = b - vs @ (vs.T @ b)
+    with _LAPACK_LOCK:
+        try:
+            du = -cholesky_solve(h_def, b)  # scipy's dpotrf/dpotrs, without holding the GIL
+        except np.linalg.LinAlgError:  # indefinite: an unstable state's other negative modes
+            du = -scipy.linalg.lu_solve(scipy.linalg.lu_factor(h_def, check_finite=False), b, check_finite=False)
+    return du, index, vec[:, index]
+
+
+def _branch_tangent(scene, u, phi, index, ref, cluster_rtol, pinv_tol, nbr, hp, z, n_zero, lam, vec, g_phi):
+    """The tracked mode (by index, or by overlap with ref), its eigenvalue's phi-derivative along
+    the branch and the branch tangent du/dphi (deflated solve), from the lowest eigenpairs and the
+    gradient's phi-derivative g_phi. -> (dlam, du (n,), index).
+
+    du = -H^+ g_phi (``_tangent_solve``), and d lambda = v^T (dH) v along (du, 1): the gradient of
+    v^T H v in (u, phi) (``scene_bilinear_gradient``) dotted with (du, 1)."""
+    lam, vec = np.asarray(lam), np.asarray(vec)
+    du, index, v = _tangent_solve(np.asarray(hp), np.asarray(z), int(n_zero), lam, vec, index, ref, cluster_rtol,
+                                  pinv_tol, np.asarray(g_phi))
+    gu, gp = scene_bilinear_gradient(scene, u, phi, nbr, v, v, 0.0)
+    return float(np.dot(np.asarray(gu), du) + float(gp)), du, index
+
+
+def _stability_from_lowest(lam, vec, n_zero, n_negative, k, tol):
+    """A ``Stability`` from the lowest eigenpairs of the projected Hessian (lifted zero modes, if
+    the range reached them, dropped) and the negative count."""
+    n_physical = vec.shape[0] - n_zero
+    lam, vec = lam[:n_physical], vec[:, :n_physical]
+    k = min(k, lam.shape[0])
+    return Stability(
+        eigenvalues=lam[:k], eigenvectors=vec[:, :k], n_negative=n_negative,
+        n_zero_modes=n_zero, stable=n_negative == 0, tol=tol,
+    )
+
+
+def branch_analysis(scene, q, phi, index, k=8, tol=DEFAULT_NEGATIVE_TOL, cluster_rtol=1e-4, ref=None, pinv_tol=0.0,
+                    nbr=None, guess=None):
+    """One Hessian and one eigen-decomposition at an equilibrium q, giving everything a
+    continuation step needs: its ``Stability``; eigenvalue number ``index`` (ascending, zero modes
+    removed) -- or, if ``ref`` (a unit vector in the scaled DOFs) is given, the mode that overlaps
+    it most --, that eigenvalue's derivative along the branch with respect to phi, its eigenvector
+    (scaled DOFs); and the branch tangent dq/dphi (physical DOFs), with modes |lambda| <= pinv_tol
+    left out of it. guess (an estimate of the lowest eigenvalue) is accepted for signature
+    compatibility with ``sparse_branch_analysis``, whose eigensolver uses it; not needed here.
+
+    Returns (stability, lam, dlam_dphi, v, dq_dphi).
+    """
+    u = scene.to_scaled(np.asarray(q, dtype=float))
+    ref = jnp.zeros_like(u) if ref is None else jnp.asarray(ref)
+    if nbr is None:
+        nbr = scene.neighbourhood(q, phi)
+    if not 0 <= int(index) < min(LOWEST_COUNT, u.shape[0]):
+        raise ValueError(f"index must be in 0..{min(LOWEST_COUNT, u.shape[0]) - 1}, got {index!r}")
+    lam, vec, n_zero, n_neg, dlam, du, index = _branch_analysis(scene, u, phi, index, ref, cluster_rtol, pinv_tol,
+                                                                nbr, tol)
+    lam, vec, n_zero, index = np.asarray(lam), np.asarray(vec), int(n_zero), int(index)
+    stab = _stability_from_lowest(lam, vec, n_zero, int(n_neg), k, tol)
+    return stab, float(lam[index]), float(dlam), vec[:, index], np.asarray(scene.from_scaled(du))
+
+
+def eigenvalue_phi_derivative(scene, q, phi, index, cluster_rtol=1e-4, nbr=None):
+    """Eigenvalue number ``index`` (ascending, zero modes removed) of the Hessian at an equilibrium
+    q, its derivative along the equilibrium branch with respect to phi (Hellmann-Feynman plus the
+    branch's own motion, by forward-mode autodiff through the Hessian), its eigenvector (scaled
+    DOFs), and the branch tangent dq/dphi (physical DOFs).
+
+    Returns (lam, dlam_dphi, v, dq_dphi).
+    """
+    _, lam, dlam, v, dq = branch_analysis(scene, q, phi, index, cluster_rtol=cluster_rtol, nbr=nbr)
+    return lam, dlam, v, dq
+
+
+def critical_twist_derivative(scene, critical, parameter, cluster_rtol=1e-4, pinv_tol=0.0):
+    """d phi* / d(parameter) at a critical point, by the implicit function theorem on
+    lambda(q*(phi, p), phi, p) = 0:  d phi*/dp = -(d lambda/dp) / (d lambda/d phi).
+
+    critical: a ``CriticalPoint`` of ``scene``; parameter: a material field name ('B', 'C', 'EA')
+    or a callable ``scene -> tangent scene`` giving any direction in the scene's parameters.
+    Refuses knots (``jaxrod.validation.refuse_knot``).
+    """
+    refuse_knot(scene, "critical_twist_derivative")
+    if isinstance(parameter, str):
+        if parameter not in ("B", "C", "EA", "D"):
+            raise ValueError(f"parameter must be one of 'B', 'C', 'EA', 'D' or a callable, got {parameter!r}")
+        zero = _zero_tangent(scene)
+        material = zero.material
+        object.__setattr__(material, parameter, jnp.ones_like(getattr(scene.material, parameter)))
+        dscene = zero
+    else:
+        dscene = parameter(scene)
+    eq = critical.equilibrium
+    u = scene.to_scaled(np.asarray(eq.q, dtype=float))
+    nbr = eq.neighbourhood if eq.neighbourhood is not None else scene.neighbourhood(eq.q, eq.phi)
+    lam, vec, n_zero = spectrum(scene, u, eq.phi, nbr)
+    n = lam.shape[0]
+    overlap = np.abs(np.asarray(vec).T @ np.asarray(critical.mode))
+    overlap[n - int(n_zero):] = -1.0
+    index = int(np.argmax(overlap))  # the critical mode itself (not a near-zero sliding mode)
+    skip = _skip_mask(lam, n_zero, index, cluster_rtol, pinv_tol)
+    v = vec[:, index]
+    dlam_dp, _ = _branch_sensitivities(scene, u, eq.phi, v, lam, vec, skip, dscene, jnp.asarray(0.0), nbr)
+    dlam_dphi, _ = _branch_sensitivities(scene, u, eq.phi, v, lam, vec, skip, _zero_tangent(scene), jnp.asarray(1.0),
+                                         nbr)
+    return -float(dlam_dp) / float(dlam_dphi)
+
+
+# A mode counts as material sliding when less than this fraction of it (squared norm, scaled
+# DOFs) is left once tangential node motions and a rigid motion are fitted to it: measured on the
+# trefoil at N = 61 (0 ... 3 pi), the near-null sliding mode leaves < 1e-3, every shape mode >= 0.37
+# and twist-only modes ~1.
+SLIDING_FRACTION = 0.05
+
+
+def sliding_fields(scene, q):
+    """(perp (n, 3, 3), rigid (3n, 6)) at the state q of a rod whose nodes are all free: perp[i]
+    takes out the motion along node i's tangent (central differences, one-sided at open ends) and
+    rigid holds the 6 rigid motions with that part taken out. A field of node motions slides
+    (``sliding_fraction``) when its perp part is a combination of rigid's columns."""
+    n = int(scene.n_nodes)
+    if int(scene.n_free_nodes) != n:
+        raise ValueError("sliding_fraction: the rod must have all its nodes free (a closed or free rod)")
+    x = np.asarray(scene.unpack(jnp.asarray(q), 0.0)[0])
+    closed = bool(getattr(scene, "closed", True))
+    t = np.roll(x, -1, axis=0) - np.roll(x, 1, axis=0)
+    if not closed:
+        t[0], t[-1] = x[1] - x[0], x[-1] - x[-2]
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    xc = x - x.mean(axis=0)
+    perp = np.eye(3)[None] - t[:, :, None] * t[:, None, :]             # (n, 3, 3): off the tangent
+    skew = np.zeros((n, 3, 3))                                            # skew[i] w = x_i x w
+    skew[:, 0, 1], skew[:, 0, 2], skew[:, 1, 2] = -xc[:, 2], xc[:, 1], -xc[:, 0]
+    skew[:, 1, 0], skew[:, 2, 0], skew[:, 2, 1] = xc[:, 2], -xc[:, 1], xc[:, 0]
+    rigid = np.concatenate([perp, np.einsum("nij,njk->nik", perp, skew)], axis=2).reshape(3 * n, 6)
+    return perp, rigid
+
+
+def sliding_fraction(scene, q, vectors):
+    """How far each mode is from material sliding along the centreline: (m,) fractions in [0, 1]
+    for the modes ``vectors`` (n, m) in scaled DOFs at the state ``q`` (physical DOFs) of a rod.
+
+    A loose knot's near-null modes move material along its own centreline (strands slipping):
+    node i moves by alpha_i t_i (t_i its tangent), plus a rigid motion a + w x x_i (projected out of
+    the modes, but a slide along a torus knot is mostly a rotation about its axis). The fraction is
+    what is left of the mode once the best such field is subtracted from its node motions,
+    counting its twist-angle part as left over too: ~0 for sliding, O(1) for a mode that changes
+    the shape (a buckling mode) or only the twist. Rods whose nodes are all free (closed and free
+    rods: tangents by central differences, one-sided at open ends); a clamped rod cannot slide."""
+    vec = np.asarray(vectors, dtype=float)
+    if vec.ndim == 1:
+        vec = vec[:, None]
+    n = int(scene.n_nodes)
+    perp, rigid = sliding_fields(scene, q)
+    out = np.empty(vec.shape[1])
+    for j in range(vec.shape[1]):
+        v = vec[:, j]
+        dx = v[:3 * n].reshape(n, 3)  # node coordinates first, then the twist angles
+        b = np.einsum("nij,nj->ni", perp, dx).reshape(3 * n)
+        coef, *_ = np.linalg.lstsq(rigid, b, rcond=None)
+        moved = float(np.sum(v[:3 * n] ** 2))
+        total = float(np.sum(v ** 2))
+        out[j] = (float(np.sum((b - rigid @ coef) ** 2)) + (total - moved)) / total if total > 0.0 else 0.0
+    return out
+
+
+# The stable-only engine splits a slide off its computed eigenpairs only when the span holds one
+# this clean (a pure slide leaves < 1e-3, see SLIDING_FRACTION) and near-null (inside the band kept
+# for the sliding modes): on the trefoil's buckled+ branch at N = 121 the direction of least
+# sliding in the span mixed the slide with a mode at 2.3e-6 and with the buckling mode crossing
+# zero at +7.041 pi, and splitting it off took the crossing with it.
+CLEAN_SLIDE_FRACTION = 5e-3
+
+
+def split_slide(scene, q, values, vectors, threshold=SLIDING_FRACTION, max_value=None):
+    """Split the material-sliding direction off the span of a knot's lowest eigenvectors.
+
+    values (m,), vectors (n, m) orthonormal, in the rod's scaled DOFs (all of them; a pinned
+    problem embeds its free DOFs first: ``jaxrod.continuation.arclength.rods.split_sliding``); q: the state.
+    The sliding fraction (``sliding_fraction``: 0 for a pure slide of the material along the
+    centreline, O(1) for a change of shape) is a quadratic form; its minimiser within the span is
+    the slide, whatever the mixing of nearly degenerate eigenvectors (next to a crossing or a fold
+    the critical mode and the slide are both near zero and their eigenvectors mix: on the trefoil
+    at N = 121, 0.004 pi before its tightening branch point, the lowest eigenvector was half slide,
+    half buckling mode). If its fraction is below ``threshold`` it is one soft direction, with its
+    Rayleigh quotient, and the rest of the span are Ritz pairs (ascending with it).
+    max_value: a slide is near-null; a direction whose Rayleigh quotient exceeds this in modulus is
+    not split off (None: no bound).
+    Returns (values (m,), coefficients C (m, m): the new vectors are ``vectors @ C``, soft (m,)
+    bool: the slide); the input unchanged (C = I, no soft direction) when nothing slides."""
+    V = np.asarray(vectors, dtype=float)
+    lam = np.asarray(values, dtype=float)
+    m = lam.size
+    n = int(scene.n_nodes)
+    perp, rigid = sliding_fields(scene, q)
+    # the part of each vector's node motion that is no slide: off the tangents, rigid motions out
+    B = np.einsum("nij,njm->nim", perp, V[:3 * n].reshape(n, 3, -1)).reshape(3 * n, -1)
+    basis, _ = np.linalg.qr(rigid)
+    B -= basis @ (basis.T @ B)
+    ft = V[3 * n:]
+    G = B.T @ B + ft.T @ ft  # (m, m): the fraction's numerator on the span (V orthonormal)
+    g, C = np.linalg.eigh(0.5 * (G + G.T))
+    if m == 0 or g[0] >= threshold:
+        return lam, np.eye(m), np.zeros(m, dtype=bool)
+    c, rest = C[:, 0], C[:, 1:]
+    if max_value is not None and abs(float(c @ (lam * c))) > max_value:
+        return lam, np.eye(m), np.zeros(m, dtype=bool)
+    K = rest.T @ (lam[:, None] * rest)
+    ritz, R = np.linalg.eigh(0.5 * (K + K.T))
+    vals = np.concatenate([[float(c @ (lam * c))], ritz])
+    coef = np.concatenate([c[:, None], rest @ R], axis=1)
+    order = np.argsort(vals, kind="stable")
+    soft = np.zeros(m, dtype=bool)
+    soft[0] = True
+    return vals[order], coef[:, order], soft[order]
+
+
+def without_slide(scene, q, values, vectors, band):
+    """The computed eigenpairs (values (m,), vectors (n, m)) of a knot at q with a clean, near-null
+    slide (fraction below CLEAN_SLIDE_FRACTION, Rayleigh quotient within +-band) split off their
+    span: (values (m'), vectors (n, m')) of the rest, Ritz pairs ascending; unchanged where nothing
+    slides so, or where the rod has clamped nodes (it cannot slide)."""
+    lam, vec = np.asarray(values, dtype=float), np.asarray(vectors, dtype=float)
+    if not lam.size or int(scene.n_free_nodes) != int(scene.n_nodes):
+        return lam, vec
+    vals, coef, soft = split_slide(scene, q, lam, vec, CLEAN_SLIDE_FRACTION, band)
+    return vals[~soft], (vec @ coef)[:, ~soft]
+
+
+def band_shape_modes(scene, e, negative_tol, strict_tol=None):
+    """(values (k,), fractions (k,), vectors (n, k)) of the equilibrium e's modes that change the
+    shape and lie in the near-zero band [-negative_tol, -strict_tol) kept for the sliding modes of
+    loose knots: its computed eigenpairs with the slide split off their span first
+    (``split_slide``), so that a buckling mode mixed with the slide next to its crossing is judged
+    by its own eigenvalue, then each remaining direction whose sliding fraction is above
+    SLIDING_FRACTION (see ``shape_modes_in_band``). Empty arrays without a band."""
+    if strict_tol is None:
+        strict_tol = scaled_negative_tol(scene)
+    lam = np.asarray(e.stability.eigenvalues)
+    vec = np.asarray(e.stability.eigenvectors)
+    empty = (np.zeros(0), np.zeros(0), np.zeros((vec.shape[0], 0)))
+    if not np.any((lam >= -negative_tol) & (lam < -strict_tol)) or int(scene.n_free_nodes) != int(scene.n_nodes):
+        return empty
+    vals, vecs = without_slide(scene, e.q, lam, vec, negative_tol)
+    band = np.nonzero((vals >= -negative_tol) & (vals < -strict_tol))[0]
+    if band.size == 0:
+        return empty
+    frac = sliding_fraction(scene, e.q, vecs[:, band])
+    keep = frac > SLIDING_FRACTION
+    return vals[band][keep], frac[keep], vecs[:, band][:, keep]
+
+
+def shape_modes_in_band(scene, e, negative_tol, strict_tol=None):
+    """[(eigenvalue, sliding fraction)] of the equilibrium e's computed modes whose eigenvalue lies
+    in the near-zero band [-negative_tol, -strict_tol) kept for the sliding modes of loose knots,
+    but which do not slide (``sliding_fraction`` above SLIDING_FRACTION): negative eigenvalues of
+    shape-changing modes that the band counts as zero (issue 17: at N = 481 a pair crossing zero
+    at -11.09 pi stayed inside the band down to -12.18 pi). Empty without a band. strict_tol:
+    default ``tolerances.scaled_negative_tol(scene)``, 1e-10 up to N ~ 600 and falling as N^-4
+    beyond, with the shape modes themselves (the trefoil's sit at ~3e-9 at N = 961, where a fixed
+    1e-10 would let a shape mode crossing zero at ~3e-9 per rad pass unseen for ~0.01 pi)."""
+    values, fractions, _ = band_shape_modes(scene, e, negative_tol, strict_tol)
+    return [(float(v), float(f)) for v, f in zip(values, fractions)]

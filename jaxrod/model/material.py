@@ -1,0 +1,71 @@
+"""Material of a circular, isotropic, naturally straight elastic rod."""
+from __future__ import annotations
+
+import math
+
+import jax
+from dataclasses import dataclass
+
+# The checks live in ``jaxrod.validation``; imported here too, where they used to be defined.
+from ..validation import check_finite, check_int_at_least, check_poisson_ratio, check_positive
+
+__all__ = ["Material"]
+
+
+@dataclass(frozen=True, eq=False)
+class Material:
+    """Stiffnesses of the rod.
+
+    B  bending stiffness (E I), C twist stiffness (G J), EA stretching stiffness. For a circular
+    isotropic rod, ``Material.from_engineering(E, nu, D)`` gives B = E pi D^4/64, C = B/(1+nu),
+    EA = E pi D^2/4. ``D`` (diameter) is kept when known: contact and slenderness use it.
+    """
+
+    B: float
+    C: float
+    EA: float
+    D: float | None = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "B", check_positive("B", self.B))
+        object.__setattr__(self, "C", check_positive("C", self.C))
+        object.__setattr__(self, "EA", check_positive("EA", self.EA))
+        if self.D is not None:
+            object.__setattr__(self, "D", check_positive("D", self.D))
+
+    @classmethod
+    def from_engineering(cls, E, nu, D):
+        """From Young's modulus E, Poisson ratio nu in (-1, 0.5] and diameter D."""
+        E = check_positive("E", E)
+        D = check_positive("D", D)
+        nu = check_poisson_ratio("nu", nu)
+        B = E * math.pi * D**4 / 64.0
+        return cls(B=B, C=B / (1.0 + nu), EA=E * math.pi * D**2 / 4.0, D=D)
+
+    @classmethod
+    def from_ratio(cls, B, nu, D):
+        """Bending stiffness B, Poisson ratio nu and diameter D (EA = 16 B / D^2, C = B/(1+nu))."""
+        B = check_positive("B", B)
+        D = check_positive("D", D)
+        nu = check_poisson_ratio("nu", nu)
+        return cls(B=B, C=B / (1.0 + nu), EA=16.0 * B / D**2, D=D)
+
+    @property
+    def nu(self):
+        """Poisson ratio implied by B/C = 1 + nu."""
+        return self.B / self.C - 1.0
+
+
+def _flatten_material(m):
+    return (m.B, m.C, m.EA, m.D), None
+
+
+def _unflatten_material(_, children):
+    # Bypass __init__: leaves may be tracers, which validation cannot (and need not) check.
+    m = object.__new__(Material)
+    for name, v in zip(("B", "C", "EA", "D"), children):
+        object.__setattr__(m, name, v)
+    return m
+
+
+jax.tree_util.register_pytree_node(Material, _flatten_material, _unflatten_material)

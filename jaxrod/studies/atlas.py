@@ -1,0 +1,434 @@
+"""Twisted-knot atlas: the critical twists phi*+ and phi*- of several knots over a range of
+slenderness D/L, the seed paper's "future work".
+
+One *case* is a knot, a slenderness D/L, a node count N and a side (phi > 0 or phi < 0). Its
+answer comes from ``knot_critical_twist``: the knot (``jaxrod.knot``, length 1, so D = D/L) is
+relaxed to a minimum at phi = 0 (``relax_to_minimum``: a symmetric drawing can relax onto a
+saddle), then its stable branch is followed (``follow_twist``, no branch switching) towards
++-span until it ends: a bifurcation or a fold, located to ``tol``. Cases are independent, so a
+sweep runs them serially or spread over a Dask cluster (``client=``): the same function on the
+same inputs, so the same numbers.
+
+``run_atlas(..., out=DIR)`` writes, as it goes:
+
+* ``atlas.json``  the settings (a resumed run must match them);
+* ``atlas.csv``   one row per finished case (``FIELDS``), appended as each case ends and sorted
+  by case when the sweep ends; a rerun skips the cases already there (resume);
+* ``atlas.png``   phi*/pi against D/L, a panel per knot, with the Michell lines (``figures``);
+* ``atlas.md``    the table, and the change of phi* with N where a case ran at several N.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import time
+import warnings
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from ..io.atomic import write_json, write_rows
+from ..model.geometry import radius_of_gyration
+from ..io.locking import holds_output_folder
+from ..validation import check_finite, check_int_at_least, check_positive
+
+__all__ = ["AtlasCase", "AtlasSettings", "FIELDS", "atlas_cases", "knot_critical_twist", "run_atlas", "read_atlas",
+           "figures", "report", "tightening_sides", "convergence_series"]
+
+SIDES = ("plus", "minus")
+FIELDS = ["knot", "D_over_L", "N", "side", "phi_star", "phi_star_over_pi", "phi_error", "kind", "reason",
+          "critical_eigenvalue", "dlambda_dphi", "lowest_eigenvalue_start", "Wr_start", "Wr_before", "Tw_before",
+          "contact_count_change", "radius_of_gyration_change", "n_points", "seconds"]
+_FLOATS = ("D_over_L", "phi_star", "phi_star_over_pi", "phi_error", "critical_eigenvalue", "dlambda_dphi",
+           "lowest_eigenvalue_start", "Wr_start", "Wr_before", "Tw_before", "radius_of_gyration_change", "seconds")
+KNOTS = ("3_1", "4_1", "5_1", "5_2")
+
+
+@dataclass(frozen=True)
+class AtlasSettings:
+    """What every case of a sweep shares: span (radians: each side is followed to +-span),
+    step (largest continuation step, radians), tol (accuracy of phi*, radians), nu (Poisson
+    ratio), contact_stiffness (``jaxrod.knot``'s; None: no contact term)."""
+
+    span: float = 16.0 * math.pi
+    step: float = 0.5 * math.pi
+    tol: float = 1e-3 * math.pi
+    nu: float = 0.5
+    contact_stiffness: float | None = 100.0
+
+    def __post_init__(self):
+        check_positive("span", self.span)
+        check_positive("step", self.step)
+        check_positive("tol", self.tol)
+        nu = check_finite("nu", self.nu)
+        if not -1.0 < nu < 0.5 + 1e-12:
+            raise ValueError(f"nu must lie in (-1, 0.5], got {nu}")
+        if self.contact_stiffness is not None:
+            check_positive("contact_stiffness", self.contact_stiffness)
+
+    def as_json(self):
+        return json.loads(json.dumps(asdict(self)))
+
+
+@dataclass(frozen=True)
+class AtlasCase:
+    """One study of the atlas: knot ('3_1', '4_1', '5_1', '5_2'), D_over_L, N, side ('plus':
+    phi > 0, 'minus': phi < 0)."""
+
+    knot: str
+    D_over_L: float
+    N: int
+    side: str
+
+    @property
+    def key(self):
+        return (self.knot, float(self.D_over_L), int(self.N), self.side)
+
+
+def _scene(knot, D_over_L, N, settings):
+    from ..model.scenes import knot as make_knot
+
+    return make_knot(knot, D_over_L, 1.0, N, nu=settings.nu, contact_stiffness=settings.contact_stiffness)
+
+
+def atlas_cases(knots, ratios, N, settings=None, sides=SIDES):
+    """The cases of a sweep, knot by knot, D/L ascending, N ascending, plus before minus; each
+    (knot, D/L, N) is checked now (``jaxrod.knot``: a known knot, L/D above its ideal
+    ropelength, enough nodes), so that a bad sweep is refused before any work. ``N``: an int or
+    a list (several N: a convergence study); sides: 'plus' (phi > 0) and/or 'minus'. Warnings
+    (nearly tight knots) are given once each."""
+    settings = settings or AtlasSettings()
+    sides = [sides] if isinstance(sides, str) else list(sides)
+    if not sides or any(side not in SIDES for side in sides):
+        raise ValueError(f"sides must be 'plus' and/or 'minus', got {sides!r}")
+    sides = [side for side in SIDES if side in sides]
+    knots = [knots] if isinstance(knots, str) else list(knots)
+    if not knots:
+        raise ValueError("knots: give at least one knot")
+    ratios = [check_positive("ratios", r) for r in (np.atleast_1d(np.asarray(ratios, dtype=float)).tolist())]
+    if not ratios:
+        raise ValueError("ratios: give at least one D/L")
+    ns = sorted({check_int_at_least("N", n, 4) for n in np.atleast_1d(N).tolist()})
+    cases = []
+    for knot in dict.fromkeys(knots):
+        for ratio in sorted(set(ratios)):
+            for n in ns:
+                with warnings.catch_warnings(record=True) as caught:
+                    warnings.simplefilter("always")
+                    try:
+                        _scene(knot, ratio, n, settings)
+                    except ValueError as exc:
+                        # Name the sweep's parameter: a ratio too large for the knot, or too small for N.
+                        what = "N" if str(exc).startswith("N") else "ratios"
+                        raise ValueError(f"{what}: {knot} at D/L = {ratio:g}, N = {n}: {exc}") from None
+                for w in caught:
+                    if n == ns[0]:
+                        warnings.warn(f"{knot} at D/L = {ratio:g}: {w.message}", stacklevel=2)
+                cases.extend(AtlasCase(knot, float(ratio), int(n), side) for side in sides)
+    return cases
+
+
+def _contact_count(scene, e):
+    from ..model.contact import contact_count
+
+    if "contact" not in scene.terms:
+        return 0
+    nbr = e.neighbourhood if e.neighbourhood is not None else scene.neighbourhood(e.q, e.phi)
+    return int(contact_count(e.x, nbr.pairs, nbr.mask, True, scene.material.D))
+
+
+def _lowest_above_band(e):
+    """The lowest eigenvalue above the near-null band of sliding modes (|lambda| < 1e-6 with
+    contact): how deep a minimum is."""
+    ev = np.asarray(e.stability.eigenvalues)
+    above = ev[ev > e.stability.tol]
+    return float(above[0]) if above.size else math.nan
+
+
+def tightening_sides(rows):
+    """{(knot, D/L, N): 'plus', 'minus' or 'equal'}: the side whose branch packs the strands
+    together, told (as in ``twist_study``, by ``study.tightening_side``) by the segment pairs in
+    contact gained along the branch, then by the radius of gyration lost; 'equal' where the two
+    sides agree within round-off (mirror images); only where both sides ran."""
+    from .twist import tightening_side
+
+    sides = {}
+    for r in rows:
+        sides.setdefault((r["knot"], r["D_over_L"], r["N"]), {})[r["side"]] = (
+            r["contact_count_change"], r["radius_of_gyration_change"])
+    # The rows keep the changes only, so they are judged against the larger change: mirror-image
+    # sides (an achiral knot relaxed to a mirror-symmetric shape) come out 'equal'.
+    return {k: tightening_side(v, scale=max(abs(v["plus"][1]), abs(v["minus"][1])))
+            for k, v in sides.items() if len(v) == 2}
+
+
+def knot_critical_twist(case, settings=None):
+    """The first branch end of ``case`` (an ``AtlasCase`` or its dict) on its side: relax to a
+    minimum at phi = 0, follow the stable branch towards +-span. Returns a row (dict, ``FIELDS``):
+    phi_star in radians (NaN when the branch reaches +-span), phi_error, kind ('unstable': an
+    eigenvalue crossed zero; 'jump': the branch folded), critical_eigenvalue and dlambda_dphi
+    (the critical eigenvalue at the last stable state and its rate along the branch, the secant
+    where known: how clearly the end is an eigenvalue going to zero), lowest_eigenvalue_start
+    (the relaxed minimum's lowest eigenvalue above the near-null band of sliding modes: how deep
+    it is; dimensionless, as in ``Stability``), Wr_start, Wr and Tw at
+    the last stable state, the change along the branch of the segment pairs in contact and of the
+    radius of gyration (``tightening_sides`` compares the two sides), n_points, seconds.
+    Pure in its inputs: the same case gives the same numbers on any worker."""
+    from ..continuation import ContinuationOptions, follow_twist
+    from ..solve.equilibrium import relax_to_minimum
+
+    if isinstance(case, dict):
+        case = AtlasCase(**case)
+    if isinstance(settings, dict):
+        settings = AtlasSettings(**settings)
+    settings = settings or AtlasSettings()
+    t0 = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # nearly-tight warnings were given by atlas_cases
+        scene = _scene(case.knot, case.D_over_L, case.N, settings)
+    start = relax_to_minimum(scene, 0.0)
+    sign = 1.0 if case.side == "plus" else -1.0
+    path = follow_twist(scene, 0.0, sign * settings.span,
+                        ContinuationOptions(step=settings.step, tol=settings.tol, switch=False), start=start)
+    last = path.points[-1].equilibrium
+    if path.instabilities:
+        last = path.instabilities[0].equilibrium
+    row = {"knot": case.knot, "D_over_L": case.D_over_L, "N": case.N, "side": case.side,
+           "phi_star": math.nan, "phi_star_over_pi": math.nan, "phi_error": math.nan, "kind": "none",
+           "reason": path.reason, "critical_eigenvalue": math.nan, "dlambda_dphi": math.nan,
+           "lowest_eigenvalue_start": _lowest_above_band(start), "Wr_start": float(start.Wr),
+           "Wr_before": float(last.Wr), "Tw_before": float(last.Tw),
+           "contact_count_change": _contact_count(scene, last) - _contact_count(scene, start),
+           "radius_of_gyration_change": radius_of_gyration(last.x) - radius_of_gyration(start.x),
+           "n_points": len(path.points)}
+    if path.instabilities:
+        inst = path.instabilities[0]
+        row.update(phi_star=float(inst.phi), phi_star_over_pi=float(inst.phi) / math.pi,
+                   phi_error=float(inst.phi_error), kind=str(inst.kind.value),
+                   critical_eigenvalue=float(inst.eigenvalue),
+                   dlambda_dphi=float(inst.dlambda_dphi_secant if math.isfinite(inst.dlambda_dphi_secant)
+                                      else inst.dlambda_dphi))
+    row["seconds"] = time.perf_counter() - t0
+    return row
+
+
+def _case_of(row):
+    return AtlasCase(row["knot"], float(row["D_over_L"]), int(row["N"]), row["side"])
+
+
+def read_atlas(path):
+    """Rows of an atlas CSV (a folder or the file) with numbers as floats / ints; raises
+    ValueError naming the file if a column of ``FIELDS`` is missing."""
+    if os.path.isdir(path):
+        path = os.path.join(path, "atlas.csv")
+    with open(path, newline="") as f:
+        reader = csv.DictReader(f)
+        missing = [c for c in FIELDS if c not in (reader.fieldnames or [])]
+        if missing:
+            raise ValueError(f"{path}: missing column(s) {', '.join(missing)} (an atlas CSV has {', '.join(FIELDS)})")
+        rows = []
+        for r in reader:
+            if None in r.values() or len(r) != len(reader.fieldnames):
+                continue  # a row cut short by an interruption
+            for c in _FLOATS:
+                r[c] = float(r[c])
+            r["N"], r["n_points"], r["contact_count_change"] = int(r["N"]), int(r["n_points"]), int(r["contact_count_change"])
+            rows.append(r)
+    return rows
+
+
+def _check_folder(out, settings, fresh):
+    """Create ``out``; refuse one holding an atlas of other settings (unless fresh: start over)."""
+    os.makedirs(out, exist_ok=True)
+    settings_path, csv_path = os.path.join(out, "atlas.json"), os.path.join(out, "atlas.csv")
+    if fresh:
+        for p in (settings_path, csv_path):
+            if os.path.exists(p):
+                os.remove(p)
+    if os.path.exists(settings_path):
+        with open(settings_path) as f:
+            old = json.load(f)
+        if old != settings.as_json():
+            raise ValueError(f"out: {out} holds an atlas with other settings (see its atlas.json): use another "
+                             "folder, or start over there (fresh=True; the CLI's --fresh)")
+    write_json(settings_path, settings.as_json())
+
+
+def _keep_whole_rows(csv_path):
+    """The finished rows of an interrupted sweep (a last row cut short is dropped)."""
+    if not os.path.exists(csv_path):
+        return []
+    try:
+        rows = read_atlas(csv_path)
+    except ValueError:
+        rows = []
+    write_rows(csv_path, FIELDS, rows)
+    return rows
+
+
+@holds_output_folder
+def run_atlas(knots=KNOTS, ratios=(0.01, 0.015, 0.02, 0.0274, 0.03, 0.035), N=101, settings=None, out=None,
+              client=None, fresh=False, on_row=None, sides=SIDES):
+    """Critical twists of every (knot, D/L, N, side) case (``atlas_cases``).
+
+    out: folder for atlas.json / atlas.csv (rows appended as cases end; cases already there are
+    skipped, so an interrupted sweep resumes); client: a ``dask.distributed.Client`` to spread
+    the cases over (None: one after the other in this process); on_row(row, n_done, n_total):
+    called as each case ends (progress); sides: both by default, or one ('plus' / 'minus').
+    Returns the rows of all the cases, sorted by case.
+    A case that fails raises (its message names the case); the cases done before stay on file.
+    """
+    settings = settings or AtlasSettings()
+    cases = atlas_cases(knots, ratios, N, settings, sides)
+    order = {c.key: i for i, c in enumerate(cases)}
+    csv_path = None
+    done = {}
+    if out is not None:
+        _check_folder(out, settings, fresh)
+        csv_path = os.path.join(out, "atlas.csv")
+        for r in _keep_whole_rows(csv_path):
+            done[_case_of(r).key] = r
+    todo = [c for c in cases if c.key not in done]
+    n_total, n_done = len(cases), len(cases) - len(todo)
+
+    def finished(row):
+        nonlocal n_done
+        n_done += 1
+        done[_case_of(row).key] = row
+        if csv_path is not None:
+            new = not os.path.exists(csv_path)
+            with open(csv_path, "a", newline="") as f:
+                w = csv.DictWriter(f, fieldnames=FIELDS, extrasaction="ignore")
+                if new:
+                    w.writeheader()
+                w.writerow(row)
+                f.flush()
+        if on_row is not None:
+            on_row(row, n_done, n_total)
+
+    if client is None:
+        for case in todo:
+            finished(_checked(knot_critical_twist, case, settings))
+    else:
+        from distributed import as_completed
+
+        futures = {client.submit(_checked, knot_critical_twist, case, settings, pure=False): case for case in todo}
+        try:
+            for future in as_completed(futures):
+                finished(future.result())
+        finally:
+            for future in futures:
+                future.cancel()
+    rows = sorted((r for k, r in done.items() if k in order), key=lambda r: order[_case_of(r).key])
+    if csv_path is not None:  # with the cases of earlier sweeps into this folder, in case order
+        write_rows(csv_path, FIELDS, sorted(done.values(), key=_case_order))
+    return rows
+
+
+def _case_order(row):
+    """Knot, D/L, N ascending, plus before minus (the order of ``atlas_cases``)."""
+    case = _case_of(row)
+    return (case.knot, case.D_over_L, case.N, SIDES.index(case.side))
+
+
+def _checked(fn, case, settings):
+    """fn(case, settings), its failure re-raised with the case named."""
+    try:
+        return fn(case, settings)
+    except Exception as exc:  # noqa: BLE001 -- re-raised with the case named
+        raise RuntimeError(f"atlas case {case.knot} D/L = {case.D_over_L:g} N = {case.N} {case.side}: "
+                           f"{type(exc).__name__}: {exc}") from exc
+
+
+# ------------------------------------------------------------------------------------ outputs
+def _yes_no(tight_side, side):
+    return "?" if tight_side is None else "equal" if tight_side == "equal" else "yes" if tight_side == side else "no"
+
+
+def _main_rows(rows):
+    """The rows at each (knot, D/L)'s most common N (the sweep's N; other N are convergence)."""
+    counts = {}
+    for r in rows:
+        counts[r["N"]] = counts.get(r["N"], 0) + 1
+    main_n = max(counts, key=lambda n: (counts[n], -n)) if counts else None
+    return [r for r in rows if r["N"] == main_n], main_n
+
+
+def figures(out, rows=None, path=None, nu=None):
+    """atlas.png in ``out`` (or ``path``): phi*/pi against D/L per knot, both sides, with the
+    Michell lines +-phi_M and +-2 phi_M (phi_M = 2 pi sqrt(3) (1 + nu)), cases that reach the
+    span without an end marked at +-span; beside it atlas_convergence.png (phi* against 1/N^2)
+    where cases ran at several N. Returns the path of atlas.png."""
+    from ..io.plotting import plot_atlas
+    from ..model.scenes import michell_critical_twist
+
+    if rows is None:
+        rows = read_atlas(out)
+    if nu is None:
+        with open(os.path.join(out, "atlas.json")) as f:
+            stored = json.load(f)
+        nu, span = stored["nu"], stored["span"]
+    else:
+        span = None
+    main, n = _main_rows(rows)
+    path = path or os.path.join(out, "atlas.png")
+    plot_atlas(main, michell=michell_critical_twist(nu), span=span, tightening=tightening_sides(main), path=path,
+               title=f"Twisted-knot atlas (N = {n})")
+    series = convergence_series(rows)
+    if series:
+        from ..io.plotting import plot_atlas_convergence
+
+        plot_atlas_convergence(series, path=os.path.join(os.path.dirname(path), "atlas_convergence.png"))
+    return path
+
+
+def convergence_series(rows):
+    """{(knot, D/L, side): [(N, phi*), ...] ascending in N} for the cases run at several N with an
+    end found at each."""
+    groups = {}
+    for r in rows:
+        if math.isfinite(r["phi_star"]):
+            groups.setdefault((r["knot"], r["D_over_L"], r["side"]), []).append((r["N"], r["phi_star"]))
+    return {k: sorted(v) for k, v in groups.items() if len({n for n, _ in v}) > 1}
+
+
+def report(out, rows=None):
+    """atlas.md in ``out``: the table of phi* per knot, D/L and side, and where a (knot, D/L)
+    ran at several N, phi* at each N with the change between successive N."""
+    if rows is None:
+        rows = read_atlas(out)
+    lines = ["# Twisted-knot atlas: critical twists", "",
+             "jaxrod sign convention (phi > 0 adds right-handed twist; Lk = Lk0 + phi / 2 pi). Each side followed "
+             "from the knot relaxed to a minimum at phi = 0 until its stable branch ends ('unstable': an eigenvalue "
+             "crosses zero; 'jump': the branch folds; the critical eigenvalue at the last stable state, with its rate "
+             "along the branch, says how clearly it was going to zero). The tightening side gains segment pairs in contact along its "
+             "branch (then: loses radius of gyration); the other side opens the knot.", "",
+             "| knot | D/L | N | side | phi*/pi | +- (rad) | kind | critical eigenvalue (d/dphi) | lowest at phi = 0 | "
+             "Wr start | Wr before | Tw before | contacts gained | tightens | time (s) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    tight = tightening_sides(rows)
+    for r in rows:
+        phi = f"{r['phi_star_over_pi']:+.4f}" if math.isfinite(r["phi_star"]) else "none"
+        err = f"{r['phi_error']:.1e}" if math.isfinite(r["phi_error"]) else ""
+        lam = f"{r['critical_eigenvalue']:.2e} ({r['dlambda_dphi']:+.1e})" if math.isfinite(r["critical_eigenvalue"]) else ""
+        lines.append(f"| {r['knot']} | {r['D_over_L']:g} | {r['N']} | {r['side']} | {phi} | {err} | {r['kind']} | {lam} | "
+                     f"{r['lowest_eigenvalue_start']:.2e} | "
+                     f"{r['Wr_start']:.4f} | {r['Wr_before']:.4f} | {r['Tw_before']:.4f} | {r['contact_count_change']:+d} | "
+                     f"{_yes_no(tight.get((r['knot'], r['D_over_L'], r['N'])), r['side'])} | "
+                     f"{r['seconds']:.1f} |")
+    groups = {}
+    for r in rows:
+        groups.setdefault((r["knot"], r["D_over_L"], r["side"]), []).append(r)
+    conv = [(k, sorted(g, key=lambda r: r["N"])) for k, g in groups.items() if len({r["N"] for r in g}) > 1]
+    if conv:
+        lines += ["", "## Convergence in N", ""]
+        for (knot, ratio, side), g in conv:
+            parts = [f"N = {r['N']}: {r['phi_star_over_pi']:+.4f} pi" for r in g]
+            changes = [f"{b['phi_star_over_pi'] - a['phi_star_over_pi']:+.4f} pi" for a, b in zip(g, g[1:])]
+            lines.append(f"- {knot}, D/L = {ratio:g}, {side}: " + ", ".join(parts) + " (changes " + ", ".join(changes) + ")")
+    path = os.path.join(out, "atlas.md")
+    with open(path, "w") as f:
+        f.write("\n".join(lines) + "\n")
+    return path

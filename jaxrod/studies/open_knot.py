@@ -1,0 +1,310 @@
+"""An open overhand (trefoil) knot tied in a rod clamped at both ends and pulled tight (issue 19, item 4).
+
+Scene: an ``EndLoadedRod`` (``jaxrod.studies.endloads.shortened_rod``) with soft self-contact, both clamps
+on one axis, the far clamp ``excess`` closer than one rod length, its frame turned by ``phi``.
+The knot is drawn from the trefoil (sin t + 2 sin 2t, cos t - 2 cos 2t, sin 3t), cut open at the tip
+of one lobe (t = pi, where the curve is furthest from the centre): the arc t in [pi + delta,
+3 pi - delta], scaled to the loop size asked, with two straight tails that run out along the
+axis, the incoming one passing under the outgoing one. The two tails and a far-away arc in
+the plane of the tip bound a disk the rest of the knot does not cross, so the rod closed by rays
+along the axis is a trefoil.
+
+Pulling is displacement controlled (the robust way with contact): the far clamp is moved away
+step by step (the excess length, L minus the clamps' distance, decreases); each state is
+``jaxrod.solve.equilibrium.relax``ed (damped Newton, steps capped at D/4, contact candidates rebuilt
+when a node has moved skin/2, a writhe jump of 1 refused as strand passage), and the tension T
+is read from ``end_loads`` (dE/d(end distance), exact). The loop size is reported as the largest
+distance of the centreline from the clamp axis (``loop_height``) and as the excess length
+e = L - end distance (the knot's "excess length" of Audoly, Clauvelin, Neukirch 2007 / Jawed et
+al. 2015). The planar elastica loop of an inextensible rod under tension T (the outer solution of
+a loose knot) has e = 4 sqrt(B/T) and height 2 sqrt(B/T).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .endloads import end_loads, shortened_rod
+from ..model.material import Material
+from ..validation import check_finite, check_int_at_least, check_positive
+
+__all__ = ["open_overhand_knot", "KnotState", "pull", "loop_height", "loop_span", "relax_knot", "fit_prefactor",
+           "fit_loose_limit", "mean_tension"]
+
+TWO_PI = 2.0 * math.pi
+DEFAULT_CONTACT_STIFFNESS = 100.0
+# elastica loop (NvdHT 2002 at m = 0): excess length 4 sqrt(B/T), largest distance from the axis 2 sqrt(B/T)
+ELASTICA_EXCESS = 4.0
+ELASTICA_HEIGHT = 2.0
+
+
+def _trefoil(t):
+    return np.stack([np.sin(t) + 2 * np.sin(2 * t), np.cos(t) - 2 * np.cos(2 * t), np.sin(3 * t)], axis=-1)
+
+
+def _open_curve(loop, tail, delta=0.3, n=4000):
+    """Polyline (n', 3) of the open knot in its own frame (tails along +X), scaled so the trefoil's
+    unit is ``loop``; the tails reach X = -tail and X = +tail on the line Y = Z = 0."""
+    t = np.linspace(math.pi + delta, 3 * math.pi - delta, n)
+    k = (_trefoil(t) - np.array([0.0, -3.0, 0.0])) * loop  # tip of the lobe at the origin
+    a = np.array([-tail, 0.0, 0.0])
+    b = np.array([tail, 0.0, 0.0])
+    m = max(50, n // 10)
+    t1 = a[None, :] + np.linspace(0.0, 1.0, m)[:-1, None] * (k[0] - a)[None, :]
+    t2 = k[-1][None, :] + np.linspace(0.0, 1.0, m)[1:, None] * (b - k[-1])[None, :]
+    return np.concatenate([t1, k, t2], axis=0)
+
+
+def _arclength(p):
+    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
+
+
+def open_overhand_knot(N, L, D, loop, B=1.0, nu=0.5, phi=0.0, contact_stiffness=DEFAULT_CONTACT_STIFFNESS,
+                       delta=0.3, Lk0=None, contact_quadrature=3):
+    """(scene, q0): an open overhand knot of rest length L (between the clamps' points) and
+    diameter D, N nodes, clamped on the z axis; ``loop``: the trefoil's unit length (its
+    lobes are ~6 loop across); material B, nu (EA = 16 B / D^2). The far clamp sits where the
+    drawn curve ends (its excess length is the knot's), the twist is spread evenly (``phi``).
+    Lk = Lk0 + phi / 2 pi (a clamped rod's Lk0 is an integer: the far clamp's frame is
+    the near one's turned by phi). Lk0 default: 3 with the sign of the drawn curve's writhe, the
+    writhe of the loose, nearly flat knot (three crossings of one sign; measured 3.04 relaxed),
+    so phi = 0 is the nearly twist-free knot; the drawn curve (ray-closed writhe 4.23: its
+    slanted tails) starts with Tw = Lk - Wr spread evenly. Refused (naming the parameter): N < 40 or edges longer than D,
+    non-positive L, D, loop, B, a knot too long for the rod (tails shorter than 2 loops).
+    contact_quadrature: Gauss points per segment of the contact integral, 3 by default: where the
+    strands cross, the contact is shorter than an edge, and with 2 points T(e) jumps by ~5 % as
+    strands slide past the nodes (measured at N = 320, D = L/150: non-monotone T with 2 points,
+    monotone within 1.5 % with 3)."""
+    L = check_positive("L", L)
+    D = check_positive("D", D)
+    loop = check_positive("loop", loop)
+    B = check_positive("B", B)
+    phi = check_finite("phi", phi)
+    N = check_int_at_least("N", N, 40)
+    if L / (N - 2) > D:
+        raise ValueError(f"N = {N} gives edges of {L / (N - 2) / D:.2f} D: self-contact needs edges no longer "
+                         f"than the diameter, N >= L/D + 2 = {math.ceil(L / D) + 2}")
+    if not 0.05 <= delta <= 1.0:
+        raise ValueError(f"delta must lie in [0.05, 1], got {delta!r}")
+    if 2.0 * loop * (3.0 * math.sin(3 * delta) + 0.0) < 1.2 * D:
+        raise ValueError(f"loop = {loop:g} is too small for D = {D:g}: the tails would touch at the cut")
+    knot_len = _arclength(_open_curve(loop, 0.0, delta))[-1]
+    tails = 0.5 * (L - knot_len)
+    if tails < 12.0 * loop:
+        raise ValueError(f"loop = {loop:g} is too large for L = {L:g}: the knot needs {knot_len:.3g} of rod and "
+                         "each tail at least 12 loop lengths")
+    # find the tail half-width X so that the curve has arc length L
+    lo, hi = 0.0, L
+    for _ in range(80):
+        mid = 0.5 * (lo + hi)
+        if _arclength(_open_curve(loop, mid, delta))[-1] < L:
+            lo = mid
+        else:
+            hi = mid
+    p = _open_curve(loop, 0.5 * (lo + hi), delta)
+    s = _arclength(p)
+    end_distance = p[-1, 0] - p[0, 0]
+    excess = L - end_distance
+    # own frame (X, Y, Z) -> space (Y, Z, X): a cyclic permutation (proper rotation), tails along z
+    p = p[:, [1, 2, 0]] - p[0, [1, 2, 0]][None, :]
+    mat = Material.from_ratio(B=B, nu=nu, D=D)
+    scene = shortened_rod(N, L, mat, shortening=excess, contact_stiffness=contact_stiffness,
+                          contact_quadrature=contact_quadrature)
+    h = L / (N - 2)
+    si = (np.arange(N) - 0.5) * h
+    x = np.stack([np.interp(si, s, p[:, j]) for j in range(3)], axis=1)
+    x[0], x[-1] = p[0] - 0.5 * h * np.array([0, 0, 1.0]), p[-1] + 0.5 * h * np.array([0, 0, 1.0])
+    xc = np.asarray(scene.x_clamped)
+    x[:2] = xc[:2]
+    x[-2:] = xc[2:] + np.asarray(scene.end_offset)[None, :]
+    xi = x[2:N - 2]
+    q = np.concatenate([xi.ravel(), np.zeros(N - 3)])
+    import jax.numpy as jnp  # noqa: PLC0415
+
+    xfull = np.asarray(scene.nodes(jnp.asarray(q)))
+    wr = float(scene.exact_writhe(jnp.asarray(xfull)))
+    Lk0 = float(3 * np.sign(wr)) if Lk0 is None else float(check_int_at_least("Lk0", Lk0, -10 ** 6))
+    scene = dataclasses.replace(scene, Lk0=Lk0, q_init=jnp.asarray(q))
+    # twist angles: theta_end = phi + end angle (on the branch Tw = Lk0 + phi/2pi - Wr), spread evenly
+    theta_end = phi + float(scene.end_angle(jnp.asarray(xfull)))
+    n_edges = N - 1
+    q[3 * (N - 4):] = theta_end * np.arange(1, n_edges - 1) / (n_edges - 1)
+    return scene, q
+
+
+def loop_height(scene, x):
+    """Largest distance of the nodes x (N, 3) from the clamp axis (the line through the near clamp)."""
+    a = np.asarray(scene.axis, dtype=float)
+    r = np.asarray(x, dtype=float) - np.asarray(scene.x_clamped, dtype=float)[0][None, :]
+    lat = r - (r @ a)[:, None] * a[None, :]
+    return float(np.max(np.linalg.norm(lat, axis=1)))
+
+
+def loop_span(scene, x, fraction=0.3):
+    """The loop's diameter: the largest distance between two nodes of x (N, 3) that lie further
+    from the clamp axis than ``fraction`` of the largest such distance (``loop_height``). The
+    threshold scales with the loop, so the measure is the same for knots of any D at equal
+    D sqrt(T/B): a threshold fixed in D counted the tails' deflection near a thin knot.
+    For the round loop of a loose knot it is the loop's diameter; ``loop_height`` depends on how
+    the loop sits across the axis."""
+    a = np.asarray(scene.axis, dtype=float)
+    x = np.asarray(x, dtype=float)
+    r = x - np.asarray(scene.x_clamped, dtype=float)[0][None, :]
+    lat = np.linalg.norm(r - (r @ a)[:, None] * a[None, :], axis=1)
+    p = x[lat > fraction * lat.max()] if lat.max() > 0 else x[:0]
+    if len(p) < 2:
+        return 0.0
+    d = np.linalg.norm(p[:, None, :] - p[None, :, :], axis=-1)
+    return float(d.max())
+
+
+@dataclass(frozen=True)
+class KnotState:
+    """One pulled state: excess (L - end distance), T (tension), M (axial end moment), height
+    (``loop_height``), span (``loop_span``), phi, Wr, Tw, Lk, morse (negative eigenvalues of the contact Hessian, the
+    clamp-axis rotation removed), lowest (lowest eigenvalues, scaled), contacts (touching segment
+    pairs), energy, q (DOFs), x (nodes)."""
+
+    excess: float
+    T: float
+    M: float
+    height: float
+    span: float
+    phi: float
+    Wr: float
+    Tw: float
+    Lk: float
+    morse: int
+    lowest: np.ndarray
+    contacts: int
+    energy: float
+    q: np.ndarray
+    x: np.ndarray
+
+
+def relax_knot(scene, phi, q0, previous=None, gtol=1e-7, k=6):
+    """Relax the knot at its current excess length and end rotation phi; a ``KnotState``."""
+    import jax.numpy as jnp  # noqa: PLC0415
+
+    from ..model.contact import contact_count  # noqa: PLC0415
+    from ..linalg.stability import CONTACT_NEGATIVE_TOL  # noqa: PLC0415
+    from ..solve.equilibrium import RelaxOptions, relax  # noqa: PLC0415
+
+    e = relax(scene, phi, q0, RelaxOptions(gtol=gtol, k=k, negative_tol=CONTACT_NEGATIVE_TOL, max_rounds=400),
+              previous=previous)
+    loads = end_loads(scene, e.q, phi, e.neighbourhood)
+    nbr = e.neighbourhood
+    nc = int(contact_count(jnp.asarray(e.x), nbr.pairs, nbr.mask, False, float(scene.material.D)))
+    return e, KnotState(excess=float(scene.shortening), T=loads.T, M=loads.M, height=loop_height(scene, e.x),
+                        span=loop_span(scene, e.x),
+                        phi=float(phi), Wr=float(e.Wr), Tw=float(e.Tw), Lk=float(e.Lk),
+                        morse=int(e.stability.n_negative), lowest=np.asarray(e.stability.eigenvalues),
+                        contacts=nc, energy=float(e.energy), q=np.asarray(e.q), x=np.asarray(e.x))
+
+
+def _moved(scene, q, new_excess):
+    """(scene at the new excess, q with the far tail stretched): every interior node moved along
+    the axis in proportion to its height along it, so no edge next to the far clamp is torn."""
+    from .endloads import with_shortening  # noqa: PLC0415
+
+    old = float(scene.shortening)
+    new = with_shortening(scene, float(new_excess))
+    n_free = scene.n_nodes - 4
+    q = np.array(q, dtype=float)
+    xi = q[:3 * n_free].reshape(n_free, 3)
+    a = np.asarray(scene.axis, dtype=float)
+    z0 = np.asarray(scene.x_clamped, dtype=float)[1] @ a
+    z = xi @ a - z0
+    span = float(scene.end_distance) - (np.asarray(scene.x_clamped, dtype=float)[1] @ a - np.asarray(scene.x_clamped, dtype=float)[0] @ a)
+    frac = np.clip(z / max(span, 1e-300), 0.0, 1.0)
+    xi = xi + (old - float(new_excess)) * frac[:, None] * a[None, :]
+    q[:3 * n_free] = xi.ravel()
+    return new, q
+
+
+def pull(scene, q0, excesses, phi=0.0, progress=None, gtol=1e-7, previous=None):
+    """Pull the knot: relax at each excess length in ``excesses`` (any order; normally decreasing,
+    which raises T), each from the last state. Returns a list of ``KnotState``. Stops (returning
+    what it has) at a ``TopologyChangeError`` or a relaxation that fails, reported by ``progress``.
+    Refused: an excess outside (0, L), non-finite phi."""
+    from ..solve.solvers import ConvergenceError  # noqa: PLC0415
+    from ..solve.equilibrium import TopologyChangeError  # noqa: PLC0415
+
+    phi = check_finite("phi", phi)
+    L = float(scene.clamp_length)
+    ex = [check_finite("excesses", v) for v in np.atleast_1d(excesses)]
+    for v in ex:
+        if not 0.0 < v < L:
+            raise ValueError(f"excesses must lie in (0, L) = (0, {L:g}), got {v!r}")
+    say = progress or (lambda s: None)
+    out = []
+    prev = previous  # an Equilibrium or KnotState: its writhe guards the first relaxation
+    q = np.asarray(q0, dtype=float)
+    for v in ex:
+        scene, q = _moved(scene, q, v)
+        try:
+            prev, st = relax_knot(scene, phi, q, previous=prev, gtol=gtol)
+        except (ConvergenceError, TopologyChangeError) as exc:
+            say(f"excess {v:.4g}: stopped ({type(exc).__name__}: {exc})")
+            break
+        q = st.q
+        out.append(st)
+        say(f"excess {v:.4g}: T = {st.T:.4g}, span = {st.span:.4g}, height = {st.height:.4g}, Lk = {st.Lk:.6f}, Wr = {st.Wr:.4f}, "
+            f"morse = {st.morse}, contacts = {st.contacts}")
+    return out
+
+
+def fit_prefactor(T, y, B=1.0):
+    """Fit y = c sqrt(B/T) (least squares in log) and the free power law y = a T^-p.
+    Returns (c, c_std, p, p_std): c's scatter from the residuals, p's from the slope fit."""
+    T, y = np.asarray(T, dtype=float), np.asarray(y, dtype=float)
+    lt, ly = np.log(T), np.log(y)
+    logc = ly + 0.5 * (lt - math.log(B))
+    c = float(np.exp(np.mean(logc)))
+    c_std = float(c * np.std(logc, ddof=1) / math.sqrt(len(logc))) if len(logc) > 1 else float("nan")
+    A = np.stack([np.ones_like(lt), lt], axis=1)
+    coef, res, *_ = np.linalg.lstsq(A, ly, rcond=None)
+    p = -float(coef[1])
+    if len(lt) > 2:
+        r = ly - A @ coef
+        s2 = float(r @ r) / (len(lt) - 2)
+        cov = s2 * np.linalg.inv(A.T @ A)
+        p_std = float(math.sqrt(cov[1, 1]))
+    else:
+        p_std = float("nan")
+    return c, c_std, p, p_std
+
+
+def fit_loose_limit(x, c, degree=1):
+    """The loose-knot limit of a scale-free measure: for a long rod (L much longer than the knot)
+    dimensional analysis leaves c = y sqrt(T/B) a function of x = D sqrt(T/B) alone (at given
+    nu, contact law and end moment M / sqrt(BT)), whatever D; the loose limit is c(0).
+    Fits c = c0 + c1 x (+ c2 x^2 with degree 2) by least squares. Returns (coefficients (degree+1,),
+    their standard errors, the largest residual)."""
+    x, c = np.asarray(x, dtype=float), np.asarray(c, dtype=float)
+    A = np.stack([x ** k for k in range(degree + 1)], axis=1)
+    coef, *_ = np.linalg.lstsq(A, c, rcond=None)
+    r = c - A @ coef
+    dof = len(c) - degree - 1
+    if dof > 0:
+        cov = float(r @ r) / dof * np.linalg.inv(A.T @ A)
+        err = np.sqrt(np.diag(cov))
+    else:
+        err = np.full(degree + 1, np.nan)
+    return coef, err, float(np.max(np.abs(r)))
+
+
+def mean_tension(excess, energy):
+    """The mean tension over each step of a displacement-controlled pull: T = -dE/de between
+    consecutive states, (E1 - E0) / (e0 - e1), placed at the geometric mean sqrt(e0 e1) of their
+    excess lengths (where it is exact for the loose-knot law T = c^2 B / e^2, E = E_inf + c^2 B / e).
+    Smoother than the tension at each state (``end_loads``), which ripples by a few per cent as the
+    strands slide past the nodes; the work done is the same. excess, energy: (K,) in any order.
+    Returns (e_mid (K-1,), T_mean (K-1,)), sorted by excess."""
+    e, E = np.asarray(excess, dtype=float), np.asarray(energy, dtype=float)
+    order = np.argsort(e)
+    e, E = e[order], E[order]
+    return np.sqrt(e[1:] * e[:-1]), -(E[1:] - E[:-1]) / (e[1:] - e[:-1])
