@@ -1,8 +1,8 @@
 """The damped-dynamics notebook runs top to bottom (see test_notebooks.py; a file of its own so
 that the xdist workers share the notebooks' time)."""
-from test_notebooks import NOTEBOOKS, run_notebook
+from test_notebooks import NOTEBOOKS, checks_that_ran, run_notebook
 
 
-def test_damped_dynamics_notebook_runs(tmp_path, monkeypatch):
+def test_damped_dynamics_notebook_runs_and_checks_its_results(tmp_path, monkeypatch):
     (path,) = [p for p in NOTEBOOKS if p.name == "damped_dynamics.ipynb"]
-    run_notebook(path, tmp_path, monkeypatch)
+    assert checks_that_ran(run_notebook(path, tmp_path, monkeypatch)) >= 1

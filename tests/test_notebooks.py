@@ -2,6 +2,7 @@
 defect 10: trefoil_twist.ipynb read '../benchmarks/results/...' and failed anywhere but in
 notebooks/). The kernel is told which notebook it runs, as Jupyter tells it (JPY_SESSION_NAME)."""
 import pathlib
+import re
 
 import pytest
 
@@ -24,6 +25,15 @@ def run_notebook(path, tmp_path, monkeypatch):
     monkeypatch.setenv("JPY_SESSION_NAME", str(path))
     nb = nbformat.read(path, as_version=4)
     NotebookClient(nb, timeout=900, kernel_name="python3", resources={"metadata": {"path": str(tmp_path)}}).execute()
+    return nb
+
+
+def checks_that_ran(nb):
+    """The number of ``assert`` statements in the notebook's code cells, after checking that every
+    code cell ran (a cell that raises, an assert included, stops the run with CellExecutionError)."""
+    code = [cell for cell in nb.cells if cell.cell_type == "code"]
+    assert all(cell.execution_count is not None for cell in code)
+    return sum(len(re.findall(r"^\s*assert ", cell.source, flags=re.M)) for cell in code)
 
 
 def test_there_are_notebooks_and_each_is_run():
@@ -31,8 +41,8 @@ def test_there_are_notebooks_and_each_is_run():
 
 
 @pytest.mark.parametrize("path", [p for p in NOTEBOOKS if p.name not in ELSEWHERE], ids=lambda p: p.name)
-def test_notebook_runs(path, tmp_path, monkeypatch):
-    run_notebook(path, tmp_path, monkeypatch)
+def test_notebook_runs_and_checks_its_results(path, tmp_path, monkeypatch):
+    assert checks_that_ran(run_notebook(path, tmp_path, monkeypatch)) >= 1
 
 
 def test_benchmark_results_are_found_from_the_notebook_or_the_working_directory(tmp_path, monkeypatch):

@@ -162,6 +162,7 @@ def first_instabilities(knot, N, ratio, options=None, *, progress=None):
     from ..continuation.arclength.rods import set_diameter
     from ..continuation.arclength.two_parameter import fold_sensitivity
     from ..continuation import ContinuationOptions
+    from ..continuation.kinds import EventKind
     from .diagram import unstable_branches
     from ..model.scenes import knot as make_knot
     from .twist import twist_study
@@ -197,7 +198,7 @@ def first_instabilities(knot, N, ratio, options=None, *, progress=None):
             t = time.perf_counter()
             slope = math.nan
             if opts.slopes:
-                sensitivity = fold_sensitivity if ev.kind == "fold" else branch_point_sensitivity
+                sensitivity = fold_sensitivity if ev.kind == EventKind.FOLD else branch_point_sensitivity
                 # dphi*/d(D/L) = L dphi*/dD, D in the scene's units
                 slope = LENGTH * float(sensitivity(end.rod.problem, ev, set_diameter, float(ratio) * LENGTH))
             row.update(kind=ev.kind, located=True, morse_before=int(ev.morse_before),
@@ -249,11 +250,38 @@ def critical_twist_curve(knot, N, ratios, options=None, *, out=None, progress=No
     written as it goes and resumed from what is there (see the module docstring); ``fresh``: start
     over.
     """
-    from ..continuation import NoCrossingError
-    from ..model.scenes import knot as make_knot
-
     t0 = time.perf_counter()
     opts = options or CriticalCurveOptions()
+    N, r, start = _checked_inputs(knot, N, ratios, opts)
+    say = progress or (lambda s: None)
+    files = _CurveFiles(out, r) if out is not None else None
+    if files is not None and _check_folder(out, _settings(knot, N, r, start, opts), fresh):
+        say(f"resuming from {out}/")
+    rows, failures, todo = _resumed(files, _order(r, start))
+    resumed = len(rows)
+    if files is not None:
+        write_rows(files.csv, CSV_COLUMNS, [{c: _cell(v) for c, v in row.items()} for row in rows])
+    for ratio in todo:
+        new_rows, new_failures = _ratio_rows(knot, N, ratio, opts, say, files)
+        rows += new_rows
+        failures += new_failures
+    rows, failures = _checked_rows(knot, N, opts, rows, failures)
+    switches = [dict(side=q["side"], D_over_L=q["D_over_L"], kind=q["kind"], previous_kind=q["previous_kind"])
+                for q in rows if q["switched"]]
+    result = dict(knot=knot, N=N, ratios=r.tolist(), start_ratio=start, options=asdict(opts), rows=rows,
+                  failures=failures, switches=switches, seconds=time.perf_counter() - t0, resumed_points=resumed)
+    if files is not None:
+        write_rows(files.csv, CSV_COLUMNS + CHECK_COLUMNS, [{c: _cell(v) for c, v in row.items()} for row in rows])
+        write_json(os.path.join(out, "critical_curve.json"), result)
+        _figure(result, os.path.join(out, "critical_curve.png"))
+    return result
+
+
+def _checked_inputs(knot, N, ratios, opts):
+    """(N, the sorted ratios, the start ratio), each checked; the knot is built at every ratio
+    first, so that a ratio it cannot be tied at (N < L/D, L/D below the ropelength) is named."""
+    from ..model.scenes import knot as make_knot
+
     N = check_int_at_least("N", N, 24)
     r = _ratios(ratios)
     start = float(r[len(r) // 2]) if opts.start_ratio is None else check_positive("start_ratio", opts.start_ratio)
@@ -265,21 +293,33 @@ def critical_twist_curve(knot, N, ratios, options=None, *, out=None, progress=No
         except ValueError as exc:
             what = "N" if str(exc).startswith("N") else "ratios"
             raise ValueError(f"{what}: {knot} at D/L = {ratio:g}, N = {N}: {exc}") from None
-    say = progress or (lambda s: None)
-    rows, failures, resumed = [], [], 0
-    csv_path = None
-    if out is not None:
-        os.makedirs(out, exist_ok=True)
-        if _check_folder(out, _settings(knot, N, r, start, opts), fresh):
-            say(f"resuming from {out}/")
-        csv_path = os.path.join(out, "critical_curve.csv")
+    return N, r, start
 
-    def point_file(ratio):
-        return os.path.join(out, "points", f"ratio_{int(np.searchsorted(r, ratio)):04d}.json")
 
-    todo = []
-    for ratio in _order(r, start):  # what is on file first, in the order it was done
-        path = None if out is None else point_file(ratio)
+@dataclass(frozen=True)
+class _CurveFiles:
+    """Where a curve run writes: the folder, its CSV and one JSON file per ratio done."""
+
+    out: str
+    ratios: np.ndarray
+
+    def __post_init__(self):
+        os.makedirs(self.out, exist_ok=True)
+
+    @property
+    def csv(self):
+        return os.path.join(self.out, "critical_curve.csv")
+
+    def point(self, ratio):
+        return os.path.join(self.out, "points", f"ratio_{int(np.searchsorted(self.ratios, ratio)):04d}.json")
+
+
+def _resumed(files, ordered):
+    """(rows, failures) of the ratios already on file, in the order they were done, and the ratios
+    still to do."""
+    rows, failures, todo = [], [], []
+    for ratio in ordered:
+        path = None if files is None else files.point(ratio)
         if path is not None and os.path.exists(path):
             with open(path) as f:
                 done = json.load(f)
@@ -287,47 +327,45 @@ def critical_twist_curve(knot, N, ratios, options=None, *, out=None, progress=No
             failures += done["failures"]
         else:
             todo.append(ratio)
-    resumed = len(rows)
-    if csv_path is not None:
-        write_rows(csv_path, CSV_COLUMNS, [{c: _cell(v) for c, v in row.items()} for row in rows])
-    for ratio in todo:
-        found = first_instabilities(knot, N, ratio, opts, progress=say)
-        new_rows = [found[s] for s in opts.sides if isinstance(found[s], dict)]
-        new_failures = [dict(side=s, D_over_L=float(ratio), message=found[s]) for s in opts.sides
-                        if not isinstance(found[s], dict)]
-        if out is not None:
-            write_json(point_file(ratio), {"ratio": float(ratio), "rows": new_rows, "failures": new_failures})
-        for row in new_rows:
-            rows.append(row)
-            _say_row(say, row)
-            if csv_path is not None:
-                with open(csv_path, "a", newline="") as f:
-                    csv.DictWriter(f, fieldnames=CSV_COLUMNS, extrasaction="ignore").writerow(
-                        {c: _cell(v) for c, v in row.items()})
-        for failure in new_failures:
-            failures.append(failure)
-            say(f"[{failure['side']}] D/L = {ratio:.5f}: no row: {failure['message']}")
+    return rows, failures, todo
+
+
+def _ratio_rows(knot, N, ratio, opts, say, files):
+    """The point study's rows and failures at one ratio, written (point file, CSV row) and said."""
+    found = first_instabilities(knot, N, ratio, opts, progress=say)
+    rows = [found[s] for s in opts.sides if isinstance(found[s], dict)]
+    failures = [dict(side=s, D_over_L=float(ratio), message=found[s]) for s in opts.sides
+                if not isinstance(found[s], dict)]
+    if files is not None:
+        write_json(files.point(ratio), {"ratio": float(ratio), "rows": rows, "failures": failures})
+    for row in rows:
+        _say_row(say, row)
+        if files is not None:
+            with open(files.csv, "a", newline="") as f:
+                csv.DictWriter(f, fieldnames=CSV_COLUMNS, extrasaction="ignore").writerow(
+                    {c: _cell(v) for c, v in row.items()})
+    for failure in failures:
+        say(f"[{failure['side']}] D/L = {ratio:.5f}: no row: {failure['message']}")
+    return rows, failures
+
+
+def _checked_rows(knot, N, opts, rows, failures):
+    """Rows and failures sorted by side then D/L, the rows marked (kind switches, slope checks);
+    NoCrossingError where a side has no row at all, a warning for each failure and each doubt."""
+    from ..continuation import NoCrossingError
+
     for side in opts.sides:
         if not any(q["side"] == side for q in rows):
             first = next(f for f in failures if f["side"] == side)
             raise NoCrossingError(f"{knot} at N = {N}: no located instability on the {side} side at any ratio "
                                   f"(D/L = {first['D_over_L']:g}: {first['message']})")
-    failures.sort(key=lambda q: (list(SIDE_SIGNS).index(q["side"]), q["D_over_L"]))
+    failures = sorted(failures, key=lambda q: (list(SIDE_SIGNS).index(q["side"]), q["D_over_L"]))
     for f in failures:
-        warnings.warn(f"{f['side']} side, D/L = {f['D_over_L']:.5f}: no row ({f['message']})", stacklevel=2)
-    rows.sort(key=lambda q: (list(SIDE_SIGNS).index(q["side"]), q["D_over_L"]))
+        warnings.warn(f"{f['side']} side, D/L = {f['D_over_L']:.5f}: no row ({f['message']})", stacklevel=3)
+    rows = sorted(rows, key=lambda q: (list(SIDE_SIGNS).index(q["side"]), q["D_over_L"]))
     rows = _slope_checks(_mark_switches(rows))
     _warn(rows)
-    seconds = time.perf_counter() - t0
-    switches = [dict(side=q["side"], D_over_L=q["D_over_L"], kind=q["kind"], previous_kind=q["previous_kind"])
-                for q in rows if q["switched"]]
-    result = dict(knot=knot, N=N, ratios=r.tolist(), start_ratio=start, options=asdict(opts), rows=rows,
-                  failures=failures, switches=switches, seconds=seconds, resumed_points=resumed)
-    if out is not None:
-        write_rows(csv_path, CSV_COLUMNS + CHECK_COLUMNS, [{c: _cell(v) for c, v in row.items()} for row in rows])
-        write_json(os.path.join(out, "critical_curve.json"), result)
-        _figure(result, os.path.join(out, "critical_curve.png"))
-    return result
+    return rows, failures
 
 
 def _event_kind(row):
@@ -361,19 +399,19 @@ def _warn(rows):
             message = (f"{q['side']} side: the first instability switches from a {q['previous_kind']} at D/L = "
                        f"{q['previous_ratio']:.5f} to a {_event_kind(q)} at {q['D_over_L']:.5f}: the curve goes on "
                        "with the new event (switched in the rows); no slope is compared across it")
-            warnings.warn(message, stacklevel=3)
+            warnings.warn(message, stacklevel=4)
         if not q["located"]:
             message = (f"{q['side']} side, D/L = {q['D_over_L']:.5f}: phi* = {q['phi_star_over_pi']:+.8f} pi is the "
                        f"stable-only study's bracket estimate, as the point study reports it: {_unlocated(q)} (no "
                        "kind or slope for this row)")
-            warnings.warn(message, stacklevel=3)
+            warnings.warn(message, stacklevel=4)
     doubtful = [f"{q['side']} D/L = {q['D_over_L']:.5f}" for q in rows if q["slope_disagreement"] > SLOPE_DOUBT]
     if doubtful:
         message = (f"dphi*/d(D/L) from the implicit function theorem disagrees with the secant of the neighbouring "
                    f"events of the same kind by more than {SLOPE_DOUBT:.0%} at {', '.join(doubtful)}: a nearly "
                    "degenerate event whose slope holds only over a range far below the step in D/L, or a jump to "
                    "another event of the same kind (see slope_disagreement)")
-        warnings.warn(message, stacklevel=3)
+        warnings.warn(message, stacklevel=4)
 
 
 # A row's dphi*/d(D/L) from the implicit function theorem is checked against the secant of its
