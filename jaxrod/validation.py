@@ -1,14 +1,53 @@
-"""Input checks shared by the API and the CLI: each raises ``ValueError`` naming the parameter."""
+"""Input checks shared by the API and the CLI: each raises ``ValueError`` naming the parameter.
+
+The checks of continuous parameters let jax tracers through (``jax.grad``, ``jax.jvp``,
+``jax.vmap`` and ``jax.jit`` over a scene's constructor): a tracer's value is unknown, so only its
+shape and dtype are checked, and it is returned as it is. A concrete value is checked and returned
+as a Python number. Parameters that set array shapes or other static structure (node counts,
+linking numbers) must be concrete: ``require_concrete`` names them when a tracer reaches them.
+"""
 from __future__ import annotations
 
 import math
+import sys
 
 __all__ = ["check_finite", "check_positive", "check_int_at_least", "check_poisson_ratio", "check_points",
-           "refuse_knot"]
+           "refuse_knot", "is_traced", "require_concrete"]
+
+
+def is_traced(value):
+    """Whether ``value`` is a jax tracer (an abstract value inside jax.grad/jvp/vmap/jit)."""
+    # jax is not imported for this: a value cannot be a tracer before jax is loaded, and the CLI
+    # checks its arguments before it loads jax
+    jax = sys.modules.get("jax")
+    return jax is not None and isinstance(value, jax.core.Tracer)
+
+
+def require_concrete(name, value, why):
+    """Raise ValueError naming ``name`` if ``value`` is a jax tracer; ``why`` says what the value
+    decides (array shapes, a branch) so that it cannot be traced."""
+    if is_traced(value):
+        raise ValueError(f"{name} must be a concrete value, not a jax tracer: {why}; build the scene outside "
+                         f"the traced function or close over {name} (make it static)")
+    return value
+
+
+def _checked_tracer(name, value):
+    """A traced real scalar as it is (its value cannot be checked), else ValueError naming ``name``."""
+    import numpy as np
+
+    shape, dtype = getattr(value, "shape", None), getattr(value, "dtype", None)
+    real = dtype is not None and (np.issubdtype(dtype, np.floating) or np.issubdtype(dtype, np.integer))
+    if shape != () or not real:
+        raise ValueError(f"{name} must be a real number, got a traced array of shape {shape} and dtype {dtype}")
+    return value
 
 
 def check_finite(name, value):
-    """Raise ValueError naming ``name`` unless ``value`` is a finite real number."""
+    """Raise ValueError naming ``name`` unless ``value`` is a finite real number; a jax tracer
+    passes when it is a real scalar (returned as it is)."""
+    if is_traced(value):
+        return _checked_tracer(name, value)
     try:
         v = float(value)
     except (TypeError, ValueError):
@@ -19,8 +58,10 @@ def check_finite(name, value):
 
 
 def check_positive(name, value):
-    """Raise ValueError naming ``name`` unless ``value`` is finite and > 0."""
+    """Raise ValueError naming ``name`` unless ``value`` is finite and > 0 (a tracer: see check_finite)."""
     v = check_finite(name, value)
+    if is_traced(v):
+        return v
     if v <= 0.0:
         raise ValueError(f"{name} must be positive, got {value!r}")
     return v
@@ -28,7 +69,9 @@ def check_positive(name, value):
 
 def check_int_at_least(name, value, minimum):
     """Raise ValueError naming ``name`` unless ``value`` is an integer >= minimum (an int, or a
-    float or numpy number with an integer value; not a bool, a string or None)."""
+    float or numpy number with an integer value; not a bool, a string or None). It sets shapes or
+    counts, so a jax tracer is refused."""
+    require_concrete(name, value, "an integer parameter sets static structure (array shapes, counts, a linking number)")
     try:
         whole = not isinstance(value, (bool, str, bytes)) and int(value) == value
     except (TypeError, ValueError, OverflowError):  # None, nan, inf, objects
@@ -42,8 +85,10 @@ def check_int_at_least(name, value, minimum):
 
 def check_poisson_ratio(name, value):
     """Raise ValueError naming ``name`` unless ``value`` lies in (-1, 0.5], the range of an
-    isotropic material's Poisson ratio (B/C = 1 + nu must stay positive)."""
+    isotropic material's Poisson ratio (B/C = 1 + nu must stay positive); a tracer: see check_finite."""
     nu = check_finite(name, value)
+    if is_traced(nu):
+        return nu
     if not (-1.0 < nu <= 0.5):
         raise ValueError(f"{name} must lie in (-1, 0.5], got {value!r}")
     return nu

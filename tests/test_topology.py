@@ -126,8 +126,8 @@ def test_writhe_matches_literal_kl_formula():
     # Klenin-Langowski asin formula with its sign((r34 x r12).r13) factor.
     rng = np.random.default_rng(5)
     p = [rng.normal(size=(4000, 3)) for _ in range(4)]
-    a = np.asarray(topology._solid_angle(*p))
-    b = np.asarray(topology._solid_angle_kl(*p))
+    a = np.asarray(topology.solid_angle(*p))
+    b = np.asarray(topology.solid_angle_literal(*p))
     np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
 
 
@@ -144,7 +144,7 @@ def test_writhe_equals_sum_over_all_ordered_pairs(closed):
         i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
         gap = np.abs(i - j) if not closed else np.minimum((i - j) % n, (j - i) % n)
         i, j = i[gap >= 2], j[gap >= 2]
-        literal = float(np.sum(np.asarray(topology._solid_angle_kl(a0[i], a1[i], a0[j], a1[j]))))
+        literal = float(np.sum(np.asarray(topology.solid_angle_literal(a0[i], a1[i], a0[j], a1[j]))))
         assert abs(float(writhe(jnp.asarray(x), closed=closed)) - literal / (4 * np.pi)) < 1e-11, N
 
 

@@ -39,6 +39,7 @@ __all__ = [
     "voronoi_lengths",
     "resample_closed",
     "polyline_distance",
+    "point_polyline_distances",
     "segment_distances",
     "closest_approach",
 ]
@@ -238,7 +239,7 @@ def polyline_distance(a, b, closed=True):
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
     if a.shape[0] * b.shape[0] <= 40_000:  # small rods: every node against every segment
-        return float(np.max(_point_polyline_distances(a, np.arange(a.shape[0]), b, None, closed)))
+        return float(np.max(point_polyline_distances(a, np.arange(a.shape[0]), b, None, closed)))
     # Large rods, O(N log N) instead of O(N M) (17 ms a step at N = 481, 70 ms at 961): the segment
     # nearest to a node has an end within d + h/2 of it, where d is the distance to the nearest node
     # of b (at least the distance to the polyline) and h the longest segment; only the segments
@@ -261,13 +262,13 @@ def polyline_distance(a, b, closed=True):
     else:
         ok = (seg >= 0) & (seg < seg_count)
         seg, point = seg[ok], point[ok]
-    d = _point_polyline_distances(a, point, b, seg, closed)
+    d = point_polyline_distances(a, point, b, seg, closed)
     per_point = np.full(a.shape[0], np.inf)
     np.minimum.at(per_point, point, d)
     return float(np.max(per_point))
 
 
-def _point_polyline_distances(a, point, b, seg, closed):
+def point_polyline_distances(a, point, b, seg, closed):
     """Distances from the nodes a[point] to segments seg of polyline b ((K,) each); seg None:
     every node of a (point = all of them) against every segment, the minimum per node."""
     b1 = np.roll(b, -1, axis=0) if closed else b[1:]

@@ -12,9 +12,10 @@ The Hessian of a rod's scaled energy (``scene.scaled_energy``) has three parts:
   clamped one) stores C m^2 / (2 l) with m depending on every tangent: its Hessian has the dense
   term w a a^T, a = grad m, w = C / (l E_scale). It is kept as a vector and subtracted from the
   probes before recovery.
-* **contact**: one 12 x 12 block per candidate segment pair (the two segments' four nodes), in
-  closed form (``contact.contact_pair_hessian``, equal to ``jax.hessian`` of the pair's energy to
-  roundoff, at a third of its cost).
+* **contact**: one 12 x 12 block per candidate segment pair (the two segments' four nodes), from
+  the scene's pair-coupled terms (``Term.pair_hessian``; contact's in closed form,
+  ``contact.contact_pair_hessian``, equal to ``jax.hessian`` of the pair's energy to roundoff, at a
+  third of its cost).
 
 ``scaled_hessian(scene, u, phi, nbr)`` assembles them densely (exact to round-off: tested
 against ``jax.hessian`` of the exact energy); ``dense_autodiff_hessian`` is that reference.
@@ -29,9 +30,10 @@ import jax.numpy as jnp
 import numpy as np
 import scipy.sparse as sp
 
-from .contact import contact_pair_hessian
+from .layout import dof_layout, layout_of
+from .terms import Coupling
 
-__all__ = ["HessianPattern", "hessian_pattern", "scaled_hessian", "dense_autodiff_hessian",
+__all__ = ["HessianPattern", "hessian_pattern", "pattern_of", "scaled_hessian", "dense_autodiff_hessian",
            "holonomy_rank_one", "project_out", "contact_blocks", "local_entries"]
 
 
@@ -41,8 +43,9 @@ class HessianPattern:
 
     n: number of DOFs; colour: (n,) colour of each DOF; n_colours; mask: (n, n) bool, the local
     sparsity pattern (symmetric); probes: (n_colours, n) 0/1 probe vectors; x_dof: (N, 3) index
-    of each node coordinate in q (-1 where the node is clamped); rows, cols: (nnz,) the
-    pattern's non-zero positions, row-major.
+    of each node coordinate in q (-1 where the node is clamped, from the scene's ``DofLayout``);
+    rows, cols: (nnz,) the pattern's non-zero positions, row-major; transpose: (nnz,) the index,
+    in rows/cols, of each entry's transposed entry (the pattern is symmetric).
     """
 
     n: int
@@ -53,39 +56,14 @@ class HessianPattern:
     x_dof: np.ndarray
     rows: np.ndarray
     cols: np.ndarray
-
-
-def _dof_spans(kind, n_nodes):
-    """(n, 2) first and last full-node index touched by each DOF, in q's layout."""
-    if kind == "closed":
-        i = np.arange(n_nodes)
-        xs = np.repeat(i, 3)
-        return np.concatenate([np.stack([xs, xs], 1), np.stack([i, (i + 1) % n_nodes], 1)]), True
-    if kind == "clamped":
-        k = np.arange(n_nodes - 4) + 2
-        xs = np.repeat(k, 3)
-        e = np.arange(1, n_nodes - 2)  # free twist angles live on edges 1..M-2
-        return np.concatenate([np.stack([xs, xs], 1), np.stack([e, e + 1], 1)]), False
-    if kind == "free":
-        i = np.arange(n_nodes)
-        xs = np.repeat(i, 3)
-        e = np.arange(n_nodes - 1)
-        return np.concatenate([np.stack([xs, xs], 1), np.stack([e, e + 1], 1)]), False
-    raise ValueError(kind)
-
-
-def _x_dof(kind, n_nodes):
-    if kind in ("closed", "free"):
-        return np.arange(3 * n_nodes).reshape(n_nodes, 3)
-    out = -np.ones((n_nodes, 3), dtype=int)
-    out[2:n_nodes - 2] = np.arange(3 * (n_nodes - 4)).reshape(-1, 3)
-    return out
+    transpose: np.ndarray
 
 
 @functools.lru_cache(maxsize=64)
 def _pattern(kind, n_nodes, window=3):
-    spans, cyclic = _dof_spans(kind, n_nodes)
-    n = spans.shape[0]
+    lay = layout_of(kind, n_nodes)
+    spans, cyclic = lay.spans, lay.cyclic
+    n = lay.n
     # Window w covers nodes w .. w+window-1 (mod N when cyclic). A DOF spanning nodes lo..hi
     # (hi = lo or lo + 1, cyclically) lies in the windows w = hi - window + 1 .. lo.
     n_win = n_nodes if cyclic else n_nodes - window + 1
@@ -101,62 +79,61 @@ def _pattern(kind, n_nodes, window=3):
                 cols.append(w)
     inc = sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n_win))
     pattern = (inc @ inc.T) > 0  # DOFs sharing a window: a possibly non-zero entry
-    conflict = (pattern @ pattern) > 0  # columns sharing a row cannot share a colour
-    conflict = conflict.tolil()
-    colour = -np.ones(n, dtype=int)
-    for d in range(n):  # greedy colouring, DOFs in rod order
-        used = {colour[j] for j in conflict.rows[d] if colour[j] >= 0}
-        c = 0
-        while c in used:
-            c += 1
-        colour[d] = c
+    colour = _greedy_colouring((pattern @ pattern) > 0)  # columns sharing a row cannot share a colour
     n_colours = int(colour.max()) + 1
     probes = np.zeros((n_colours, n))
     probes[colour, np.arange(n)] = 1.0
     mask = pattern.toarray()
     rows, cols = (v.astype(np.int32) for v in np.nonzero(mask))
+    keys = rows.astype(np.int64) * n + cols  # row-major: sorted
+    transpose = np.searchsorted(keys, cols.astype(np.int64) * n + rows)
     return HessianPattern(n=n, colour=colour, n_colours=n_colours, mask=mask, probes=probes,
-                          x_dof=_x_dof(kind, n_nodes), rows=rows, cols=cols)
+                          x_dof=lay.x_dof, rows=rows, cols=cols, transpose=transpose)
 
 
-def _kind(scene):
-    from .scenes import ClampedRod, ClosedRod, FreeRod
+def _greedy_colouring(conflict):
+    """(n,) colour of each DOF, DOFs in rod order, no two conflicting DOFs sharing a colour."""
+    conflict = conflict.tolil()
+    n = conflict.shape[0]
+    colour = -np.ones(n, dtype=int)
+    for d in range(n):
+        used = {colour[j] for j in conflict.rows[d] if colour[j] >= 0}
+        c = 0
+        while c in used:
+            c += 1
+        colour[d] = c
+    return colour
 
-    if isinstance(scene, ClosedRod):
-        return "closed"
-    if isinstance(scene, ClampedRod):
-        return "clamped"
-    if isinstance(scene, FreeRod):
-        return "free"
-    raise TypeError(f"no Hessian structure for {type(scene).__name__}")
+
+def pattern_of(layout):
+    """The ``HessianPattern`` of a ``DofLayout`` (cached per kind and N)."""
+    return _pattern(layout.kind, layout.n_nodes)
 
 
 def hessian_pattern(scene):
     """The ``HessianPattern`` of a scene's layout (cached per kind and N)."""
-    return _pattern(_kind(scene), int(scene.n_nodes))
+    return pattern_of(dof_layout(scene))
 
 
 def holonomy_rank_one(scene, u, phi, nbr):
     """(w, a): the dense rank-one part w a a^T of the scaled Hessian (a (n,), w scalar), from the
-    vertex whose twist carries the holonomy; w = 0 for scenes without one."""
-    v = scene.holonomy_vertex()
-    if v is None or "twist" not in scene.terms:
-        return jnp.asarray(0.0), jnp.zeros_like(u)
-    m = lambda uu: scene.vertex_twists(uu * scene.dof_scale, phi, nbr)[v]  # noqa: E731
-    a = jax.grad(m)(u)
-    w = scene.material.C / (scene.voronoi[v] * scene.energy_scale)
-    return w, a
+    vertex whose twist carries the holonomy (``Term.rank_one``); w = 0 for scenes without one."""
+    for term in scene.terms:
+        part = term.rank_one(scene, u, phi, nbr)
+        if part is not None:
+            return part
+    return jnp.asarray(0.0), jnp.zeros_like(u)
 
 
 def local_products(scene, u, phi, nbr, pat):
     """(hv, w, a): the local part's products with the coloured probes, hv (colours, n), row c
     being H_local @ probe_c, from which every entry of the local part can be read; and the
     rank-one term (w, a) that was subtracted from the full products to get them."""
-    elastic = tuple(t for t in scene.terms if t != "contact")
+    local = scene.local_terms
 
     def f(uu):
         q = uu * scene.dof_scale
-        return sum(scene.energy_terms(q, phi, nbr, terms=elastic).values()) / scene.energy_scale
+        return sum(scene.energy_terms(q, phi, nbr, terms=local).values()) / scene.energy_scale
 
     g = jax.grad(f)
     probes = jnp.asarray(pat.probes)
@@ -169,7 +146,7 @@ def local_entries(scene, u, phi, nbr, pat):
     """(rows, cols, values, w, a): the local part's non-zero entries (rows, cols static numpy
     (nnz,), values (nnz,)) and the rank-one term w a a^T, for sparse assembly."""
     hv, w, a = local_products(scene, u, phi, nbr, pat)
-    rows, cols = _pattern_entries(pat)
+    rows, cols = pat.rows, pat.cols
     return rows, cols, hv[jnp.asarray(pat.colour[cols]), jnp.asarray(rows)], w, a
 
 
@@ -178,19 +155,16 @@ def _local_block(scene, u, phi, nbr, pat):
     hv, w, a = local_products(scene, u, phi, nbr, pat)
     # Entry (r, c) of the local part is row r of the product with c's colour. Only the pattern's
     # ~20 n entries are gathered and scattered (a dense n x n gather costs 5x more).
-    rows, cols = _pattern_entries(pat)
+    rows, cols = pat.rows, pat.cols
     values = hv[jnp.asarray(pat.colour[cols]), jnp.asarray(rows)]
     h_local = jnp.zeros((pat.n, pat.n), hv.dtype).at[jnp.asarray(rows), jnp.asarray(cols)].set(
         values, indices_are_sorted=True, unique_indices=True)
     return h_local, w, a
 
 
-def _pattern_entries(pat):
-    """(rows, cols): the non-zero positions of the local pattern, row-major (numpy, static)."""
-    if not hasattr(pat, "_entries"):
-        rows, cols = np.nonzero(pat.mask)
-        object.__setattr__(pat, "_entries", (rows.astype(np.int32), cols.astype(np.int32)))
-    return pat._entries
+def _pair_terms(scene):
+    """The scene's terms coupled through segment pairs (``Coupling.PAIRS``: contact)."""
+    return tuple(t for t in scene.terms if t.coupling is Coupling.PAIRS)
 
 
 def _contact_chunks(scene, u, nbr, pat):
@@ -224,10 +198,14 @@ def _contact_chunks(scene, u, nbr, pat):
     def chunk_nodes(k):
         return nodes[jax.lax.dynamic_slice(order, (k * chunk,), (chunk,))]
 
+    pair_terms = _pair_terms(scene)
+
     def blocks_of(k):
         keep = (k * chunk + jnp.arange(chunk)) < count
-        blocks = contact_pair_hessian(x[chunk_nodes(k)].reshape(chunk, 12), m.D, m.B, scene.contact_stiffness,
-                                      scene.contact_quadrature)
+        segments = x[chunk_nodes(k)].reshape(chunk, 12)
+        blocks = pair_terms[0].pair_hessian(scene, segments)
+        for term in pair_terms[1:]:  # more than one pair-coupled term: their blocks add up
+            blocks = blocks + term.pair_hessian(scene, segments)
         return blocks * (scale * keep)[:, None, None]
 
     def dofs_of(k):
@@ -285,7 +263,7 @@ def scaled_hessian(scene, u, phi, nbr):
     pat = hessian_pattern(scene)
     h, w, a = _local_block(scene, u, phi, nbr, pat)
     h = h + w * jnp.outer(a, a)
-    if "contact" in scene.terms and nbr.pairs.shape[0] > 0:
+    if _pair_terms(scene) and nbr.pairs.shape[0] > 0:
         h = _add_contact_hessian(h, scene, u, nbr, pat)
     return 0.5 * (h + h.T)
 

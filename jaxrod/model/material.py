@@ -19,6 +19,10 @@ class Material:
     B  bending stiffness (E I), C twist stiffness (G J), EA stretching stiffness. For a circular
     isotropic rod, ``Material.from_engineering(E, nu, D)`` gives B = E pi D^4/64, C = B/(1+nu),
     EA = E pi D^2/4. ``D`` (diameter) is kept when known: contact and slenderness use it.
+
+    Each parameter may be a jax tracer (``jax.grad``/``jax.jvp``/``jax.vmap`` over a function that
+    builds the material): a concrete value is checked (ValueError naming it) and kept as a float,
+    a traced one is checked only for being a real scalar.
     """
 
     B: float

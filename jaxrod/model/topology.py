@@ -20,7 +20,7 @@ integer.  Internally each segment pair's Omega is evaluated as the solid angle
 of two triangles (Van Oosterom & Strackee 1983), which equals the literal KL
 asin/sign expression to rounding but is smooth for coplanar pairs, so
 gradients and Hessians of the writhe are also correct at planar curves
-(``_solid_angle_kl`` keeps the literal formula as a tested reference).
+(``solid_angle_literal`` keeps the literal formula as a tested reference).
 The ``*_quadrature`` functions are the plain midpoint-rule
 discretisation of the same integrals; they converge only with resolution and
 are kept for cross-checks against the literature that uses them.
@@ -42,6 +42,8 @@ __all__ = [
     "writhe_quadrature",
     "eccentric_line",
     "is_whole_turns",
+    "solid_angle",
+    "solid_angle_literal",
 ]
 
 _FOUR_PI = 4.0 * np.pi
@@ -81,7 +83,7 @@ def _angle_term(a, b):
     return jnp.where(degenerate, 0.0, jnp.arctan2(safe_dot, safe_crs))
 
 
-def _solid_angle_kl(p1, p2, p3, p4):
+def solid_angle_literal(p1, p2, p3, p4):
     """Signed solid angle of segment pairs, literal Klenin-Langowski formula.
 
     p1, p2, p3, p4: broadcastable (..., 3) arrays (segments p1->p2, p3->p4)
@@ -93,7 +95,7 @@ def _solid_angle_kl(p1, p2, p3, p4):
     out-of-plane height h, so automatic differentiation returns 0 instead of
     the true derivative for coplanar segment pairs -- i.e. wrong gradients and
     Hessians of the writhe of *planar* curves, exactly where ring buckling
-    starts.  ``_solid_angle`` computes the same number smoothly.
+    starts.  ``solid_angle`` computes the same number smoothly.
     """
     r13 = p3 - p1
     r14 = p4 - p1
@@ -143,11 +145,11 @@ def _triangle_solid_angle(a, b, c):
     )
 
 
-def _solid_angle(p1, p2, p3, p4):
+def solid_angle(p1, p2, p3, p4):
     """Signed Klenin-Langowski solid angle Omega of segment pairs, smooth form.
 
     p1, p2, p3, p4: broadcastable (..., 3) arrays (segments p1->p2 and p3->p4)
-    -> Omega (...,), identical in value to ``_solid_angle_kl`` (tested to
+    -> Omega (...,), identical in value to ``solid_angle_literal`` (tested to
     1e-12) so that ``Omega / (4 pi)`` is the exact Gauss double integral.
 
     Why a different expression: the Gauss integral over two segments is the
@@ -196,12 +198,12 @@ def _pair_sum(a0, a1, b0, b1, mask):
     shape = (a0.shape[0], b0.shape[0], 3)
     p1, p2, p3, p4 = (jnp.broadcast_to(p, shape) for p in (p1, p2, p3, p4))
     if mask is None:
-        return jnp.sum(_solid_angle(p1, p2, p3, p4))
+        return jnp.sum(solid_angle(p1, p2, p3, p4))
     m = mask[:, :, None]
     # Double-where: masked pairs are evaluated on a harmless dummy geometry so
     # neither the value nor the gradient of the discarded branch can be NaN.
     q = [jnp.where(m, d, p) for d, p in zip(_DUMMY, (p1, p2, p3, p4))]
-    omega = _solid_angle(*q)
+    omega = solid_angle(*q)
     return jnp.sum(jnp.where(mask, 0.0, omega))
 
 
@@ -249,12 +251,12 @@ def writhe(x, closed=True):
             d, w = args
             j = (i[None, :] + d[:, None]) % n
             shape = j.shape + (3,)
-            omega = _solid_angle(*(jnp.broadcast_to(p, shape) for p in (a0[None], a1[None], a0[j], a1[j])))
+            omega = solid_angle(*(jnp.broadcast_to(p, shape) for p in (a0[None], a1[None], a0[j], a1[j])))
             return jnp.sum(omega * w[:, None].astype(x.dtype))
 
         total = jnp.sum(lax.map(block, (jnp.asarray(offsets), jnp.asarray(weights))))
     if not closed and n >= 3:
-        total = total + 2.0 * _solid_angle(a0[0], a1[0], a0[n - 1], a1[n - 1])
+        total = total + 2.0 * solid_angle(a0[0], a1[0], a0[n - 1], a1[n - 1])
     return total / _FOUR_PI
 
 
