@@ -85,7 +85,7 @@ def test_fast_stability_equals_dense_spectrum_on_knots_with_contact(relaxed):
     # the whole spectrum only when all 24 are below the threshold. Against the full eigh, on 126
     # states of the N = 61 trefoil in contact: the relaxed knot and random perturbations of it
     # (0 to 60 negative eigenvalues), at twists it is not relaxed for (-12 pi ... 14 pi).
-    from jaxrod.linalg.stability import _lowest_spectrum, _spectrum
+    from jaxrod.linalg.stability import spectrum, stability
 
     eq, scene = relaxed
     rng = np.random.default_rng(7)
@@ -99,14 +99,15 @@ def test_fast_stability_equals_dense_spectrum_on_knots_with_contact(relaxed):
                 q = np.asarray(eq.q) + noise
                 nbr = scene.neighbourhood(q, phi)
                 u = scene.to_scaled(q)
-                lam, _, n0 = (np.asarray(a) for a in _spectrum(scene, u, phi, nbr))
+                lam, _, n0 = (np.asarray(a) for a in spectrum(scene, u, phi, nbr))
                 physical = lam[: lam.size - int(n0)]
                 scale = np.max(np.abs(physical))
                 # Thresholds: the study's (-1e-6), and near-critical ones sitting 1e-9 |H| above
                 # and below an eigenvalue (the count must flip exactly there).
                 j = int(rng.integers(0, 30))
                 for tol in (1e-6, -(physical[j] - 1e-9 * scale), -(physical[j] + 1e-9 * scale)):
-                    low, _, nz, neg = _lowest_spectrum(scene, u, phi, nbr, tol)
+                    stab = stability(scene, q, phi, k=24, tol=tol, nbr=nbr, linear_algebra="dense")
+                    low, nz, neg = stab.eigenvalues, stab.n_zero_modes, stab.n_negative
                     assert int(nz) == int(n0)
                     assert int(neg) == int(np.sum(physical < -tol)), (phi, amp, tol)
                     counts.add(int(neg))

@@ -10,11 +10,13 @@ import scipy.sparse as sp
 
 import jaxrod as jr
 from jaxrod.linalg import sparse_contact as spc
-from jaxrod.continuation import ContinuationOptions, _use_sparse, follow_twist
+from jaxrod.continuation import ContinuationOptions, follow_twist
+from jaxrod.linalg import ldlt as ldl
+from jaxrod.linalg.backend import Dense, choose_backend
 from jaxrod.model.hessian import scaled_hessian
 from jaxrod.continuation.sparse_branch import sparse_branch_analysis
 from jaxrod.solve.solvers import HostDampedNewton, StopReason, minimise
-from jaxrod.linalg.stability import _projected_hessian, branch_analysis, stability
+from jaxrod.linalg.stability import branch_analysis, stability
 
 N = 61
 PHI = 3.0 * math.pi
@@ -26,8 +28,8 @@ def knot():
     e0 = jr.relax(scene, 0.0, options=jr.RelaxOptions(with_stability=False, linear_algebra="dense"))
     e = jr.relax(scene, PHI, e0.q, jr.RelaxOptions(with_stability=False, linear_algebra="dense"))
     u = scene.to_scaled(e.q)
-    hp = np.asarray(_projected_hessian(scene, jnp.asarray(u), PHI, e.neighbourhood)[0])
-    lam = np.linalg.eigvalsh(hp)[: 4 * N - int(scene.n_zero_modes)]  # the lifted zero modes sit on top
+    hp = Dense().factorise(scene, u, PHI, e.neighbourhood).hp  # zero modes projected out, lifted on top
+    lam = np.linalg.eigvalsh(hp)[: 4 * N - int(scene.n_zero_modes)]
     return scene, e0, e, u, lam, spc.sparse_hessian(scene, u, PHI, e.neighbourhood)
 
 
@@ -46,26 +48,27 @@ def test_sparse_hessian_equals_the_dense_structured_hessian(knot):
     values, w, a, blocks, dofs, count = (np.asarray(x) for x in spc.hessian_parts(scene, jnp.asarray(u), PHI,
                                                                                    e.neighbourhood))
     assert int(count) > 50
-    rows, cols = spc._pattern_entries(spc.hessian_pattern(scene))
+    pat = spc.hessian_pattern(scene)
+    rows, cols = pat.rows, pat.cols
     b, d = blocks[: int(count)], dofs[: int(count)]
     r, c = (np.broadcast_to(d[:, :, None], b.shape).ravel(), np.broadcast_to(d[:, None, :], b.shape).ravel())
     R, C, V = np.concatenate([rows, r]), np.concatenate([cols, c]), np.concatenate([values, b.ravel()])
     reference = sp.coo_matrix((V, (R, C)), shape=(hs.n, hs.n)).toarray()
     assert np.max(np.abs(hs.S.toarray() - 0.5 * (reference + reference.T))) <= 1e-14 * np.max(np.abs(reference))
     # node pairs numbered by sorting (many nodes) instead of by the table: the same entries
-    table, saved = spc._node_pair_entries(b, d, hs.n), spc._NODE_TABLE_MAX
+    table, saved = spc.node_pair_entries(b, d, hs.n), spc.NODE_TABLE_MAX
     try:
-        spc._NODE_TABLE_MAX = 0
-        sorted_ = spc._node_pair_entries(b, d, hs.n)
+        spc.NODE_TABLE_MAX = 0
+        sorted_ = spc.node_pair_entries(b, d, hs.n)
     finally:
-        spc._NODE_TABLE_MAX = saved
+        spc.NODE_TABLE_MAX = saved
     assert all(np.array_equal(x, y) for x, y in zip(table, sorted_))
 
 
 def test_polyline_distance_is_exact_on_large_rods():
     """The KD-tree path of ``polyline_distance`` (large rods, O(N log N)) gives exactly the
     all-pairs value: the candidate radius d + h/2 keeps every segment that can be nearest."""
-    from jaxrod.model.geometry import _point_polyline_distances, polyline_distance
+    from jaxrod.model.geometry import point_polyline_distances, polyline_distance
 
     rng = np.random.default_rng(1)
     t = np.linspace(0.0, 2 * np.pi, 400, endpoint=False)
@@ -73,7 +76,7 @@ def test_polyline_distance_is_exact_on_large_rods():
     for closed in (True, False):
         for scale in (0.0, 1e-3, 0.05, 1.0):
             a = (np.roll(b, 3, axis=0) + scale * rng.normal(size=b.shape))[:390]
-            brute = np.max(_point_polyline_distances(a, np.arange(len(a)), b, None, closed))
+            brute = np.max(point_polyline_distances(a, np.arange(len(a)), b, None, closed))
             assert polyline_distance(a, b, closed) == brute
 
 
@@ -153,19 +156,18 @@ def test_follow_twist_sparse_equals_dense(knot):
 
 
 def test_the_choice_is_automatic_and_stated():
-    assert not _use_sparse(jr.trefoil(8.0, 292.0, 121), "auto")
+    assert not choose_backend(jr.trefoil(8.0, 292.0, 121), "auto").backend.structured
     big = jr.trefoil(8.0, 292.0, 251)  # n_dof = 1004
-    assert _use_sparse(big, "auto") and not _use_sparse(big, "dense")
+    assert choose_backend(big, "auto").backend.name == "sparse" and not choose_backend(big, "dense").backend.structured
     with pytest.raises(ValueError, match="linear_algebra"):
         jr.RelaxOptions(linear_algebra="cholmod")
 
 
 def test_a_pivoting_factorisation_is_refused_not_counted():
     # [[0, 1], [1, 0]] has no LDL^T without pivoting: refused, never given a (wrong) inertia.
-    hs = spc.SparseHessian(S=sp.csc_matrix(np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])), w=0.0,
-                           a=np.zeros(3), Z=np.zeros((3, 0)), pins=np.zeros(0, dtype=np.int64))
+    A = sp.csc_matrix(np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]))
     with pytest.raises(spc.FactorisationError):
-        spc._Bordered(hs, 0.0, np.zeros((3, 0)), np.zeros((0, 0)))
+        spc.negative_count(A, np.zeros((3, 0)), np.zeros((0, 0)))
 
 
 def test_ldlt_gives_the_inertia_and_falls_back_to_superlu(monkeypatch):
@@ -177,14 +179,14 @@ def test_ldlt_gives_the_inertia_and_falls_back_to_superlu(monkeypatch):
     A = (R + R.T + sp.diags(rng.uniform(-3.0, 3.0, m))).tocsc()
     negatives = int(np.sum(np.linalg.eigvalsh(A.toarray()) < 0.0))
     assert 0 < negatives < m
-    fac, pivots = spc._ldlt(A)
-    assert isinstance(fac, spc._QDLDL) and int(np.sum(pivots < 0.0)) == negatives
+    fac, pivots = ldl.ldlt(A)
+    assert isinstance(fac, ldl.QDLDLFactor) and int(np.sum(pivots < 0.0)) == negatives
     B = rng.standard_normal((m, 3))
     assert np.allclose(A @ fac.solve(B), B, atol=1e-8) and np.allclose(A @ fac.solve(B[:, 0]), B[:, 0], atol=1e-8)
     # Without QDLDL (or where it refuses) SuperLU in symmetric mode gives the same count.
-    monkeypatch.setattr(spc, "_qdldl", None)
-    fac, pivots = spc._ldlt(A)
-    assert not isinstance(fac, spc._QDLDL) and int(np.sum(pivots < 0.0)) == negatives
+    monkeypatch.setattr(ldl, "_qdldl", None)
+    fac, pivots = ldl.ldlt(A)
+    assert not isinstance(fac, ldl.QDLDLFactor) and int(np.sum(pivots < 0.0)) == negatives
 
 
 def _double_well(y, args):
@@ -216,11 +218,11 @@ def test_sparse_bifurcation_backend_equals_the_dense_one(knot):
     # knot's pinned problem: solves with vector and matrix borders, the spectrum with its Morse
     # index, and the branch-point test function sigma, against DenseBackend
     from jaxrod.linalg.bordered import DenseBackend, SparseBackend
-    from jaxrod.continuation.arclength.rods import _assemble_pinned, knot_problem
+    from jaxrod.continuation.arclength.rods import assemble_pinned_hessian, knot_problem
 
     scene, _, e, _, _, _ = knot
     rods = {name: knot_problem(scene, np.asarray(e.q), PHI, backend=be)
-            for name, be in (("dense", DenseBackend()), ("sparse", SparseBackend(_assemble_pinned)))}
+            for name, be in (("dense", DenseBackend()), ("sparse", SparseBackend(assemble_pinned_hessian)))}
     lin = {name: r.problem.linearise(r.problem.u0, PHI, r.problem.args) for name, r in rods.items()}
     Fd, Jd, Fpd = (np.asarray(a) for a in lin["dense"])
     Fs, Js, Fps = lin["sparse"]

@@ -333,9 +333,10 @@ def test_sparse_branch_analysis_matches_dense():
 
 
 def test_linear_algebra_choice():
-    from jaxrod.continuation import _use_sparse
+    from jaxrod.linalg.backend import choose_backend
 
-    assert not _use_sparse(ring_scene(0.5), "auto")
-    assert _use_sparse(jr.michell_ring(256), "auto") and not _use_sparse(jr.michell_ring(256), "dense")
+    assert not choose_backend(ring_scene(0.5), "auto").backend.structured
+    assert choose_backend(jr.michell_ring(256), "auto").backend.name == "banded"
+    assert not choose_backend(jr.michell_ring(256), "dense").backend.structured
     with pytest.raises(ValueError):
-        _use_sparse(ring_scene(0.5), "banded")
+        choose_backend(ring_scene(0.5), "lapack")

@@ -456,19 +456,50 @@ def _norm_bound(diag, off, cyclic, Ut):
     return bound + jnp.sum(Ut**2)
 
 
+def _eig_inputs(diag, off, Z):
+    """(diag symmetrised, off, Z (n, z), dtype) in at least float64; Z None: no columns."""
+    diag = jnp.asarray(diag)
+    dtype = jnp.result_type(diag.dtype, jnp.float64)
+    diag = _sym(diag.astype(dtype))
+    n = diag.shape[0] * diag.shape[1]
+    Z = jnp.zeros((n, 0), dtype) if Z is None else jnp.asarray(Z, dtype)
+    return diag, jnp.asarray(off, dtype), Z, dtype
+
+
+def _shift_invert(diag, off, cyclic, sigma, Ut, s, Z):
+    """The bordered solver of [[M - sigma I, Z], [Z^T, 0]]: the shifted factorisation of T and the
+    (r + z)-column border [U~, Z] with E = blockdiag(-diag(s), 0)."""
+    b = diag.shape[-1]
+    r, z = Ut.shape[1], Z.shape[1]
+    fac = _factor(diag - sigma * jnp.eye(b, dtype=diag.dtype), off, cyclic)
+    V = jnp.concatenate([Ut, Z], axis=1)
+    E = jnp.zeros((r + z, r + z), diag.dtype).at[:r, :r].set(-jnp.diag(s))
+    return _bordered_setup(fac, V, E)
+
+
+def _start_block(n, p, dtype, X0):
+    """(n, p) starting block: a fixed pseudo-random one (a sine hash rather than jax.random:
+    threefry alone took ~1 s to compile here, and nothing needs statistical quality -- only no
+    accidental orthogonality), its first columns replaced by X0 if given."""
+    i = jnp.arange(n, dtype=dtype)[:, None]
+    j = jnp.arange(p, dtype=dtype)[None, :]
+    h = jnp.sin(12.9898 * i + 78.233 * j + 1.0) * 43758.5453
+    start = h - jnp.floor(h) - 0.5
+    if X0 is not None:
+        X0 = jnp.asarray(X0, dtype)
+        start = start.at[:, : X0.shape[1]].set(X0)
+    return start
+
+
 @functools.partial(jax.jit, static_argnames=("cyclic", "k", "iterations", "block"))
 def lowest_eigenpairs(diag, off, cyclic: bool, U, c, Z, k: int, sigma, iterations: int = 200,
                       X0=None, tol=1e-12, block: Optional[int] = None):
     """The k eigenpairs of A = P M P on range(P) = Z-perp closest to (and above) the shift sigma.
 
     Shift-invert subspace (block inverse) iteration with Rayleigh-Ritz.  Each inverse step solves
-    the bordered system
-
-        [[M - sigma I, Z], [Z^T, 0]] [x; y] = [v; 0]
-
-    which, for v orthogonal to Z, gives x orthogonal to Z with (P M P - sigma) x = v.  It is solved
-    through the block factorisation of T - sigma I with the low-rank term and Z together as one
-    (r + z)-column border (capacitance factorised once).
+    [[M - sigma I, Z], [Z^T, 0]] [x; y] = [v; 0], which, for v orthogonal to Z, gives x orthogonal
+    to Z with (P M P - sigma) x = v, through the block factorisation of T - sigma I with the
+    low-rank term and Z together as one (r + z)-column border (capacitance factorised once).
 
     Args:
         diag, off, cyclic: T (see module docstring); cyclic static.
@@ -490,31 +521,18 @@ def lowest_eigenpairs(diag, off, cyclic: bool, U, c, Z, k: int, sigma, iteration
     Returns:
         (eigenvalues (k,) ascending, eigenvectors (n, k) orthonormal and orthogonal to Z,
         residual norms (k,) ||A x - theta x||).  Multiple eigenvalues come out as an orthonormal
-        basis of their eigenspace.  Unconverged results are returned as they are: check the
-        residuals.
+        basis of their eigenspace.  Unconverged results are returned as they are.
     """
-    diag = jnp.asarray(diag)
-    dtype = jnp.result_type(diag.dtype, jnp.float64)
-    diag = _sym(diag.astype(dtype))
-    off = jnp.asarray(off, dtype)
+    diag, off, Z, dtype = _eig_inputs(diag, off, Z)
     K, b, _ = diag.shape
     n = K * b
-    if Z is None:
-        Z = jnp.zeros((n, 0), dtype)
-    Z = jnp.asarray(Z, dtype)
     z = Z.shape[1]
     p = block if block is not None else min(k + 4, n - z)
     if not k <= p <= n - z:
         raise ValueError(f"need k <= block <= n - z, got k={k}, block={p}, n-z={n - z}")
     sigma = jnp.asarray(sigma, dtype)
     Ut, s = _lowrank(U, c, n, dtype)
-    r = Ut.shape[1]
-
-    # Shifted factorisation and the (r + z)-column border [U~, Z] with E = blockdiag(-diag(s), 0).
-    fac = _factor(diag - sigma * jnp.eye(b, dtype=dtype), off, cyclic)
-    V = jnp.concatenate([Ut, Z], axis=1)
-    E = jnp.zeros((r + z, r + z), dtype).at[:r, :r].set(-jnp.diag(s))
-    bd = _bordered_setup(fac, V, E)
+    bd = _shift_invert(diag, off, cyclic, sigma, Ut, s, Z)
 
     def project(X):
         # Twice, so that X stays orthogonal to Z to working precision.
@@ -526,16 +544,7 @@ def lowest_eigenpairs(diag, off, cyclic: bool, U, c, Z, k: int, sigma, iteration
 
     thresh = tol * _norm_bound(diag, off, cyclic, Ut)
 
-    # Fixed pseudo-random start (a sine hash rather than jax.random: threefry alone took ~1 s to
-    # compile here, and nothing needs statistical quality -- only no accidental orthogonality).
-    i = jnp.arange(n, dtype=dtype)[:, None]
-    j = jnp.arange(p, dtype=dtype)[None, :]
-    h = jnp.sin(12.9898 * i + 78.233 * j + 1.0) * 43758.5453
-    start = h - jnp.floor(h) - 0.5
-    if X0 is not None:
-        X0 = jnp.asarray(X0, dtype)
-        start = start.at[:, : X0.shape[1]].set(X0)
-    X, _ = jnp.linalg.qr(project(start))
+    X, _ = jnp.linalg.qr(project(_start_block(n, p, dtype, X0)))
 
     def rayleigh_ritz(Y):
         Y, _ = jnp.linalg.qr(project(Y))

@@ -55,7 +55,7 @@ class DenseBackend:
         does not hide real instabilities of a stiff problem (a structured backend would count the
         inertia of an LDL^T factorisation instead).
         """
-        partial = _lowest_pairs(J, n_keep, n_zero, rtol)
+        partial = lowest_pairs_spectrum(J, n_keep, n_zero, rtol)
         if partial is not None:
             return partial
         vals, vecs = (np.asarray(a) for a in jnp.linalg.eigh(J))
@@ -72,7 +72,7 @@ class DenseBackend:
 PARTIAL_MIN_SIZE = 200
 
 
-def _lowest_pairs(J, n_keep, n_zero, rtol):
+def lowest_pairs_spectrum(J, n_keep, n_zero, rtol):
     """``DenseBackend.spectrum`` from the m = n_keep + n_zero lowest eigenpairs only, with the
     same result as the full decomposition; None where that cannot be told from them (a small or
     many times unstable J, or gauge modes not among the lowest): the caller then decomposes J whole.
@@ -87,8 +87,7 @@ def _lowest_pairs(J, n_keep, n_zero, rtol):
     m = int(n_keep) + int(n_zero)
     if n < PARTIAL_MIN_SIZE or 3 * m >= n or not np.all(np.isfinite(J)):
         return None
-    from .lapack import lowest_eigenpairs
-    from .stability import _LAPACK_LOCK
+    from .lapack import LAPACK_LOCK as _LAPACK_LOCK, lowest_eigenpairs
 
     with _LAPACK_LOCK:
         lam, vec = lowest_eigenpairs(J, m)  # scipy's dsyevr, without holding the GIL

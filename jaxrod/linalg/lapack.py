@@ -19,16 +19,22 @@ from __future__ import annotations
 
 import ctypes
 import functools
+import threading
 
 import numpy as np
 
-__all__ = ["lowest_eigenpairs", "cholesky_solve"]
+__all__ = ["lowest_eigenpairs", "cholesky_solve", "lapack_routine", "LAPACK_LOCK"]
 
 _c_int = ctypes.c_int
 
+# One host LAPACK call at a time in this process: with ``twist_study``'s two threads, a
+# multi-threaded OpenBLAS (numpy imported before jaxrod, so its thread count stayed at the core
+# count) must not be entered twice at once. Every caller of the dense path's LAPACK takes it.
+LAPACK_LOCK = threading.Lock()
+
 
 @functools.lru_cache(maxsize=None)
-def _lapack(name, n_args):
+def lapack_routine(name, n_args):
     """SciPy's LAPACK routine ``name`` as a ctypes function of n_args pointers (None where the
     table does not have it with 32-bit integers)."""
     try:
@@ -53,7 +59,7 @@ def _lapack(name, n_args):
 @functools.lru_cache(maxsize=32)
 def _syevr_workspace(n):
     """(lwork, liwork): dsyevr's optimal workspace for order n (its workspace query)."""
-    f = _lapack("dsyevr", 21)
+    f = lapack_routine("dsyevr", 21)
     work, iwork = np.zeros(1), np.zeros(1, np.int32)
     _call_syevr(f, np.zeros((n, n), order="F"), n, 1, np.zeros(n), np.zeros((n, 1), order="F"),
                 np.zeros(2, np.int32), work, -1, iwork, -1)
@@ -79,7 +85,7 @@ def lowest_eigenpairs(h, m):
     GIL released while LAPACK runs."""
     h = np.asarray(h, dtype=np.float64)
     n = h.shape[0]
-    f = _lapack("dsyevr", 21)
+    f = lapack_routine("dsyevr", 21)
     if f is None or not 1 <= m <= n:
         import scipy.linalg
 
@@ -102,7 +108,7 @@ def cholesky_solve(h, b):
     h = np.asarray(h, dtype=np.float64)
     b = np.asarray(b, dtype=np.float64)
     n = h.shape[0]
-    potrf, potrs = _lapack("dpotrf", 5), _lapack("dpotrs", 8)
+    potrf, potrs = lapack_routine("dpotrf", 5), lapack_routine("dpotrs", 8)
     if potrf is None or potrs is None or b.shape != (n,):
         import scipy.linalg
 

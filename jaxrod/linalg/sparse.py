@@ -57,7 +57,6 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
 from typing import NamedTuple
 
 import jax
@@ -66,8 +65,10 @@ import numpy as np
 
 from ..aot import cached_jit
 from . import banded
-from ..model.hessian import _kind, _pattern, local_products
-from ..solve.solvers import orthonormal_columns
+from ..model.hessian import local_products, pattern_of
+from ..model.layout import layout_of
+from .block_layout import BlockLayout, block_layout, from_blocks, to_blocks  # noqa: F401  (re-exported)
+from .zero_modes import orthonormal_columns
 from .tolerances import DEFAULT_NEGATIVE_TOL
 
 __all__ = [
@@ -86,169 +87,18 @@ __all__ = [
 
 
 # ------------------------------------------------------------------------------------------------
-# layout
-
-
-@dataclass(frozen=True, eq=False)
-class BlockLayout:
-    """Static (numpy) description of the block order of one scene layout (kind, N).
-
-    n: number of real DOFs; block_size b; num_blocks K; n_pad = K b >= n (the excess are dummy
-    DOFs: identity on the diagonal, zero elsewhere); cyclic: closed rods (corner block couples the
-    last block to the first).
-    perm: (n_pad,) q index of each block-order slot, -1 for a dummy; position: (n,) block-order
-    slot of each q index (perm[position] = arange(n)); dummy: (n_pad,) bool.
-    diag_src, off_src: (2, K, b, b) flat indices, into the (n_colours, n) array of coloured
-    Hessian-vector products, of H[r, c] and H[c, r] for the entry (r, c) that lands at diag[k, i, j]
-    (r = perm[k b + i], c = perm[k b + j]) resp. off[k, i, j] (c = perm[((k+1) mod K) b + j]);
-    diag_ok, off_ok: (K, b, b) bool, the entries that are structurally non-zero (and, for off,
-    stored there: a non-cyclic corner and, for K = 2 cyclic, off[1] stay zero).
-    pin_candidates: (m, 7) q indices of the candidate gauge pins ((0, 0) without zero modes).
-    """
-
-    kind: str
-    n_nodes: int
-    n: int
-    block_size: int
-    num_blocks: int
-    cyclic: bool
-    perm: np.ndarray
-    position: np.ndarray
-    dummy: np.ndarray
-    diag_src: np.ndarray
-    diag_ok: np.ndarray
-    off_src: np.ndarray
-    off_ok: np.ndarray
-    pin_candidates: np.ndarray
-
-    @property
-    def n_pad(self):
-        return self.num_blocks * self.block_size
-
-
-def _node_groups(kind, N):
-    """The DOFs (q indices) in rod order, grouped by node, and whether the chain is cyclic.
-
-    Each node's 3 coordinates come with the twist angle of one edge at that node:
-    closed: (x_i, theta_i) (edge i starts at node i); free: the same, x_{N-1} alone at the end;
-    clamped (free nodes 2..N-3, free edges 1..N-3): (theta_{k-1}, x_k), i.e. the edge that ENDS at
-    node k, with theta_{N-3} alone at the end -- the sequence theta_1, x_2, theta_2, ..., x_{N-3},
-    theta_{N-3}. Either way consecutive DOFs couple at most 10 places apart in this sequence, and
-    any 2 consecutive groups separate what comes before them from what comes after (the widest
-    couplings, x_i-x_{i+2}, x_i-theta_{i+1}, theta_i-x_{i+2}, stay within 3 nodes).
-    """
-    if kind == "closed":
-        return [[3 * i, 3 * i + 1, 3 * i + 2, 3 * N + i] for i in range(N)], True
-    if kind == "free":
-        groups = [[3 * i, 3 * i + 1, 3 * i + 2, 3 * N + i] for i in range(N - 1)]
-        return groups + [[3 * (N - 1), 3 * (N - 1) + 1, 3 * (N - 1) + 2]], False
-    if kind == "clamped":
-        nf = N - 4
-        th = lambda e: 3 * nf + (e - 1)  # noqa: E731  free edges 1..N-3
-        groups = [[th(k - 1), 3 * (k - 2), 3 * (k - 2) + 1, 3 * (k - 2) + 2] for k in range(2, N - 2)]
-        return groups + [[th(N - 3)]], False
-    raise ValueError(kind)
-
-
-@functools.lru_cache(maxsize=32)
-def _layout(kind, N):
-    pat = _pattern(kind, N)
-    n = pat.n
-    groups, cyclic = _node_groups(kind, N)
-    if not cyclic or N % 2 == 0:
-        # 2 nodes per block (b = 8), dummies at the end (none for an even closed rod).
-        b = 8
-        seq = [d for g in groups for d in g]
-        K = -(-len(seq) // b)
-        perm = np.array(seq + [-1] * (K * b - len(seq)))
-    else:
-        # Odd closed rod: no placement of dummies makes 2-node blocks of 8 block-tridiagonal round
-        # the cycle (a block with a dummy must be exactly x_i, theta_i, x_{i+1}, which shifts the
-        # block boundaries by one DOF; four of them never close the cycle). Blocks of 3 nodes
-        # (b = 12), the last 3K - N of them holding 2 nodes and 4 dummies.
-        b = 12
-        K = -(-N // 3)
-        short = 3 * K - N
-        sizes = [3] * (K - short) + [2] * short
-        perm, i = [], 0
-        for s in sizes:
-            blk = [d for g in groups[i:i + s] for d in g]
-            perm += blk + [-1] * (b - len(blk))
-            i += s
-        perm = np.array(perm)
-    n_pad = K * b
-    dummy = perm < 0
-    position = np.empty(n, dtype=np.int64)
-    position[perm[~dummy]] = np.nonzero(~dummy)[0]
-    mask, colour = pat.mask, pat.colour
-
-    def tables(rows, cols):
-        valid = (rows >= 0) & (cols >= 0)
-        rs, cs = np.where(valid, rows, 0), np.where(valid, cols, 0)
-        ok = valid & mask[rs, cs]
-        src = np.stack([colour[cs] * n + rs, colour[rs] * n + cs])
-        return np.where(ok, src, 0), ok
-
-    P = perm.reshape(K, b)
-    diag_src, diag_ok = tables(P[:, :, None], P[:, None, :])
-    off_src, off_ok = tables(P[:, :, None], np.roll(P, -1, axis=0)[:, None, :])
-    if not cyclic:
-        off_ok[K - 1] = False
-    elif K == 2:
-        off_ok[1] = False  # T[1, 0] = off[0]^T + off[1]: store the coupling once
-    if int(diag_ok.sum() + 2 * off_ok.sum()) != int(mask.sum()):
-        raise AssertionError(f"block layout of {kind} N={N} does not hold the Hessian pattern")
-    if kind in ("closed", "free"):
-        a, c = N // 3, (2 * N) // 3
-        th0 = 3 * N
-        cand = [[0, 1, 2, 3 * a + i, 3 * a + j, 3 * c + m, th0]
-                for (i, j) in ((0, 1), (0, 2), (1, 2)) for m in range(3)]
-        pins = np.array(cand)
-    else:
-        pins = np.zeros((0, 0), dtype=np.int64)
-    return BlockLayout(kind=kind, n_nodes=N, n=n, block_size=b, num_blocks=K, cyclic=cyclic, perm=perm,
-                       position=position, dummy=dummy, diag_src=diag_src, diag_ok=diag_ok, off_src=off_src,
-                       off_ok=off_ok, pin_candidates=pins)
-
-
-def block_layout(scene):
-    """The :class:`BlockLayout` of a scene (numpy, cached per kind and N).
-
-    DOFs are interleaved node by node (3 coordinates and one twist angle per node, see
-    ``_node_groups``) and grouped 2 nodes per block (b = 8), so that the local Hessian is
-    block-tridiagonal, with a corner block for closed rods. Padded with dummy DOFs to a multiple
-    of b. Exception: a closed rod with an odd number of nodes uses 3-node blocks (b = 12), since
-    2-node blocks cannot close the cycle (see ``_layout``). The layout is checked against the
-    Hessian's sparsity pattern when built.
-    """
-    return _layout(_kind(scene), int(scene.n_nodes))
-
-
-def _to_blocks(lay, v):
-    """q order (n, ...) -> block order (n_pad, ...), zero on dummies."""
-    perm = jnp.asarray(np.where(lay.perm >= 0, lay.perm, 0))
-    keep = jnp.asarray(~lay.dummy).reshape((-1,) + (1,) * (v.ndim - 1))
-    return jnp.where(keep, v[perm], 0.0)
-
-
-def _from_blocks(lay, v):
-    """block order (n_pad, ...) -> q order (n, ...)."""
-    return v[jnp.asarray(lay.position)]
-
-
-# ------------------------------------------------------------------------------------------------
-# Hessian in blocks
+# Hessian in blocks (the block order: ``jaxrod.linalg.block_layout``)
 
 
 def _check_scene(scene):
-    if "contact" in scene.terms:
+    if scene.has_term("contact"):
         raise ValueError("the block-tridiagonal path does not handle contact: use jaxrod.linalg.stability")
 
 
 def _block_hessian(scene, u, phi, nbr):
     _check_scene(scene)
     lay = block_layout(scene)
-    pat = _pattern(lay.kind, lay.n_nodes)
+    pat = pattern_of(layout_of(lay.kind, lay.n_nodes))
     hv, w, a = local_products(scene, u, phi, nbr, pat)
     flat = hv.ravel()
 
@@ -259,7 +109,7 @@ def _block_hessian(scene, u, phi, nbr):
     dummy_eye = jnp.asarray(np.eye(b)[None] * lay.dummy.reshape(K, b)[:, :, None])
     diag = gather(lay.diag_src, lay.diag_ok) + dummy_eye
     off = gather(lay.off_src, lay.off_ok)
-    return diag, off, _to_blocks(lay, a), jnp.asarray(w, dtype=diag.dtype)
+    return diag, off, to_blocks(lay, a), jnp.asarray(w, dtype=diag.dtype)
 
 
 @jax.jit
@@ -368,7 +218,7 @@ def inertia_at_equilibrium(scene, u, phi, nbr, tol=DEFAULT_NEGATIVE_TOL):
 
 @functools.partial(jax.jit, static_argnames=("lay",))
 def _rhs_to_blocks(lay, rhs, keep):
-    return _to_blocks(lay, rhs) * keep
+    return to_blocks(lay, rhs) * keep
 
 
 @functools.partial(jax.jit, static_argnames=("lay",))
@@ -378,7 +228,7 @@ def _solution_from_blocks(lay, x, Q, keep=None):
     Q-perp."""
     if keep is not None:
         x = x * (keep if x.ndim == 1 else keep[:, None])
-    x = _from_blocks(lay, x)
+    x = from_blocks(lay, x)
     if Q is not None and Q.shape[1] > 0:
         x = x - Q @ (Q.T @ x)
     return x
@@ -482,7 +332,7 @@ def _eig_setup(lay, diag, off, a, w, Q):
     bound = _norm_bound(diag, off, lay.cyclic, a, w)
     dmask = jnp.asarray(np.eye(b)[None] * lay.dummy.reshape(K, b)[:, :, None])
     diag = diag + (4.0 * bound) * dmask
-    Zr = _to_blocks(lay, Q)
+    Zr = to_blocks(lay, Q)
     dummies = np.nonzero(lay.dummy)[0]
     Zd = jnp.zeros((lay.n_pad, dummies.size), diag.dtype).at[dummies, np.arange(dummies.size)].set(1.0)
     return diag, a[:, None], jnp.reshape(w, (1,)), Zr, jnp.concatenate([Zr, Zd], axis=1), bound

@@ -10,7 +10,7 @@ rank-one term, kept as the vector a. Nothing of size n x n is formed:
   degree on A + A^T), ``SymmetricMode`` and a diagonal pivot threshold of 0 tries the same
   diagonal-pivot factorisation (U = D L^T); a run that pivoted off the diagonal (perm_r !=
   perm_c) is refused, never counted. Why QDLDL: a true LDL^T, half SuperLU's work (see
-  ``_ldlt``); CHOLMOD (scikit-sparse) needs a compiled SuiteSparse that pip cannot always
+  ``jaxrod.linalg.ldlt``); CHOLMOD (scikit-sparse) needs a compiled SuiteSparse that pip cannot always
   provide, and a Cholesky alone gives definiteness, not the count.
 * **The dense columns as a border.** The 7 pinned DOFs (``sparse_stability.gauge_pins``: the
   gauge of the rigid motions and of the material twist), the rank-one vector a and, where needed,
@@ -36,10 +36,7 @@ and ``damped_newton_direction`` (the direction of ``solvers.HostDampedNewton``).
 """
 from __future__ import annotations
 
-import collections
 import functools
-import threading
-import weakref
 from dataclasses import dataclass
 
 import jax
@@ -48,43 +45,20 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spl
 
-try:  # a true sparse LDL^T (see _ldlt); SuperLU in symmetric mode stands in without it
-    import qdldl as _qdldl
-except ImportError:  # pragma: no cover
-    _qdldl = None
-
-from ..model.hessian import _pattern_entries, contact_blocks, hessian_pattern, local_entries
+from ..model.hessian import contact_blocks, hessian_pattern, local_entries
+from .ldlt import FactorisationError, ldlt, negative_count  # noqa: F401  (re-exported)
 from .sparse import EXTRA_PAIRS, _gauge, eigenvalue_branch_derivative, gradient_and_phi_derivative
 
-__all__ = ["hessian_parts", "assemble", "negative_count", "SPARSE_MIN_DOF", "use_sparse", "deflated_newton_direction", "SparseHessian", "sparse_hessian", "count_below", "lowest_eigenpairs", "contact_spectrum",
-           "contact_branch_analysis", "damped_newton_direction", "FactorisationError"]
-
-
-# "auto" takes the O(n) path from this many DOFs on (N ~ 250 nodes); below it the dense path is
-# fast enough, and compiled already for most small scenes.
-SPARSE_MIN_DOF = 1000
-LINEAR_ALGEBRA = ("auto", "dense", "sparse")
-
-
-def use_sparse(scene, linear_algebra="auto"):
-    """Whether the O(n) linear algebra is used for ``scene``: "sparse", "dense", or "auto" (sparse
-    from SPARSE_MIN_DOF DOFs on). Raises ValueError naming the parameter otherwise."""
-    if linear_algebra not in LINEAR_ALGEBRA:
-        raise ValueError(f"linear_algebra must be 'auto', 'dense' or 'sparse', got {linear_algebra!r}")
-    if linear_algebra == "auto":
-        return int(scene.n_dof) >= SPARSE_MIN_DOF
-    return linear_algebra == "sparse"
-
-
-class FactorisationError(np.linalg.LinAlgError):
-    """The symmetric-mode factorisation pivoted off the diagonal or met a zero pivot: no inertia."""
+__all__ = ["hessian_parts", "assemble", "node_pair_entries", "NODE_TABLE_MAX", "negative_count", "deflated_newton_direction", "SparseHessian", "sparse_hessian",
+           "count_below", "lowest_eigenpairs", "contact_spectrum", "contact_branch_analysis", "damped_newton_direction",
+           "FactorisationError"]
 
 
 @jax.jit
 def _parts(scene, u, phi, nbr):
     pat = hessian_pattern(scene)
     _, _, values, w, a = local_entries(scene, u, phi, nbr, pat)
-    if "contact" in scene.terms and nbr.pairs.shape[0] > 0:
+    if scene.has_term("contact") and nbr.pairs.shape[0] > 0:
         blocks, dofs, count = contact_blocks(scene, u, nbr, pat)
     else:
         blocks, dofs, count = jnp.zeros((0, 12, 12), u.dtype), jnp.zeros((0, 12), jnp.int32), jnp.asarray(0)
@@ -164,28 +138,16 @@ def assemble(scene, parts):
     values, w, a, blocks, dofs, count = (np.asarray(x) for x in parts)
     pat = hessian_pattern(scene)
     n = pat.n
-    rows, cols, transpose = _local_layout(pat)
+    rows, cols, transpose = pat.rows, pat.cols, pat.transpose
     local = 0.5 * (values + values[transpose])  # (H + H^T)/2 entry by entry: v[k] == v[transpose[k]]
     count = int(count)
-    R, C, V = _node_pair_entries(blocks[:count], dofs[:count], n)
+    R, C, V = node_pair_entries(blocks[:count], dofs[:count], n)
     S = sp.csc_matrix((np.concatenate([local, V]), (np.concatenate([rows, R]), np.concatenate([cols, C]))),
                       shape=(n, n))
     return S, float(w), np.asarray(a, float)
 
 
-def _local_layout(pat):
-    """(rows, cols, transpose) of the local pattern (symmetric): its entries row-major and, for
-    each, the index of its transposed entry. Kept on ``pat``."""
-    layout = pat.__dict__.get("_layout")
-    if layout is None:
-        rows, cols = _pattern_entries(pat)
-        keys = rows.astype(np.int64) * pat.n + cols  # row-major: sorted
-        transpose = np.searchsorted(keys, cols.astype(np.int64) * pat.n + rows)
-        layout = pat.__dict__["_layout"] = (rows, cols, transpose)
-    return layout
-
-
-def _node_pair_entries(blocks, dofs, n):
+def node_pair_entries(blocks, dofs, n):
     """COO entries (rows, cols, values) of the contact blocks blocks (P, 12, 12) on dofs (P, 12)
     (DOF n: a clamped node), summed per unordered pair of nodes: each pair {a, b} appears once as
     (a, b) and once as (b, a), each diagonal node block once (symmetrised).
@@ -206,7 +168,7 @@ def _node_pair_entries(blocks, dofs, n):
     p, k, l = np.nonzero(keep)  # node blocks (k, l) of pair p, node k <= node l, neither clamped
     n_nodes = n // 3 + 1
     keys = node[p, k] * n_nodes + node[p, l]
-    if n_nodes <= _NODE_TABLE_MAX:
+    if n_nodes <= NODE_TABLE_MAX:
         seen = np.zeros(n_nodes * n_nodes, bool)
         seen[keys] = True
         pairs = np.flatnonzero(seen)
@@ -233,119 +195,9 @@ def _node_pair_entries(blocks, dofs, n):
     return R, C, V
 
 
-# Nodes up to which _node_pair_entries numbers node pairs through an (n_nodes, n_nodes) table (9 MB
+# Nodes up to which node_pair_entries numbers node pairs through an (n_nodes, n_nodes) table (9 MB
 # of flags at this size, touched only where pairs are) rather than by sorting.
-_NODE_TABLE_MAX = 3000
-
-
-class _SymbolicPool:
-    """Idle QDLDL solvers by sparsity pattern, so that a matrix whose pattern was factorised before
-    (the same Hessian at another shift or with another border; the next Newton iterate with the
-    same contact pairs) skips the AMD ordering and the elimination tree: ``Solver.update`` redoes
-    only the numbers (2.5 / 6.3 ms against 4.9 / 9.3 ms for a new solver at the trefoil's N = 481),
-    with the same ordering, hence the same factor bit for bit. A solver is lent to one ``_QDLDL``
-    at a time and comes back when that is freed, so a factorisation still in use is never
-    overwritten; a few patterns are kept, the least recently used dropped. Thread-safe (the CLI
-    runs the two twist directions in two threads)."""
-
-    def __init__(self, patterns=8, per_pattern=3):
-        self._idle = collections.OrderedDict()
-        self._lock = threading.Lock()
-        self._patterns, self._per_pattern = patterns, per_pattern
-
-    @staticmethod
-    def key(A):
-        return A.shape[0], A.nnz, hash(A.indptr.tobytes()), hash(A.indices.tobytes())
-
-    def factorise(self, A):
-        """(key, solver) holding the LDL^T of A (csc, canonical); raises RuntimeError as QDLDL does."""
-        key = self.key(A)
-        with self._lock:
-            idle = self._idle.get(key)
-            solver = idle.pop() if idle else None
-        if solver is None:
-            return key, _qdldl.Solver(A)
-        solver.update(A)  # if this raises, the solver (its numbers now invalid) is dropped, not given back
-        return key, solver
-
-    def give_back(self, key, solver):
-        with self._lock:
-            idle = self._idle.setdefault(key, [])
-            self._idle.move_to_end(key)
-            if len(idle) < self._per_pattern:
-                idle.append(solver)
-            while len(self._idle) > self._patterns:
-                self._idle.popitem(last=False)
-
-
-_POOL = _SymbolicPool()
-
-
-class _QDLDL:
-    """An LDL^T of A from QDLDL (``qdldl.Solver``: AMD ordering, no pivoting): its pivots are D,
-    ``solve`` takes (m,) or (m, k) right-hand sides (QDLDL's takes one vector). Its solver goes
-    back to the pool when this object is freed."""
-
-    def __init__(self, key, solver):
-        self._solver = solver
-        weakref.finalize(self, _POOL.give_back, key, solver)
-
-    def solve(self, b):
-        b = np.asarray(b, float)
-        if b.ndim == 1:
-            return self._solver.solve(b)
-        out = np.empty_like(b)
-        for k in range(b.shape[1]):
-            out[:, k] = self._solver.solve(np.ascontiguousarray(b[:, k]))
-        return out
-
-
-def _ldlt(A):
-    """(factorisation with ``.solve``, pivots (m,)) of the symmetric sparse A with diagonal pivots
-    only, i.e. an LDL^T whose pivots' signs give A's inertia (Sylvester). Raises
-    FactorisationError where A has no such factorisation (exactly singular, a pivot off the
-    diagonal, a zero or non-finite pivot).
-
-    QDLDL first: a true LDL^T (half SuperLU's work: at the trefoil's N = 481, 4.8 / 8.3 ms against
-    SuperLU's 6.1 / 13.8 ms for the matrices at phi = 0 and at the tightening end, pivots
-    included; solves 0.13 / 0.22 ms against 0.19 / 0.37 ms). Where it refuses (a zero pivot, a diagonal entry
-    missing from the pattern) SuperLU in symmetric mode decides, as before: it may still find
-    the diagonal-pivot factorisation, or says why there is none."""
-    A = sp.csc_matrix(A)
-    if _qdldl is not None:
-        A.sort_indices()
-        try:
-            key, solver = _POOL.factorise(A)
-        except RuntimeError:
-            solver = None
-        if solver is not None:
-            fac = _QDLDL(key, solver)
-            pivots = solver.factors()[1]
-            if np.all(np.isfinite(pivots)) and not np.any(pivots == 0.0):
-                return fac, pivots
-    try:
-        lu = spl.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                      options=dict(SymmetricMode=True, Equil=False))
-    except RuntimeError as exc:  # "Factor is exactly singular"
-        raise FactorisationError(str(exc)) from None
-    if not np.array_equal(lu.perm_r, lu.perm_c):
-        raise FactorisationError("the factorisation pivoted off the diagonal")
-    pivots = lu.U.diagonal()
-    if not np.all(np.isfinite(pivots)) or np.any(pivots == 0.0):
-        raise FactorisationError("zero or non-finite pivot")
-    return lu, pivots
-
-
-def negative_count(A, E, D):
-    """Number of negative eigenvalues of the symmetric [[A, E], [E^T, D]]: A (m, m) scipy sparse,
-    factorised with diagonal pivots only (LDL^T, Sylvester), E (m, r), D (r, r) dense (Haynsworth:
-    In = In(A) + In(D - E^T A^-1 E)). Raises FactorisationError where A has no such factorisation."""
-    lu, pivots = _ldlt(A)
-    E = np.asarray(E, float).reshape(A.shape[0], -1)
-    if E.shape[1] == 0:
-        return int(np.sum(pivots < 0.0))
-    schur = np.asarray(D, float) - E.T @ lu.solve(E)
-    return int(np.sum(pivots < 0.0)) + int(np.sum(np.linalg.eigvalsh(0.5 * (schur + schur.T)) < 0.0))
+NODE_TABLE_MAX = 3000
 
 
 class _Bordered:
@@ -357,7 +209,7 @@ class _Bordered:
         A = hs.blocks[0]
         if shift != 0.0:
             A = A + shift * sp.identity(A.shape[0], format="csc")
-        lu, pivots = _ldlt(A)
+        lu, pivots = ldlt(A)
         self.lu = lu
         self.E = np.asarray(E_cols, float).reshape(self.free.size, -1)
         AE = lu.solve(self.E) if self.E.shape[1] else self.E

@@ -165,6 +165,21 @@ class DynamicsOptions:
         check_int_at_least("seed", self.seed, 0)
 
 
+def _transition(records, departure, jump, window, say):
+    """Index of the record after which the writhe made its transition (-1: none yet): a jump
+    (``_writhe_jump``) or, given ``departure``, the first departure from the start by more."""
+    if departure is None:
+        transition = _writhe_jump(records["phi"], records["Wr"], jump, window)
+    elif abs(records["Wr"][-1] - records["Wr"][0]) > departure:
+        transition = len(records["Wr"]) - 2
+    else:
+        transition = -1
+    if transition >= 0:
+        say(f"transition: Wr {records['Wr'][transition]:.4f} -> {records['Wr'][-1]:.4f} after phi = "
+            f"{records['phi'][transition] / math.pi:+.5f} pi")
+    return transition
+
+
 def damped_dynamics(scene, phi_start, phi_stop, rate, q0=None, options=None, *, progress=None):
     """Ramp the twist from phi_start to phi_stop at ``rate`` (rad per unit of scaled time) under
     damped, optionally noisy, bead dynamics, and detect the transition as the seed paper did.
@@ -217,7 +232,7 @@ def damped_dynamics(scene, phi_start, phi_stop, rate, q0=None, options=None, *, 
             raise FloatingPointError(f"the dynamics blew up at phi = {phi:.6g}: take a smaller dt (was {dt:.3g})")
         upd = nbr.update(scene, q, phi)
         new = upd.nbr
-        if abs(float(new.wr_ref) - records["Wr"][-1]) >= 1.0 and "contact" in scene.terms:
+        if abs(float(new.wr_ref) - records["Wr"][-1]) >= 1.0 and scene.has_term("contact"):
             stop = "topology"  # a strand passed through another within one chunk
             nbr = new
             record(steps * dt, phi, u, nbr)
@@ -228,13 +243,7 @@ def damped_dynamics(scene, phi_start, phi_stop, rate, q0=None, options=None, *, 
             nbr = type(nbr)(nbr.pairs, nbr.mask, nbr.x_built, nbr.skin, new.wr_ref)
         record(steps * dt, phi, u, nbr)
         if transition < 0:
-            if departure is None:
-                transition = _writhe_jump(records["phi"], records["Wr"], jump, window)
-            elif abs(records["Wr"][-1] - records["Wr"][0]) > departure:
-                transition = len(records["Wr"]) - 2
-            if transition >= 0:
-                say(f"transition: Wr {records['Wr'][transition]:.4f} -> {records['Wr'][-1]:.4f} after phi = "
-                    f"{records['phi'][transition] / math.pi:+.5f} pi")
+            transition = _transition(records, departure, jump, window, say)
         if transition >= 0 and stop_at_transition:
             stop = "transition"
             break

@@ -16,6 +16,7 @@ from ..model.hessian import scaled_hessian
 from ..validation import check_finite, check_int_at_least, check_positive
 from ..model.neighbourhood import Neighbourhood
 from ..linalg import sparse_contact
+from ..linalg.backend import BACKEND_NAMES, choose_backend
 from .solvers import LBFGS, ConvergenceError, DampedNewton, HostDampedNewton, Newton, Solution, StopReason, minimise
 from ..linalg.stability import CONTACT_NEGATIVE_TOL, DEFAULT_NEGATIVE_TOL, Stability, stability
 
@@ -100,10 +101,10 @@ class RelaxOptions:
       (``DEFAULT_NEGATIVE_TOL``) in ``relax``; in ``relax_to_minimum``, whose saddle test must not
       be fooled by strands sliding along each other (|lambda| ~ 1e-7), ``CONTACT_NEGATIVE_TOL`` =
       1e-6 with self-contact.
-    linear_algebra: "dense" (n x n Hessian, Cholesky), "sparse" (with contact: the O(n)
-      factorisations of ``jaxrod.linalg.sparse_contact`` in ``HostDampedNewton``) or "auto" (sparse for
-      rods with contact from ``sparse_contact.SPARSE_MIN_DOF`` DOFs on). The stability follows
-      the same choice.
+    linear_algebra: a backend name of ``jaxrod.linalg.backend.choose_backend``: where it
+      chooses "sparse" (rods with contact: "sparse", or "auto" from ``SPARSE_MIN_DOF`` DOFs on)
+      the O(n) factorisations of ``jaxrod.linalg.sparse_contact`` in ``HostDampedNewton``,
+      elsewhere the dense n x n Hessian (Cholesky). The stability follows the same choice.
     """
 
     gtol: float = 1e-9
@@ -120,9 +121,8 @@ class RelaxOptions:
         check_int_at_least("max_rounds", self.max_rounds, 1)
         if self.max_displacement is not None:
             check_positive("max_displacement", self.max_displacement)
-        if self.linear_algebra not in sparse_contact.LINEAR_ALGEBRA:
-            raise ValueError(f"linear_algebra must be one of {sparse_contact.LINEAR_ALGEBRA}, got "
-                             f"{self.linear_algebra!r}")
+        if self.linear_algebra not in BACKEND_NAMES:
+            raise ValueError(f"linear_algebra must be one of {BACKEND_NAMES}, got {self.linear_algebra!r}")
 
 
 @dataclass(frozen=True)
@@ -159,6 +159,24 @@ class EquilibriumOptions:
             raise ValueError(f"near_null_tol must be finite and >= 0, got {self.near_null_tol!r}")
 
 
+def _relax_solver(scene, max_displacement, linear_algebra):
+    """(solver, sparse) of ``relax``: the damped Newton of the backend ``choose_backend`` picks
+    (the host one on SciPy's sparse factorisations where it picks "sparse"), every node's step
+    capped at max_displacement (None: D/4 with contact, else none)."""
+    has_contact = scene.has_term("contact")
+    if max_displacement is not None:
+        cap = float(max_displacement)
+    else:
+        cap = 0.25 * float(scene.material.D) if has_contact else math.inf
+    max_step = cap / float(scene.length_scale)
+    if choose_backend(scene, linear_algebra, offered=("dense", "sparse")).backend.name == "sparse":
+        return HostDampedNewton(direction=sparse_contact.damped_newton_direction, max_step=max_step,
+                                leave=neighbourhood_stale), True
+    return DampedNewton(zero_modes=scaled_zero_modes if scene.n_zero_modes else None, max_step=max_step,
+                        leave=neighbourhood_stale if scene.needs_neighbourhood else None,
+                        hessian=structured_hessian), False
+
+
 def relax(scene, phi=0.0, q0=None, options=None, *, previous=None, nbr=None, guide=None, progress=None):
     """Minimise the energy of a scene (with or without self-contact) from q0 (default
     scene.q_init) without letting the rod pass through itself; ``options``: a ``RelaxOptions``
@@ -185,24 +203,9 @@ def relax(scene, phi=0.0, q0=None, options=None, *, previous=None, nbr=None, gui
     negative_tol = DEFAULT_NEGATIVE_TOL if opts.negative_tol is None else opts.negative_tol
     phi = check_finite("phi", phi)
     q = np.asarray(scene.q_init if q0 is None else q0, dtype=float)
-    has_contact = "contact" in scene.terms
-    if has_contact:
-        cap = 0.25 * float(scene.material.D) if max_displacement is None else float(max_displacement)
-    else:
-        cap = math.inf if max_displacement is None else float(max_displacement)
     say = progress or (lambda s: None)
-    sparse = has_contact and sparse_contact.use_sparse(scene, linear_algebra)
-    if sparse:
-        solver = HostDampedNewton(direction=sparse_contact.damped_newton_direction,
-                                  max_step=cap / float(scene.length_scale), leave=neighbourhood_stale)
-    else:
-        solver = DampedNewton(
-            zero_modes=scaled_zero_modes if scene.n_zero_modes else None,
-            max_step=cap / float(scene.length_scale),
-            leave=neighbourhood_stale if has_contact else None,
-            hessian=structured_hessian,
-        )
-    if not (has_contact and nbr is not None and not nbr.stale(np.asarray(scene.positions(q)))):
+    solver, sparse = _relax_solver(scene, max_displacement, linear_algebra)
+    if not (scene.needs_neighbourhood and nbr is not None and not nbr.stale(np.asarray(scene.positions(q)))):
         nbr = _grown(scene, q, phi, nbr)
     # else the given neighbourhood still holds at q0 (a continuation's predictor, a small push):
     # no node moved more than skin/2 = D/4 since it was built, so no two strands (D apart where
@@ -295,7 +298,7 @@ def relax_to_minimum(scene, phi=0.0, q0=None, options=None, *, push=None, max_pu
 
     opts = _options(options, RelaxOptions)
     if opts.negative_tol is None:
-        opts = replace(opts, negative_tol=CONTACT_NEGATIVE_TOL if "contact" in scene.terms else DEFAULT_NEGATIVE_TOL)
+        opts = replace(opts, negative_tol=CONTACT_NEGATIVE_TOL if scene.has_term("contact") else DEFAULT_NEGATIVE_TOL)
     opts = replace(opts, with_stability=True)
     check_int_at_least("max_pushes", max_pushes, 0)
     say = progress or (lambda s: None)

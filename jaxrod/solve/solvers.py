@@ -29,9 +29,9 @@ import optax
 import optax.tree_utils as otu
 
 from ..aot import cached_jit
+from ..linalg.zero_modes import orthonormal_columns
 
-__all__ = ["LBFGS", "Newton", "DampedNewton", "HostDampedNewton", "Solution", "StopReason", "ConvergenceError", "minimise",
-           "orthonormal_columns"]
+__all__ = ["LBFGS", "Newton", "DampedNewton", "HostDampedNewton", "Solution", "StopReason", "ConvergenceError", "minimise"]
 
 
 class StopReason(str, enum.Enum):
@@ -154,16 +154,6 @@ class Solution:
             f"Solution(solver={self.solver}, converged={self.converged}, reason={str(self.reason)!r}, "
             f"iterations={self.iterations}, grad_norm={self.grad_norm:.3e}, value={self.value:.12g})"
         )
-
-
-def orthonormal_columns(z, rtol=1e-10):
-    """Orthonormal basis of the column space of z (n, k), as (n, k) with columns that carry no
-    rank zeroed out (rank found from the singular values, so it may vary under jit)."""
-    if z.shape[1] == 0:
-        return z
-    u, s, _ = jnp.linalg.svd(z, full_matrices=False)
-    keep = s > rtol * jnp.max(s)
-    return u * keep[None, :]
 
 
 @partial(jax.jit, static_argnames=("fun", "memory", "max_ls"))
@@ -293,10 +283,10 @@ def _newton_loop(fun, zero_modes, y0, args, gtol, max_steps, max_backtracks, nea
 _SHIFT_DOWN, _SHIFT_UP, _SHIFT_REFINE = 0.1, 4.0, 2
 
 
-@cached_jit(static_argnames=("fun", "zero_modes", "leave", "max_backtracks", "hessian"))
-def _damped_newton_loop(fun, zero_modes, leave, y0, args, gtol, max_step, max_steps, max_backtracks, hessian=None):
-    f = lambda y: fun(y, args)  # noqa: E731
-    hess = _hessian_of(f, hessian, args)
+def _shifted_newton_direction(hess, zero_modes, args, max_step):
+    """The damped-Newton step of ``_damped_newton_loop``: direction(y, g, mu_prev) -> (dy, mu_used),
+    (H + mu I) dy = -g with mu just large enough for H + mu I to be positive definite, max |dy|
+    capped at max_step. Traceable (built inside the jitted loop)."""
 
     def direction(y, g, mu_prev):
         h = hess(y)
@@ -354,6 +344,15 @@ def _damped_newton_loop(fun, zero_modes, leave, y0, args, gtol, max_step, max_st
         big = jnp.max(jnp.abs(dy))
         return jnp.where(big > max_step, dy * (max_step / big), dy), mu_used
 
+    return direction
+
+
+@cached_jit(static_argnames=("fun", "zero_modes", "leave", "max_backtracks", "hessian"))
+def _damped_newton_loop(fun, zero_modes, leave, y0, args, gtol, max_step, max_steps, max_backtracks, hessian=None):
+    f = lambda y: fun(y, args)  # noqa: E731
+    hess = _hessian_of(f, hessian, args)
+
+    direction = _shifted_newton_direction(hess, zero_modes, args, max_step)
     value_and_grad = jax.value_and_grad(f)
 
     # The energy and its gradient are written once, in the line search's trial: each copy of them
