@@ -16,9 +16,10 @@ instabilities, states). Read in this order:
 
 * ``options``   ContinuationOptions, Task, Observer; the defaults (contact-aware tolerances)
 * ``memory``    the dense path's memory estimate and its refusal before anything is compiled
-* ``results``   CriticalPoint, BranchPoint, Instability, TwistPath, PathStop, BranchEnd
-* ``engine``    the one predictor-corrector-accept step (_Engine, _Step, StepFailure); dense or
-  block linear algebra
+* ``kinds``     EventKind: what both engines report (fold, branch point, unstable, jump ...)
+* ``results``   CriticalPoint, PathPoint, Instability, TwistPath, PathStop
+* ``engine``    the one predictor-corrector-accept step (ContinuationEngine, _Step, StepFailure);
+  dense or block linear algebra
 * ``critical``  critical_twist
 * ``state``     PathState: where a follow_twist run stands (exact resume, npz storage)
 * ``ends``      where a followed branch ends: critical mode, end trials, phi*, the near-zero band
@@ -30,16 +31,18 @@ from .options import (CONTACT_GTOL, CORRECTOR_MAX_STEPS, LINEAR_ALGEBRA, MAX_REF
                       NEGATIVE_TOL_FRACTION, ContinuationOptions, Observer, Task, default_negative_tol)
 from .memory import (DENSE_BYTES_PER_DOF, DENSE_HESSIAN_COPIES, PROCESS_BASE_BYTES,  # noqa: F401
                      available_memory_bytes, check_dense_memory, dense_memory_bytes)
-from .results import (BranchEnd, BranchPoint, CriticalPoint, Instability, NoCrossingError,  # noqa: F401
+from .kinds import EventKind
+from .results import (PathPoint, CriticalPoint, Instability, NoCrossingError,  # noqa: F401
                       PathStop, TwistPath)
-from .engine import K_MARGIN, STALL_FACTOR, StepFailure, _Engine, _grown_engine, _Step, _use_sparse  # noqa: F401
+from .engine import (K_MARGIN, STALL_FACTOR, ContinuationEngine, StepFailure, _Step,  # noqa: F401
+                     grown_engine, uses_sparse)
 from .critical import critical_twist
 from .state import PathState, Phase
-from .ends import (_end_trial, _locate, _negative_modes, _past_zero,  # noqa: F401 (tests reach them here)
-                   _warn_if_band_hides_shape_modes)
-from .follow import follow_twist
+from .ends import branch_end_in_bracket, eigenvalue_past_zero, end_trial, negative_modes  # noqa: F401
+from .ends import warn_if_band_hides_shape_modes
+from .follow import follow_twist, follows_sparse
 
 __all__ = ["check_dense_memory", "dense_memory_bytes", "available_memory_bytes", "default_negative_tol",
-           "ContinuationOptions", "Observer", "Task", "PathStop", "StepFailure", "BranchEnd", "CriticalPoint",
-           "critical_twist", "NoCrossingError", "BranchPoint", "Instability", "TwistPath", "follow_twist",
-           "PathState", "Phase"]
+           "ContinuationOptions", "Observer", "Task", "PathStop", "StepFailure", "EventKind", "CriticalPoint",
+           "critical_twist", "NoCrossingError", "PathPoint", "Instability", "TwistPath", "follow_twist", "follows_sparse",
+           "PathState", "Phase", "warn_if_band_hides_shape_modes"]

@@ -1,7 +1,7 @@
 """``critical_twist``: the first twist where the negative count of the equilibrium branch changes.
 
-It follows the branch in phi (tangent predictor, Newton corrector: ``engine._Engine``) and
-watches the count of negative Hessian eigenvalues over the *whole* spectrum (zero modes removed),
+It follows the branch in phi (tangent predictor, Newton corrector: ``engine.ContinuationEngine``)
+and watches the count of negative Hessian eigenvalues over the *whole* spectrum (zero modes removed),
 so an unstable mode that comes down from high in the spectrum is caught. When the count changes
 between two steps, the crossing eigenvalue (the one with ascending index = the count before) is
 driven to zero by Newton's method in phi, using its derivative along the branch from forward-mode
@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -19,7 +20,7 @@ from ..solve.equilibrium import EquilibriumOptions, RelaxOptions, relax, solve_e
 from ..solve.solvers import ConvergenceError
 from .sparse_branch import solve_equilibrium_sparse
 from ..validation import check_finite, refuse_knot
-from .engine import _SPARSE_MIN_DOF, _Engine, _grown_engine, _use_sparse
+from .engine import _SPARSE_MIN_DOF, ContinuationEngine, grown_engine, uses_sparse
 from .memory import check_dense_memory
 from .options import Task, checked_options, observed
 from .results import CriticalPoint, NoCrossingError
@@ -55,162 +56,26 @@ def critical_twist(scene, phi_start=0.0, phi_stop=None, options=None, *, q0=None
     refuse_knot(scene, "critical_twist")
     observer = observed(observer, "critical_twist", ("progress", "on_step"))
     opts = checked_options(options).resolved(scene, Task.CRITICAL_TWIST, abs(phi_stop - phi_start))
-    tol, negative_tol, gtol, k, max_step = opts.tol, opts.negative_tol, opts.gtol, opts.k, opts.step
-    max_refine = opts.max_refine
-    contact = "contact" in scene.terms
-    direction = 1.0 if phi_stop > phi_start else -1.0
-    min_step = max_step / 16.0
-    say = observer.say
-    stepped = observer.on_step or (lambda phi, n_negative: None)
-    sparse = _use_sparse(scene, opts.linear_algebra)
+    sparse = uses_sparse(scene, opts.linear_algebra)
     if not sparse:
         check_dense_memory(scene)
-    engine = _Engine(scene, Task.CRITICAL_TWIST, opts, sparse)
-    k_scan = k  # eigenvalues kept per scan entry (the engine may compute more)
-
-    if contact:
-        relaxed = relax(scene, phi_start, q0, RelaxOptions(gtol=gtol, with_stability=False))
-    elif sparse and scene.n_dof >= _SPARSE_MIN_DOF:
-        # Large n: no dense relaxation (O(n^3) per step); Newton from q0 (for rings and straight
-        # clamped rods the initial shape already is the equilibrium, up to the twist angles).
-        relaxed = solve_equilibrium_sparse(scene, phi_start, q0, gtol=gtol)
-    else:
-        relaxed = solve_equilibrium(scene, phi_start, q0, EquilibriumOptions(gtol=gtol, with_stability=False))
-    start = engine.analysed(relaxed)
-    while True:
-        count0 = int(start.equilibrium.stability.n_negative)
-        # The eigenvalue that crosses next: the lowest one clearly above zero (near-zero modes skipped).
-        ev0 = start.equilibrium.stability.eigenvalues
-        index = int(np.sum(ev0 < negative_tol)) if ev0.size else 0
-        grown = _grown_engine(engine, max(index, count0))
-        if grown is engine:
-            break
-        engine, start = grown, grown.analysed(relaxed)
-    if index != 0:
-        start = engine.analysed(relaxed, index)
-    prev, dq, lam_t, dlam_t = start.equilibrium, start.tangent, start.eigenvalue, start.dlambda_dphi
-    scan = [(prev.phi, count0, prev.stability.eigenvalues[:k_scan].copy())]
-    say(f"phi = {prev.phi / math.pi:+.4f} pi: {count0} negative, lowest {prev.stability.eigenvalues[0]:.3e}")
-
-    # Scan with a tangent predictor until the count changes.
-    h = max_step
-    before = None  # the scan state before prev (a fallback stable end for the refinement)
-    while True:
-        phi_next = prev.phi + direction * h
-        if direction * (phi_next - phi_stop) > 1e-12:
-            raise NoCrossingError(
-                f"negative count stayed {count0} from phi = {phi_start:.6g} to {phi_stop:.6g}"
-            )
-        s = engine.step(prev, dq, phi_next, index,
-                        guess=min(prev.stability.eigenvalues[0], lam_t + dlam_t * (phi_next - prev.phi)))
-        if not s.ok:
-            # Step-size control: no equilibrium found near the predictor; halve the step. If even
-            # tiny steps fail, the branch ends here (a fold: the state must jump elsewhere).
-            h *= 0.5
-            if h < max_step / 1024.0:
-                raise ConvergenceError(
-                    f"the equilibrium branch could not be followed beyond phi = {prev.phi:.8g} "
-                    f"({prev.phi / math.pi:.6f} pi): steps down to {2 * h:.2e} failed (a fold or a jump?)"
-                ) from None
-            say(f"corrector failed at phi = {phi_next / math.pi:+.4f} pi: step halved to {h:.3e}")
-            continue
-        cur = s.equilibrium
-        grown = _grown_engine(engine, int(cur.stability.n_negative))
-        if grown is not engine:  # the crossing mode must be among the eigenpairs computed at cur
-            engine = grown
-            s = engine.analysed(cur, index, guess=cur.stability.eigenvalues[0])
-            cur = s.equilibrium
-        stepped(cur.phi, int(cur.stability.n_negative))
-        scan.append((cur.phi, cur.stability.n_negative, cur.stability.eigenvalues[:k_scan].copy()))
-        say(
-            f"phi = {cur.phi / math.pi:+.4f} pi: {cur.stability.n_negative} negative, "
-            f"lowest {cur.stability.eigenvalues[:3]}"
-        )
-        if cur.stability.n_negative != count0:
-            break
-        # Newton-extrapolated crossing of the tracked eigenvalue: aim 10% past it.
-        h = max_step
-        if s.dlambda_dphi != 0.0:
-            ahead = -s.eigenvalue / s.dlambda_dphi * direction
-            if ahead > 0.0:
-                h = min(max_step, max(min_step, 1.1 * ahead))
-        before, prev, dq, lam_t, dlam_t = prev, cur, s.tangent, s.eigenvalue, s.dlambda_dphi
-
-    # Refine. The crossing mode: at the far end, the negative eigenvalue nearest zero; followed
-    # by eigenvector overlap from there on (robust to reordering and to near-zero modes).
-    multiplicity = abs(cur.stability.n_negative - count0)
-    lo, hi = prev, cur
-    ev_hi = cur.stability.eigenvalues
-    neg = np.nonzero(ev_hi < -negative_tol)[0]
-    if cur.stability.n_negative > count0 and neg.size:
-        idx_hi = int(neg[-1])
-    else:  # the count went down: a negative eigenvalue became positive
-        idx_hi = int(np.sum(ev_hi < negative_tol))
-    ref = cur.stability.eigenvectors[:, idx_hi]
-    evals = 2
-    _, f_hi, _, v_hi, _ = engine.analyse(hi, idx_hi, ref=ref, guess=hi.stability.eigenvalues[0])
-    _, f_lo, d_lo, v_lo, dq_lo = engine.analyse(lo, ref=v_hi, guess=lo.stability.eigenvalues[0])
-    if np.sign(f_lo) == np.sign(f_hi) and before is not None:
-        # The crossing eigenvalue already changed sign at lo but stayed inside the near-zero band
-        # (|lambda| < negative_tol, e.g. a soft ring of N ~ 1000, lambda ~ 1e-9): the count missed
-        # it there. Take the scan state before as the stable end, so that the bracket holds a sign
-        # change (the sign tests below rely on it).
-        lo, evals = before, 3
-        _, f_lo, d_lo, v_lo, dq_lo = engine.analyse(lo, ref=v_hi, guess=lo.stability.eigenvalues[0])
-    if np.sign(f_lo) == np.sign(f_hi):
-        # No sign change of the crossing eigenvalue in the bracket: a refinement would converge
-        # on a bracket end and report it as phi* (seen: 6.27 pi for 5.20 pi, N = 2000 ring with
-        # a fixed negative_tol = 1e-10 far above its eigenvalues).
-        raise ConvergenceError(
-            f"critical twist: the crossing eigenvalue has the same sign ({f_lo:.3e}, {f_hi:.3e}) at both ends "
-            f"of the bracket [{lo.phi:.8g}, {hi.phi:.8g}] where the negative count changed: negative_tol = "
-            f"{negative_tol:.3g} is not small against the eigenvalues")
-    evals = max(evals, 2)
-    bracket = (lo.phi, hi.phi)
-    # First guess: Newton from the stable end if it stays inside the bracket, else secant.
-    a, b = sorted(bracket)
-    phi_c = lo.phi - f_lo / d_lo if d_lo != 0.0 else math.nan
-    if not (math.isfinite(phi_c) and a < phi_c < b):
-        phi_c = lo.phi - f_lo * (hi.phi - lo.phi) / (f_hi - f_lo)
-    base, base_dq, v_ref, f_base, d_base = lo, dq_lo, v_lo, f_lo, d_lo
-    phi_error = abs(hi.phi - lo.phi)
-    for _ in range(max_refine):
-        s = engine.step(base, base_dq, phi_c, ref=v_ref,
-                        guess=min(base.stability.eigenvalues[0], f_base + d_base * (phi_c - base.phi)))
-        if not s.ok:
-            raise ConvergenceError(f"critical twist refinement: no equilibrium at phi = {phi_c:.10g} "
-                                   f"({s.refusal.detail})")
-        e, f_c, d_c, v_c, dq_c = s.equilibrium, s.eigenvalue, s.dlambda_dphi, s.mode, s.tangent
-        stepped(e.phi, int(e.stability.n_negative))
-        evals += 1
-        if np.sign(f_c) == np.sign(f_lo):
-            lo, f_lo = e, f_c
-        else:
-            hi, f_hi = e, f_c
-        newton = phi_c - f_c / d_c if d_c != 0.0 else math.nan
-        a, b = sorted((lo.phi, hi.phi))
-        if not (math.isfinite(newton) and a <= newton <= b):
-            newton = lo.phi - f_lo * (hi.phi - lo.phi) / (f_hi - f_lo)  # regula falsi fallback
-            if not (a < newton < b):
-                newton = 0.5 * (a + b)
-        phi_error = abs(newton - phi_c)
-        base, base_dq, v_ref, f_base, d_base = e, dq_c, v_c, f_c, d_c
-        say(f"refine: phi = {phi_c / math.pi:.12f} pi, eigenvalue {f_c:+.3e}, next step {phi_error:.2e}")
-        if phi_error < tol or f_c == 0.0:
-            break
-        phi_c = newton
-    else:
-        raise ConvergenceError(f"critical twist refinement did not reach tol = {tol:.3g} in {max_refine} steps")
-
+    search = _CrossingSearch(ContinuationEngine(scene, Task.CRITICAL_TWIST, opts, sparse),
+                             1.0 if phi_stop > phi_start else -1.0, observer.say,
+                             observer.on_step or (lambda phi, n_negative: None), opts.k)
+    relaxed = _relaxed_start(scene, phi_start, q0, opts.gtol, sparse)
+    start, count0, index = search.tracking_start(relaxed)
+    before, prev, cur, scan = search.scan(start, count0, index, phi_start, phi_stop)
+    bracket_ends = search.bracket_ends(before, prev, cur, count0)
+    newton, s, bracket, phi_error, evals = search.refine(*bracket_ends)
     # Report the last Newton update: its error is quadratically smaller than phi_error, which
     # stays as a conservative bound.
     return CriticalPoint(
         phi=float(newton),
-        eigenvalue=float(f_c),
-        dlambda_dphi=float(d_c),
-        mode=v_c,
-        equilibrium=e,
-        multiplicity=multiplicity,
+        eigenvalue=float(s.eigenvalue),
+        dlambda_dphi=float(s.dlambda_dphi),
+        mode=s.mode,
+        equilibrium=s.equilibrium,
+        multiplicity=abs(cur.stability.n_negative - count0),
         bracket=bracket,
         phi_error=float(phi_error),
         hessian_evaluations=evals,
@@ -220,3 +85,195 @@ def critical_twist(scene, phi_start=0.0, phi_stop=None, options=None, *, q0=None
     )
 
 
+def _relaxed_start(scene, phi_start, q0, gtol, sparse):
+    """The equilibrium at phi_start that the scan starts from, relaxed or solved from q0."""
+    if scene.has_term("contact"):
+        return relax(scene, phi_start, q0, RelaxOptions(gtol=gtol, with_stability=False))
+    if sparse and scene.n_dof >= _SPARSE_MIN_DOF:
+        # Large n: no dense relaxation (O(n^3) per step); Newton from q0 (for rings and straight
+        # clamped rods the initial shape already is the equilibrium, up to the twist angles).
+        return solve_equilibrium_sparse(scene, phi_start, q0, gtol=gtol)
+    return solve_equilibrium(scene, phi_start, q0, EquilibriumOptions(gtol=gtol, with_stability=False))
+
+
+def _newton_or_secant(lo, hi, f_lo, f_hi, d_lo):
+    """The first guess of the crossing in the bracket (lo, hi): Newton from the stable end lo if
+    it stays inside the bracket, else the secant."""
+    a, b = sorted((lo.phi, hi.phi))
+    phi_c = lo.phi - f_lo / d_lo if d_lo != 0.0 else math.nan
+    if not (math.isfinite(phi_c) and a < phi_c < b):
+        phi_c = lo.phi - f_lo * (hi.phi - lo.phi) / (f_hi - f_lo)
+    return phi_c
+
+
+def _safeguarded_newton(phi_c, f_c, d_c, lo, hi, f_lo, f_hi):
+    """The next Newton iterate from phi_c, or regula falsi (then bisection) where it leaves the
+    bracket (lo, hi)."""
+    newton = phi_c - f_c / d_c if d_c != 0.0 else math.nan
+    a, b = sorted((lo.phi, hi.phi))
+    if not (math.isfinite(newton) and a <= newton <= b):
+        newton = lo.phi - f_lo * (hi.phi - lo.phi) / (f_hi - f_lo)  # regula falsi fallback
+        if not (a < newton < b):
+            newton = 0.5 * (a + b)
+    return newton
+
+
+def _crossing_index(cur, count0, negative_tol):
+    """The crossing mode's index at the far end cur of the bracket: the negative eigenvalue
+    nearest zero where the count went up, else the lowest one clearly above zero."""
+    ev_hi = cur.stability.eigenvalues
+    neg = np.nonzero(ev_hi < -negative_tol)[0]
+    if cur.stability.n_negative > count0 and neg.size:
+        return int(neg[-1])
+    return int(np.sum(ev_hi < negative_tol))  # the count went down: a negative eigenvalue became positive
+
+
+@dataclass
+class _CrossingSearch:
+    """``critical_twist``'s scan and refinement along one branch. ``engine`` grows (more
+    eigenpairs, sparse path) where the crossing mode must be among the computed ones."""
+
+    engine: ContinuationEngine
+    direction: float
+    say: object
+    stepped: object
+    k_scan: int  # eigenvalues kept per scan entry (the engine may compute more)
+
+    def tracking_start(self, relaxed):
+        """(analysed start, negative count, tracked index): the eigenvalue that crosses next is
+        the lowest one clearly above zero (near-zero modes skipped)."""
+        start = self.engine.analysed(relaxed)
+        while True:
+            count0 = int(start.equilibrium.stability.n_negative)
+            ev0 = start.equilibrium.stability.eigenvalues
+            index = int(np.sum(ev0 < self.engine.opts.negative_tol)) if ev0.size else 0
+            grown = grown_engine(self.engine, max(index, count0))
+            if grown is self.engine:
+                break
+            self.engine, start = grown, grown.analysed(relaxed)
+        if index != 0:
+            start = self.engine.analysed(relaxed, index)
+        return start, count0, index
+
+    def scan(self, start, count0, index, phi_start, phi_stop):
+        """Step with a tangent predictor until the negative count changes. -> (before, prev, cur,
+        scan): the scan state before prev (a fallback stable end for the refinement, or None),
+        the last state with the count of the start, the first with another, and the scan's
+        (phi, n_negative, lowest eigenvalues) entries."""
+        max_step = self.engine.opts.step
+        min_step, direction, k_scan = max_step / 16.0, self.direction, self.k_scan
+        prev, dq, lam_t, dlam_t = start.equilibrium, start.tangent, start.eigenvalue, start.dlambda_dphi
+        scan = [(prev.phi, count0, prev.stability.eigenvalues[:k_scan].copy())]
+        self.say(f"phi = {prev.phi / math.pi:+.4f} pi: {count0} negative, lowest {prev.stability.eigenvalues[0]:.3e}")
+        h, before = max_step, None
+        while True:
+            phi_next = prev.phi + direction * h
+            if direction * (phi_next - phi_stop) > 1e-12:
+                raise NoCrossingError(
+                    f"negative count stayed {count0} from phi = {phi_start:.6g} to {phi_stop:.6g}"
+                )
+            s = self.engine.step(prev, dq, phi_next, index,
+                                 guess=min(prev.stability.eigenvalues[0], lam_t + dlam_t * (phi_next - prev.phi)))
+            if not s.ok:
+                h = self._halved(h, prev, phi_next)
+                continue
+            s = self._grown_for(s, index)
+            cur = s.equilibrium
+            self.stepped(cur.phi, int(cur.stability.n_negative))
+            scan.append((cur.phi, cur.stability.n_negative, cur.stability.eigenvalues[:k_scan].copy()))
+            self.say(
+                f"phi = {cur.phi / math.pi:+.4f} pi: {cur.stability.n_negative} negative, "
+                f"lowest {cur.stability.eigenvalues[:3]}"
+            )
+            if cur.stability.n_negative != count0:
+                return before, prev, cur, scan
+            # Newton-extrapolated crossing of the tracked eigenvalue: aim 10% past it.
+            h = max_step
+            if s.dlambda_dphi != 0.0:
+                ahead = -s.eigenvalue / s.dlambda_dphi * direction
+                if ahead > 0.0:
+                    h = min(max_step, max(min_step, 1.1 * ahead))
+            before, prev, dq, lam_t, dlam_t = prev, cur, s.tangent, s.eigenvalue, s.dlambda_dphi
+
+    def _halved(self, h, prev, phi_next):
+        """Step-size control: no equilibrium found near the predictor; the step halved. If even
+        tiny steps fail, the branch ends here (a fold: the state must jump elsewhere)."""
+        h *= 0.5
+        if h < self.engine.opts.step / 1024.0:
+            raise ConvergenceError(
+                f"the equilibrium branch could not be followed beyond phi = {prev.phi:.8g} "
+                f"({prev.phi / math.pi:.6f} pi): steps down to {2 * h:.2e} failed (a fold or a jump?)"
+            ) from None
+        self.say(f"corrector failed at phi = {phi_next / math.pi:+.4f} pi: step halved to {h:.3e}")
+        return h
+
+    def _grown_for(self, s, index):
+        """The accepted step s, analysed again by a grown engine where its negative count needs
+        more eigenpairs (the crossing mode must be among those computed at its state)."""
+        cur = s.equilibrium
+        grown = grown_engine(self.engine, int(cur.stability.n_negative))
+        if grown is self.engine:
+            return s
+        self.engine = grown
+        return self.engine.analysed(cur, index, guess=cur.stability.eigenvalues[0])
+
+    def bracket_ends(self, before, prev, cur, count0):
+        """The bracket (lo, hi) of the crossing after the scan, each end analysed on the crossing
+        mode: at the far end, the negative eigenvalue nearest zero; followed by eigenvector overlap
+        from there on (robust to reordering and to near-zero modes). -> (lo, hi, hi's eigenvalue,
+        lo's analysis (stability, eigenvalue, derivative, mode, tangent), Hessian evaluations)."""
+        engine, negative_tol = self.engine, self.engine.opts.negative_tol
+        lo, hi, evals = prev, cur, 2
+        idx_hi = _crossing_index(cur, count0, negative_tol)
+        ref = cur.stability.eigenvectors[:, idx_hi]
+        _, f_hi, _, v_hi, _ = engine.analyse(hi, idx_hi, ref=ref, guess=hi.stability.eigenvalues[0])
+        at_lo = engine.analyse(lo, ref=v_hi, guess=lo.stability.eigenvalues[0])
+        if np.sign(at_lo[1]) == np.sign(f_hi) and before is not None:
+            # The crossing eigenvalue already changed sign at lo but stayed inside the near-zero band
+            # (|lambda| < negative_tol, e.g. a soft ring of N ~ 1000, lambda ~ 1e-9): the count missed
+            # it there. Take the scan state before as the stable end, so that the bracket holds a sign
+            # change (the sign tests below rely on it).
+            lo, evals = before, 3
+            at_lo = engine.analyse(lo, ref=v_hi, guess=lo.stability.eigenvalues[0])
+        f_lo = at_lo[1]
+        if np.sign(f_lo) == np.sign(f_hi):
+            # No sign change of the crossing eigenvalue in the bracket: a refinement would converge
+            # on a bracket end and report it as phi* (seen: 6.27 pi for 5.20 pi, N = 2000 ring with
+            # a fixed negative_tol = 1e-10 far above its eigenvalues).
+            raise ConvergenceError(
+                f"critical twist: the crossing eigenvalue has the same sign ({f_lo:.3e}, {f_hi:.3e}) at both ends "
+                f"of the bracket [{lo.phi:.8g}, {hi.phi:.8g}] where the negative count changed: negative_tol = "
+                f"{negative_tol:.3g} is not small against the eigenvalues")
+        return lo, hi, f_hi, at_lo, evals
+
+    def refine(self, lo, hi, f_hi, at_lo, evals):
+        """Newton on the crossing eigenvalue in phi, safeguarded by the bracket (lo, hi). ->
+        (the last Newton update, the last step, the bracket, the last update's size, Hessian
+        evaluations)."""
+        engine, opts = self.engine, self.engine.opts
+        _, f_lo, d_lo, v_lo, dq_lo = at_lo
+        bracket = (lo.phi, hi.phi)
+        phi_c = _newton_or_secant(lo, hi, f_lo, f_hi, d_lo)
+        base, base_dq, v_ref, f_base, d_base = lo, dq_lo, v_lo, f_lo, d_lo
+        for _ in range(opts.max_refine):
+            s = engine.step(base, base_dq, phi_c, ref=v_ref,
+                            guess=min(base.stability.eigenvalues[0], f_base + d_base * (phi_c - base.phi)))
+            if not s.ok:
+                raise ConvergenceError(f"critical twist refinement: no equilibrium at phi = {phi_c:.10g} "
+                                       f"({s.refusal.detail})")
+            e, f_c, d_c = s.equilibrium, s.eigenvalue, s.dlambda_dphi
+            self.stepped(e.phi, int(e.stability.n_negative))
+            evals += 1
+            if np.sign(f_c) == np.sign(f_lo):
+                lo, f_lo = e, f_c
+            else:
+                hi, f_hi = e, f_c
+            newton = _safeguarded_newton(phi_c, f_c, d_c, lo, hi, f_lo, f_hi)
+            phi_error = abs(newton - phi_c)
+            base, base_dq, v_ref, f_base, d_base = e, s.tangent, s.mode, f_c, d_c
+            self.say(f"refine: phi = {phi_c / math.pi:.12f} pi, eigenvalue {f_c:+.3e}, next step {phi_error:.2e}")
+            if phi_error < opts.tol or f_c == 0.0:
+                return newton, s, bracket, phi_error, evals
+            phi_c = newton
+        raise ConvergenceError(
+            f"critical twist refinement did not reach tol = {opts.tol:.3g} in {opts.max_refine} steps")

@@ -1,7 +1,7 @@
 """Where a followed stable branch ends: the critical modes and eigenvalue (``_critical_mode``),
-the next twist to try while the end is bracketed (``_end_trial``), phi* in the bracket
-(``_locate``), and the near-zero band of a knot's sliding modes, which must not hide a mode that
-changes the shape (``_hidden_shape_modes``, ``_past_zero``)."""
+the next twist to try while the end is bracketed (``end_trial``), phi* in the bracket
+(``branch_end_in_bracket``), and the near-zero band of a knot's sliding modes, which must not
+hide a mode that changes the shape (``_hidden_shape_modes``, ``eigenvalue_past_zero``)."""
 from __future__ import annotations
 
 import math
@@ -19,7 +19,7 @@ from .results import Instability
 _CRITICAL_OVERLAP = 0.5
 
 
-def _warn_if_band_hides_shape_modes(scene, branch, e, opts, warned):
+def warn_if_band_hides_shape_modes(scene, branch, e, opts, warned):
     """Warn (once per branch) when a state reported stable has a negative eigenvalue inside the
     near-zero band whose mode changes the shape instead of sliding material along the knot
     (``stability.shape_modes_in_band``): the band, there for sliding modes, may hide a real
@@ -54,7 +54,7 @@ def _hidden_shape_modes(engine, e):
     return float(np.min(values)), vectors.copy()
 
 
-def _negative_modes(e, negative_tol):
+def negative_modes(e, negative_tol):
     """(n, m) eigenvectors of the equilibrium e's eigenvalues below -negative_tol (the modes that
     made it unstable), or None."""
     if e is None or e.stability is None:
@@ -66,7 +66,7 @@ def _negative_modes(e, negative_tol):
     return np.asarray(st.eigenvectors)[:, neg].copy()
 
 
-def _past_zero(critical_modes, e, scene=None, band=None):
+def eigenvalue_past_zero(critical_modes, e, scene=None, band=None):
     """The eigenvalue of the equilibrium e that is negative along ``critical_modes`` ((n, m), or
     None), or None: e is then past the zero of the critical eigenvalue, though the stability test
     (lambda < -negative_tol) passed it. The near-zero band is there for the sliding modes of a
@@ -114,7 +114,7 @@ def _critical_candidates(older, prev, negative_tol, candidates=5, critical_modes
     return out
 
 
-def _end_trial(older, prev, phi_lost, lost_eq, direction, tol, negative_tol, failures, probe_held, successes=0,
+def end_trial(older, prev, phi_lost, lost_eq, direction, tol, negative_tol, failures, probe_held, successes=0,
                critical_modes=None):
     """The next twist to try when locating where a branch ends, between the last stable state
     ``prev`` and the nearest twist ``phi_lost`` where the branch was lost. Returns (phi, probe).
@@ -143,7 +143,7 @@ def _end_trial(older, prev, phi_lost, lost_eq, direction, tol, negative_tol, fai
             lam_lost = float(lost_eq.stability.eigenvalues[int(np.argmax(ov))])
             if lam_lost < 0.0 and ov.max() > _CRITICAL_OVERLAP:
                 # The branch is lost where lambda passes zero: a state whose critical eigenvalue
-                # is negative, even inside the near-zero band, is past the end (``_past_zero``).
+                # is negative, even inside the near-zero band, is past the end (``eigenvalue_past_zero``).
                 estimates.append(prev.phi + (phi_lost - prev.phi) * lam / (lam - lam_lost))
                 continue
         slope = (lam**2 - lam_old**2) / (prev.phi - older.phi)  # d(lambda^2)/dphi
@@ -164,7 +164,7 @@ def _end_trial(older, prev, phi_lost, lost_eq, direction, tol, negative_tol, fai
     return mid, False
 
 
-def _locate(phi_stable, phi_lost, lam, dlam, direction):
+def branch_end_in_bracket(phi_stable, phi_lost, lam, dlam, direction):
     """(phi*, error) for a branch end bracketed by the last stable twist ``phi_stable`` and the
     nearest twist ``phi_lost`` where the branch was lost: the critical eigenvalue's Newton
     extrapolation phi_stable - lam/dlam from the stable end where it lands inside the bracket (at
@@ -173,7 +173,7 @@ def _locate(phi_stable, phi_lost, lam, dlam, direction):
     error bound is the distance from phi* to the bracket's far end (half the bracket at the
     midpoint). (An extrapolation behind the stable end, from a critical eigenvalue already
     negative there, used to be taken up to 0.1 pi back: issue 16, phi* 0.085 rad before a bracket
-    of 4e-4 rad. The end locator now keeps such states out of the stable end: ``_past_zero``.)"""
+    of 4e-4 rad. The end locator now keeps such states out of the stable end: ``eigenvalue_past_zero``.)"""
     a, b = sorted((phi_stable, phi_lost))
     mid = 0.5 * (a + b)
     phi = mid

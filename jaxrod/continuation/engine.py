@@ -1,6 +1,6 @@
-"""The one predictor-corrector-accept step that both continuations are loops over (``_Engine``),
-its outcome (``_Step``, refused with a ``StepFailure``), and the choice between the dense and the
-O(n) block linear algebra (``_use_sparse``, ``_grown_engine``)."""
+"""The one predictor-corrector-accept step that both continuations are loops over
+(``ContinuationEngine``), its outcome (``_Step``, refused with a ``StepFailure``), and the choice
+between the dense and the O(n) block linear algebra (``uses_sparse``, ``grown_engine``)."""
 from __future__ import annotations
 
 import enum
@@ -20,7 +20,8 @@ from ..model.geometry import polyline_distance
 from ..solve.solvers import ConvergenceError
 from ..solve.solvers import HostDampedNewton, minimise
 from .sparse_branch import EXTRA_PAIRS, solve_equilibrium_sparse, sparse_branch_analysis
-from ..linalg.sparse_contact import SPARSE_MIN_DOF, deflated_newton_direction, use_sparse
+from ..linalg.backend import SPARSE_MIN_DOF, choose_backend
+from ..linalg.sparse_contact import deflated_newton_direction
 from ..solve.equilibrium import equilibrium_from_solution, scaled_energy
 from ..linalg.stability import SLIDING_FRACTION, branch_analysis, sliding_fraction
 from .branch_check import branch_model
@@ -51,12 +52,12 @@ class _Refusal:
 
 # A follow_twist corrector out of steps with a gradient within this factor of gtol has stalled on
 # sliding modes (seen: N = 151 trefoil, |g| ~ 7e-9 against 1e-9, a false branch end at -8.03 pi
-# where the true one is -11.1 pi); Newton finishes it (``_Engine._finish_stalled``).
+# where the true one is -11.1 pi); Newton finishes it (``ContinuationEngine._finish_stalled``).
 STALL_FACTOR = 100.0
 
 @dataclass(frozen=True)
 class _Step:
-    """The outcome of one predictor-corrector step (``_Engine.step``).
+    """The outcome of one predictor-corrector step (``ContinuationEngine.step``).
 
     equilibrium: the corrected state (with its stability once analysed; None if the corrector
     failed); tangent: dq/dphi there; eigenvalue, dlambda_dphi, mode: the tracked eigenpair and
@@ -78,7 +79,7 @@ class _Step:
 
 
 @dataclass(frozen=True)
-class _Engine:
+class ContinuationEngine:
     """The one predictor-corrector-accept step that both continuations are loops over.
 
     Predictor: the branch tangent, q(phi) = q_prev + dq/dphi (phi - phi_prev). Corrector, by task:
@@ -98,7 +99,7 @@ class _Engine:
 
     @property
     def contact(self):
-        return "contact" in self.scene.terms
+        return self.scene.has_term("contact")
 
     @property
     def closed(self):
@@ -194,7 +195,7 @@ class _Engine:
             e = self._finish_stalled(exc, phi, prev)
             if e is None:
                 return _Step(None, refusal=_Refusal(StepFailure.NOT_CONVERGED, str(exc)))
-        e = self._kept_symmetric(prev.q, e, phi, previous=prev)
+        e = self.kept_symmetric(prev.q, e, phi, previous=prev)
         moved = polyline_distance(e.x, x_pred, self.closed)
         if moved > opts.jump_tol:
             return _Step(e, refusal=_Refusal(StepFailure.JUMP, f"the state moved {moved:.3g} from the predicted shape"))
@@ -248,7 +249,7 @@ class _Engine:
             return sliding_fraction(self.scene, prev.q, vectors) > SLIDING_FRACTION
         return keep
 
-    def _kept_symmetric(self, reference_q, e, phi, previous=None):
+    def kept_symmetric(self, reference_q, e, phi, previous=None):
         """e, or e projected back onto the two-fold symmetry that the state ``reference_q`` it was
         corrected from has (see ``ContinuationOptions.keep_symmetry`` and ``jaxrod.model.symmetry``) and
         finished by the corrector, where it drifted off it by more than round-off and less than
@@ -320,11 +321,11 @@ class _Engine:
 _SPARSE_MIN_DOF = SPARSE_MIN_DOF
 
 
-def _use_sparse(scene, linear_algebra):
+def uses_sparse(scene, linear_algebra):
     """Whether a continuation uses the O(n) path (see ``ContinuationOptions.linear_algebra``):
     block-tridiagonal for rods without contact (``jaxrod.continuation.sparse_branch``), SciPy's sparse
     factorisations with contact (``jaxrod.linalg.sparse_contact``)."""
-    return use_sparse(scene, linear_algebra)
+    return choose_backend(scene, linear_algebra).backend.structured
 
 
 @dataclass(frozen=True)
@@ -341,7 +342,7 @@ class _DeflatedDirection:
 K_MARGIN = EXTRA_PAIRS  # eigenpairs beyond the tracked index or the negative count (sparse path)
 
 
-def _grown_engine(engine, needed):
+def grown_engine(engine, needed):
     """``engine`` itself if its k eigenpairs reach index ``needed`` + K_MARGIN - 1 (needed: the
     tracked index or the negative count), else a copy with k = needed + K_MARGIN (sparse path
     only: the dense one computes LOWEST_COUNT eigenpairs whatever k)."""

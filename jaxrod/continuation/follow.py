@@ -13,12 +13,13 @@ import numpy as np
 
 from ..solve.equilibrium import Equilibrium, relax
 from ..validation import check_finite
-from .engine import StepFailure, _Engine, _Refusal, _use_sparse
-from .ends import (_band_detail, _critical_mode, _end_trial, _hidden_refusal, _hidden_shape_modes, _locate,
-                   _negative_modes, _past_zero, _warn_if_band_hides_shape_modes)
+from .engine import StepFailure, ContinuationEngine, _Refusal, uses_sparse
+from .ends import (_band_detail, _critical_mode, _hidden_refusal, _hidden_shape_modes, branch_end_in_bracket,
+                   eigenvalue_past_zero, end_trial, negative_modes, warn_if_band_hides_shape_modes)
 from .memory import check_dense_memory
 from .options import Task, checked_options, observed
-from .results import BranchEnd, BranchPoint, PathStop, TwistPath
+from .kinds import EventKind
+from .results import PathPoint, PathStop, TwistPath
 from .state import PathState, Phase, _StoredPathState
 from .switching import _next_branch_name, _switch_branch
 
@@ -32,11 +33,13 @@ def _follow_engine(scene, opts):
     """follow_twist's engine: the O(n) linear algebra of ``jaxrod.linalg.sparse_contact`` for rods with
     contact where ``opts.linear_algebra`` asks for it (or "auto" from SPARSE_MIN_DOF DOFs on);
     dense otherwise (rods without contact: the corrector is the dense minimiser)."""
-    return _Engine(scene, Task.FOLLOW_TWIST, opts, _sparse_follow(scene, opts.linear_algebra))
+    return ContinuationEngine(scene, Task.FOLLOW_TWIST, opts, follows_sparse(scene, opts.linear_algebra))
 
 
-def _sparse_follow(scene, linear_algebra):
-    return "contact" in scene.terms and _use_sparse(scene, linear_algebra)
+def follows_sparse(scene, linear_algebra="auto"):
+    """Whether ``follow_twist`` takes the O(n) path on ``scene`` for ``ContinuationOptions.linear_algebra``
+    (rods with contact only; else the dense path, whose Hessian must fit in memory)."""
+    return scene.has_term("contact") and uses_sparse(scene, linear_algebra)
 
 
 def follow_twist(scene, phi_start=0.0, phi_stop=None, options=None, *, start=None, observer=None, resume=None):
@@ -59,8 +62,8 @@ def follow_twist(scene, phi_start=0.0, phi_stop=None, options=None, *, start=Non
     A step is accepted when the corrector converges, the state stays within ``jump_tol``
     (default D/2) of the predicted shape (a distance blind to material sliding along the
     centreline), the linking number is Lk0 + phi/2 pi (closed rods) and no eigenvalue is below
-    -negative_tol (see ``_Engine``), and none of the last state's lowest shape modes is predicted,
-    by its eigenvalue's derivative along the branch, to cross zero inside the step
+    -negative_tol (see ``ContinuationEngine``), and none of the last state's lowest shape modes is
+    predicted, by its eigenvalue's derivative along the branch, to cross zero inside the step
     (``branch_check``: a minimiser past a branch point lands on a stable state beside the branch;
     ``options.check_branch``). Otherwise the step is halved; once the failing twist is
     within ``tol`` of the last accepted one, the branch has ended there (a failure that persists
@@ -83,83 +86,106 @@ def follow_twist(scene, phi_start=0.0, phi_stop=None, options=None, *, start=Non
     phi_stop = check_finite("phi_stop", 8.0 * math.pi if phi_stop is None else phi_stop)
     observer = observed(observer, "follow_twist", ("progress", "on_point", "on_instability", "on_state"))
     opts = checked_options(options)
-    if not _sparse_follow(scene, opts.linear_algebra or "auto"):
+    if not follows_sparse(scene, opts.linear_algebra or "auto"):
         check_dense_memory(scene)  # the dense path: refuse before anything is compiled
-    on_point, on_instability, on_state = observer.on_point, observer.on_instability, observer.on_state
-    points, instabilities = [], []
-    say = observer.say
-    warned = set()  # branches already warned about a shape mode inside the near-zero band
-
-    def emit(state, s):
-        e = s.equilibrium
-        point = BranchPoint(branch=state.branch, equilibrium=e, tangent=s.tangent, scene=scene)
-        points.append(point)
-        if on_point is not None:
-            on_point(point)
-        lam = e.stability.eigenvalues
-        say(f"[{state.branch}] phi = {e.phi / math.pi:+.5f} pi: E = {e.energy:.6g}, Wr = {e.Wr:.4f}, "
-            f"Tw = {e.Tw:.4f}, {e.stability.n_negative} negative, lowest " + " ".join(f"{v:.2e}" for v in lam[:3]))
-        _warn_if_band_hides_shape_modes(scene, state.branch, e, opts, warned)  # opts resolved below, before any step
-        return replace(state, n_points=state.n_points + 1)
-
-    def record(state, inst):
-        instabilities.append(inst)
-        if on_instability is not None:
-            on_instability(inst)
-        return replace(state, n_instabilities=state.n_instabilities + 1)
-
     if resume is not None:
-        # The direction is the branch name's sign; the span only sizes the default step, which
-        # the resumed run must share with the first one (pass the same phi_stop).
-        stored_phi = float(resume.arrays["prev_phi"]) if isinstance(resume, _StoredPathState) else resume.prev.phi
-        opts = opts.resolved(scene, Task.FOLLOW_TWIST, abs(phi_stop - stored_phi) or 1.0)
-        engine = _follow_engine(scene, opts)
-        state = resume.restore(engine) if isinstance(resume, _StoredPathState) else resume
+        engine, state = _resumed(scene, opts, phi_stop, resume)
         direction = 1.0 if state.branch.endswith("+") else -1.0
+        log = _PathLog(scene, engine.opts, direction, observer)
     else:
         given = isinstance(start, Equilibrium)  # else None or an initial guess of the DOFs
         phi_start = check_finite("phi_start", start.phi if given else phi_start)
         if phi_stop == phi_start:
             raise ValueError("phi_stop must differ from phi_start")
         direction = 1.0 if phi_stop > phi_start else -1.0
-        opts = opts.resolved(scene, Task.FOLLOW_TWIST, abs(phi_stop - phi_start))
-        engine = _follow_engine(scene, opts)
-        if not given:
-            q_start = scene.q_init if start is None else start
-            e0 = relax(scene, phi_start, q_start, replace(engine.corrector_options, max_steps=None))
-            # a start drawn with the joint's two-fold symmetry (the trefoil as drawn) stays on it: a
-            # loose knot's minimiser slides along its near-null, odd slide by round-off (the trefoil
-            # at N = 128, D/L = 0.010: 0.14 edges), and the branch's events then depend on where it
-            # stopped (3e-4 pi on the opening side)
-            kept = engine._kept_symmetric(np.asarray(q_start, dtype=float), e0, phi_start)
-        else:
-            e0 = kept = start
-            if e0.neighbourhood is None:
-                e0 = kept = replace(e0, neighbourhood=scene.neighbourhood(e0.q, e0.phi))
-        s = engine.analysed(kept)
-        if kept is not e0 and s.equilibrium.stability.n_negative:
-            # the symmetric state is a saddle of a shape mode, which the minimiser's drift escaped:
-            # the start is the minimum it found (the trefoil (8, 292) at N = 48, phi = 0: lowest
-            # eigenvalue -8.3e-4 on the symmetry, a stable state 0.28 edges off it)
-            s = engine.analysed(e0)
-        if s.equilibrium.stability.n_negative:
-            st = s.equilibrium.stability
-            raise ValueError(
-                f"the starting state at phi = {e0.phi:.6g} is unstable ({st.n_negative} negative eigenvalue(s), "
-                f"lowest {st.eigenvalues[0]:.3e}): follow_twist follows a stable branch; start from a minimum "
-                "(jaxrod.relax_to_minimum)")
-        state = PathState(phase=Phase.FOLLOW, branch=f"{opts.branch}{'+' if direction > 0 else '-'}",
-                          prev=s.equilibrium, tangent=s.tangent, h=opts.step)
-        state = emit(state, s)
-        if on_state is not None:
-            on_state(state)
-    follower = _Follower(engine, phi_stop, direction, emit, record, say)
+        engine = _follow_engine(scene, opts.resolved(scene, Task.FOLLOW_TWIST, abs(phi_stop - phi_start)))
+        s = _stable_start(engine, start, phi_start, given)
+        log = _PathLog(scene, engine.opts, direction, observer)
+        state = log.emit(PathState(phase=Phase.FOLLOW, branch=f"{engine.opts.branch}{'+' if direction > 0 else '-'}",
+                                   prev=s.equilibrium, tangent=s.tangent, h=engine.opts.step), s)
+        if observer.on_state is not None:
+            observer.on_state(state)
+    follower = _Follower(engine, phi_stop, direction, log.emit, log.record, observer.say)
     while state.phase is not Phase.DONE:
         state = follower.advance(state)
-        if on_state is not None:
-            on_state(state)
-    return TwistPath(points=points, instabilities=instabilities, reason=state.reason,
+        if observer.on_state is not None:
+            observer.on_state(state)
+    return TwistPath(points=log.points, instabilities=log.instabilities, reason=state.reason,
                      seconds=time.perf_counter() - t0, stop=state.stop)
+
+
+class _PathLog:
+    """What a ``follow_twist`` run reports: its points and instabilities, passed on to the
+    observer as they come, with a warning (once per branch) where the near-zero band may hide a
+    shape mode (``warn_if_band_hides_shape_modes``)."""
+
+    def __init__(self, scene, opts, direction, observer):
+        self.scene, self.opts, self.direction, self.observer = scene, opts, direction, observer
+        self.points, self.instabilities = [], []
+        self.warned = set()  # branches already warned about a shape mode inside the near-zero band
+
+    def emit(self, state, s):
+        """Report the accepted step s as the branch's next point; -> state counting it."""
+        e = s.equilibrium
+        point = PathPoint(branch=state.branch, equilibrium=e, tangent=s.tangent, scene=self.scene,
+                          direction="plus" if self.direction > 0 else "minus")
+        self.points.append(point)
+        if self.observer.on_point is not None:
+            self.observer.on_point(point)
+        lam = e.stability.eigenvalues
+        self.observer.say(f"[{state.branch}] phi = {e.phi / math.pi:+.5f} pi: E = {e.energy:.6g}, Wr = {e.Wr:.4f}, "
+                          f"Tw = {e.Tw:.4f}, {e.stability.n_negative} negative, lowest "
+                          + " ".join(f"{v:.2e}" for v in lam[:3]))
+        warn_if_band_hides_shape_modes(self.scene, state.branch, e, self.opts, self.warned)
+        return replace(state, n_points=state.n_points + 1)
+
+    def record(self, state, inst):
+        """Report the instability inst; -> state counting it."""
+        self.instabilities.append(inst)
+        if self.observer.on_instability is not None:
+            self.observer.on_instability(inst)
+        return replace(state, n_instabilities=state.n_instabilities + 1)
+
+
+def _resumed(scene, opts, phi_stop, resume):
+    """(engine, state) of a resumed ``follow_twist``: the direction is the branch name's sign; the
+    span only sizes the default step, which the resumed run must share with the first one (pass
+    the same phi_stop)."""
+    stored_phi = float(resume.arrays["prev_phi"]) if isinstance(resume, _StoredPathState) else resume.prev.phi
+    engine = _follow_engine(scene, opts.resolved(scene, Task.FOLLOW_TWIST, abs(phi_stop - stored_phi) or 1.0))
+    return engine, resume.restore(engine) if isinstance(resume, _StoredPathState) else resume
+
+
+def _stable_start(engine, start, phi_start, given):
+    """The analysed stable state a fresh ``follow_twist`` starts from: ``start`` itself when it is
+    an ``Equilibrium`` (given), else relaxed at phi_start from ``start`` (a guess of the DOFs, or
+    None: the scene's drawing). ValueError when it is unstable."""
+    scene = engine.scene
+    if not given:
+        q_start = scene.q_init if start is None else start
+        e0 = relax(scene, phi_start, q_start, replace(engine.corrector_options, max_steps=None))
+        # a start drawn with the joint's two-fold symmetry (the trefoil as drawn) stays on it: a
+        # loose knot's minimiser slides along its near-null, odd slide by round-off (the trefoil
+        # at N = 128, D/L = 0.010: 0.14 edges), and the branch's events then depend on where it
+        # stopped (3e-4 pi on the opening side)
+        kept = engine.kept_symmetric(np.asarray(q_start, dtype=float), e0, phi_start)
+    else:
+        e0 = kept = start
+        if e0.neighbourhood is None:
+            e0 = kept = replace(e0, neighbourhood=scene.neighbourhood(e0.q, e0.phi))
+    s = engine.analysed(kept)
+    if kept is not e0 and s.equilibrium.stability.n_negative:
+        # the symmetric state is a saddle of a shape mode, which the minimiser's drift escaped:
+        # the start is the minimum it found (the trefoil (8, 292) at N = 48, phi = 0: lowest
+        # eigenvalue -8.3e-4 on the symmetry, a stable state 0.28 edges off it)
+        s = engine.analysed(e0)
+    if s.equilibrium.stability.n_negative:
+        st = s.equilibrium.stability
+        raise ValueError(
+            f"the starting state at phi = {e0.phi:.6g} is unstable ({st.n_negative} negative eigenvalue(s), "
+            f"lowest {st.eigenvalues[0]:.3e}): follow_twist follows a stable branch; start from a minimum "
+            "(jaxrod.relax_to_minimum)")
+    return s
 
 
 @dataclass(frozen=True)
@@ -167,7 +193,7 @@ class _Follower:
     """``follow_twist``'s loop body: ``advance(state)`` tries one step (or, at a located end,
     switches branches) and returns the next ``PathState``."""
 
-    engine: _Engine
+    engine: ContinuationEngine
     phi_stop: float
     direction: float
     emit: object
@@ -176,7 +202,7 @@ class _Follower:
 
     @property
     def _knot(self):
-        """The scene, where its modes' sliding is judged (``_past_zero``): a rod with contact."""
+        """The scene, where its modes' sliding is judged (``eigenvalue_past_zero``): a rod with contact."""
         return self.engine.scene if self.engine.contact else None
 
     def advance(self, state):
@@ -219,8 +245,9 @@ class _Follower:
         self.say(f"[{state.branch}] lost at phi = {phi_next / math.pi:+.5f} pi ({s.refusal}); locating the end")
         critical = hidden[1] if hidden is not None else self._critical_modes(s, None)
         band = self.engine.opts.negative_tol
-        lam = _past_zero(critical, prev, self._knot, band)
-        if lam is not None and state.older is not None and _past_zero(critical, state.older, self._knot, band) is None:
+        lam = eigenvalue_past_zero(critical, prev, self._knot, band)
+        if lam is not None and state.older is not None and \
+                eigenvalue_past_zero(critical, state.older, self._knot, band) is None:
             # The last accepted state already has the critical eigenvalue below zero (inside the
             # near-zero band, so the stability test let it pass): the end lies between the state
             # before it and it. Locate it there, from the state before.
@@ -255,7 +282,7 @@ class _Follower:
             return current
         if s.refusal.modes is not None:  # predicted to cross zero inside the step (``branch_check``)
             return s.refusal.modes
-        found = _negative_modes(s.equilibrium, self.engine.opts.negative_tol)
+        found = negative_modes(s.equilibrium, self.engine.opts.negative_tol)
         if found is None:
             hidden = _hidden_shape_modes(self.engine, s.equilibrium)
             found = None if hidden is None else hidden[1]
@@ -267,7 +294,8 @@ class _Follower:
         near-zero band (``_hidden_shape_modes``)."""
         if not s.ok:
             return s
-        lam = _past_zero(state.critical_modes, s.equilibrium, self._knot, self.engine.opts.negative_tol)
+        lam = eigenvalue_past_zero(state.critical_modes, s.equilibrium, self._knot,
+                                   self.engine.opts.negative_tol)
         if lam is not None:
             return replace(s, refusal=_Refusal(StepFailure.UNSTABLE, _band_detail(lam)))
         hidden = _hidden_shape_modes(self.engine, s.equilibrium)
@@ -281,7 +309,7 @@ class _Follower:
             # Bracketed. If the nearest failure was met from a state further back, confirm it from
             # the last stable state, so that a predictor too far off is not taken for the end.
             return replace(state, phase=Phase.CONFIRM if abs(state.lost_phi - state.lost_from) > tol else Phase.END)
-        trial, probe = _end_trial(state.older, prev, state.lost_phi, state.lost_equilibrium, self.direction, tol,
+        trial, probe = end_trial(state.older, prev, state.lost_phi, state.lost_equilibrium, self.direction, tol,
                                   self.engine.opts.negative_tol, state.failures, state.probe_held, state.successes,
                                   state.critical_modes)
         s = self._unless_past_zero(state, self.engine.step(prev, state.tangent, trial))
@@ -313,11 +341,11 @@ class _Follower:
 
     def _end(self, state):
         engine, prev, direction, lost_phi = self.engine, state.prev, self.direction, state.lost_phi
-        kind = BranchEnd.UNSTABLE if state.lost_refusal.failure is StepFailure.UNSTABLE else BranchEnd.JUMP
+        kind = EventKind.UNSTABLE if state.lost_refusal.failure is StepFailure.UNSTABLE else EventKind.JUMP
         inst = _critical_mode(engine, prev, state.older, kind, direction)
-        rate = inst.dlambda_dphi if kind is BranchEnd.UNSTABLE or not math.isfinite(inst.dlambda_dphi_secant) \
+        rate = inst.dlambda_dphi if kind is EventKind.UNSTABLE or not math.isfinite(inst.dlambda_dphi_secant) \
             else inst.dlambda_dphi_secant
-        phi_c, phi_err = _locate(prev.phi, lost_phi, inst.eigenvalue, rate, direction)
+        phi_c, phi_err = branch_end_in_bracket(prev.phi, lost_phi, inst.eigenvalue, rate, direction)
         inst = replace(inst, phi=phi_c, phi_error=phi_err, bracket=(prev.phi, lost_phi), from_branch=state.branch,
                        negative_tol=engine.opts.negative_tol)
         self.say(f"[{state.branch}] branch ends at phi* = {inst.phi / math.pi:+.6f} pi +- {inst.phi_error:.1e} rad "

@@ -105,7 +105,7 @@ class ContinuationOptions:
         """Every None filled in for ``scene`` (with or without contact) and ``task`` (a ``Task``);
         span: |phi_stop - phi_start|. Raises ValueError naming a value that is not allowed."""
         task = Task(task)
-        contact = "contact" in scene.terms
+        contact = scene.has_term("contact")
         critical = task is Task.CRITICAL_TWIST
         defaults = {
             "step": span / 40.0 if critical else 0.25 * math.pi,
@@ -173,9 +173,9 @@ class Observer:
     progress(str): progress lines (every entry, and ``twist_study``).
     on_step(phi, n_negative): ``critical_twist``, after every equilibrium of the scan and the
       refinement (e.g. a progress bar).
-    on_point(BranchPoint): ``follow_twist``, after every accepted step (e.g. to write rows as they
-      come); ``twist_study`` calls it as on_point(direction, BranchPoint), direction 'plus' or
-      'minus' (from two threads when it runs both sides at once).
+    on_point(PathPoint): ``follow_twist`` and ``twist_study``, after every accepted step (e.g. to
+      write rows as they come); ``PathPoint.direction`` says which side ('plus' or 'minus';
+      ``twist_study`` calls it from two threads when it runs both sides at once).
     on_instability(Instability): ``follow_twist``, as soon as a branch end is located (and, after
       a switch, before the new branch's first point), so that a study can keep it on file at once;
       ``twist_study`` calls it as on_instability(direction, index, critical.json entry, (q, phi) the
@@ -212,12 +212,11 @@ def observed(observer, what, calls):
 
 
 def checked_options(options):
-    """``options`` (None: ``ContinuationOptions()``); TypeError if it is not this module's
-    ``ContinuationOptions`` (``jaxrod.continuation.arclength.ContinuationOptions`` is the pseudo-arclength
-    engine's, another class of the same name)."""
+    """``options`` (None: ``ContinuationOptions()``); TypeError if it is not a
+    ``ContinuationOptions`` (for example the pseudo-arclength engine's ``ArclengthOptions``)."""
     if options is None:
         return ContinuationOptions()
     if not isinstance(options, ContinuationOptions):
-        raise TypeError(f"options must be a jaxrod.ContinuationOptions (the stable-only continuation's), got "
+        raise TypeError(f"options must be a jaxrod.ContinuationOptions, got "
                         f"{type(options).__module__}.{type(options).__name__}")
     return options

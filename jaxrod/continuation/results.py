@@ -1,6 +1,6 @@
 """What the stable-only continuation returns: ``CriticalPoint`` (``critical_twist``), ``TwistPath``
-of ``BranchPoint`` and ``Instability`` (``follow_twist``), why a path stopped (``PathStop``) or a
-branch ended (``BranchEnd``), and ``NoCrossingError``."""
+of ``PathPoint`` and ``Instability`` (``follow_twist``), why a path stopped (``PathStop``) or a
+branch ended (an ``EventKind``, ``Instability.kind``), and ``NoCrossingError``."""
 from __future__ import annotations
 
 import enum
@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..solve.equilibrium import Equilibrium
+from .kinds import EventKind
 
 
 class _ValueEnum(str, enum.Enum):
@@ -21,13 +22,6 @@ class _ValueEnum(str, enum.Enum):
 
     def __format__(self, spec):
         return format(self.value, spec)
-
-
-class BranchEnd(_ValueEnum):
-    """How a followed stable branch ended."""
-
-    UNSTABLE = "unstable"  # the corrector stayed on the branch, which acquired a negative eigenvalue
-    JUMP = "jump"  # the minimiser left the branch (a fold, or a subcritical bifurcation)
 
 
 class NoCrossingError(RuntimeError):
@@ -62,15 +56,17 @@ class CriticalPoint:
 
 
 @dataclass(frozen=True)
-class BranchPoint:
-    """One accepted continuation step: ``equilibrium`` (with its stability) on the branch named
-    ``branch``; ``tangent``: dq/dphi there (physical DOFs, near-zero modes left out);
-    ``scene``: the scene with its contact list valid at this state."""
+class PathPoint:
+    """One accepted continuation step (a point of the path, not a bifurcation): ``equilibrium``
+    (with its stability) on the branch named ``branch``; ``tangent``: dq/dphi there (physical
+    DOFs, near-zero modes left out); ``scene``: the scene with its contact list valid at this
+    state; ``direction``: 'plus' where the path runs towards larger phi, 'minus' towards smaller."""
 
     branch: str
     equilibrium: Equilibrium
     tangent: np.ndarray = field(repr=False)
     scene: object = field(repr=False)
+    direction: str = ""
 
 
 @dataclass(frozen=True)
@@ -78,10 +74,10 @@ class Instability:
     """Where a followed stable branch stops being one.
 
     phi: estimate, inside the bracket (the critical eigenvalue extrapolated from the last stable
-    state, see ``_locate``); phi_error: its distance to the bracket's far end (so the whole
+    state, see ``branch_end_in_bracket``); phi_error: its distance to the bracket's far end (so the whole
     bracket lies within phi +- phi_error); bracket: (last stable twist reached, nearest twist
-    where the branch was lost, or where its critical eigenvalue was found negative); kind: 'unstable' (the corrector
-    still converged on the branch, which had acquired negative eigenvalues) or 'jump' (the
+    where the branch was lost, or where its critical eigenvalue was found negative); kind: an ``EventKind``,
+    UNSTABLE (the corrector still converged on the branch, which had acquired negative eigenvalues) or JUMP (the
     minimiser left the branch: a fold, or a subcritical bifurcation whose unstable branch it
     cannot stay on); multiplicity: how many eigenvalues go soft together (2 for a symmetric
     pair); eigenvalue,
@@ -96,7 +92,7 @@ class Instability:
     phi: float
     phi_error: float
     bracket: tuple
-    kind: str
+    kind: EventKind
     multiplicity: int
     eigenvalue: float
     dlambda_dphi: float
@@ -120,7 +116,7 @@ class PathStop(_ValueEnum):
 
 @dataclass(frozen=True)
 class TwistPath:
-    """Result of ``follow_twist``: ``points`` (BranchPoint per accepted step, in order),
+    """Result of ``follow_twist``: ``points`` (PathPoint per accepted step, in order),
     ``instabilities`` (Instability per branch end met), ``stop`` (a ``PathStop``), ``reason``
     (the same in words, with the twist where it happened), ``seconds``."""
 

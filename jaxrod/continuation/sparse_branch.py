@@ -64,7 +64,7 @@ def solve_equilibrium_sparse(scene, phi, q0=None, gtol=1e-9, max_steps=50, nbr=N
     ss._check_scene(scene)
     phi = check_finite("phi", phi)
     q = np.asarray(scene.q_init if q0 is None else q0, dtype=float)
-    if nbr is None or "contact" in scene.terms:
+    if nbr is None or scene.needs_neighbourhood:
         nbr = _grown(scene, q, phi, nbr)
     # else: without contact the neighbourhood is only the frozen writhe, and a given one (the
     # previous step's) is checked against the solution's exact writhe below: no rebuild first.
@@ -106,7 +106,7 @@ def sparse_branch_analysis(scene, q, phi, index, k=8, tol=DEFAULT_NEGATIVE_TOL, 
     result beyond the eigensolver's tolerance. cluster_rtol and pinv_tol are accepted for
     signature compatibility and ignored (no near-null sliding modes without contact).
     """
-    if "contact" in scene.terms:
+    if scene.has_term("contact"):
         from ..linalg.sparse_contact import contact_branch_analysis
 
         n_neg, lam, vec, lam_i, dlam, v, dq = contact_branch_analysis(

@@ -39,11 +39,11 @@ class PathState:
     h: current step; switches: branch switches made; n_points / n_instabilities: reported so far
     (a study keeps as many rows and instabilities on file); lost_*: the nearest twist where the
     branch was lost, the refusal there and its state, and from which twist it was tried;
-    failures / successes / probe_held: the end locator's memory (see ``_end_trial``);
+    failures / successes / probe_held: the end locator's memory (see ``end_trial``);
     stop / reason: why the run stopped (phase DONE); critical_modes: (n, m) eigenvectors (scaled
     DOFs) of the eigenvalues below -negative_tol where the branch was lost unstable (None
     otherwise): while the end is located, a state whose eigenvalue along them is negative, even
-    inside the near-zero band, is past the end (``_past_zero``).
+    inside the near-zero band, is past the end (``eigenvalue_past_zero``).
     """
 
     phase: Phase

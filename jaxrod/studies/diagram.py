@@ -40,6 +40,7 @@ import numpy as np
 
 from ..io.atomic import savez as _savez, write_json as _write_json, write_rows as _write_rows
 from ..continuation.end_check import VANISHING_EIGENVALUE, study_mode, verify_end
+from ..continuation.kinds import SHAPE_EVENTS
 
 __all__ = ["DiagramOptions", "BranchEnd", "Diagram", "follow_branch_end", "locate_end", "end_capacity", "end_rows",
            "unstable_branches", "in_bracket", "UNSTABLE_PREFIX"]
@@ -48,8 +49,9 @@ from ..solve.equilibrium import equilibrium_from_solution
 from ..io.records import step_record
 from ..solve.solvers import Solution
 from ..linalg.stability import DEFAULT_NEGATIVE_TOL
-from .twist import (UNSTABLE_PREFIX, _Cancelled, _final_header, _is_unstable, _run_all, _summarise, critical_mode,
-                    read_table)
+from .critical_summary import summarise_critical
+from .study_files import UNSTABLE_PREFIX, critical_mode, final_header, is_unstable, read_table
+from .threads import Cancelled, run_all
 
 
 # points kept past the event where a followed unstable branch restabilises (DiagramOptions.until_restable)
@@ -153,7 +155,7 @@ class Diagram:
 
 
 # The smallest step (scaled arclength) down to which a step whose Morse index changes by more than 1
-# is halved (``jaxrod.continuation.arclength.ContinuationOptions.resolve_crossings``).
+# is halved (``jaxrod.continuation.arclength.ArclengthOptions.resolve_crossings``).
 RESOLVE_CROSSINGS = 1e-5
 
 # The path starts where the study's critical eigenvalue is at least START_EIGENVALUE (scaled units):
@@ -208,7 +210,7 @@ def follow_branch_end(scene, q, phi, sign, options=None, *, p_min=-math.inf, p_m
     (``knot_problem``; default: the neighbourhood's own at (q, phi)). observer(point): called after
     each accepted point (``jaxrod.continuation.arclength.continuation``; an exception raised there stops the
     run). Returns a ``BranchEnd`` (direction and from_branch left empty)."""
-    from ..continuation.arclength import ContinuationOptions as ArclengthOptions, PseudoArclength, continuation_until, \
+    from ..continuation.arclength import ArclengthOptions, PseudoArclength, continuation_until, \
         restabilisation
     from ..continuation.arclength.rods import knot_problem
 
@@ -281,7 +283,7 @@ def in_bracket(phi, inst):
 def _first_end(events):
     """The first event that costs the branch its stability: a fold or a branch point at which the
     Morse index grows (soft folds of the sliding landscape are crossed, not ends)."""
-    return next((e for e in events if e.kind in ("fold", "branch_point") and e.morse_after > e.morse_before), None)
+    return next((e for e in events if e.kind in SHAPE_EVENTS and e.morse_after > e.morse_before), None)
 
 
 def locate_end(scene, inst, state, options=None, *, p_min, p_max, capacity=None, progress=None, observer=None,
@@ -375,11 +377,11 @@ def unstable_branches(scene, study, options=None, *, progress=None, parallel=Tru
 
     def stop_if_cancelled(point):
         if cancel.is_set():
-            raise _Cancelled()
+            raise Cancelled()
 
     # Each direction's ends one after another, the two directions in two threads (as the study
     # runs them): the ends' work is mostly XLA and LAPACK, which release the GIL. Ctrl-C stops
-    # both at their next point (``study._run_all``).
+    # both at their next point (``threads.run_all``).
     ends = [None] * len(instabilities)
     todo, seen = {}, {"plus": 0, "minus": 0}
     for i, (inst, state) in enumerate(zip(instabilities, study.end_states)):
@@ -399,7 +401,7 @@ def unstable_branches(scene, study, options=None, *, progress=None, parallel=Tru
             ends[i] = locate_end(scene, inst, state, o, p_min=p_min, p_max=p_max, capacity=capacity,
                                  progress=say, observer=stop_if_cancelled, mode=critical_mode(study.out, inst))
 
-    _run_all(run_direction, [(items,) for items in todo.values()], parallel, cancel)
+    run_all(run_direction, [(items,) for items in todo.values()], parallel, cancel)
     rows, table = _unstable_rows(scene, study, ends)
     study = replace(study, table=table, critical=copy.deepcopy(study.critical))
     _write_events(study, ends)
@@ -457,14 +459,14 @@ def _write_events(study, ends):
         events.append(d)
     if not study.out:
         study.critical["events"] = events
-        _summarise(study.critical, study.table)
+        summarise_critical(study.critical, study.table)
         return
     path = os.path.join(study.out, "critical.json")
     with open(path) as f:
         critical = json.load(f)
     for c in (critical, study.critical):
         c["events"] = events
-        _summarise(c, study.table)
+        summarise_critical(c, study.table)
     _write_json(path, critical)
 
 
@@ -529,7 +531,7 @@ def _unstable_rows(scene, study, ends):
     ``morse_index``, ``n_negative`` and ``stable`` from the pseudo-arclength path (negative
     eigenvalues of the modes that change the shape)."""
     k = sum(1 for key in study.table if key.startswith("lambda_"))
-    header = _final_header(k)
+    header = final_header(k)
     ids = study.table.get("branch_id")
     next_id = int(np.nanmax(ids)) + 1 if ids is not None and len(ids) else 0
     negative_tol = study.critical.get("negative_tol", DEFAULT_NEGATIVE_TOL)
@@ -545,7 +547,7 @@ def _unstable_rows(scene, study, ends):
     if study.out:
         csv_path = os.path.join(study.out, "branch.csv")
         with open(csv_path, newline="") as f:
-            kept = [r for r in csv.DictReader(f) if not _is_unstable(r)]
+            kept = [r for r in csv.DictReader(f) if not is_unstable(r)]
         _write_rows(csv_path, header, kept + [{key: "" if isinstance(v, float) and math.isnan(v) else v
                                                for key, v in r.items()} for r in rows])
         return rows, read_table(csv_path)

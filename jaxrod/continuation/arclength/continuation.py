@@ -7,6 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..kinds import SHAPE_EVENTS, SOFT_EVENTS
 from .corrector import advance, correct, tangent
 from .events import find_events
 from .results import Branch, ContinuationError, Point, Result, Slide
@@ -86,7 +87,7 @@ def continuation(problem, alg, opts, *, observer=None, start=None, throw=True, k
             found = find_events(problem, opts, points[-2], points[-1], len(points) - 1,
                                 [e for e in list(known) + events if e.converged])
             events += found
-            soft = next((e for e in found if e.kind in ("soft_fold", "soft_turn") and e.converged), None)
+            soft = next((e for e in found if e.kind in SOFT_EVENTS and e.converged), None)
             if soft is not None and opts.soft_folds == "slide":
                 points.pop()  # past the soft fold: on the sliding saddles, not kept
                 direction = 1.0 if points[-1].tangent[-1] > 0 else -1.0
@@ -110,7 +111,7 @@ def continuation(problem, alg, opts, *, observer=None, start=None, throw=True, k
     failed = [e for e in events if not e.converged]
     if failed and result is not Result.CORRECTOR_FAILED:
         result = Result.LOCATION_FAILED
-        message = "; ".join(_not_located(e, opts.event_tol) for e in failed)
+        message = "; ".join(why_not_located(e, opts.event_tol) for e in failed)
     return _finish(Branch(points, events, result, message, slides=slides), throw)
 
 
@@ -146,7 +147,7 @@ def continuation_until(problem, alg, opts, stop, *, start=None, observer=None):
 def restabilisation(events, after=0):
     """The first event past step ``after`` at which the Morse index comes back to 0 from above (a
     fold or branch point where the followed unstable branch regains its stability), or None."""
-    return next((e for e in events if e.step > after and e.kind in ("fold", "branch_point")
+    return next((e for e in events if e.step > after and e.kind in SHAPE_EVENTS
                  and e.morse_after == 0 < e.morse_before), None)
 
 
@@ -172,7 +173,8 @@ def until_stable(problem, alg, opts, *, start=None, max_points=400, keep=3, obse
     return br, e
 
 
-def _not_located(event, tol):
+def why_not_located(event, tol):
+    """Why a detected ``event`` was not located to ``tol`` (event_tol), in words."""
     if event.residual <= tol and abs(event.critical_eigenvalue) <= tol:
         # converged, but to a singular point along a soft mode (a slide) while the Morse index
         # changed: the shape event in the bracket, next to it, was not resolved

@@ -41,22 +41,22 @@ import jax.numpy as jnp
 import numpy as np
 
 from ...model.symmetry import SYMMETRIC_TOL
+from ..kinds import SHAPE_EVENTS, EventKind
 from .continuation import continuation
-from .options import ContinuationOptions, PseudoArclength
+from .options import ArclengthOptions, PseudoArclength
 from .results import Result
 from .two_parameter import _branch_point_system, fold_sensitivity
 
 __all__ = ["EventCurve", "EventCurveOptions", "EventCurvePoint", "event_curve", "branch_point_sensitivity",
            "first_event"]
 
-SHAPE_EVENTS = ("fold", "branch_point")
 
 
 @dataclass(frozen=True)
 class EventCurveOptions:
     """Settings of ``event_curve``.
 
-    path: the ContinuationOptions of the short runs in p (ds, whose sign is the direction in p
+    path: the ArclengthOptions of the short runs in p (ds, whose sign is the direction in p
     towards the event, ds_max, tolerances, p bounds); algorithm: their PseudoArclength; delta: the
     gap in p kept between the start of each run and the event (> 0); max_jump: a start that
     relaxes further than this (max-norm in u) from the last one has left the branch (buckled,
@@ -64,7 +64,7 @@ class EventCurveOptions:
     points per call / at most per try.
     """
 
-    path: ContinuationOptions
+    path: ArclengthOptions
     delta: float
     algorithm: PseudoArclength = PseudoArclength()
     max_jump: float = float("inf")
@@ -168,7 +168,7 @@ def _shorter(opts, factor=4.0):
     return replace(opts, ds_max=ds_max, ds=float(np.sign(opts.ds)) * min(abs(opts.ds), ds_max))
 
 
-def _relaxed(problem, u, p, symmetric=False):
+def relax_problem(problem, u, p, symmetric=False):
     """A minimum of E(., p) with the problem's args, from u (damped Newton, the structured
     Hessian if the problem has one; args refreshed by ``update_args`` and the relaxation repeated
     while they change). The start at a new mu: Newton on F = 0 from the old state can fail where
@@ -267,71 +267,26 @@ def event_curve(problem, start, set_mu, mu0, mus, options, *, observer=None, pro
     Returns an EventCurve; a mu at which no event is found (or the start cannot be corrected) ends
     the curve there, with ``result`` and ``message`` saying why.
     """
-    opts, alg, delta, max_jump = options.path, options.algorithm, options.delta, options.max_jump
-    chunk, max_points = options.chunk, options.max_points
-    direction = 1.0 if opts.ds > 0 else -1.0
+    delta, direction = options.delta, 1.0 if options.path.ds > 0 else -1.0
     curve = EventCurve()
-    if isinstance(start, EventCurvePoint):
-        start = [start]
-    history = list(start) if start and all(isinstance(q, EventCurvePoint) for q in start) else []
-    resume = history[-1] if history else None
-    if resume is None:
-        u_b, p_b = np.asarray(start[0], dtype=float), float(start[1])
-        mu_prev, slope, p_star = float(mu0), 0.0, float("nan")
-        todo = [float(mu0)] + [float(m) for m in mus]
-    else:
-        if resume.anchor_u is None or not np.isfinite(resume.anchor_p):
-            raise ValueError("resume: the point has no anchor state (anchor_u, anchor_p) to go on from")
-        u_b, p_b = np.asarray(resume.anchor_u, dtype=float), float(resume.anchor_p)
-        mu_prev, slope, p_star = float(resume.mu), float(resume.dp_dmu), float(resume.p)
-        todo = [float(m) for m in mus]
+    history, u_b, p_b, mu_prev, slope, p_star, todo = _starting_anchor(start, mu0, mus)
     for mu in todo:
         t = time.perf_counter()
-        ev = None
-        # On the symmetry first (each start projected back onto it); where no try locates an event
-        # there, all of them again without the projection, as the curve was followed before it: the
-        # trefoil at N = 128 has brackets on the symmetric branch where the Morse index changes with
-        # no singular point of J (the slide split off on one side and not on the other), and the curve
-        # from D/L = 0.0274 stopped at 0.030 on the tightening side with the projection alone
-        passes = (True, False) if _on_symmetry(problem, u_b) else (False,)
-        for keep in passes:
-            for back_offs, (predictor, shift, gap, shorter) in enumerate(_tries(history, mu, mu_prev, slope, delta)):
-                p_start = p_b + shift - direction * gap
-                problem.args = set_mu(problem.args, jnp.asarray(mu))
-                u_start = _relaxed(problem, u_b, p_start, symmetric=keep)
-                jump = float(np.max(np.abs(u_start - u_b))) if np.all(np.isfinite(u_start)) else np.inf
-                if not jump <= max_jump:  # relaxed onto another state (past the event): back off
-                    ev, points, morse0 = None, [], None
-                    message = f"the start relaxed {jump:.3g} away (max_jump {max_jump:g})"
-                    continue
-                # a try that found no event (not located next to a slide, or none within max_points)
-                # is repeated from a start further back, then with shorter steps: another path to the
-                # same event, through other brackets
-                ev, points, morse0, message = _run_to_event(problem, alg, _shorter(opts) if shorter else opts,
-                                                             u_start, p_start, direction, chunk, max_points)
-                if ev is not None:
-                    break
-                if progress is not None:
-                    progress(f"mu = {mu:.9g}, start p = {p_start:.9g} ({predictor} predictor): {message} "
-                             f"({len(points)} points); backing off")
-            if ev is not None:
-                break
-            if keep and progress is not None:
-                progress(f"mu = {mu:.9g}: no event located on the symmetry; the tries again without the projection")
+        found = _event_at(problem, set_mu, mu, u_b, p_b, _tries(history, mu, mu_prev, slope, delta), options,
+                          direction, progress)
+        ev, points = found.event, found.points
         if ev is None:
-            curve.result = Result.CORRECTOR_FAILED if morse0 is None else Result.LOCATION_FAILED
-            curve.message = f"at mu = {mu:.12g}: {message}"
+            curve.result = Result.CORRECTOR_FAILED if found.morse0 is None else Result.LOCATION_FAILED
+            curve.message = f"at mu = {mu:.12g}: {found.message}"
             break
-        sens = fold_sensitivity if ev.kind == "fold" else branch_point_sensitivity
+        sens = fold_sensitivity if ev.kind == EventKind.FOLD else branch_point_sensitivity
         slope = sens(problem, ev, set_mu, mu)
-        # the next start: the last stable point at least delta before the event (else the first)
-        before = [q for q in points[:ev.step] if q.morse_index == 0 and direction * (ev.p - q.p) >= delta]
-        anchor = before[-1] if before else points[0]
+        anchor = _next_anchor(points, ev, direction, delta)
         u_b, p_b = np.asarray(anchor.u), float(anchor.p)
         row = EventCurvePoint(mu, float(ev.p), ev.kind, int(ev.morse_before), int(ev.morse_after),
                               float(ev.critical_eigenvalue), float(ev.residual), float(slope), np.asarray(ev.u),
-                              p_star + shift, time.perf_counter() - t, back_offs, len(points), u_b.copy(), p_b,
-                              predictor, keep)
+                              p_star + found.shift, time.perf_counter() - t, found.back_offs, len(points), u_b.copy(),
+                              p_b, found.predictor, found.symmetric)
         p_star = float(ev.p)
         curve.points.append(row)
         history.append(row)
@@ -339,3 +294,86 @@ def event_curve(problem, start, set_mu, mu0, mus, options, *, observer=None, pro
             observer(row)
         mu_prev = mu
     return curve
+
+
+def _starting_anchor(start, mu0, mus):
+    """Where ``event_curve`` starts: (history, anchor u, anchor p, last mu, last slope, last p*,
+    the mu to visit), from a state (u, p) at mu0 or from the rows of an earlier run (resume)."""
+    if isinstance(start, EventCurvePoint):
+        start = [start]
+    history = list(start) if start and all(isinstance(q, EventCurvePoint) for q in start) else []
+    resume = history[-1] if history else None
+    if resume is None:
+        u_b, p_b = np.asarray(start[0], dtype=float), float(start[1])
+        return history, u_b, p_b, float(mu0), 0.0, float("nan"), [float(mu0)] + [float(m) for m in mus]
+    if resume.anchor_u is None or not np.isfinite(resume.anchor_p):
+        raise ValueError("resume: the point has no anchor state (anchor_u, anchor_p) to go on from")
+    u_b, p_b = np.asarray(resume.anchor_u, dtype=float), float(resume.anchor_p)
+    return history, u_b, p_b, float(resume.mu), float(resume.dp_dmu), float(resume.p), [float(m) for m in mus]
+
+
+def _next_anchor(points, ev, direction, delta):
+    """The next mu's start: the last stable point at least delta before the event (else the
+    first point of the run)."""
+    before = [q for q in points[:ev.step] if q.morse_index == 0 and direction * (ev.p - q.p) >= delta]
+    return before[-1] if before else points[0]
+
+
+@dataclass(frozen=True)
+class _Located:
+    """What the tries at one mu found: the event (None: none located), the run's points, the
+    Morse index of its first point (None: no start was corrected), why it stopped, and the try:
+    its predictor, its shift in p, how many tries came before it, whether it kept the symmetry."""
+
+    event: object
+    points: list
+    morse0: int | None
+    message: str
+    predictor: str
+    shift: float
+    back_offs: int
+    symmetric: bool
+
+
+def _event_at(problem, set_mu, mu, u_b, p_b, tries, options, direction, progress):
+    """The first event at mu from the anchor (u_b, p_b), over the ``tries``: on the symmetry
+    first (each start projected back onto it); where no try locates an event there, all of them
+    again without the projection, as the curve was followed before it: the trefoil at N = 128
+    has brackets on the symmetric branch where the Morse index changes with no singular point of
+    J (the slide split off on one side and not on the other), and the curve from D/L = 0.0274
+    stopped at 0.030 on the tightening side with the projection alone. -> _Located."""
+    passes = (True, False) if _on_symmetry(problem, u_b) else (False,)
+    for keep in passes:
+        found = _try_starts(problem, set_mu, mu, u_b, p_b, tries, keep, options, direction, progress)
+        if found.event is not None:
+            break
+        if keep and progress is not None:
+            progress(f"mu = {mu:.9g}: no event located on the symmetry; the tries again without the projection")
+    return found
+
+
+def _try_starts(problem, set_mu, mu, u_b, p_b, tries, keep, options, direction, progress):
+    """The tries at mu in order until one locates an event. -> _Located of that try, else of the
+    last one."""
+    opts, max_jump = options.path, options.max_jump
+    for back_offs, (predictor, shift, gap, shorter) in enumerate(tries):
+        p_start = p_b + shift - direction * gap
+        problem.args = set_mu(problem.args, jnp.asarray(mu))
+        u_start = relax_problem(problem, u_b, p_start, symmetric=keep)
+        jump = float(np.max(np.abs(u_start - u_b))) if np.all(np.isfinite(u_start)) else np.inf
+        if not jump <= max_jump:  # relaxed onto another state (past the event): back off
+            found = _Located(None, [], None, f"the start relaxed {jump:.3g} away (max_jump {max_jump:g})",
+                             predictor, shift, back_offs, keep)
+            continue
+        # a try that found no event (not located next to a slide, or none within max_points)
+        # is repeated from a start further back, then with shorter steps: another path to the
+        # same event, through other brackets
+        ev, points, morse0, message = _run_to_event(problem, options.algorithm, _shorter(opts) if shorter else opts,
+                                                     u_start, p_start, direction, options.chunk, options.max_points)
+        found = _Located(ev, points, morse0, message, predictor, shift, back_offs, keep)
+        if ev is not None:
+            break
+        if progress is not None:
+            progress(f"mu = {mu:.9g}, start p = {p_start:.9g} ({predictor} predictor): {message} "
+                     f"({len(points)} points); backing off")
+    return found

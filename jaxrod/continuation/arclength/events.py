@@ -25,6 +25,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+from ..kinds import EventKind
 from .locate import locate_branch_points, locate_fold
 
 
@@ -36,7 +37,7 @@ def find_events(problem, opts, a, b, step, known=()):
         starts = (a, b) if abs(a.tangent[-1]) <= abs(b.tangent[-1]) else (b, a)
         return [locate_fold(problem, opts, starts, (a.morse_index, b.morse_index), step)]
     if a.morse_index != b.morse_index:
-        fold = next((e for e in known if e.kind == "fold" and e.step == step - 1 and e.converged
+        fold = next((e for e in known if e.kind == EventKind.FOLD and e.step == step - 1 and e.converged
                      and e.morse_before == e.morse_after == a.morse_index), None)
         if fold is not None and abs(b.morse_index - a.morse_index) == 1:
             return [replace(fold, morse_after=b.morse_index, step=step)]

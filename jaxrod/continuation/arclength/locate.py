@@ -42,6 +42,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from .corrector import correct
+from ..kinds import EventKind
 from .results import Event, Point
 
 
@@ -92,28 +93,28 @@ def locate_fold(problem, opts, starts, morse, step):
         # point to locate. Reported as a "soft_turn", crossed like a soft fold.
         q = ends[0]
         j = int(np.argmax(q.soft))
-        return Event("soft_turn", q.p, q.u, q.eigenvectors[:, [j]], q.eigenvalues[[j]], float("nan"), 0, 1,
+        return Event(EventKind.SOFT_TURN, q.p, q.u, q.eigenvectors[:, [j]], q.eigenvalues[[j]], float("nan"), 0, 1,
                      morse[0], morse[1], step, np.asarray(q.tangent), True)
     width = abs(ends[-1].p - ends[0].p)
     if found is None or (not found.ok and not abs(found.p - starts[0].p) <= 10 * width + 1e-12):
         # diverged, or stopped far outside the bracket: reported at the bracket's end, not located
         q = starts[0]
         j0 = int(np.argmin(np.abs(q.eigenvalues)))
-        return Event("fold", q.p, q.u, q.eigenvectors[:, [j0]], q.eigenvalues[[j0]], np.inf, opts.locate_max_iter, 1,
+        return Event(EventKind.FOLD, q.p, q.u, q.eigenvectors[:, [j0]], q.eigenvalues[[j0]], np.inf, opts.locate_max_iter, 1,
                      morse[0], morse[1], step, np.asarray(q.tangent), False)
     tangent = np.asarray(start.tangent)
     if found.ok and found.soft:
         if same_morse:
             # the path turned back along a soft mode (a loose knot's strands sliding: a saddle-node
             # of the discretisation's tiny sliding landscape): no branch end
-            return found.event("soft_fold", morse, step, tangent)
+            return found.event(EventKind.SOFT_FOLD, morse, step, tangent)
         # the Morse index changed, so a shape fold lies in this bracket too: find it by its own
         # eigenvalue along the bracket; unresolved, it is reported as not located
         shape = len(ends) == 2 and _fold_by_bracket(problem, opts, ends[0], ends[1], morse)
         if not shape:
-            return found._replace(ok=False).event("fold", morse, step, tangent)
+            return found._replace(ok=False).event(EventKind.FOLD, morse, step, tangent)
         found = shape
-    fold = found.event("fold", morse, step, tangent)
+    fold = found.event(EventKind.FOLD, morse, step, tangent)
     # p turning back with F_p orthogonal to the kernel is no fold but a branch point (a pitchfork
     # seen from its non-symmetric branch), where (F, sigma) is singular; the unfolded system is not.
     # A fold: (F, sigma) is regular there, so Newton converged quadratically (few iterations),
@@ -364,7 +365,7 @@ def simple_branch_point(problem, opts, u, p, v0, morse, step, tangent):
     k = int(np.argmin(np.abs(vals)))
     if abs(vals[k]) > opts.event_tol or _null_vector_is_slide(problem, u, p, vals[[k]], vecs[:, [k]]):
         return None  # not singular, or singular along a slide only (a soft fold, not a branch point)
-    return Event("branch_point", p, u, vecs[:, [k]], vals[[k]], res, it, 1, morse[0], morse[1], step, tangent, True)
+    return Event(EventKind.BRANCH_POINT, p, u, vecs[:, [k]], vals[[k]], res, it, 1, morse[0], morse[1], step, tangent, True)
 
 
 def _same_point(e, other):
@@ -387,32 +388,51 @@ def locate_branch_points(problem, opts, a, b, step, known=()):
     known: events already located on this path; Newton landing on one of them has found an
     earlier crossing, not this step's."""
     lo, k = min(a.morse_index, b.morse_index), abs(a.morse_index - b.morse_index)
-    sign = 1 if b.morse_index > a.morse_index else -1
-    ta = a.tangent
     # the crossing eigenvalues are counted among the shape modes (soft directions split off), as
     # the Morse index is: a slide's eigenvalue must not be taken for the crossing one
     at, sb = _on_bracket(problem, opts, a, b, lo + k)
-
     morse = (a.morse_index, b.morse_index)
-
-    def simple_from(u, p, v, tangent):
-        """simple_branch_point from (u, p) along v, unless it lands on an event already located
-        (an earlier crossing of the same or another mode, Newton's basin reaching past this step).
-        Not required to lie between a and b: the Morse index counts an eigenvalue negative only
-        below a band, so a crossing may sit just outside the step where the count changes."""
-        e = simple_branch_point(problem, opts, u, p, v, morse, step, tangent)
-        if e is None or any(_same_point(e, k) for k in known):
-            return None
-        return e
-
     if k == 1:
         # the crossing mode by its rank among the shape modes (soft directions split off), as the
         # Morse index counts it: a soft mode's index must not be taken for it
         ends = [(q, _shape_index(q, lo)) for q in (a, b)]
         (start, j0), _ = sorted(ends, key=lambda e: abs(e[0].eigenvalues[e[1]]))
-        e = simple_from(start.u, start.p, start.eigenvectors[:, j0], start.tangent)
+        e = _new_branch_point(problem, opts, start.u, start.p, start.eigenvectors[:, j0], morse, step, start.tangent,
+                              known)
         if e is not None:
             return [e]
+    roots, calls, tried = _crossing_roots(at, lo, k, sb)
+    if roots is not None:
+        return _grouped_events(opts, at, sb, roots, calls, lo, a, b, step)
+    if k == 1 and tried:
+        # The hyperplane corrector is singular at a branch point and may fail right next to it
+        # (the trefoil at N = 61, 6.2332 pi: at s = 0.2540 of 0.5, after |lambda| = 2.9e-7 at
+        # 0.2537): the unfolded system, regular there, from the nearest point Brent reached
+        s_best = min(tried, key=lambda s: abs(tried[s][1]))
+        c, (vals, vecs, _, _) = at(s_best)
+        e = _new_branch_point(problem, opts, c.z[:-1], float(c.z[-1]), vecs[:, tried[s_best][0]], morse, step,
+                              a.tangent if s_best < 0.5 * sb else b.tangent, known)
+        if e is not None:
+            return [e]
+    return [Event(EventKind.BRANCH_POINT, a.p, a.u, a.eigenvectors[:, lo:lo + k], a.eigenvalues[lo:lo + k], np.inf,
+                  calls, k, a.morse_index, b.morse_index, step, a.tangent, False)]
+
+
+def _new_branch_point(problem, opts, u, p, v, morse, step, tangent, known):
+    """simple_branch_point from (u, p) along v, unless it lands on an event already located
+    (an earlier crossing of the same or another mode, Newton's basin reaching past this step).
+    Not required to lie between the bracket's ends: the Morse index counts an eigenvalue negative
+    only below a band, so a crossing may sit just outside the step where the count changes."""
+    e = simple_branch_point(problem, opts, u, p, v, morse, step, tangent)
+    if e is None or any(_same_point(e, other) for other in known):
+        return None
+    return e
+
+
+def _crossing_roots(at, lo, k, sb):
+    """The hyperplane coordinates s in (0, sb) where the shape eigenvalues lo .. lo + k - 1 cross
+    zero (Brent on each). -> (roots, function calls, tried {s: (index, eigenvalue)}); roots is
+    None where a corrector failed or an eigenvalue does not change sign over the bracket."""
     roots, calls, tried = [], 0, {}
     try:
         for j in range(lo, lo + k):
@@ -427,22 +447,16 @@ def locate_branch_points(problem, opts, a, b, step, known=()):
             roots.append(s)
             calls += info.function_calls
     except _Failed:  # a corrector failure, or no sign change
-        if k == 1 and tried:
-            # The hyperplane corrector is singular at a branch point and may fail right next to it
-            # (the trefoil at N = 61, 6.2332 pi: at s = 0.2540 of 0.5, after |lambda| = 2.9e-7 at
-            # 0.2537): the unfolded system, regular there, from the nearest point Brent reached
-            s_best = min(tried, key=lambda s: abs(tried[s][1]))
-            c, (vals, vecs, _, _) = at(s_best)
-            e = simple_from(c.z[:-1], float(c.z[-1]), vecs[:, tried[s_best][0]], ta if s_best < 0.5 * sb else b.tangent)
-            if e is not None:
-                return [e]
-        return [Event("branch_point", a.p, a.u, a.eigenvectors[:, lo:lo + k], a.eigenvalues[lo:lo + k], np.inf,
-                      calls, k, a.morse_index, b.morse_index, step, ta, False)]
-    # group coincident roots (a symmetric, multiple crossing) into one event each: equal to 1e-9 of
-    # the bracket, or split only by the noise on the eigenvalues (~ roundoff / |dlambda/ds|), i.e.
-    # every eigenvalue of the group is below event_tol at the mean of its roots. The second case is
-    # a symmetric crossing seen in a non-orthonormal gauge (a pinned rod), where the crossing pair
-    # is not degenerate away from the point, so its roots differ by that noise.
+        return None, calls, tried
+    return roots, calls, tried
+
+
+def _grouped_events(opts, at, sb, roots, calls, lo, a, b, step):
+    """One Event per group of coincident roots (a symmetric, multiple crossing): equal to 1e-9 of
+    the bracket, or split only by the noise on the eigenvalues (~ roundoff / |dlambda/ds|), i.e.
+    every eigenvalue of the group is below event_tol at the mean of its roots. The second case is
+    a symmetric crossing seen in a non-orthonormal gauge (a pinned rod), where the crossing pair
+    is not degenerate away from the point, so its roots differ by that noise."""
     def coincident(g):
         rs = [roots[i] for i in g]
         if max(rs) - min(rs) <= 1e-9 * abs(sb):
@@ -453,9 +467,9 @@ def locate_branch_points(problem, opts, a, b, step, known=()):
             return False
         return bool(np.max(np.abs(vals[[lo + i for i in g]])) <= opts.event_tol)
 
-    order = np.argsort(roots)
+    sign = 1 if b.morse_index > a.morse_index else -1
     groups, events, before = [], [], a.morse_index
-    for i in order:
+    for i in np.argsort(roots):
         if groups and coincident(groups[-1] + [i]):
             groups[-1].append(i)
         else:
@@ -466,7 +480,7 @@ def locate_branch_points(problem, opts, a, b, step, known=()):
         idx = [lo + i for i in g]
         crit = vals[idx]
         ok = bool(c.residual <= opts.event_tol and np.max(np.abs(crit)) <= opts.event_tol)
-        events.append(Event("branch_point", float(c.z[-1]), c.z[:-1], vecs[:, idx], crit, c.residual, calls,
-                            len(g), before, before + sign * len(g), step, ta if s < 0.5 * sb else b.tangent, ok))
+        events.append(Event(EventKind.BRANCH_POINT, float(c.z[-1]), c.z[:-1], vecs[:, idx], crit, c.residual, calls,
+                            len(g), before, before + sign * len(g), step, a.tangent if s < 0.5 * sb else b.tangent, ok))
         before += sign * len(g)
     return events

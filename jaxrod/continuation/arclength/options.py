@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 
 @dataclass(frozen=True)
-class ContinuationOptions:
+class ArclengthOptions:
     """Step, bounds and tolerances of a continuation run.
 
     ds: first step (its sign picks the initial direction of p); |ds| is then adapted in

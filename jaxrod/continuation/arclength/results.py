@@ -89,7 +89,7 @@ class Event:
 
 @dataclass
 class Slide:
-    """A jump across a soft fold (``ContinuationOptions.soft_folds = "slide"``): from the located
+    """A jump across a soft fold (``ArclengthOptions.soft_folds = "slide"``): from the located
     ``fold`` (an Event of kind "soft_fold") to the minimum ``u`` (n,) reached by relaxing at
     p = fold.p + direction * slide_dp; distance |u - fold.u|, energy_drop E(fold.u, p) - E(u, p)
     (>= 0), iterations of the relaxation. The branch goes on from u; ``step`` is the index of the

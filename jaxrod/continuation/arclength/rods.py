@@ -50,13 +50,15 @@ from ...model.symmetry import has_joint_symmetry, symmetrize_pinned, two_fold_as
 from ...linalg.stability import (CLEAN_SLIDE_FRACTION, scene_bilinear_gradient, scene_linearisation, sliding_fraction,
                          split_slide)
 from ...model.topology import writhe
-from ...linalg.sparse_contact import assemble, hessian_parts, use_sparse
+from ...linalg.backend import choose_backend
+from ...linalg.sparse_contact import assemble, hessian_parts
 from ...linalg.bordered import DenseBackend, HostMatrix, SparseBackend
 from .problem import BifurcationProblem
+from ..kinds import EventKind
 from .results import Event
 
 __all__ = ["PinnedRod", "RodArgs", "pinned_problem", "knot_problem", "split_sliding", "sliding_slice", "set_poisson_ratio",
-           "set_diameter"]
+           "set_diameter", "assemble_pinned_hessian"]
 
 
 class RodArgs(NamedTuple):
@@ -124,7 +126,7 @@ def _pinned_parts(u_free, phi, args):
     return hessian_parts(args.scene, _embedded(u_free, args), phi, args.nbr)
 
 
-def _assemble_pinned(parts, args):
+def assemble_pinned_hessian(parts, args):
     """The pinned Hessian as a ``HostMatrix`` (S restricted to the free DOFs, a restricted)."""
     S, w, a = assemble(args.scene, parts)
     free = np.asarray(args.free)
@@ -299,7 +301,7 @@ def knot_problem(scene, q_ref, phi0, *, pins=None, capacity=None, sliding=CLEAN_
     a stiff mode with some of the nearly degenerate buckling pair), and splitting it off made the
     states past the tightening fold look stable (``tests/test_bifurcation_knots.py``).
     backend: default ``SparseBackend`` (SciPy's sparse factorisations on the host, O(N)) from
-    ``sparse_contact.SPARSE_MIN_DOF`` DOFs on, else ``DenseBackend``.
+    ``linalg.backend.SPARSE_MIN_DOF`` DOFs on, else ``DenseBackend``.
     Exact slides: with ``pins`` None, if the softest sliding mode of the gauge-pinned Hessian at
     q_ref has |lambda| <= ``slide_tol`` (default ``EXACT_SLIDE_TOL``; 0 never pins), it is a
     numerically exact symmetry (large N), which stalls the corrector; it is then fixed like the
@@ -345,7 +347,7 @@ def knot_problem(scene, q_ref, phi0, *, pins=None, capacity=None, sliding=CLEAN_
 
     args = RodArgs(scene, jnp.asarray(u_ref), jnp.asarray(free), nbr0)
     if backend is None:
-        backend = SparseBackend(_assemble_pinned) if use_sparse(scene) else DenseBackend()
+        backend = SparseBackend(assemble_pinned_hessian) if choose_backend(scene).backend.structured else DenseBackend()
     host = getattr(backend, "host", False)
     jacobian = _pinned_parts if host else _pinned_structured_hessian
     prob = BifurcationProblem(_pinned_energy, u_ref[free], phi0, args, n_zero_modes=0, backend=backend,
@@ -465,6 +467,6 @@ def sliding_slice(rod, event, *, candidates=None):
     tangent = np.append(np.asarray(event.tangent)[:-1][keep], np.asarray(event.tangent)[-1])
     lo = min(event.morse_before, event.morse_after)
     before, after = (lo, lo + 1) if event.morse_after > event.morse_before else (lo + 1, lo)
-    event8 = Event("branch_point", float(event.p), u, v[:, None], crit, event.residual, event.iterations, 1,
+    event8 = Event(EventKind.BRANCH_POINT, float(event.p), u, v[:, None], crit, event.residual, event.iterations, 1,
                          before, after, event.step, tangent, event.converged)
     return rod8, event8

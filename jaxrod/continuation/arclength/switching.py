@@ -68,38 +68,18 @@ def emanating_directions(problem, event, *, cubic_tol=1e-8, circle_tol=1e-8):
     difference of large terms (a pinned rod ring: E''''/24 and the range correction cancel to
     1e-5), so its relative precision is ~1e-10, not roundoff.
     """
-    be, args = problem.backend, problem.args
-    u, p, V = jnp.asarray(event.u), jnp.asarray(event.p), np.asarray(event.v)
+    V = np.asarray(event.v)
     n, d = V.shape
     if d > 2:
         raise NotImplementedError(f"branch switching with a {d}-dimensional kernel")
-    F, J, Fp = problem.linearise(u, p, args)
-    Zd = np.zeros((d, d))
-    # parent slope du/dp: -J^+ F_p on range(J) (regular bordered solve) plus the kernel part of the
-    # parent tangent at the bracket (zero by symmetry when the parent is the symmetric branch)
-    y, _ = be.bordered_solve(J, V, V, Zd, -Fp, np.zeros(d))
-    t = np.asarray(event.tangent)
-    slope = np.asarray(y) + V @ (V.T @ t[:-1]) / t[-1]
-    dJ = [problem.hvp_derivative(u, p, args, jnp.asarray(V[:, i]), jnp.asarray(slope), jnp.ones_like(p))
-          for i in range(d)]
-    B = V.T @ np.stack([np.asarray(g) for g in dJ], axis=1)
-    B = 0.5 * (B + B.T)
-
-    def terms(xi):  # (T3, T4, J^+ P E'''[h, h, .], |h| |E'''[h, h, .]| / 6) at kernel coordinates xi
-        h = jnp.asarray(V @ xi)
-        f2, f3 = (np.asarray(a) for a in problem.directional_derivatives(u, p, args, h))
-        b = f2 - V @ (V.T @ f2)
-        x, _ = be.bordered_solve(J, V, V, Zd, b, np.zeros(d))
-        T3, T4 = float(h @ f2) / 6, float(h @ f3) / 24 - float(b @ np.asarray(x)) / 8
-        return T3, T4, np.asarray(x), float(np.linalg.norm(h) * np.linalg.norm(f2)) / 6
-
+    reduced = _ReducedEquations(problem, event, V)
     m0 = min(event.morse_before, event.morse_after)
     if d == 1:
         samples = np.array([[1.0]])
     else:
         th = np.arange(5) * np.pi / 5
         samples = np.stack([np.cos(th), np.sin(th)], axis=1)
-    sampled = [terms(xi) for xi in samples]
+    sampled = [reduced.terms(xi) for xi in samples]
     T = np.array([t[:2] for t in sampled])  # (samples, 2)
     # the cubic term counts unless it is below cubic_tol of the quartic one and of its own natural
     # size |h| |E'''[h, h, .]| (a cancellation to roundoff: E'''[h, h, .] orthogonal to the kernel,
@@ -107,33 +87,16 @@ def emanating_directions(problem, event, *, cubic_tol=1e-8, circle_tol=1e-8):
     scale3 = max(float(np.max(np.abs(T))), max(t[3] for t in sampled))
     k = 2 if np.max(np.abs(T[:, 0])) > cubic_tol * scale3 else 3
     m = k + 1
+    B, slope = reduced.B, reduced.slope
     if d == 1:
         c = T[0, k - 2]
         kappa = m * c / B[0, 0]
         h = m * (m - 2) * c  # reduced Hessian / r^(k-1)
         morse = (m0 + int(h < 0), m0 + int(h * (-1) ** (k - 1) < 0))
-        return [Emanating(np.array([1.0]), V[:, 0], kappa, k, slope, morse, -0.5 * terms(np.array([1.0]))[2])]
+        return [Emanating(np.array([1.0]), V[:, 0], kappa, k, slope, morse, -0.5 * reduced.terms(np.array([1.0]))[2])]
     M = np.stack([samples[:, 0] ** (m - i) * samples[:, 1] ** i for i in range(m + 1)], axis=1)
     c = np.linalg.lstsq(M, T[:, k - 2], rcond=None)[0]
-
-    def grad(eta):
-        return np.array([_dpoly(c, eta, 1, 0), _dpoly(c, eta, 0, 1)])
-
-    def hfun(theta):  # det[B eta, grad T(eta)]: zero on emanating directions
-        eta = np.array([np.cos(theta), np.sin(theta)])
-        g, be_ = grad(eta), B @ eta
-        return be_[0] * g[1] - be_[1] * g[0]
-
-    grid = (np.arange(360) + 0.5) * np.pi / 360
-    hv = np.array([hfun(x) for x in grid])
-    scale = np.max(np.abs(B)) * np.max(np.abs(c)) * m
-    if np.max(np.abs(hv)) <= circle_tol * scale:  # every direction: a continuous (O(2)) family
-        roots, isolated = [0.0, 0.5 * np.pi], False
-    else:
-        ends = np.append(grid, grid[0] + np.pi)
-        vals = np.append(hv, (-1) ** m * hv[0])
-        roots = [brentq(hfun, ends[i], ends[i + 1], xtol=1e-15) for i in range(360) if vals[i] * vals[i + 1] < 0]
-        isolated = True
+    roots, isolated = _planar_directions(c, B, m, circle_tol)
     out = []
     for theta in roots:
         eta = np.array([np.cos(theta), np.sin(theta)])
@@ -143,8 +106,61 @@ def emanating_directions(problem, event, *, cubic_tol=1e-8, circle_tol=1e-8):
         if not isolated:  # the circle's own direction is a zero mode (its sign is noise): not counted
             ev = ev[np.argsort(np.abs(ev))[1:]]
         morse = (m0 + int(np.sum(ev < 0)), m0 + int(np.sum(ev * (-1) ** (k - 1) < 0)))
-        out.append(Emanating(eta, V @ eta, kappa, k, slope, morse, -0.5 * terms(eta)[2], isolated))
+        out.append(Emanating(eta, V @ eta, kappa, k, slope, morse, -0.5 * reduced.terms(eta)[2], isolated))
     return out
+
+
+class _ReducedEquations:
+    """The pieces of the reduced equations at a branch-point Event with kernel V (n, d): the
+    parent slope du/dp, B = V^T (dJ/dp along the parent) V, and the cubic and quartic terms
+    ``terms(xi)`` at kernel coordinates xi."""
+
+    def __init__(self, problem, event, V):
+        self.problem, self.V, self.args = problem, V, problem.args
+        args, d = self.args, V.shape[1]
+        self.u, self.p = jnp.asarray(event.u), jnp.asarray(event.p)
+        F, self.J, Fp = problem.linearise(self.u, self.p, args)
+        self.Zd = np.zeros((d, d))
+        # parent slope du/dp: -J^+ F_p on range(J) (regular bordered solve) plus the kernel part of the
+        # parent tangent at the bracket (zero by symmetry when the parent is the symmetric branch)
+        y, _ = problem.backend.bordered_solve(self.J, V, V, self.Zd, -Fp, np.zeros(d))
+        t = np.asarray(event.tangent)
+        self.slope = np.asarray(y) + V @ (V.T @ t[:-1]) / t[-1]
+        dJ = [problem.hvp_derivative(self.u, self.p, args, jnp.asarray(V[:, i]), jnp.asarray(self.slope),
+                                     jnp.ones_like(self.p))
+              for i in range(d)]
+        B = V.T @ np.stack([np.asarray(g) for g in dJ], axis=1)
+        self.B = 0.5 * (B + B.T)
+
+    def terms(self, xi):
+        """(T3, T4, J^+ P E'''[h, h, .], |h| |E'''[h, h, .]| / 6) at kernel coordinates xi."""
+        problem, V = self.problem, self.V
+        h = jnp.asarray(V @ xi)
+        f2, f3 = (np.asarray(a) for a in problem.directional_derivatives(self.u, self.p, self.args, h))
+        b = f2 - V @ (V.T @ f2)
+        x, _ = problem.backend.bordered_solve(self.J, V, V, self.Zd, b, np.zeros(V.shape[1]))
+        T3, T4 = float(h @ f2) / 6, float(h @ f3) / 24 - float(b @ np.asarray(x)) / 8
+        return T3, T4, np.asarray(x), float(np.linalg.norm(h) * np.linalg.norm(f2)) / 6
+
+
+def _planar_directions(c, B, m, circle_tol):
+    """The angles theta of the emanating directions eta = (cos, sin) of a 2-dimensional kernel:
+    the roots of det[B eta, grad T(eta)] (T the degree-m form of coefficients c), bracketed on a
+    grid of [0, pi) and refined by Brent. -> (roots, isolated); where it vanishes everywhere (an
+    O(2) circle of solutions) the kernel basis (0, pi/2), isolated False."""
+    def hfun(theta):  # det[B eta, grad T(eta)]: zero on emanating directions
+        eta = np.array([np.cos(theta), np.sin(theta)])
+        g, be_ = np.array([_dpoly(c, eta, 1, 0), _dpoly(c, eta, 0, 1)]), B @ eta
+        return be_[0] * g[1] - be_[1] * g[0]
+
+    grid = (np.arange(360) + 0.5) * np.pi / 360
+    hv = np.array([hfun(x) for x in grid])
+    scale = np.max(np.abs(B)) * np.max(np.abs(c)) * m
+    if np.max(np.abs(hv)) <= circle_tol * scale:  # every direction: a continuous (O(2)) family
+        return [0.0, 0.5 * np.pi], False
+    ends = np.append(grid, grid[0] + np.pi)
+    vals = np.append(hv, (-1) ** m * hv[0])
+    return [brentq(hfun, ends[i], ends[i + 1], xtol=1e-15) for i in range(360) if vals[i] * vals[i + 1] < 0], True
 
 
 def switch_branches(problem, event, alg, opts, *, amplitude=None, directions=None, throw=True):

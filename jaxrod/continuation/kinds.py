@@ -1,0 +1,40 @@
+"""What a continuation reports where a branch changes: one ``EventKind`` for both engines.
+
+The pseudo-arclength engine (``jaxrod.continuation.arclength``) locates singular points on
+extended systems: ``FOLD``, ``BRANCH_POINT``, and on a loose knot ``SOFT_FOLD`` / ``SOFT_TURN``
+(turns along the sliding modes, crossed rather than reported as instabilities). The stable-only
+follower (``follow_twist``) brackets where a stable branch ends: ``UNSTABLE`` (the corrector stayed
+on the branch, which acquired a negative eigenvalue) or ``JUMP`` (the minimiser left the branch: a
+fold, or a subcritical bifurcation).
+
+The kinds are ``str`` values: they compare equal to, print and format as their names ("fold",
+"branch_point", ...), which is what studies write to JSON.
+"""
+from __future__ import annotations
+
+import enum
+
+__all__ = ["EventKind", "SHAPE_EVENTS", "SOFT_EVENTS"]
+
+
+class EventKind(str, enum.Enum):
+    """Where a branch changes (see the module docstring)."""
+
+    FOLD = "fold"  # the path turns back in the parameter, an eigenvalue crossing zero
+    BRANCH_POINT = "branch_point"  # the Morse index changes without a fold
+    SOFT_FOLD = "soft_fold"  # a turn along a soft (sliding) mode, Morse index unchanged
+    SOFT_TURN = "soft_turn"  # a turn along soft directions with no singular point to locate
+    UNSTABLE = "unstable"  # a followed stable branch acquired a negative eigenvalue
+    JUMP = "jump"  # the minimiser following a stable branch left it
+
+    def __str__(self):
+        return self.value
+
+    def __format__(self, spec):
+        return format(self.value, spec)
+
+
+# The located kinds that change the shape's stability (the instabilities a study reports).
+SHAPE_EVENTS = (EventKind.FOLD, EventKind.BRANCH_POINT)
+# The turns along sliding modes, which a knot's path slides across.
+SOFT_EVENTS = (EventKind.SOFT_FOLD, EventKind.SOFT_TURN)
