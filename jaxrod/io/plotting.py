@@ -7,7 +7,9 @@ import math
 import matplotlib.pyplot as plt
 import numpy as np
 
-from ..validation import check_points
+from ..continuation.kinds import EventKind
+from .figures import finish
+from .plot_snapshots import plot_snapshot, plot_snapshots, view_frame
 
 __all__ = [
     "plot_eigenvalue_scan",
@@ -47,11 +49,7 @@ def plot_eigenvalue_scan(scan, critical=None, path=None, n_show=6, title=None, a
     ax.set_xlabel("imposed twist phi / pi (rad / pi)")
     ax.set_ylabel("lowest Hessian eigenvalues (units of B/l)")
     ax.set_title(title or "Stability along the twist continuation")
-    fig.tight_layout()
-    if path is not None:
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-    return fig
+    return finish(fig, path)
 
 
 def plot_mode(x, mode_displacement, path=None, title="Critical mode", amplitude=None):
@@ -72,11 +70,7 @@ def plot_mode(x, mode_displacement, path=None, title="Critical mode", amplitude=
         set_lim(c[k] - 0.6 * size, c[k] + 0.6 * size)
     ax.legend(loc="upper left")
     ax.set_title(title)
-    fig.tight_layout()
-    if path is not None:
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-    return fig
+    return finish(fig, path)
 
 
 def plot_convergence(rows, path=None, title="Accuracy against time"):
@@ -98,22 +92,10 @@ def plot_convergence(rows, path=None, title="Accuracy against time"):
     if any(labels):
         ax.legend()
     ax.grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
-    if path is not None:
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-    return fig
+    return finish(fig, path)
 
 
 # ---------------------------------------------------------------------------- continuation tables
-def _finish(fig, path):
-    fig.tight_layout()
-    if path is not None:
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-    return fig
-
-
 def _column(table, name, n=None):
     """1-D column ``name`` of ``table`` (ValueError if missing or of another length than n)."""
     if name not in table:
@@ -172,7 +154,7 @@ def _draw_critical(axes, critical, colour_start):
         kind, wr = c.get("kind"), c.get("Wr")
         if kind is not None and wr is not None and math.isfinite(float(wr)):
             # a located event: marked where it sits on the diagram (fold: triangle, branch point: star)
-            axes[0].plot([phi / math.pi], [float(wr)], "v" if kind == "fold" else "*", color=colour, ms=11,
+            axes[0].plot([phi / math.pi], [float(wr)], "v" if kind == EventKind.FOLD else "*", color=colour, ms=11,
                          mec="k", mew=0.8, ls="none", zorder=5)
 
 
@@ -226,7 +208,7 @@ def plot_bifurcation(table, critical=None, path=None, title=None):
     top.grid(True, alpha=0.3)
     bottom.grid(True, alpha=0.3)
     top.set_title(title or "Bifurcation diagram")
-    return _finish(fig, path)
+    return finish(fig, path)
 
 
 def plot_branch_ends(table, events, path=None, title=None):
@@ -261,7 +243,7 @@ def plot_branch_ends(table, events, path=None, title=None):
             ls = "-" if (stable & sel).any() else "--"
             ax.plot(x[sel] - x0, lam[sel], ls, marker="o", ms=3, color=f"C{b % 10}", lw=1, label=lab or "equilibria",
                     mfc="none" if ls == "--" else None)
-        ax.plot([0.0], [0.0], "v" if ev["kind"] == "fold" else "*", color="k", ms=10, ls="none",
+        ax.plot([0.0], [0.0], "v" if ev["kind"] == EventKind.FOLD else "*", color="k", ms=10, ls="none",
                 label=f"{ev['kind'].replace('_', ' ')} at {x0:+.8f} pi")
         ax.axhline(0.0, color="0.5", lw=0.8)
         ax.set_xlim(-half, half)
@@ -270,7 +252,7 @@ def plot_branch_ends(table, events, path=None, title=None):
         ax.legend(fontsize=7)
         ax.grid(True, alpha=0.3)
     fig.suptitle(title or "Branch ends, located on the extended system")
-    return _finish(fig, path)
+    return finish(fig, path)
 
 
 _LINESTYLES = ("-", "--", ":", "-.")
@@ -316,7 +298,7 @@ def plot_linking(table, critical=None, path=None, title=None):
     ax.legend(**_OUTSIDE)
     ax.grid(True, alpha=0.3)
     ax.set_title(title or "Linking number, writhe and twist")
-    return _finish(fig, path)
+    return finish(fig, path)
 
 
 # ---------------------------------------------------------------------------- profiles
@@ -355,131 +337,7 @@ def plot_profiles(s_over_L, profiles, labels, path=None, title=None, ylabel_kapp
     top.grid(True, alpha=0.3)
     bottom.grid(True, alpha=0.3)
     top.set_title(title or "Curvature and twist profiles")
-    return _finish(fig, path)
-
-
-# ---------------------------------------------------------------------------- 3D snapshots
-def view_frame(x):
-    """(3, 3) rows e1, e2, e3: a view of the closed curve x (N, 3) along its axis of least spread
-    (e3; for a trefoil, its three-fold symmetry axis), oriented towards +z, with e1 the global x
-    axis projected onto the view plane (so that successive states are seen the same way)."""
-    x = check_points("x", x)
-    centred = x - x.mean(axis=0)
-    _, vectors = np.linalg.eigh(centred.T @ centred)
-    e3 = vectors[:, 0]
-    if e3[2] < 0.0:
-        e3 = -e3
-    for axis in (np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])):
-        e1 = axis - (axis @ e3) * e3
-        if np.linalg.norm(e1) > 0.3:
-            break
-    e1 /= np.linalg.norm(e1)
-    return np.stack([e1, np.cross(e3, e1), e3])
-
-
-def _capsules(p, q, half_width, n_arc=8):
-    """(K, 2 n_arc + 2, 2) outlines of 2D capsules (segments p -> q, each (K, 2), thickened by
-    half_width, with round ends): a tube segment seen from the side."""
-    d = q - p
-    angle = np.arctan2(d[:, 1], d[:, 0])[:, None]
-    arc = np.linspace(0.5 * np.pi, 1.5 * np.pi, n_arc + 1)[None, :]
-    start = p[:, None, :] + half_width * np.stack([np.cos(angle + arc), np.sin(angle + arc)], axis=-1)
-    end = q[:, None, :] + half_width * np.stack([np.cos(angle + arc + np.pi), np.sin(angle + arc + np.pi)], axis=-1)
-    return np.concatenate([start, end], axis=1)
-
-
-def plot_snapshot(x, eccentric, path=None, title=None, ax=None, diameter=None, frame=None, unit=None):
-    """A closed rod seen as a tube along its symmetry axis (``view_frame``): the centreline x
-    (N, 3) thickened to the rod's ``diameter`` (default: 2x the stripe's mean distance from the
-    centreline), shaded by depth (lighter = nearer the viewer) and drawn far to near, so that at
-    each crossing the strand on top covers the one below; the stripe (the eccentric line, (N, 3),
-    paired node by node with x) is drawn where it faces the viewer. Equal aspect; axes in
-    ``unit`` (e.g. 'mm') along the view's in-plane axes e1, e2.
-
-    ax: a 2D axis to draw into (e.g. from :func:`plot_snapshots`); frame: a (3, 3) view frame
-    (default ``view_frame(x)``). Returns the figure; with ``path`` it is saved and closed.
-    """
-    from matplotlib.collections import PolyCollection
-
-    x = check_points("x", x)
-    e = check_points("eccentric", eccentric)
-    if e.shape != x.shape:
-        raise ValueError(f"eccentric must pair with x node by node: shapes {e.shape} and {x.shape}")
-    if diameter is None:
-        diameter = 2.0 * float(np.mean(np.linalg.norm(e - x, axis=1)))
-    frame = view_frame(x) if frame is None else np.asarray(frame, dtype=float)
-    if ax is None:
-        fig, ax = plt.subplots(figsize=(5, 5))
-    else:
-        fig = ax.figure
-    centre = x.mean(axis=0)
-    xv, ev = (x - centre) @ frame.T, (e - centre) @ frame.T  # (N, 3): in-plane, in-plane, depth
-    xn, en = np.roll(xv, -1, axis=0), np.roll(ev, -1, axis=0)
-    r = 0.5 * diameter
-    depth = 0.5 * (xv[:, 2] + xn[:, 2])
-    stripe_depth = 0.5 * (ev[:, 2] + en[:, 2])
-    tubes = _capsules(xv[:, :2], xn[:, :2], r)
-    stripes = _capsules(ev[:, :2], en[:, :2], 0.12 * r, n_arc=4)
-    lo, hi = depth.min(), depth.max()
-    shade = plt.get_cmap("Blues")(0.85 - 0.45 * (depth - lo) / max(hi - lo, 1e-300))  # near: lighter
-    # Painter's order: every tube piece and every visible stripe piece by its own depth. A
-    # stripe on the near side of its strand is up to r nearer than the strand's centre, so it
-    # shows over its own tube but not through a strand crossing above it (>= D nearer).
-    visible = stripe_depth > depth
-    keys = np.concatenate([depth, stripe_depth[visible]])
-    shapes = list(tubes) + list(stripes[visible])
-    colours = list(shade) + [(1.0, 0.62, 0.11, 1.0)] * int(visible.sum())
-    order = np.argsort(keys, kind="stable")
-    outline = PolyCollection(list(_capsules(xv[:, :2], xn[:, :2], 1.12 * r)), facecolors="#0b1e3f",
-                             edgecolors="none")
-    ax.add_collection(outline)  # the silhouette, under everything
-    ax.add_collection(PolyCollection([shapes[i] for i in order], facecolors=[colours[i] for i in order],
-                                     edgecolors="none"))
-    span = float(np.max(np.abs(xv[:, :2]))) + 1.3 * r
-    ax.set_xlim(-span, span)
-    ax.set_ylim(-span, span)
-    ax.set_aspect("equal")
-    suffix = f" ({unit})" if unit else ""
-    ax.set_xlabel("e1" + suffix)
-    ax.set_ylabel("e2" + suffix)
-    ax.tick_params(labelsize=7)
-    if title:
-        ax.set_title(title, fontsize=9)
-    if path is not None:
-        fig.tight_layout()
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-    return fig
-
-
-def plot_snapshots(snapshots, path=None, ncols=3, diameter=None, unit=None):
-    """Grid of tube views (:func:`plot_snapshot`): snapshots is a list of (x, eccentric, title),
-    ``ncols`` columns. All are seen along the first one's symmetry axis, so that shapes compare."""
-    snapshots = list(snapshots)
-    if not snapshots:
-        raise ValueError("snapshots: nothing to plot")
-    try:
-        integral = not isinstance(ncols, bool) and int(ncols) == ncols
-    except (TypeError, ValueError):
-        integral = False
-    if not integral or int(ncols) < 1:
-        raise ValueError(f"ncols must be an integer >= 1, got {ncols!r}")
-    ncols = min(int(ncols), len(snapshots))
-    nrows = math.ceil(len(snapshots) / ncols)
-    fig, axes = plt.subplots(nrows, ncols, figsize=(3.6 * ncols, 3.7 * nrows), squeeze=False)
-    frame = None
-    for i, snap in enumerate(snapshots):
-        try:
-            x, e, t = snap
-        except (TypeError, ValueError):
-            plt.close(fig)
-            raise ValueError(f"snapshots[{i}] must be (x, eccentric, title)") from None
-        if frame is None:
-            frame = view_frame(x)
-        plot_snapshot(x, e, title=t, ax=axes.flat[i], diameter=diameter, frame=frame, unit=unit)
-    for ax in list(axes.flat)[len(snapshots):]:
-        ax.set_visible(False)
-    return _finish(fig, path)
+    return finish(fig, path)
 
 
 # ---------------------------------------------------------------------------- critical angles
@@ -520,7 +378,7 @@ def plot_critical_vs_ratio(ratios, phi_plus, phi_minus, michell_plus=None, miche
     ax.legend(**_OUTSIDE)
     ax.grid(True, alpha=0.3)
     ax.set_title(title or "Critical twist against slenderness")
-    return _finish(fig, path)
+    return finish(fig, path)
 
 
 def plot_critical_curve(rows, nu=0.5, path=None, title=None, points=None):
@@ -537,7 +395,7 @@ def plot_critical_curve(rows, nu=0.5, path=None, title=None, points=None):
         x = np.array([r["D_over_L"] for r in rr])
         y = np.array([r["phi_star"] for r in rr]) / math.pi
         ax.plot(x, y, "-", color=colour, lw=1.2, label=f"{names[side]}: first instability")
-        for kind, marker in (("fold", "o"), ("branch_point", "D")):
+        for kind, marker in ((EventKind.FOLD, "o"), (EventKind.BRANCH_POINT, "D")):
             m = np.array([r["kind"] == kind for r in rr])
             if m.any():
                 ax.plot(x[m], y[m], marker, color=colour, ms=3.5, ls="none", label=f"  {kind.replace('_', ' ')}s")
@@ -551,7 +409,7 @@ def plot_critical_curve(rows, nu=0.5, path=None, title=None, points=None):
     ax.grid(True, alpha=0.3)
     ax.legend(**_OUTSIDE)
     ax.set_title(title or "Critical twists against slenderness")
-    return _finish(fig, path)
+    return finish(fig, path)
 
 
 _KNOT_TITLES = {"3_1": "trefoil 3_1", "4_1": "figure-eight 4_1", "5_1": "cinquefoil 5_1", "5_2": "three-twist 5_2"}
@@ -604,7 +462,7 @@ def plot_atlas(rows, michell, span=None, path=None, title=None, tightening=None)
         ax.set_xlabel("slenderness D / L (-)")
     if title:
         fig.suptitle(title, fontsize=11)
-    return _finish(fig, path)
+    return finish(fig, path)
 
 
 def plot_atlas_convergence(series, path=None, title="Atlas: convergence in N"):
@@ -626,7 +484,7 @@ def plot_atlas_convergence(series, path=None, title="Atlas: convergence in N"):
         ax.grid(True, alpha=0.3)
     axes[0][0].set_ylabel("phi* / pi (rad / pi)")
     fig.suptitle(title, fontsize=10)
-    return _finish(fig, path)
+    return finish(fig, path)
 
 
 def plot_resolution_convergence(result, path=None, title="Critical twists converged in N"):
@@ -656,4 +514,4 @@ def plot_resolution_convergence(result, path=None, title="Critical twists conver
         ax.legend(fontsize=7)
     axes[0][0].set_ylabel("phi* / pi (rad / pi)")
     fig.suptitle(title, fontsize=10)
-    return _finish(fig, path)
+    return finish(fig, path)

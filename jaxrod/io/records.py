@@ -21,6 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..aot import cached_jit
+from ..measure.profiles import count_peaks, symmetry_order
 from ..model.geometry import radius_of_gyration
 from ..model.topology import is_whole_turns, linking_number
 
@@ -109,7 +110,7 @@ def _record_arrays(scene, q, phi, nbr):
     x = scene.positions(q)
     ecc = scene.eccentric_line(q, phi, nbr=nbr)
     s, kappa_L, tau_L = _profiles(scene, q, phi, nbr)
-    if "contact" in scene.terms:
+    if scene.has_term("contact"):
         n_contact = contact_count(x, nbr.pairs, nbr.mask, True, scene.material.D)
     else:
         n_contact = jnp.asarray(0)
@@ -127,8 +128,6 @@ def step_record(scene, eq, branch="", n_samples=None):
     ``Lk_gauss`` (the linking number of ``x`` and ``eccentric``) is NaN unless phi is a whole
     number of turns (within 1e-9 turn): otherwise the line does not close at the joint.
     """
-    from ..measure.analysis import count_peaks, symmetry_order
-
     x = np.asarray(eq.x)
     nbr = eq.neighbourhood if eq.neighbourhood is not None else scene.neighbourhood(eq.q, eq.phi)
     ecc, s_over_L, kappa_L, tau_L, n_contact, lk_gauss = jax.device_get(

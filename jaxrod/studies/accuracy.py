@@ -53,7 +53,7 @@ import numpy as np
 from ..validation import check_finite, check_int_at_least, check_positive
 
 __all__ = ["Extrapolation", "richardson", "Level", "SideConvergence", "converged_critical_twists", "refine_scene",
-           "THEORETICAL_ORDER"]
+           "THEORETICAL_ORDER", "unconverged_reason"]
 
 # The discrete elastic rod's energies are second-order accurate in the edge length (Michell's
 # ring: tests/test_michell.py measures 2.00).
@@ -239,7 +239,7 @@ def refine_scene(scene, x, N):
 
     if not getattr(scene, "closed", False):
         raise ValueError(f"refine_scene: closed rods only (got a {type(scene).__name__})")
-    contact = scene.contact_stiffness if "contact" in scene.terms else None
+    contact = scene.contact_stiffness if scene.has_term("contact") else None
     return closed_curve(np.asarray(x), scene.material, N=N, length=float(scene.length), Lk0=int(round(scene.Lk0)),
                         name=scene.name, contact_stiffness=contact)
 
@@ -248,7 +248,7 @@ def _level(scene, side, phi_start, start, span, step, tol, say, cancel):
     """Follow ``scene``'s stable branch from ``start`` (an Equilibrium at phi_start) towards
     side * span; its first end as a Level. ``cancel`` (an Event) set: stop at the next point."""
     from ..continuation import ContinuationOptions, Observer, follow_twist
-    from .twist import _Cancelled
+    from .threads import Cancelled as _Cancelled
 
     def on_point(point):
         if cancel is not None and cancel.is_set():
@@ -262,7 +262,7 @@ def _level(scene, side, phi_start, start, span, step, tol, say, cancel):
     if not path.instabilities:
         return None, path.reason, states
     inst = path.instabilities[0]
-    if "contact" in scene.terms:
+    if scene.has_term("contact"):
         # The stable-only engine counts eigenvalues inside the near-zero band kept for sliding
         # modes as zero; a shape mode negative in that band means the branch ended earlier,
         # unseen (issue 17: the trefoil's opening side at N >= 241). Such a level is refused.
@@ -287,8 +287,9 @@ def _level_by_events(scene, side, path, phi_start, tol, say):
     on extended systems), from the last state of ``path`` with no shape mode negative inside the
     near-zero band. Used where the stable-only engine's band hid the end (its last 'stable' state
     already had such modes). Returns (Level or None, reason)."""
-    from ..continuation.arclength import ContinuationOptions, PseudoArclength, continuation
+    from ..continuation.arclength import ArclengthOptions, PseudoArclength, continuation
     from ..continuation.arclength.rods import knot_problem
+    from ..continuation.kinds import SHAPE_EVENTS
     from ..linalg.stability import CONTACT_NEGATIVE_TOL
     from ..linalg.stability import shape_modes_in_band
 
@@ -301,11 +302,11 @@ def _level_by_events(scene, side, path, phi_start, tol, say):
         f"at {hidden_at / math.pi:+.5f} pi); locating it by pseudo-arclength from {e.phi / math.pi:+.5f} pi")
     sign = 1.0 if side == "plus" else -1.0
     lo, hi = sorted((e.phi, hidden_at + sign * 0.5 * math.pi))
-    opts = ContinuationOptions(ds=sign * 0.05, ds_min=1e-6, ds_max=0.25, p_min=lo, p_max=hi, max_steps=120,
+    opts = ArclengthOptions(ds=sign * 0.05, ds_min=1e-6, ds_max=0.25, p_min=lo, p_max=hi, max_steps=120,
                                newton_tol=1e-10, eig_rtol=1e-13, n_eig=6, resolve_crossings=1e-4)
     rod = knot_problem(scene, np.asarray(e.q), e.phi)
     branch = continuation(rod.problem, PseudoArclength(), opts, throw=False)
-    events = [ev for ev in branch.events if ev.kind in ("fold", "branch_point") and ev.morse_before == 0]
+    events = [ev for ev in branch.events if ev.kind in SHAPE_EVENTS and ev.morse_before == 0]
     if not events:
         return None, (f"the end hidden in the near-zero band was not located by the pseudo-arclength continuation "
                       f"({branch.result}: {branch.message})")
@@ -320,7 +321,7 @@ def _level_by_events(scene, side, path, phi_start, tol, say):
 
 def _side(scene, side, accuracy, N_levels, span, step, tol, say, cancel, store):
     from ..solve.equilibrium import relax_to_minimum
-    from .twist import _Cancelled
+    from .threads import Cancelled as _Cancelled
 
     levels = []
     current, phi_start, start = scene, 0.0, None
@@ -372,11 +373,11 @@ def _side(scene, side, accuracy, N_levels, span, step, tol, say, cancel, store):
                 return SideConvergence(side, tuple(levels), ext, accuracy, True,
                                        f"error estimate {ext.error / math.pi:.1e} pi <= {accuracy / math.pi:.1e} pi "
                                        f"at N = {levels[-1].N}")
-    return SideConvergence(side, tuple(levels), ext, accuracy, False, _unconverged_reason(N_levels[-1], ext, accuracy,
-                                                                                         levels))
+    return SideConvergence(side, tuple(levels), ext, accuracy, False,
+                           unconverged_reason(N_levels[-1], ext, accuracy, levels))
 
 
-def _unconverged_reason(N_max, ext, accuracy, levels=()):
+def unconverged_reason(N_max, ext, accuracy, levels=()):
     """Why a side stopped at N_max without converging, in words that hold: a small last change is
     not an error estimate when the levels are not in their asymptotic range (e.g. the branch end
     changed kind between levels: a fold at coarse N, a branch point at fine N)."""
@@ -436,7 +437,7 @@ def converged_critical_twists(scene, accuracy, sides=("plus", "minus"), N_max=48
     say = progress or (lambda s: None)
     say(f"{scene.name}: levels N = {', '.join(map(str, levels))} at most, until the error estimate is "
         f"<= {accuracy / math.pi:g} pi (each end bracketed to {tol / math.pi:.1e} pi)")
-    from .twist import _run_all
+    from .threads import run_all as _run_all
 
     store = None if out is None else _LevelStore(out, scene, accuracy, span, step)
     results = {}
@@ -465,7 +466,7 @@ class _LevelStore:
         os.makedirs(self.folder, exist_ok=True)
         params = {"name": scene.name, "N0": int(scene.n_nodes), "L": float(scene.length),
                   "D": None if scene.material.D is None else float(scene.material.D), "B": float(scene.material.B),
-                  "C": float(scene.material.C), "Lk0": float(scene.Lk0), "terms": list(scene.terms),
+                  "C": float(scene.material.C), "Lk0": float(scene.Lk0), "terms": list(scene.term_names),
                   "contact_stiffness": float(getattr(scene, "contact_stiffness", 0.0) or 0.0),
                   "accuracy": float(accuracy), "span": float(span), "step": float(step)}
         path = os.path.join(self.folder, "run.json")
@@ -523,7 +524,7 @@ def coarse_companion(scene, out, critical, span=16 * math.pi, step=0.5 * math.pi
     and deliberately rough: it says how far the study's phi* may be from the converged value, not
     that value (``converged_critical_twists`` measures the order). cancel: an optional
     threading.Event; once set, the run stops at its next continuation point (raising
-    ``jaxrod.studies.twist._Cancelled``). It reads only the study's step files and ``critical``'s
+    ``jaxrod.studies.threads.Cancelled``). It reads only the study's step files and ``critical``'s
     instabilities (their bracketed phi), so it may run while ``jaxrod.studies.diagram`` works on the same
     study (the CLI runs the two at once). sides: the sides to estimate (a side needs only its own
     first end and the step files before it, so the CLI starts each once that end is found, while
@@ -539,7 +540,7 @@ def coarse_companion(scene, out, critical, span=16 * math.pi, step=0.5 * math.pi
     N = int(scene.n_nodes)
     N_c = (N + 1) // 2
     need = 8
-    if "contact" in scene.terms:  # a knot: at least 24 nodes, and edges no longer than the diameter
+    if scene.has_term("contact"):  # a knot: at least 24 nodes, and edges no longer than the diameter
         need = max(24, math.ceil(float(scene.length) / float(scene.material.D) - 1e-9))
     if N_c < need:
         return {}

@@ -133,7 +133,7 @@ def atlas_cases(knots, ratios, N, settings=None, sides=SIDES):
 def _contact_count(scene, e):
     from ..model.contact import contact_count
 
-    if "contact" not in scene.terms:
+    if not scene.has_term("contact"):
         return 0
     nbr = e.neighbourhood if e.neighbourhood is not None else scene.neighbourhood(e.q, e.phi)
     return int(contact_count(e.x, nbr.pairs, nbr.mask, True, scene.material.D))

@@ -1,4 +1,4 @@
-"""An open overhand (trefoil) knot tied in a rod clamped at both ends and pulled tight (issue 19, item 4).
+"""An open overhand (trefoil) knot tied in a rod clamped at both ends and pulled tight.
 
 Scene: an ``EndLoadedRod`` (``jaxrod.studies.endloads.shortened_rod``) with soft self-contact, both clamps
 on one axis, the far clamp ``excess`` closer than one rod length, its frame turned by ``phi``.
@@ -27,12 +27,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .endloads import end_loads, shortened_rod
+from .endloads import end_loads, shortened_rod, with_shortening
 from ..model.material import Material
 from ..validation import check_finite, check_int_at_least, check_positive
 
-__all__ = ["open_overhand_knot", "KnotState", "pull", "loop_height", "loop_span", "relax_knot", "fit_prefactor",
-           "fit_loose_limit", "mean_tension"]
+__all__ = ["open_overhand_knot", "OpenKnotOptions", "KnotState", "moved_to_excess", "pull", "loop_height", "loop_span",
+           "relax_knot", "fit_prefactor", "fit_loose_limit", "mean_tension"]
 
 TWO_PI = 2.0 * math.pi
 DEFAULT_CONTACT_STIFFNESS = 100.0
@@ -62,41 +62,57 @@ def _arclength(p):
     return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
 
 
-def open_overhand_knot(N, L, D, loop, B=1.0, nu=0.5, phi=0.0, contact_stiffness=DEFAULT_CONTACT_STIFFNESS,
-                       delta=0.3, Lk0=None, contact_quadrature=3):
-    """(scene, q0): an open overhand knot of rest length L (between the clamps' points) and
-    diameter D, N nodes, clamped on the z axis; ``loop``: the trefoil's unit length (its
-    lobes are ~6 loop across); material B, nu (EA = 16 B / D^2). The far clamp sits where the
-    drawn curve ends (its excess length is the knot's), the twist is spread evenly (``phi``).
-    Lk = Lk0 + phi / 2 pi (a clamped rod's Lk0 is an integer: the far clamp's frame is
-    the near one's turned by phi). Lk0 default: 3 with the sign of the drawn curve's writhe, the
-    writhe of the loose, nearly flat knot (three crossings of one sign; measured 3.04 relaxed),
-    so phi = 0 is the nearly twist-free knot; the drawn curve (ray-closed writhe 4.23: its
-    slanted tails) starts with Tw = Lk - Wr spread evenly. Refused (naming the parameter): N < 40 or edges longer than D,
-    non-positive L, D, loop, B, a knot too long for the rod (tails shorter than 2 loops).
+@dataclass(frozen=True)
+class OpenKnotOptions:
+    """How ``open_overhand_knot`` builds the knot (B, delta and Lk0 checked on construction; a
+    ValueError names the wrong one).
+
+    B, nu: the material's bending stiffness and Poisson ratio (EA = 16 B / D^2).
+    contact_stiffness: kappa_c of the soft self-contact.
+    delta: where the trefoil is cut open, the arc t in [pi + delta, 3 pi - delta] (0.05 ... 1).
+    Lk0: the rod's linking number at phi = 0, an integer; None: 3 with the sign of the drawn
+      curve's writhe, the writhe of the loose, nearly flat knot (three crossings of one sign;
+      measured 3.04 relaxed), so phi = 0 is the nearly twist-free knot.
     contact_quadrature: Gauss points per segment of the contact integral, 3 by default: where the
-    strands cross, the contact is shorter than an edge, and with 2 points T(e) jumps by ~5 % as
-    strands slide past the nodes (measured at N = 320, D = L/150: non-monotone T with 2 points,
-    monotone within 1.5 % with 3)."""
-    L = check_positive("L", L)
-    D = check_positive("D", D)
-    loop = check_positive("loop", loop)
-    B = check_positive("B", B)
-    phi = check_finite("phi", phi)
+      strands cross, the contact is shorter than an edge, and with 2 points T(e) jumps by ~5 % as
+      strands slide past the nodes (measured at N = 320, D = L/150: non-monotone T with 2 points,
+      monotone within 1.5 % with 3).
+    """
+
+    B: float = 1.0
+    nu: float = 0.5
+    contact_stiffness: float = DEFAULT_CONTACT_STIFFNESS
+    delta: float = 0.3
+    Lk0: int | None = None
+    contact_quadrature: int = 3
+
+    def __post_init__(self):
+        check_positive("B", self.B)
+        if not 0.05 <= self.delta <= 1.0:
+            raise ValueError(f"delta must lie in [0.05, 1], got {self.delta!r}")
+        if self.Lk0 is not None:
+            check_int_at_least("Lk0", self.Lk0, -10 ** 6)
+
+
+def _check_knot_size(N, L, D, loop, delta):
+    """The knot's sizes as floats and N as an int, or ValueError naming the one that is wrong."""
+    L, D, loop = check_positive("L", L), check_positive("D", D), check_positive("loop", loop)
     N = check_int_at_least("N", N, 40)
     if L / (N - 2) > D:
         raise ValueError(f"N = {N} gives edges of {L / (N - 2) / D:.2f} D: self-contact needs edges no longer "
                          f"than the diameter, N >= L/D + 2 = {math.ceil(L / D) + 2}")
-    if not 0.05 <= delta <= 1.0:
-        raise ValueError(f"delta must lie in [0.05, 1], got {delta!r}")
     if 2.0 * loop * (3.0 * math.sin(3 * delta) + 0.0) < 1.2 * D:
         raise ValueError(f"loop = {loop:g} is too small for D = {D:g}: the tails would touch at the cut")
     knot_len = _arclength(_open_curve(loop, 0.0, delta))[-1]
-    tails = 0.5 * (L - knot_len)
-    if tails < 12.0 * loop:
+    if 0.5 * (L - knot_len) < 12.0 * loop:
         raise ValueError(f"loop = {loop:g} is too large for L = {L:g}: the knot needs {knot_len:.3g} of rod and "
                          "each tail at least 12 loop lengths")
-    # find the tail half-width X so that the curve has arc length L
+    return N, L, D, loop
+
+
+def _drawn_knot(L, loop, delta):
+    """The open knot drawn with arc length L: (polyline (n, 3) from the origin with its tails along
+    z, its arc length at each point (n,)), the tails' half-width found by bisection."""
     lo, hi = 0.0, L
     for _ in range(80):
         mid = 0.5 * (lo + hi)
@@ -106,27 +122,40 @@ def open_overhand_knot(N, L, D, loop, B=1.0, nu=0.5, phi=0.0, contact_stiffness=
             hi = mid
     p = _open_curve(loop, 0.5 * (lo + hi), delta)
     s = _arclength(p)
-    end_distance = p[-1, 0] - p[0, 0]
-    excess = L - end_distance
     # own frame (X, Y, Z) -> space (Y, Z, X): a cyclic permutation (proper rotation), tails along z
-    p = p[:, [1, 2, 0]] - p[0, [1, 2, 0]][None, :]
-    mat = Material.from_ratio(B=B, nu=nu, D=D)
-    scene = shortened_rod(N, L, mat, shortening=excess, contact_stiffness=contact_stiffness,
-                          contact_quadrature=contact_quadrature)
+    return p[:, [1, 2, 0]] - p[0, [1, 2, 0]][None, :], s
+
+
+def open_overhand_knot(N, L, D, loop, phi=0.0, options=None):
+    """(scene, q0): an open overhand knot of rest length L (between the clamps' points) and
+    diameter D, N nodes, clamped on the z axis; ``loop``: the trefoil's unit length (its
+    lobes are ~6 loop across); material, contact and linking number from ``options``
+    (``OpenKnotOptions``; None: the defaults). The far clamp sits where the drawn curve ends (its
+    excess length is the knot's), the twist is spread evenly (``phi``).
+    Lk = Lk0 + phi / 2 pi (a clamped rod's Lk0 is an integer: the far clamp's frame is the near
+    one's turned by phi); the drawn curve (ray-closed writhe 4.23: its slanted tails) starts with
+    Tw = Lk - Wr spread evenly. Refused (naming the parameter): N < 40 or edges longer than D,
+    non-positive L, D, loop, a knot too long for the rod (tails shorter than 12 loops)."""
+    import jax.numpy as jnp  # noqa: PLC0415
+
+    options = OpenKnotOptions() if options is None else options
+    phi = check_finite("phi", phi)
+    N, L, D, loop = _check_knot_size(N, L, D, loop, options.delta)
+    p, s = _drawn_knot(L, loop, options.delta)
+    excess = L - p[-1, 2]
+    mat = Material.from_ratio(B=options.B, nu=options.nu, D=D)
+    scene = shortened_rod(N, L, mat, shortening=excess, contact_stiffness=options.contact_stiffness,
+                          contact_quadrature=options.contact_quadrature)
     h = L / (N - 2)
     si = (np.arange(N) - 0.5) * h
     x = np.stack([np.interp(si, s, p[:, j]) for j in range(3)], axis=1)
-    x[0], x[-1] = p[0] - 0.5 * h * np.array([0, 0, 1.0]), p[-1] + 0.5 * h * np.array([0, 0, 1.0])
     xc = np.asarray(scene.x_clamped)
     x[:2] = xc[:2]
     x[-2:] = xc[2:] + np.asarray(scene.end_offset)[None, :]
-    xi = x[2:N - 2]
-    q = np.concatenate([xi.ravel(), np.zeros(N - 3)])
-    import jax.numpy as jnp  # noqa: PLC0415
-
+    q = np.concatenate([x[2:N - 2].ravel(), np.zeros(N - 3)])
     xfull = np.asarray(scene.nodes(jnp.asarray(q)))
     wr = float(scene.exact_writhe(jnp.asarray(xfull)))
-    Lk0 = float(3 * np.sign(wr)) if Lk0 is None else float(check_int_at_least("Lk0", Lk0, -10 ** 6))
+    Lk0 = float(3 * np.sign(wr)) if options.Lk0 is None else float(options.Lk0)
     scene = dataclasses.replace(scene, Lk0=Lk0, q_init=jnp.asarray(q))
     # twist angles: theta_end = phi + end angle (on the branch Tw = Lk0 + phi/2pi - Wr), spread evenly
     theta_end = phi + float(scene.end_angle(jnp.asarray(xfull)))
@@ -205,11 +234,9 @@ def relax_knot(scene, phi, q0, previous=None, gtol=1e-7, k=6):
                         contacts=nc, energy=float(e.energy), q=np.asarray(e.q), x=np.asarray(e.x))
 
 
-def _moved(scene, q, new_excess):
+def moved_to_excess(scene, q, new_excess):
     """(scene at the new excess, q with the far tail stretched): every interior node moved along
     the axis in proportion to its height along it, so no edge next to the far clamp is torn."""
-    from .endloads import with_shortening  # noqa: PLC0415
-
     old = float(scene.shortening)
     new = with_shortening(scene, float(new_excess))
     n_free = scene.n_nodes - 4
@@ -244,7 +271,7 @@ def pull(scene, q0, excesses, phi=0.0, progress=None, gtol=1e-7, previous=None):
     prev = previous  # an Equilibrium or KnotState: its writhe guards the first relaxation
     q = np.asarray(q0, dtype=float)
     for v in ex:
-        scene, q = _moved(scene, q, v)
+        scene, q = moved_to_excess(scene, q, v)
         try:
             prev, st = relax_knot(scene, phi, q, previous=prev, gtol=gtol)
         except (ConvergenceError, TopologyChangeError) as exc:
