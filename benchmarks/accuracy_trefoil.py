@@ -23,13 +23,15 @@ import jaxrod as jr  # noqa: E402
 from jaxrod.studies.accuracy import converged_critical_twists  # noqa: E402
 from jaxrod.io.plotting import plot_resolution_convergence  # noqa: E402
 
-RESULTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results")
+from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+RESULTS = results_dir()
 
 
 def main():
     t0 = time.perf_counter()
     scratch = tempfile.mkdtemp(prefix="jaxrod-accuracy-")
-    result = converged_critical_twists(jr.trefoil(8.0, 292.0, 61), 0.01 * math.pi, N_max=481, out=scratch,
+    result = converged_critical_twists(jr.trefoil(8.0, 292.0, pick(61, 41)), pick(0.01, 0.5) * math.pi,
+                                       N_max=pick(481, 161), out=scratch,
                                        progress=lambda s: print(f"[{time.perf_counter() - t0:6.1f} s] {s}",
                                                                  file=sys.stderr, flush=True))
     seconds = time.perf_counter() - t0

@@ -21,8 +21,9 @@ import math  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 
+from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
-RESULTS = os.path.join(HERE, "results")
+RESULTS = results_dir()
 
 
 def best_of(fn, rounds=3):
@@ -43,8 +44,8 @@ def main(argv):
     from jaxrod.solve.dynamics import _run_chunk
     from jaxrod.model.hessian import scaled_hessian
 
-    sizes = [int(a) for a in argv] or [2, 4, 8]
-    knot = jr.trefoil(D=8.0, L=292.0, N=61)
+    sizes = [int(a) for a in argv] or pick([2, 4, 8], [2])
+    knot = jr.trefoil(D=8.0, L=292.0, N=pick(61, 41))
     start = jr.relax(knot, 0.0, options=jr.RelaxOptions(with_stability=False))
     nbr = start.neighbourhood
     u0 = jnp.asarray(knot.to_scaled(start.q))
@@ -53,7 +54,7 @@ def main(argv):
     consts = (jnp.asarray(1e-2 * dt), jnp.asarray(dt), jnp.asarray(1.0), jnp.asarray(math.sqrt(2e-6 * dt)))
 
     def chunk(u, v, key):
-        return _run_chunk(knot, u, v, args[0], nbr, key, *consts, 200)
+        return _run_chunk(knot, u, v, args[0], nbr, key, *consts, pick(200, 5))
 
     batched_chunk = jax.jit(jax.vmap(chunk))
     H0 = np.asarray(scaled_hessian(knot, u0, jnp.asarray(0.0), nbr))

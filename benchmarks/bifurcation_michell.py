@@ -36,23 +36,25 @@ import numpy as np  # noqa: E402
 from scipy.optimize import brentq  # noqa: E402
 
 import jaxrod as jr  # noqa: E402
-from jaxrod.continuation.arclength import (ContinuationOptions, PseudoArclength, Result, continuation,  # noqa: E402
+from _bench import pick, provenance, provenance_line, results_dir  # noqa: E402  (benchmarks/ is on the path)
+from jaxrod.continuation.arclength import (ArclengthOptions, PseudoArclength, Result, continuation,  # noqa: E402
                                 emanating_directions, switch_branches)
 from jaxrod.continuation.arclength.corrector import correct  # noqa: E402
 from jaxrod.continuation.arclength.rods import pinned_problem, sliding_slice  # noqa: E402
 
 NU = 0.5
-N = int(sys.argv[1]) if len(sys.argv) > 1 else 64
+N = int(sys.argv[1]) if len(sys.argv) > 1 else pick(64, 16)
 PI = math.pi
 PHI_M = jr.michell_critical_twist(NU)
 HERE = os.path.dirname(os.path.abspath(__file__))
-OUT = os.path.join(HERE, "results")
+OUT = results_dir()
 ALG = PseudoArclength()
 # newton_tol: the scaled gradient's roundoff floor is ~1e-11 (EA l^2 / B ~ 1e4 at D/R = 0.01);
 # eig_rtol: ||J|| ~ 4e4, so the negative band is ~4e-9, above the eigenvalues' noise (~1e-11)
 COMMON = dict(newton_tol=5e-11, eig_rtol=1e-13)
 CHUNK = 10
-PRECISION_NS = (24, 32, 48, 64)  # the branch point against critical_twist at each
+PRECISION_NS = pick((24, 32, 48, 64), ())  # the branch point against critical_twist at each
+R_MINUS_STEPS = pick(20, 2)  # points followed on r < 0, the mirror branch
 
 
 def timed(fn, *a, **k):
@@ -143,7 +145,7 @@ def branch_point_study(n):
                                                       jr.ContinuationOptions(tol=1e-10 * PI, gtol=3e-11))
     rod = pinned_problem(scene, np.asarray(scene.q_init), 0.0)
     trivial, times["trivial branch (7 pins)"] = timed(
-        continuation, rod.problem, ALG, ContinuationOptions(ds=2.0, ds_max=8.0, p_max=1.2 * PHI_M, **COMMON))
+        continuation, rod.problem, ALG, ArclengthOptions(ds=2.0, ds_max=8.0, p_max=1.2 * PHI_M, **COMMON))
     (ev,) = trivial.events
     exact, times["exact-circle roots"] = timed(exact_circle_roots, scene, ev.p)
     print(f"N = {n}: branch point {ev.p / PI:.12f} pi (multiplicity {ev.multiplicity}), critical_twist "
@@ -177,13 +179,13 @@ def main():
     (direction,), times["emanating_directions (8 pins)"] = timed(emanating_directions, rod8.problem, ev8)
     print(f"8 pins: kappa = {direction.kappa:.6g}, order {direction.order}, predicted Morse "
           f"{direction.predicted_morse}", flush=True)
-    opts = ContinuationOptions(ds=1.0, ds_max=2.0, p_min=0.0, p_max=2 * cp.phi, max_steps=CHUNK, **COMMON)
+    opts = ArclengthOptions(ds=1.0, ds_max=2.0, p_min=0.0, p_max=2 * cp.phi, max_steps=CHUNK, **COMMON)
     (points, events, stop), times["buckled branch r > 0 (to contact)"] = timed(
         follow_to_contact, rod8, ev8, direction, 1, opts, D, 2000)
     print(f"buckled branch: {len(points)} points, stop: {stop}, events {[(e.kind, e.p / PI) for e in events]}",
           flush=True)
     (points_m, _, _), times["buckled branch r < 0 (20 steps)"] = timed(
-        follow_to_contact, rod8, ev8, direction, -1, opts_with(opts), D, 20)
+        follow_to_contact, rod8, ev8, direction, -1, opts_with(opts), D, R_MINUS_STEPS)
     contact = None
     if stop == "contact":
         i = next(i for i, q in enumerate(points) if rod8.min_distance(q.u) < D)
@@ -197,11 +199,13 @@ def main():
     def u_circle(phi):
         return ta.u + (phi - ta.p) / (tb.p - ta.p) * (tb.u - ta.u)
 
+    # the pinned problems' own arguments (the reference state and the scene's material), not the scene
+    args7, args8 = rod.problem.args, rod8.problem.args
     energy = jax.jit(rod8.problem.energy)
     energy7 = jax.jit(rod.problem.energy)
     def row(j, u, p, arclength, morse, lam):
-        e = float(energy(jnp.asarray(u), p, scene)) * E_unit
-        e0 = float(energy7(jnp.asarray(u_circle(p)), p, scene)) * E_unit
+        e = float(energy(jnp.asarray(u), p, args8)) * E_unit
+        e0 = float(energy7(jnp.asarray(u_circle(p)), p, args7)) * E_unit
         return dict(point=j, arclength=arclength, phi=p, phi_over_pi=p / PI, energy=e, energy_circle=e0,
                     energy_minus_circle=e - e0, Wr=rod8.writhe(u), morse_index=morse, lambda_0=lam[0],
                     lambda_1=lam[1], min_distance_over_D=rod8.min_distance(u) / D,
@@ -209,10 +213,11 @@ def main():
 
     rows = [row(j, q.u, q.p, q.arclength, q.morse_index, q.eigenvalues) for j, q in enumerate(points)]
     if contact is not None:  # the located contact point ends the branch (arclength: nan, not on a step)
-        J = rod8.problem.linearise(jnp.asarray(contact[:-1]), jnp.asarray(contact[-1]), scene)[1]
+        J = rod8.problem.linearise(jnp.asarray(contact[:-1]), jnp.asarray(contact[-1]), args8)[1]
         lam, _, morse_c = rod8.problem.backend.spectrum(J, 4, 0, COMMON["eig_rtol"])
         rows.append(row(len(rows), contact[:-1], float(contact[-1]), math.nan, morse_c, lam))
     with open(os.path.join(OUT, "bifurcation_michell.csv"), "w", newline="") as f:
+        f.write("# {commit}; {command}\n".format(**provenance()))  # read back with comment="#"
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         for r in rows:
@@ -223,7 +228,7 @@ def main():
     sym = wr_sym = 0.0
     e_p = np.zeros(rod8.problem.n + 1)
     e_p[-1] = 1.0
-    lin8 = lambda u, p: rod8.problem.linearise(u, p, scene)  # noqa: E731
+    lin8 = lambda u, p: rod8.problem.linearise(u, p, args8)  # noqa: E731
     for q in points_m[1:]:
         i = next((i for i in range(1, len(points)) if points[i].p <= q.p <= points[i - 1].p), None)
         if i is None:
@@ -232,14 +237,14 @@ def main():
         c = correct(rod8.problem.backend, lin8, a.z + (q.p - a.p) / (b.p - a.p) * (b.z - a.z), e_p,
                     COMMON["newton_tol"], 10)
         if c.converged:
-            sym = max(sym, abs(float(energy(jnp.asarray(q.u), q.p, scene) - energy(jnp.asarray(c.z[:-1]), q.p, scene))
+            sym = max(sym, abs(float(energy(jnp.asarray(q.u), q.p, args8) - energy(jnp.asarray(c.z[:-1]), q.p, args8))
                                ) * E_unit)
             wr_sym = max(wr_sym, abs(rod8.writhe(q.u) - rod8.writhe(c.z[:-1])))
     # the slide is a zero mode of the 7-pin Hessian along the buckled branch
     slide = []
     for q in points[:: max(1, len(points) // 8)]:
         u7 = rod.restrict(np.asarray(rod8.embed(jnp.asarray(q.u))))
-        lam = np.linalg.eigvalsh(np.asarray(rod.problem.linearise(jnp.asarray(u7), jnp.asarray(q.p), scene)[1]))
+        lam = np.linalg.eigvalsh(np.asarray(rod.problem.linearise(jnp.asarray(u7), jnp.asarray(q.p), args7)[1]))
         k = int(np.argmin(np.abs(lam)))
         slide.append((q.p, lam[k], int(np.sum(lam < -1e-13 * np.max(np.abs(lam))))))
 
@@ -304,7 +309,7 @@ def write_md(v):
     L.append(f"# Michell's ring through jaxrod.continuation.arclength (issue 17, acceptance 4), N = {N}\n")
     L.append(f"nu = {NU} (C = B/(1 + nu)), D/R = {D:g}, B = R = 1; Michell's continuum phi* = "
              f"{PHI_M / PI:.10f} pi. Machine: {platform.machine()}, {os.cpu_count()} cores, jax {jax.__version__}. "
-             f"Produced by `python benchmarks/bifurcation_michell.py {N}`.\n")
+             f"{provenance_line()}\n")
     L.append("## The double branch point\n")
     L.append("phi* from the extended system (the trivial branch with 7 pins, Brent on each of the crossing pair's "
              "eigenvalues, grouped into one event) against ``critical_twist`` (tol 1e-10 pi) at its default gtol "

@@ -31,18 +31,20 @@ from dataclasses import replace  # noqa: E402
 import numpy as np  # noqa: E402
 
 import jaxrod as jr  # noqa: E402
-from jaxrod.continuation.arclength import ContinuationOptions, PseudoArclength, Result, continuation  # noqa: E402
+from jaxrod.continuation.arclength import ArclengthOptions, PseudoArclength, Result, continuation  # noqa: E402
 from jaxrod.continuation.arclength.rods import knot_problem  # noqa: E402
 
+from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+
 PI = math.pi
-N = 121
+N = pick(121, 61)
 HERE = os.path.dirname(os.path.abspath(__file__))
-OUT = os.path.join(HERE, "results")
+OUT = results_dir()
 # README (today's engine, command 1): phi+ = 6.46490 pi +- 5e-5 pi, phi- = -11.18429 pi +- 9e-5 pi
 TODAY = {"plus": (6.46490, 5e-5), "minus": (-11.18429, 9e-5)}
-SIDES = {"plus": dict(stop=6.3, starts=(6.0, 6.3)), "minus": dict(stop=-11.0, starts=(-10.0, -11.0))}
-STEP_LIMITS = (0.25, 0.5, 1.0)
-PAST_FOLD = 8  # points followed on the unstable branch after the fold
+SIDES = {"plus": dict(stop=6.3, starts=pick((6.0, 6.3), (6.3,))), "minus": dict(stop=-11.0, starts=pick((-10.0, -11.0), (-11.0,)))}
+STEP_LIMITS = pick((0.25, 0.5, 1.0), (1.0,))
+PAST_FOLD = pick(8, 1)  # points followed on the unstable branch after the fold
 CHUNK, MAX_POINTS = 20, 300
 
 
@@ -58,7 +60,7 @@ def run_side(scene, side):
         for ds_max in STEP_LIMITS:
             e = states[start]
             rod = knot_problem(scene, np.asarray(e.q), e.phi)
-            opts = ContinuationOptions(ds=0.05 * sign, ds_min=1e-6, ds_max=ds_max, max_steps=CHUNK, newton_tol=1e-10,
+            opts = ArclengthOptions(ds=0.05 * sign, ds_min=1e-6, ds_max=ds_max, max_steps=CHUNK, newton_tol=1e-10,
                                        eig_rtol=1e-13, n_eig=6, p_min=-13 * PI, p_max=14 * PI)
             t = time.perf_counter()
             points, evs, start_at, result = [], [], None, None
@@ -114,14 +116,15 @@ def main():
             else:
                 odd.append(dict(start_over_pi=r["start"], ds_max=r["ds_max"],
                                 events=[(e.kind, e.p / PI, e.morse_before, e.morse_after) for e in r["events"][:3]]))
-        phis = np.array([f.p for f in folds]) / PI
+        # nan where no run's first event is a fold (at small N the tightening end can be a branch point)
+        phis = np.array([f.p for f in folds] or [math.nan]) / PI
         summary[side] = dict(folds_found=len(folds), runs=len(runs), other_first_events=odd,
                              phi_over_pi=float(np.mean(phis)),
                              spread_over_pi=float(np.ptp(phis)), today=TODAY[side],
                              difference_from_today_over_pi=float(np.mean(phis) - TODAY[side][0]),
-                             max_critical_eigenvalue=max(f.critical_eigenvalue for f in folds),
-                             max_residual=max(f.residual for f in folds),
-                             max_newton_iterations=max(f.iterations for f in folds),
+                             max_critical_eigenvalue=max((f.critical_eigenvalue for f in folds), default=math.nan),
+                             max_residual=max((f.residual for f in folds), default=math.nan),
+                             max_newton_iterations=max((f.iterations for f in folds), default=0),
                              seconds_follow_twist=t_old,
                              seconds_per_run=[round(r["seconds"], 1) for r in runs])
         print(side, json.dumps(summary[side]), flush=True)

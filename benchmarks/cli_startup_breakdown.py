@@ -20,8 +20,10 @@ import subprocess  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 
+from _bench import SMOKE, TINY_CLI_ARGS, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
-ARGS = ["trefoil", "--D", "8", "--L", "292", "--N", "121", "--phi-min", "-12pi", "--phi-max", "14pi", "--quiet"]
+ARGS = pick(["trefoil", "--D", "8", "--L", "292", "--N", "121", "--phi-min", "-12pi", "--phi-max", "14pi"],
+            TINY_CLI_ARGS) + ["--quiet"]
 MARK = "@@PHASES "
 
 CHILD = r"""
@@ -34,7 +36,7 @@ sums = {}
 def listen(event, seconds, **kw):
     sums[event] = sums.get(event, 0.0) + seconds
 mon.register_event_duration_secs_listener(listen)
-cli._add_cli_xla_flags()
+cli.add_cli_xla_flags()
 t1 = time.perf_counter()
 code = cli.main(json.loads(sys.argv[1]))
 t_main = time.perf_counter() - t1
@@ -45,8 +47,9 @@ print(MARK + json.dumps({"import_s": t_import, "main_s": t_main, "events": sums}
 
 def child(args, cache):
     env = dict(os.environ, XDG_CACHE_HOME=cache)
-    env.pop("JAX_COMPILATION_CACHE_DIR", None)
-    env.pop("XLA_FLAGS", None)
+    if not SMOKE:  # the small mode keeps the caller's compile cache and XLA flags (the test suite's)
+        env.pop("JAX_COMPILATION_CACHE_DIR", None)
+        env.pop("XLA_FLAGS", None)
     out = subprocess.run([sys.executable, "-c", CHILD, json.dumps(args)], env=env, capture_output=True, text=True,
                          check=True).stdout
     return json.loads(next(line for line in out.splitlines() if line.startswith(MARK))[len(MARK):])
@@ -57,8 +60,9 @@ def main():
     try:
         cache = os.path.join(tmp, "cache")
         cold = child(ARGS + ["--out", os.path.join(tmp, "a")], cache)
-        warm = child(ARGS + ["--out", os.path.join(tmp, "b")], cache)
-        nofig = child(ARGS + ["--out", os.path.join(tmp, "c"), "--no-figures"], cache)
+        # the small mode runs one process and shows it in all three columns
+        warm = cold if SMOKE else child(ARGS + ["--out", os.path.join(tmp, "b")], cache)
+        nofig = cold if SMOKE else child(ARGS + ["--out", os.path.join(tmp, "c"), "--no-figures"], cache)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     names = {"/jax/core/compile/jaxpr_trace_duration": "tracing to jaxprs",
@@ -87,8 +91,7 @@ def main():
                  " | ".join(f"{r['rest']:.1f}" for r in (cold, warm, nofig)) + " |")
     lines.append("| main() in all | " + " | ".join(f"{r['main_s']:.1f}" for r in (cold, warm, nofig)) + " |")
     lines += ["", f"Figures: {warm['main_s'] - nofig['main_s']:.1f} s of the warm run (warm minus --no-figures)."]
-    os.makedirs(os.path.join(HERE, "results"), exist_ok=True)
-    with open(os.path.join(HERE, "results", "cli_startup_breakdown.md"), "w") as f:
+    with open(os.path.join(results_dir(), "cli_startup_breakdown.md"), "w") as f:
         f.write("\n".join(lines) + "\n")
     print("\n".join(lines))
 

@@ -27,10 +27,11 @@ import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 
+from _bench import SMOKE, TINY_CLI_ARGS, fmt, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
-ARGS = ["trefoil", "--D", "8", "--L", "292", "--N", "121", "--phi-min", "-12pi", "--phi-max", "14pi",
-        "--no-cache", "--quiet", "--json"]
+ARGS = pick(["trefoil", "--D", "8", "--L", "292", "--N", "121", "--phi-min", "-12pi", "--phi-max", "14pi"],
+            TINY_CLI_ARGS) + ["--no-cache", "--quiet", "--json"]
 MARK = "@@COMMAND1 "
 
 CHILD = r"""
@@ -81,21 +82,26 @@ def git_rev(ref="HEAD"):
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--baseline", default="85f98fd", help="the previous release to compare with (a commit)")
-    p.add_argument("--rounds", type=int, default=2, help="rounds (each: baseline then current)")
-    p.add_argument("--out", default=os.path.join(HERE, "results"), help="folder for command1.md/.json")
+    p.add_argument("--rounds", type=int, default=pick(2, 1), help="rounds (each: baseline then current)")
+    p.add_argument("--out", default=results_dir(), help="folder for command1.md/.json")
     args = p.parse_args(argv)
     os.makedirs(args.out, exist_ok=True)
     runs = {"baseline": [], "current": []}
     with tempfile.TemporaryDirectory() as tmp:
         base = extract(args.baseline, os.path.join(tmp, "baseline"))
+        # the small mode runs the current version once and shows it in both columns: the baseline's
+        # code would be compiled from scratch, for nothing
+        versions = (("current", REPO),) if SMOKE else (("baseline", base), ("current", REPO))
         for r in range(args.rounds):
-            for name, path in (("baseline", base), ("current", REPO)):
+            for name, path in versions:
                 t = time.perf_counter()
                 row = run_version(path, tempfile.mkdtemp(dir=tmp))
                 runs[name].append(row)
                 print(f"round {r + 1}/{args.rounds} {name:8s}: cold {row['cold_s']:.1f} s, warm {row['warm_s']:.1f} s, "
-                      f"phi* = {row['phi_plus_over_pi']:+.6f} pi, {row['phi_minus_over_pi']:+.6f} pi "
+                      f"phi* = {fmt(row['phi_plus_over_pi'], '+.6f')} pi, {fmt(row['phi_minus_over_pi'], '+.6f')} pi "
                       f"({time.perf_counter() - t:.0f} s)", flush=True)
+    if SMOKE:
+        runs["baseline"] = runs["current"]
     summary = {"baseline_commit": args.baseline, "current_commit": git_rev(), "rounds": args.rounds,
                "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
                "blas_threads": os.environ.get("OPENBLAS_NUM_THREADS"), "runs": runs,
@@ -125,8 +131,9 @@ def main(argv=None):
     lines.append(f"| peak resident memory (MB) | {stat('baseline', 'peak_rss_mb', max):.0f} | "
                  f"{stat('current', 'peak_rss_mb', max):.0f} | |")
     for key, label in (("phi_plus_over_pi", "phi*(opening) / pi"), ("phi_minus_over_pi", "phi*(tightening) / pi")):
-        lines.append(f"| {label} | {runs['baseline'][-1][key]:+.6f} | {runs['current'][-1][key]:+.6f} | "
-                     f"diff {abs(runs['current'][-1][key] - runs['baseline'][-1][key]):.1e} |")
+        b, c = runs['baseline'][-1][key], runs['current'][-1][key]
+        diff = None if b is None or c is None else abs(c - b)
+        lines.append(f"| {label} | {fmt(b, '+.6f')} | {fmt(c, '+.6f')} | diff {fmt(diff, '.1e')} |")
     same = all(r["same_answer_twice"] for v in runs.values() for r in v)
     lines += ["", f"Both calls of each process gave the same critical twists: {same}.", ""]
     with open(os.path.join(args.out, "command1.md"), "w") as f:

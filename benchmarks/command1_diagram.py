@@ -23,8 +23,11 @@ import tempfile  # noqa: E402
 
 from cli_start import ARGS, run_cli  # noqa: E402  (benchmarks/ is on the path: this script's folder)
 
+from _bench import SMOKE, fmt, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
 SETTINGS = {"stable only (--stable-only)": ["--stable-only"], "whole diagram (default)": []}
+if SMOKE:  # one process: the tiny study (already --stable-only) stands for both settings
+    SETTINGS = {"whole diagram (default)": []}
 
 
 def run(extra, cache, out):
@@ -34,6 +37,10 @@ def run(extra, cache, out):
     with open(os.path.join(out, "critical.json")) as f:
         events = json.load(f).get("events", [])
     return seconds, summary, events
+
+
+def _over_pi(phi):
+    return None if phi is None else phi / 3.141592653589793
 
 
 def main():
@@ -46,7 +53,7 @@ def main():
             tmp = tempfile.mkdtemp(prefix="jaxrod-command1-diagram-")
             try:
                 cold = run(extra, os.path.join(tmp, "cache"), os.path.join(tmp, "cold"))
-                warm = run(extra, os.path.join(tmp, "cache"), os.path.join(tmp, "warm"))
+                warm = cold if SMOKE else run(extra, os.path.join(tmp, "cache"), os.path.join(tmp, "warm"))
             finally:
                 shutil.rmtree(tmp, ignore_errors=True)
             s = warm[1]
@@ -56,7 +63,8 @@ def main():
                                                                  "residual", "iterations")} for e in warm[2]]})
             print(name, json.dumps(rows[name][-1]), flush=True)
     med = lambda rs, k: statistics.median(r[k] for r in rs)  # noqa: E731
-    base, cur = rows["stable only (--stable-only)"], rows["whole diagram (default)"]
+    cur = rows["whole diagram (default)"]
+    base = rows.get("stable only (--stable-only)", cur)
     lines = ["# Command 1 with its whole bifurcation diagram against the stable-only study", "",
              f"`jaxrod {' '.join(ARGS)}`, two CLI processes per setting (cold: empty cache; warm: the second, "
              f"with the first's cache); {platform.processor() or platform.machine()}, {os.cpu_count()} cores, BLAS "
@@ -65,8 +73,8 @@ def main():
     for name, rs in rows.items():
         d = rs[-1]["seconds_diagram"]
         lines.append(f"| {name} | {med(rs, 'cold_s'):.1f} s | {med(rs, 'warm_s'):.1f} s | "
-                     f"{'' if d is None else f'{d:.1f} s'} | {rs[-1]['phi_plus'] / 3.141592653589793:+.10f} | "
-                     f"{rs[-1]['phi_minus'] / 3.141592653589793:+.10f} |")
+                     f"{'' if d is None else f'{d:.1f} s'} | {fmt(_over_pi(rs[-1]['phi_plus']), '+.10f')} | "
+                     f"{fmt(_over_pi(rs[-1]['phi_minus']), '+.10f')} |")
     lines += ["", f"Ratio whole diagram / stable only: cold {med(cur, 'cold_s') / med(base, 'cold_s'):.2f}x, "
               f"warm {med(cur, 'warm_s') / med(base, 'warm_s'):.2f}x.", "",
               "Located branch ends (warm run of the whole diagram):", "",
@@ -74,10 +82,9 @@ def main():
     for e in cur[-1]["events"]:
         lines.append(f"| {e['direction']} | {e['kind']} | {e['phi_over_pi']:+.10f} | {e['critical_eigenvalue']:.1e} | "
                      f"{e['residual']:.1e} | {e['iterations']} |")
-    os.makedirs(os.path.join(HERE, "results"), exist_ok=True)
-    with open(os.path.join(HERE, "results", "command1_diagram.md"), "w") as f:
+    with open(os.path.join(results_dir(), "command1_diagram.md"), "w") as f:
         f.write("\n".join(lines) + "\n")
-    with open(os.path.join(HERE, "results", "command1_diagram.json"), "w") as f:
+    with open(os.path.join(results_dir(), "command1_diagram.json"), "w") as f:
         json.dump(rows, f, indent=1)
     print("\n".join(lines))
 

@@ -35,8 +35,9 @@ import warnings  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
-RESULTS = os.path.join(HERE, "results")
+RESULTS = results_dir()
 # the runs' own folders (step files the reference starts from): scratch space, not results
 WORK = os.path.join(tempfile.gettempdir(), "jaxrod_critical_curve_vs_study")
 JSON = os.path.join(RESULTS, "critical_curve_vs_study.json")

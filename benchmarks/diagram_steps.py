@@ -20,8 +20,13 @@ import tempfile  # noqa: E402
 
 from cli_start import ARGS, run_cli  # noqa: E402  (benchmarks/ is on the path: this script's folder)
 
+from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
-STEPS = ("0.25pi", "0.5pi", "1pi")
+STEPS = pick(("0.25pi", "0.5pi", "1pi"), ("0.5pi",))
+
+
+def _over_pi(phi):
+    return None if phi is None else phi / 3.141592653589793  # None: no critical twist in the range
 
 
 def main():
@@ -34,11 +39,11 @@ def main():
                               out)
             with open(os.path.join(out, "critical.json")) as f:
                 crit = json.load(f)
-            runs[step] = {"seconds": seconds, "phi_plus_over_pi": crit["phi_plus"] / 3.141592653589793,
-                          "phi_minus_over_pi": crit["phi_minus"] / 3.141592653589793,
+            runs[step] = {"seconds": seconds, "phi_plus_over_pi": _over_pi(crit["phi_plus"]),
+                          "phi_minus_over_pi": _over_pi(crit["phi_minus"]),
                           "ends": [{k: e.get(k) for k in ("direction", "from_branch", "kind", "phi_over_pi", "located",
                                                           "within_bracket", "critical_eigenvalue", "residual",
-                                                          "iterations")} for e in crit["events"]],
+                                                          "iterations")} for e in crit.get("events", [])],
                           "brackets": [{k: c[k] for k in ("direction", "from_branch", "phi_over_pi")} |
                                        {"error_over_pi": c["phi_error"] / 3.141592653589793}
                                        for c in crit["instabilities"]]}
@@ -63,10 +68,9 @@ def main():
               "| side | from branch | steps agreeing | spread /pi |", "|---|---|---|---|"]
     for (side, branch), values in spread.items():
         lines.append(f"| {side} | {branch} | {len(values)} of {len(STEPS)} | {max(values) - min(values):.1e} |")
-    os.makedirs(os.path.join(HERE, "results"), exist_ok=True)
-    with open(os.path.join(HERE, "results", "diagram_steps.md"), "w") as f:
+    with open(os.path.join(results_dir(), "diagram_steps.md"), "w") as f:
         f.write("\n".join(lines) + "\n")
-    with open(os.path.join(HERE, "results", "diagram_steps.json"), "w") as f:
+    with open(os.path.join(results_dir(), "diagram_steps.json"), "w") as f:
         json.dump(runs, f, indent=1)
     print("\n".join(lines))
 

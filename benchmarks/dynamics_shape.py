@@ -27,10 +27,15 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
-RESULTS = os.path.join(HERE, "results")
+RESULTS = results_dir()
 PI = math.pi
-SEEDS = (1, 2)
+SEEDS = pick((1, 2), (1,))
+# the twist ranges of the dynamics runs (release: its span and rate; ramp: its end, then the further
+# span); the small mode runs a few chunks of each
+RELEASE_SPAN, RELEASE_RATE = pick((0.02 * PI, 2e-5), (0.002 * PI, 1e-1))
+RAMP_END, RAMP_MORE = pick((14.0 * PI, 0.5 * PI), (0.05 * PI, 0.05 * PI))
 
 
 def main(argv):
@@ -38,14 +43,14 @@ def main(argv):
     from jaxrod.measure.analysis import count_peaks, symmetry_order
     from jaxrod.io.records import step_record
 
-    N = int(argv[0]) if argv else 121
-    rate = float(argv[1]) if len(argv) > 1 else 1e-2
-    temperatures = [float(a) for a in argv[2:]] or [1e-8, 1e-6]
+    N = int(argv[0]) if argv else pick(121, 61)
+    rate = float(argv[1]) if len(argv) > 1 else pick(1e-2, 1e-1)
+    temperatures = [float(a) for a in argv[2:]] or pick([1e-8, 1e-6], [1e-6])
     knot = jr.trefoil(D=8.0, L=292.0, N=N)
     start = jr.relax_to_minimum(knot, 0.0)
     rows, profiles = [], {}
     t0 = time.perf_counter()
-    path = jr.follow_twist(knot, 0.0, 9.0 * PI, jr.ContinuationOptions(step=0.5 * PI, switch=True, max_switches=1),
+    path = jr.follow_twist(knot, 0.0, 9.0 * PI, jr.ContinuationOptions(step=pick(0.5, 1.0) * PI, switch=True, max_switches=1),
                            start=start)
     first = next(p for p in path.points if not p.branch.startswith("symmetric"))
     _, extra = step_record(knot, first.equilibrium)
@@ -75,15 +80,15 @@ def main(argv):
         for seed in SEEDS:
             t0 = time.perf_counter()
             phi0 = end.phi + 0.1 * PI
-            r = jr.damped_dynamics(knot, phi0, phi0 + 0.02 * PI, 2e-5, last.q,
+            r = jr.damped_dynamics(knot, phi0, phi0 + RELEASE_SPAN, RELEASE_RATE, last.q,
                                    jr.DynamicsOptions(temperature=T, dt=dt, stop_at_transition=False, seed=seed))
             settled("damped dynamics, released at phi* + 0.1 pi", T, seed, r.q, float(r.phi[-1]), t0)
     # A ramp (the paper's protocol) at the given rate: where it leaves the branch, 0.5 pi more.
     t0 = time.perf_counter()
-    r = jr.damped_dynamics(knot, 0.0, 14.0 * PI, rate, start.q,
+    r = jr.damped_dynamics(knot, 0.0, RAMP_END, rate, start.q,
                            jr.DynamicsOptions(temperature=temperatures[-1], dt=dt, departure=0.15, seed=SEEDS[0]))
     phi = float(r.phi[-1])
-    more = jr.damped_dynamics(knot, phi, phi + 0.5 * PI, rate, r.q,
+    more = jr.damped_dynamics(knot, phi, phi + RAMP_MORE, rate, r.q,
                               jr.DynamicsOptions(temperature=temperatures[-1], dt=dt, stop_at_transition=False,
                                                  seed=SEEDS[0] + 100))
     settled(f"damped dynamics, ramp {rate:g}", temperatures[-1], SEEDS[0], more.q, float(more.phi[-1]), t0)

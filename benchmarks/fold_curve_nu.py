@@ -33,21 +33,25 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 import jaxrod as jr  # noqa: E402
-from jaxrod.continuation.arclength import ContinuationOptions, PseudoArclength, continuation, fold_at, fold_curve  # noqa: E402
+from jaxrod.continuation.arclength import ArclengthOptions, PseudoArclength, continuation, fold_at, fold_curve  # noqa: E402
 from jaxrod.continuation.arclength.rods import knot_problem, set_poisson_ratio  # noqa: E402
 
 PI = math.pi
-D, L, N = 8.0, 292.0, 121
+from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+
+D, L = 8.0, 292.0
+N = pick(121, 61)  # the small mode: the fewest nodes whose start at phi = 0 is a minimum
 NU0 = 0.5
-POINTS = (0.0, 0.1, 0.2, 0.3, 0.4)
+POINTS = pick((0.0, 0.1, 0.2, 0.3, 0.4), (0.4,))
+CURVE_STEPS = pick(400, 6)  # the fold curve's steps in nu (the small mode: enough for its slope check)
 H_NU = 1e-3  # the central differences' step in nu (0.0 +- h: nu = -0.001 is a valid material)
 HERE = os.path.dirname(os.path.abspath(__file__))
-OUT = os.path.join(HERE, "results")
+OUT = results_dir()
 ALG = PseudoArclength()
 
 
 def _path_options(p_max, steps=40):
-    return ContinuationOptions(ds=0.05, ds_min=1e-6, ds_max=0.25, max_steps=steps, newton_tol=1e-10, eig_rtol=1e-13,
+    return ArclengthOptions(ds=0.05, ds_min=1e-6, ds_max=0.25, max_steps=steps, newton_tol=1e-10, eig_rtol=1e-13,
                                n_eig=6, p_max=p_max)
 
 
@@ -68,7 +72,7 @@ def main():
     located = time.perf_counter() - t0
     print(f"fold at nu = {NU0}: {fold.p / PI:.10f} pi ({located:.0f} s)", flush=True)
     t0 = time.perf_counter()
-    opts = ContinuationOptions(ds=-0.5, ds_max=2.0, ds_min=1e-5, max_steps=400, newton_tol=1e-10, p_min=-0.005,
+    opts = ArclengthOptions(ds=-0.5, ds_max=2.0, ds_min=1e-5, max_steps=CURVE_STEPS, newton_tol=1e-10, p_min=-0.005,
                                p_max=NU0 + 1e-9)
     curve = fold_curve(rod.problem, fold, set_poisson_ratio, NU0, ALG, opts)
     curve_seconds = time.perf_counter() - t0

@@ -37,19 +37,24 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 import jaxrod as jr  # noqa: E402
-from jaxrod.continuation.arclength import ContinuationOptions, PseudoArclength  # noqa: E402
+from jaxrod.continuation.arclength import ArclengthOptions, PseudoArclength  # noqa: E402
 from jaxrod.continuation.arclength.event_curve import EventCurveOptions, event_curve  # noqa: E402
 from jaxrod.continuation.arclength.rods import knot_problem, set_diameter  # noqa: E402
 from jaxrod.model.symmetry import two_fold_asymmetry  # noqa: E402
 
 PI = math.pi
-L, N, D0, NU = 292.0, 128, 8.0, 0.5
-GRID = np.round(np.arange(0.008, 0.0451, 0.001), 4)  # D/L
-CHECKS = (0.010, 0.015, 0.020, 0.025, 0.030, 0.035, 0.040)  # every 0.005 over the range (0.025 and 0.030 added 2026-12-04)
-SIDES = {"plus": dict(sign=1.0, below=6.35, name="opening"), "minus": dict(sign=-1.0, below=-10.9, name="tightening")}
+from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+
+L, D0, NU = 292.0, 8.0, 0.5
+N = pick(128, 61)  # the small mode: the fewest nodes whose start at phi = 0 is a minimum
+# small mode: one grid point each way from D0/L = 0.0274, one point study, one central difference
+GRID = pick(np.round(np.arange(0.008, 0.0451, 0.001), 4), np.array([0.027, 0.028]))  # D/L
+CHECKS = pick((0.010, 0.015, 0.020, 0.025, 0.030, 0.035, 0.040), (0.028,))  # every 0.005 over the range
+SIDES = {"plus": dict(sign=1.0, below=pick(6.35, 6.5), name="opening"),  # small mode: nearer N = 61's fold
+         "minus": dict(sign=-1.0, below=-10.9, name="tightening")}
 DELTA = 0.03 * PI
 MAX_JUMP = 2.0  # scaled units (edge lengths): a start that relaxed further has left the branch
-H_RELS = (1e-3, 1e-4, 1e-5)  # central-difference steps h / D (the last one is the check)
+H_RELS = pick((1e-3, 1e-4, 1e-5), (1e-3,))  # central-difference steps h / D (the last one is the check)
 # The curves from D0 end before the grid's ends (the opening fold at a cusp near D/L = 0.0425, the
 # tightening event where its curve turns back in D/L near 0.039); past them the first instability is
 # another event (point studies at 0.044: opening 7.818 pi, tightening -12.679 pi). That event is
@@ -58,7 +63,7 @@ HIGH_START, HIGH_LOW = 0.045, 0.030
 HIGH_BELOW = {"plus": 7.2, "minus": -12.0}
 HIGH_JSON = "fold_curve_ratio_high.json"
 HERE = os.path.dirname(os.path.abspath(__file__))
-OUT = os.path.join(HERE, "results")
+OUT = results_dir()
 ALG = PseudoArclength()
 
 
@@ -67,7 +72,7 @@ def options(sign, max_points=60):
 
 
 def _path(sign):
-    return ContinuationOptions(ds=0.05 * sign, ds_min=1e-6, ds_max=0.5, newton_tol=1e-10, eig_rtol=1e-13, n_eig=6,
+    return ArclengthOptions(ds=0.05 * sign, ds_min=1e-6, ds_max=0.5, newton_tol=1e-10, eig_rtol=1e-13, n_eig=6,
                                p_min=-20 * PI, p_max=16 * PI)
 
 
@@ -121,7 +126,7 @@ def run_side(side, summary, save):
         problem.args = set_diameter(problem.args, D0)
         t = time.perf_counter()
         curve = event_curve(problem, (problem.u0, problem.p0), set_diameter, D0, [g * L for g in grid],
-                            options(sign, 150), observer=observer(stage),
+                            options(sign, pick(150, 20)), observer=observer(stage),
                             progress=lambda m: print(f"  [{side} {stage}] {m}", flush=True))
         summary["curve_seconds"][f"{side}_{stage}"] = time.perf_counter() - t
         summary["curve_result"][f"{side}_{stage}"] = [curve.result.value, curve.message]
@@ -244,7 +249,7 @@ def main():
         main_high(sys.argv[2:] or ["plus", "minus"])
         return
     only_checks = sys.argv[1:2] == ["checks"]
-    sides = sys.argv[2:] if only_checks else (sys.argv[1:] or ["plus", "minus"])
+    sides = sys.argv[2:] if only_checks else (sys.argv[1:] or pick(["plus", "minus"], ["plus"]))
     path = os.path.join(OUT, "fold_curve_ratio.json")
     summary = dict(L=L, N=N, nu=NU, D0=D0, grid=GRID.tolist(), delta_over_pi=DELTA / PI, curve=[], checks=[],
                    start_seconds={}, curve_seconds={}, curve_result={})
@@ -264,6 +269,7 @@ def main():
             run_side(side, summary, save)
         summary["checks"] = [c for c in summary["checks"] if c["side"] != side]
         checks(side, summary["curve"], summary, save)
+    save()  # also when no point was found (the small mode's few steps)
     report(summary)
 
 

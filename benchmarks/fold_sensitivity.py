@@ -31,21 +31,24 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 import jaxrod as jr  # noqa: E402
-from jaxrod.continuation.arclength import ContinuationOptions, PseudoArclength, continuation, fold_at, fold_sensitivity  # noqa: E402
+from jaxrod.continuation.arclength import ArclengthOptions, PseudoArclength, continuation, fold_at, fold_sensitivity  # noqa: E402
 from jaxrod.continuation.arclength.rods import knot_problem, set_diameter, set_poisson_ratio  # noqa: E402
 
 PI = math.pi
 D, L = 8.0, 292.0
+from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
-OUT = os.path.join(HERE, "results")
+OUT = results_dir()
 # (N, side, start of the pseudo-arclength path (from follow_twist), p bound, steps)
-CASES = ((61, "opening", 6.3, 7.0, 40), (121, "opening", 6.3, 7.0, 30), (121, "tightening", -11.0, -12.0, 80))
-PARAMETERS = (("nu", set_poisson_ratio, 0.5, 1e-3), ("D", set_diameter, D, 8e-4))
+CASES = pick(((61, "opening", 6.3, 7.0, 40), (121, "opening", 6.3, 7.0, 30), (121, "tightening", -11.0, -12.0, 80)),
+             ((61, "opening", 6.3, 7.0, 40),))
+PARAMETERS = pick((("nu", set_poisson_ratio, 0.5, 1e-3), ("D", set_diameter, D, 8e-4)),
+                  (("nu", set_poisson_ratio, 0.5, 1e-3),))
 
 
 def _options(sign, bound, steps):
     kw = dict(p_max=bound * PI) if sign > 0 else dict(p_min=bound * PI)
-    return ContinuationOptions(ds=0.05 * sign, ds_min=1e-6, ds_max=0.25, max_steps=steps, newton_tol=1e-10,
+    return ArclengthOptions(ds=0.05 * sign, ds_min=1e-6, ds_max=0.25, max_steps=steps, newton_tol=1e-10,
                                eig_rtol=1e-13, n_eig=6, **kw)
 
 

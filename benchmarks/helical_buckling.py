@@ -19,8 +19,9 @@ import numpy as np  # noqa: E402
 from jaxrod.studies import endloads as el  # noqa: E402
 from jaxrod.model.material import Material  # noqa: E402
 
-SETS = ((20.0, 300.0, 0.5), (30.0, 400.0, 0.3), (10.0, 300.0, 0.0), (15.0, 250.0, 0.5))
-NS = (120, 240, 480)
+from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+SETS = pick(((20.0, 300.0, 0.5), (30.0, 400.0, 0.3), (10.0, 300.0, 0.0), (15.0, 250.0, 0.5)), ((20.0, 300.0, 0.5),))
+NS = pick((120, 240, 480), (120, 240))
 D = 2e-4  # D/L: stretch T/EA = t (D/L)^2/16 < 1e-6
 HERE = os.path.dirname(os.path.abspath(__file__))
 
@@ -33,7 +34,7 @@ def main():
         for N in NS:
             rod = el.shortened_rod(N, 1.0, Material.from_ratio(B=1.0, nu=nu, D=D), shortening=ref.d)
             t0 = time.perf_counter()
-            e = el.solve(rod, ref.R, el.helical_start(rod, m, t, ref.R), k=4)
+            e = el.solve(rod, ref.R, el.helical_start(rod, m, t, ref.R), el.EndLoadOptions(k=4))
             loads = el.end_loads(rod, e.q, ref.R, e.neighbourhood)
             row = dict(m=m, t=t, nu=nu, gamma=ref.gamma, lam=ref.lam, d=ref.d, R=ref.R, N=N, M=loads.M, T=loads.T,
                        m_err=loads.M / m - 1, t_err=loads.T / t - 1,
@@ -71,8 +72,7 @@ def main():
     assert abs(free["Lk_err"]) < 1e-10
     print("free end:", free)
     out = dict(sets=SETS, N=NS, D_over_L=D, rows=rows, richardson=rich, free_end=free)
-    os.makedirs(os.path.join(HERE, "results"), exist_ok=True)
-    with open(os.path.join(HERE, "results", "helical_buckling.json"), "w") as fh:
+    with open(os.path.join(results_dir(), "helical_buckling.json"), "w") as fh:
         json.dump(out, fh, indent=1)
     figure(rows, states)
 
@@ -108,7 +108,7 @@ def figure(rows, states):
     ax3.set_xlabel("N")
     ax3.legend(fontsize=6)
     fig.tight_layout()
-    fig.savefig(os.path.join(HERE, "results", "helical_buckling.png"), dpi=120)
+    fig.savefig(os.path.join(results_dir(), "helical_buckling.png"), dpi=120)
 
 
 if __name__ == "__main__":

@@ -8,7 +8,7 @@ stable-only engine) from phi = 0 through the symmetric branch's end onto the buc
 on ``knot_problem`` towards phi = 0, with two step limits, until the first event that costs the
 buckled branch its stability (a fold or a branch point: the Morse index goes 0 -> 1). Soft folds
 (the path turning back along the sliding mode, a saddle-node of the discretisation's tiny
-sliding landscape) are crossed by a slide (``ContinuationOptions.soft_folds = "slide"``): the rod
+sliding landscape) are crossed by a slide (``ArclengthOptions.soft_folds = "slide"``): the rod
 relaxes to the neighbouring minimum, its strands slipping, and the path goes on.
 
 The loop on each side is [buckled branch's end, symmetric branch's end]: twisting up, the
@@ -31,18 +31,21 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 import jaxrod as jr  # noqa: E402
-from jaxrod.continuation.arclength import ContinuationOptions, PseudoArclength, continuation  # noqa: E402
+from jaxrod.continuation.arclength import ArclengthOptions, PseudoArclength, continuation  # noqa: E402
 from jaxrod.continuation.arclength.rods import knot_problem  # noqa: E402
 from jaxrod.model.topology import writhe  # noqa: E402
 
 PI = math.pi
-N = 121
+from _bench import COMMITTED_RESULTS, SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401
 HERE = os.path.dirname(os.path.abspath(__file__))
-OUT = os.path.join(HERE, "results")
-SIDES = {"plus": 7.0, "minus": -12.0}  # where the buckled branch is started (phi / pi)
-STEP_LIMITS = (0.5, 0.25)
-MAX_STEPS = 320
-PAST_END = 6  # points followed past the buckled branch's end
+OUT = results_dir()
+N = pick(121, 61)  # the small mode: the fewest nodes whose start at phi = 0 is a minimum
+# where the buckled branch is started (phi / pi); the small mode: the opening side, a few points
+SIDES = pick({"plus": 7.0, "minus": -12.0}, {"plus": 7.0})
+STEP_LIMITS = pick((0.5, 0.25), (0.5,))
+MAX_STEPS = pick(320, 6)
+CHUNK = pick(25, 3)  # continuation steps between the observer's looks
+PAST_END = pick(6, 1)  # points followed past the buckled branch's end
 # the corrector's residual: along a slide of eigenvalue ~3e-8 a residual r leaves the point uncertain
 # by r / 3e-8; at 1e-10 that is 3e-3, enough for the path to turn in phi by noise (measured)
 NEWTON_TOL = 1e-12
@@ -50,7 +53,8 @@ NEWTON_TOL = 1e-12
 
 def symmetric_ends():
     """The symmetric branch's ends located by the fold system (benchmarks/bifurcation_trefoil.py)."""
-    with open(os.path.join(OUT, "bifurcation_trefoil.json")) as f:
+    # the small mode's folder is empty: the committed results there
+    with open(os.path.join(COMMITTED_RESULTS if SMOKE else OUT, "bifurcation_trefoil.json")) as f:
         summary = json.load(f)["summary"]
     return {side: summary[side]["phi_over_pi"] for side in ("plus", "minus")}
 
@@ -117,9 +121,9 @@ def run_with_points(scene, side, e, ds_max):
     rod = knot_problem(scene, np.asarray(e.q), e.phi)
     t = time.perf_counter()
     points, events, slides, start, br = [], [], [], None, None
-    chunk = 25
+    chunk = CHUNK
     while len(points) < MAX_STEPS:
-        opts = ContinuationOptions(ds=0.05 * sign, ds_min=1e-6, ds_max=ds_max, max_steps=chunk, newton_tol=NEWTON_TOL,
+        opts = ArclengthOptions(ds=0.05 * sign, ds_min=1e-6, ds_max=ds_max, max_steps=chunk, newton_tol=NEWTON_TOL,
                                    eig_rtol=1e-13, n_eig=6, p_min=-13 * PI, p_max=14 * PI)
         br = continuation(rod.problem, PseudoArclength(), opts, start=start, throw=False)
         points += br.points[1:] if points else br.points
@@ -140,6 +144,8 @@ def plot(rows, summary):
     import matplotlib.pyplot as plt
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
     for ax, side in zip(axes, ("minus", "plus")):
+        if side not in summary:  # the small mode runs one side
+            continue
         s = summary[side]
         sel = [r for r in rows if r["side"] == side and r["ds_max"] == STEP_LIMITS[0]]
         phi = np.array([r["phi_over_pi"] for r in sel])

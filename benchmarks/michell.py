@@ -22,14 +22,16 @@ import time  # noqa: E402
 import jaxrod  # noqa: E402
 from jaxrod import EquilibriumOptions, critical_twist, michell_critical_twist, michell_ring, solve_equilibrium  # noqa: E402,E501
 
+from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
 NEWTON_EXACT_COUNT = EquilibriumOptions(method="newton", negative_tol=0.0)
 from jaxrod.io.plotting import plot_convergence  # noqa: E402
 
 NU = 0.5
 TOL = 1e-6 * math.pi
-NS = (32, 64, 128, 256)
+NS = pick((32, 64, 128, 256), (8, 16, 32))
+N1, N2, N3 = NS[-3:]  # Richardson from the last three
 HERE = os.path.dirname(os.path.abspath(__file__))
-OUT = os.path.join(HERE, "results")
+OUT = results_dir()
 
 
 def ours(scene, analytic):
@@ -87,14 +89,14 @@ def main():
     ours_rows = {r["N"]: r for r in rows if r["label"].startswith("jaxrod")}
     base_rows = {r["N"]: r for r in rows if r["label"].startswith("baseline")}
     orders = [math.log2(ours_rows[a]["rel_error"] / ours_rows[b]["rel_error"]) for a, b in zip(NS[:-1], NS[1:])]
-    rich = (4 * ours_rows[256]["phi"] - ours_rows[128]["phi"]) / 3
-    # Order estimated from phi*(64), phi*(128), phi*(256) alone (no analytic value used).
-    f64, f128, f256 = (ours_rows[n]["phi"] for n in (64, 128, 256))
+    rich = (4 * ours_rows[N3]["phi"] - ours_rows[N2]["phi"]) / 3
+    # Order estimated from phi*(N1), phi*(N2), phi*(N3) alone (no analytic value used).
+    f64, f128, f256 = (ours_rows[n]["phi"] for n in (N1, N2, N3))
     p = math.log2((f64 - f128) / (f128 - f256))
     rich_p = f256 + (f256 - f128) / (2**p - 1)
     rich_rel = (rich - analytic) / analytic
     rich_p_rel = (rich_p - analytic) / analytic
-    rich_secs = ours_rows[128]["seconds"] + ours_rows[256]["seconds"]
+    rich_secs = ours_rows[N2]["seconds"] + ours_rows[N3]["seconds"]
 
     lines = [
         "# Michell's ring: critical twist against resolution",
@@ -116,9 +118,9 @@ def main():
         )
     lines += [
         "",
-        f"Richardson (N = 128, 256, order 2): phi* = {rich / math.pi:.10f} pi, rel. error {rich_rel:.2e} "
+        f"Richardson (N = {N2}, {N3}, order 2): phi* = {rich / math.pi:.10f} pi, rel. error {rich_rel:.2e} "
         f"(cost {rich_secs:.2f} s).",
-        f"Richardson with the order estimated from N = 64, 128, 256 without the analytic value "
+        f"Richardson with the order estimated from N = {N1}, {N2}, {N3} without the analytic value "
         f"(p = {p:.4f}): rel. error {rich_p_rel:.2e}.",
         "",
         "Both methods agree on phi*(N) to within the tolerance. 'evals' counts equilibrium solves with a full "
@@ -130,7 +132,7 @@ def main():
     with open(os.path.join(OUT, "michell.md"), "w") as f:
         f.write("\n".join(lines) + "\n")
     chart_rows = [dict(r) for r in rows]
-    chart_rows.append(dict(label="jaxrod + Richardson (128, 256)", N=256, rel_error=rich_rel, seconds=rich_secs))
+    chart_rows.append(dict(label=f"jaxrod + Richardson ({N2}, {N3})", N=N3, rel_error=rich_rel, seconds=rich_secs))
     plot_convergence(chart_rows, os.path.join(OUT, "michell.png"),
                      title="Michell ring: |relative error of phi*| against time")
     print("\n".join(lines))

@@ -21,16 +21,18 @@ import numpy as np
 from jaxrod.solve.equilibrium import EquilibriumOptions, solve_equilibrium
 from jaxrod.model.scenes import trefoil
 
+from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
 NEWTON = EquilibriumOptions(method="newton", gtol=1e-11, near_null_tol=1e-6)
-L, N = 292.0, 61
-CASES = ((0.020, "minus"), (0.024, "minus"), (0.028, "minus"), (0.024, "plus"))
+L, N = 292.0, pick(61, 41)
+CASES = pick(((0.020, "minus"), (0.024, "minus"), (0.028, "minus"), (0.024, "plus")), ((0.0274, "plus"),))
+SMALL_STUDY = pick([], ["--stable-only", "--no-extrapolation"])  # small mode: the study's stable branches only
 EXE = os.path.join(os.path.dirname(sys.executable), "jaxrod")
 
 
 def _study(D, out, side):
     span = ["--phi-min=-12pi", "--phi-max", "0.5pi"] if side == "minus" else ["--phi-min=-0.5pi", "--phi-max", "7.5pi"]
     run = subprocess.run([EXE, "trefoil", "--D", repr(D), "--L", repr(L), "--N", str(N), *span, "--out", out,
-                          "--json", "--no-figures", "--quiet"], capture_output=True, text=True, check=True)
+                          "--json", "--no-figures", "--quiet", *SMALL_STUDY], capture_output=True, text=True, check=True)
     return json.loads(run.stdout)
 
 
@@ -100,7 +102,7 @@ def main():
             "lowest eigenvalues followed by Newton in steps of 2e-4 π from the study's last stable state "
             "(regula falsi at the end); where Newton finds no state past a twist even in steps of 1e-7 π, the "
             "fold's twist from λ², linear in φ next to a fold, through the last three states.\n\n" + "\n".join(lines) + "\n")
-    path = pathlib.Path(__file__).parent / "results" / "onset_fine_step.md"
+    path = pathlib.Path(results_dir()) / "onset_fine_step.md"
     path.write_text(text)
     print(text)
 

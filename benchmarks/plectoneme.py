@@ -45,6 +45,7 @@ from jaxrod.studies import endloads as el  # noqa: E402
 from jaxrod.model.contact import contact_count  # noqa: E402
 from jaxrod.model.material import Material  # noqa: E402
 
+from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
 TWO_PI = 2.0 * math.pi
 
@@ -424,10 +425,10 @@ def figure(res, summ, path):
 def replot():
     """Redraw plectoneme.png from plectoneme.csv and plectoneme.json (no solving). Snaps missing
     from an older CSV are inferred: a writhe step above 0.01 between two touching states."""
-    with open(os.path.join(HERE, "results", "plectoneme.json")) as fh:
+    with open(os.path.join(results_dir(), "plectoneme.json")) as fh:
         summ = json.load(fh)
     rows = []
-    with open(os.path.join(HERE, "results", "plectoneme.csv")) as fh:
+    with open(os.path.join(results_dir(), "plectoneme.csv")) as fh:
         for r in csv.DictReader(fh):
             row = {k: (v if k == "branch" else float(v)) for k, v in r.items() if v != ""}
             row["morse"], row["contacts"] = int(row["morse"]), int(row["contacts"])
@@ -436,11 +437,10 @@ def replot():
         if "snap" not in b and b["branch"] == a["branch"] == "buckled" and a["contacts"] > 0 and b["contacts"] > 0:
             b["snap"] = abs(b["Wr"] - a["Wr"]) > 0.01 and abs(b["R"] - a["R"]) < 0.2
     res = dict(rows=rows, T=summ["T"], D=summ["D"], N=summ["N"], nu=0.0, kappa_c=1e4)
-    figure(res, summ, os.path.join(HERE, "results", "plectoneme.png"))
+    figure(res, summ, os.path.join(results_dir(), "plectoneme.png"))
 
 
 def main():
-    os.makedirs(os.path.join(HERE, "results"), exist_ok=True)
     if "--replot" in sys.argv:
         return replot()
     quick = "--quick" in sys.argv
@@ -449,9 +449,9 @@ def main():
     summ = summarise(res)
     print(json.dumps(summ, indent=1, default=float))
     tag = "" if "--D" not in sys.argv else f"_D{D:g}"  # another diameter: its own files
-    write_csv(res["rows"], os.path.join(HERE, "results", f"plectoneme{tag}.csv"))
-    figure(res, summ, os.path.join(HERE, "results", f"plectoneme{tag}.png"))
-    with open(os.path.join(HERE, "results", f"plectoneme{tag}.json"), "w") as fh:
+    write_csv(res["rows"], os.path.join(results_dir(), f"plectoneme{tag}.csv"))
+    figure(res, summ, os.path.join(results_dir(), f"plectoneme{tag}.png"))
+    with open(os.path.join(results_dir(), f"plectoneme{tag}.json"), "w") as fh:
         json.dump(summ, fh, indent=1, default=float)
 
 if __name__ == "__main__":

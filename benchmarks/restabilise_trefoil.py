@@ -26,14 +26,17 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 import jaxrod as jr  # noqa: E402
-from jaxrod.continuation.arclength import ContinuationOptions, PseudoArclength, emanating_directions, switch_branches  # noqa: E402
+from jaxrod.continuation.arclength import ArclengthOptions, PseudoArclength, emanating_directions, switch_branches  # noqa: E402
 from jaxrod.studies.diagram import DiagramOptions, follow_branch_end  # noqa: E402
 from jaxrod.model.topology import writhe  # noqa: E402
 
 PI = math.pi
+from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
-RESULTS = os.path.join(HERE, "results")
-SIDES = {"opening": (1.0, 6.3), "tightening": (-1.0, -11.0)}
+RESULTS = results_dir()
+SIDES = pick({"opening": (1.0, 6.3), "tightening": (-1.0, -11.0)}, {"opening": (1.0, 6.3)})
+N = pick(121, 61)  # the small mode: the fewest nodes whose start at phi = 0 is a minimum
+MAX_UNSTABLE = pick(400, 4)
 
 
 def event_row(e):
@@ -43,8 +46,8 @@ def event_row(e):
 
 
 # The branch met at a restabilising branch point, each half followed for MET_STEPS steps.
-MET_STEPS = 25
-MET_OPTIONS = ContinuationOptions(ds=0.05, ds_min=1e-6, ds_max=0.5, max_steps=MET_STEPS, newton_tol=1e-11, eig_rtol=1e-13,
+MET_STEPS = pick(25, 2)
+MET_OPTIONS = ArclengthOptions(ds=0.05, ds_min=1e-6, ds_max=0.5, max_steps=MET_STEPS, newton_tol=1e-11, eig_rtol=1e-13,
                                   n_eig=6, resolve_crossings=1e-5)
 
 
@@ -82,14 +85,14 @@ def main():
     if sys.argv[1:] == ["--report-only"]:
         with open(os.path.join(RESULTS, "restabilise_trefoil.json")) as fh:
             return report(json.load(fh))
-    scene = jr.trefoil(D=8.0, L=292.0, N=121)
+    scene = jr.trefoil(D=8.0, L=292.0, N=N)
     rows = []
     for side, (sign, start) in SIDES.items():
         path = jr.follow_twist(scene, 0.0, start * PI, jr.ContinuationOptions(step=2 * PI, max_switches=0))
         e = path.points[-1].equilibrium
         t = time.perf_counter()
         end = follow_branch_end(scene, np.asarray(e.q), e.phi, sign,
-                                DiagramOptions(until_restable=True, max_unstable_points=400))
+                                DiagramOptions(until_restable=True, max_unstable_points=MAX_UNSTABLE))
         seconds = time.perf_counter() - t
         pts = end.points
         wr = [float(writhe(np.asarray(scene.unpack(end.rod.q(q.u), q.p)[0]))) for q in (pts[0], pts[-1])]

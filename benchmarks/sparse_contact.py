@@ -31,8 +31,9 @@ import subprocess  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 
+from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
-RESULTS = os.path.join(HERE, "results")
+RESULTS = results_dir()
 CSV = os.path.join(RESULTS, "sparse_contact.csv")
 FIELDS = ["N", "n_dof", "engine", "side", "relax_s", "first_s", "warm_s", "phi_over_pi", "phi_error_over_pi",
           "bracket_lo_over_pi", "bracket_hi_over_pi", "kind", "points", "load_1min"]

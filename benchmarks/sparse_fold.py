@@ -25,19 +25,22 @@ import subprocess  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 
+from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
-RESULTS = os.path.join(HERE, "results")
+RESULTS = results_dir()
 PI = math.pi
-CASES = ((121, ("sparse", "dense")), (481, ("sparse", "dense")), (961, ("sparse",)))
+CASES = pick(((121, ("sparse", "dense")), (481, ("sparse", "dense")), (961, ("sparse",))),
+             ((61, ("sparse", "dense")),))  # the small mode: the fewest nodes whose start is a minimum
+MAX_STEPS = pick(120, 4)  # the small mode: a few steps towards the fold
 
 
 def child(N, backends):
     import numpy as np
 
     import jaxrod as jr
-    from jaxrod.continuation.arclength import ContinuationOptions, PseudoArclength, continuation
+    from jaxrod.continuation.arclength import ArclengthOptions, PseudoArclength, continuation
     from jaxrod.linalg.bordered import DenseBackend, SparseBackend
-    from jaxrod.continuation.arclength.rods import _assemble_pinned, knot_problem
+    from jaxrod.continuation.arclength.rods import assemble_pinned_hessian, knot_problem
 
     scene = jr.trefoil(D=8.0, L=292.0, N=N)
     t = time.perf_counter()
@@ -47,16 +50,16 @@ def child(N, backends):
     # The gauge pins, and one more on the material slide where it is a numerically exact symmetry:
     # ``knot_problem`` decides (its eigenvalue below EXACT_SLIDE_TOL), once, with the sparse backend,
     # and both backends then get the same pins.
-    rod0 = knot_problem(scene, np.asarray(e.q), e.phi, backend=SparseBackend(_assemble_pinned))
+    rod0 = knot_problem(scene, np.asarray(e.q), e.phi, backend=SparseBackend(assemble_pinned_hessian))
     pins = np.asarray(rod0.pins) if rod0.slide_pin is not None else None
     print(f"N = {N}: slide pinned at DOF {rod0.slide_pin}" if pins is not None else f"N = {N}: no exact slide",
           file=sys.stderr, flush=True)
     # resolve_crossings: a step across which the Morse index jumps by more than 1 is halved, so that a
     # fold and a crossing next to it are located apart (N = 961: a branch point 2.4e-5 pi before the fold)
-    opts = ContinuationOptions(ds=0.05, ds_min=1e-6, ds_max=4.0, max_steps=120, newton_tol=1e-10, eig_rtol=1e-13,
+    opts = ArclengthOptions(ds=0.05, ds_min=1e-6, ds_max=4.0, max_steps=MAX_STEPS, newton_tol=1e-10, eig_rtol=1e-13,
                                n_eig=6, p_max=7.0 * PI, resolve_crossings=1e-5)
     for name in backends:
-        backend = SparseBackend(_assemble_pinned) if name == "sparse" else DenseBackend()
+        backend = SparseBackend(assemble_pinned_hessian) if name == "sparse" else DenseBackend()
         t = time.perf_counter()
         rod = knot_problem(scene, np.asarray(e.q), e.phi, backend=backend, pins=pins)
         br = continuation(rod.problem, PseudoArclength(), opts, throw=False)

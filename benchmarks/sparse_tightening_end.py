@@ -26,29 +26,31 @@ import subprocess  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 
+from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
-RESULTS = os.path.join(HERE, "results")
+RESULTS = results_dir()
 PI = math.pi
-CASES = (121, 241)
+CASES = pick((121, 241), (61,))  # the small mode: the fewest nodes whose start is a minimum
+MAX_STEPS = pick(150, 4)  # the small mode: a few steps towards the end
 
 
 def child(N):
     import numpy as np
 
     import jaxrod as jr
-    from jaxrod.continuation.arclength import ContinuationOptions, PseudoArclength, continuation
+    from jaxrod.continuation.arclength import ArclengthOptions, PseudoArclength, continuation
     from jaxrod.linalg.bordered import DenseBackend, SparseBackend
-    from jaxrod.continuation.arclength.rods import _assemble_pinned, knot_problem
+    from jaxrod.continuation.arclength.rods import assemble_pinned_hessian, knot_problem
 
     scene = jr.trefoil(D=8.0, L=292.0, N=N)
     path = jr.follow_twist(scene, 0.0, -10.3 * PI, jr.ContinuationOptions(step=2 * PI, max_switches=0))
     e = [p.equilibrium for p in path.points if abs(p.equilibrium.phi / PI + 10.0) < 1e-9][0]
-    rod0 = knot_problem(scene, np.asarray(e.q), e.phi, backend=SparseBackend(_assemble_pinned))
+    rod0 = knot_problem(scene, np.asarray(e.q), e.phi, backend=SparseBackend(assemble_pinned_hessian))
     pins = np.asarray(rod0.pins)
-    opts = ContinuationOptions(ds=-0.05, ds_min=1e-6, ds_max=1.0, max_steps=150, newton_tol=1e-10, eig_rtol=1e-13,
+    opts = ArclengthOptions(ds=-0.05, ds_min=1e-6, ds_max=1.0, max_steps=MAX_STEPS, newton_tol=1e-10, eig_rtol=1e-13,
                                n_eig=6, p_min=-11.6 * PI, resolve_crossings=1e-5)
     for name in ("sparse", "dense"):
-        backend = SparseBackend(_assemble_pinned) if name == "sparse" else DenseBackend()
+        backend = SparseBackend(assemble_pinned_hessian) if name == "sparse" else DenseBackend()
         t = time.perf_counter()
         rod = knot_problem(scene, np.asarray(e.q), e.phi, backend=backend, pins=pins)
         br = continuation(rod.problem, PseudoArclength(), opts, throw=False)

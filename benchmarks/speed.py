@@ -48,6 +48,7 @@ import tempfile  # noqa: E402
 import threading  # noqa: E402
 import time  # noqa: E402
 
+from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
 BASELINE_COMMIT = "61e87f5"
@@ -603,7 +604,7 @@ def write_report(csv_path, md_path, png_path):
     # command 1 as two CLI processes (benchmarks/cli_start.py) and where its time goes
     # (benchmarks/cli_startup_breakdown.py).
     for name in ("command1.md", "cli_start.md", "cli_startup_breakdown.md", "dynamics_accuracy.md", "batch.md"):
-        part = os.path.join(HERE, "results", name)
+        part = os.path.join(results_dir(), name)
         if os.path.exists(part):
             with open(part) as f:
                 L += ["\n".join("#" + line if line.startswith("#") else line for line in f.read().strip().splitlines()), ""]
@@ -738,7 +739,7 @@ def main(argv=None):
         child(args)
         return
     out = args.out or (os.path.join(tempfile.gettempdir(), "jaxrod_speed_quick") if args.quick
-                       else os.path.join(HERE, "results"))
+                       else results_dir())
     os.makedirs(out, exist_ok=True)
     csv_path = os.path.join(out, "speed.csv")
     md_path = args.md_path or os.path.join(out, "BENCHMARKS.md")

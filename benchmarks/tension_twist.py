@@ -24,6 +24,7 @@ import numpy as np  # noqa: E402
 from jaxrod.studies import endloads as el  # noqa: E402
 from jaxrod.model.material import Material  # noqa: E402
 
+from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
 NU = 0.5
 D = 2e-4
@@ -31,9 +32,9 @@ D = 2e-4
 
 def onset():
     rows = []
-    for N in (120, 240):
+    for N in pick((120, 240), (120,)):
         rod = el.shortened_rod(N, 1.0, Material.from_ratio(B=1.0, nu=NU, D=D))
-        for root_t in (1.0, 2.0, 4.0, 8.0, 16.0, 24.0):
+        for root_t in pick((1.0, 2.0, 4.0, 8.0, 16.0, 24.0), (1.0, 8.0)):
             t = root_t ** 2
             t0 = time.perf_counter()
             _, Mc = el.straight_buckling_moment(rod, t)
@@ -45,13 +46,13 @@ def onset():
     return rows
 
 
-def hat(N=240, t=300.0):
+def hat(N=pick(240, 120), t=300.0):
     gamma = 1.0 / (1.0 + NU)
     rod = el.shortened_rod(N, 1.0, Material.from_ratio(B=1.0, nu=NU, D=D))
     fr = el.ForceLoadedRod(rod, "slide")
     _, Mc = el.straight_buckling_moment(rod, t)
     rows = []
-    for m in np.linspace(2.0, 32.0, 16):
+    for m in np.linspace(2.0, 32.0, pick(16, 3)):
         ref = el.localized_helix(m, t, gamma)
         if N < el.EDGES_PER_CORE * ref.lam + 2:
             continue
@@ -67,7 +68,7 @@ def hat(N=240, t=300.0):
                          M=f.M, morse=f.morse, Lk=f.Lk, Wr=f.Wr, converged=f.converged))
         print(rows[-1], flush=True)
     C = float(rod.material.C)
-    for R in np.linspace(0.0, 1.3 * Mc / C, 14):
+    for R in np.linspace(0.0, 1.3 * Mc / C, pick(14, 3)):
         rows.append(dict(branch="straight", R=float(R), extension=t / float(rod.material.EA), M=C * R,
                          morse=0 if C * R < Mc else 2))
     return dict(t=t, N=N, M_c=Mc, rows=rows)
@@ -107,14 +108,13 @@ def figure(on, ht):
         a.set_title(f"t = {ht['t']:g}, N = {ht['N']}, no contact")
         a.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(os.path.join(HERE, "results", "tension_twist.png"), dpi=120)
+    fig.savefig(os.path.join(results_dir(), "tension_twist.png"), dpi=120)
 
 
 def main():
     on = onset()
     ht = hat()
-    os.makedirs(os.path.join(HERE, "results"), exist_ok=True)
-    with open(os.path.join(HERE, "results", "tension_twist.json"), "w") as fh:
+    with open(os.path.join(results_dir(), "tension_twist.json"), "w") as fh:
         json.dump(dict(onset=on, hat=ht), fh, indent=1, default=float)
     figure(on, ht)
 

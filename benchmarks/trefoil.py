@@ -26,8 +26,9 @@ import numpy as np  # noqa: E402
 import jaxrod as jr  # noqa: E402
 
 PI = math.pi
+from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
-RESULTS = os.path.join(HERE, "results")
+RESULTS = results_dir()
 CSV = os.path.join(RESULTS, "trefoil_critical.csv")
 FIELDS = ["study", "N", "D", "L", "D_over_L", "contact_stiffness", "direction", "phi_star", "phi_star_over_pi",
           "phi_error", "kind", "multiplicity", "Wr_before", "Tw_before", "radius_of_gyration_change", "seconds"]

@@ -1,0 +1,84 @@
+"""What every benchmark script shares: its small mode, its output folder and its provenance.
+
+Small mode (``JAXROD_SMOKE=1`` in the environment, or ``--smoke`` on a script's command line): the
+script runs the same code path at the smallest sizes that exercise it (small N, a few steps, one
+level instead of a sweep), so that a test can run every script in seconds. Its numbers mean
+nothing; only that the script still runs and writes its files.
+
+Output folder (``results_dir()``): ``JAXROD_BENCH_OUT`` if set, else ``benchmarks/results`` at full
+size and a fresh temporary folder in the small mode, which never writes over
+``benchmarks/results``.
+
+Provenance (``provenance()``): the commit (``git rev-parse --short HEAD``, "+ uncommitted changes"
+when the working tree differs from it) and the command that produced a results file.
+"""
+import functools
+import os
+import subprocess
+import sys
+import tempfile
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+REPO = os.path.dirname(HERE)
+COMMITTED_RESULTS = os.path.join(HERE, "results")
+
+
+def _small_mode():
+    # --smoke is taken off the command line, so that a script's own argument parsing never sees it
+    if "--smoke" in sys.argv[1:]:
+        sys.argv.remove("--smoke")
+        os.environ["JAXROD_SMOKE"] = "1"
+    return os.environ.get("JAXROD_SMOKE", "") not in ("", "0")
+
+
+SMOKE = _small_mode()
+
+
+def pick(full, small):
+    """``full`` at full size, ``small`` in the small mode."""
+    return small if SMOKE else full
+
+
+@functools.cache
+def results_dir():
+    """The folder a script writes its results to (created; one per process)."""
+    out = os.environ.get("JAXROD_BENCH_OUT") or (tempfile.mkdtemp(prefix="jaxrod-bench-") if SMOKE
+                                                 else COMMITTED_RESULTS)
+    if SMOKE and os.path.realpath(out) == os.path.realpath(COMMITTED_RESULTS):
+        raise SystemExit("the small mode must not write over benchmarks/results: set JAXROD_BENCH_OUT elsewhere")
+    os.makedirs(out, exist_ok=True)
+    os.environ["JAXROD_BENCH_OUT"] = out  # a script's worker processes write to the same folder
+    return out
+
+
+def _git(*args):
+    run = subprocess.run(["git", "-C", REPO, *args], capture_output=True, text=True)
+    return run.stdout.strip() if run.returncode == 0 else ""
+
+
+def provenance():
+    """{"commit": ..., "command": ...} of this run, for a results file's header."""
+    commit = _git("rev-parse", "--short", "HEAD") or "unknown"
+    if _git("status", "--porcelain", "--untracked-files=no"):
+        commit += " + uncommitted changes"
+    script = os.path.relpath(os.path.abspath(sys.argv[0]), REPO)
+    command = " ".join(["python", script, *sys.argv[1:]] + (["--smoke"] if SMOKE else []))
+    return {"commit": commit, "command": command}
+
+
+def provenance_line():
+    """The provenance as one line of text (a Markdown results file's header)."""
+    p = provenance()
+    return f"Produced by `{p['command']}` at commit {p['commit']}."
+
+
+def fmt(value, spec, missing="none"):
+    """``value`` formatted with ``spec``, or ``missing`` where it is None (a small run's tiny twist
+    range finds no critical twist, so its tables have none to show)."""
+    return missing if value is None else format(value, spec)
+
+
+# The smallest trefoil study a CLI process can run: the knot at 17.5 D (the fewest nodes its contact
+# allows), stable branches only, a quarter turn each way: the same CLI code path in a few seconds.
+TINY_CLI_ARGS = ["trefoil", "--D", "8", "--L", "140", "--N", "24", "--phi-min", "-0.5pi", "--phi-max", "0.5pi",
+                 "--stable-only", "--no-extrapolation"]
