@@ -38,7 +38,7 @@ from .solve.equilibrium import (  # noqa: E402
     Equilibrium, EquilibriumOptions, RelaxOptions, TopologyChangeError, relax, relax_to_minimum, solve_equilibrium,
 )
 from .continuation import (  # noqa: E402
-    BranchPoint, ContinuationOptions, CriticalPoint, Instability, NoCrossingError, Observer, PathStop, TwistPath,
+    PathPoint, ContinuationOptions, CriticalPoint, Instability, NoCrossingError, Observer, PathStop, TwistPath,
     critical_twist, follow_twist,
 )
 from .solve.dynamics import DynamicsOptions, DynamicsResult, damped_dynamics  # noqa: E402
@@ -98,7 +98,7 @@ __all__ = [
     "ContinuationOptions",
     "Observer",
     "PathStop",
-    "BranchPoint",
+    "PathPoint",
     "Instability",
     "topology",
     "analysis",

@@ -117,7 +117,7 @@ def test_options_and_observer_are_checked():
 
     ring = jr.michell_ring(24)
     with pytest.raises(TypeError, match="jaxrod.ContinuationOptions"):  # the pseudo-arclength engine's class
-        jr.follow_twist(ring, 0.0, 1.0, bifurcation.ContinuationOptions())
+        jr.follow_twist(ring, 0.0, 1.0, bifurcation.ArclengthOptions())
     with pytest.raises(TypeError, match="Observer"):
         jr.critical_twist(ring, 0.0, 1.0, observer=print)
     with pytest.raises(ValueError, match="observer.on_point"):  # critical_twist never calls it

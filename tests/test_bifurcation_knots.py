@@ -25,9 +25,9 @@ import numpy as np
 import pytest
 
 import jaxrod as jr
-from jaxrod.continuation.arclength import ContinuationOptions, PseudoArclength, Result, continuation, fold_at, fold_curve, \
+from jaxrod.continuation.arclength import ArclengthOptions, PseudoArclength, Result, continuation, fold_at, fold_curve, \
     fold_sensitivity
-from jaxrod.continuation.arclength.rods import _pinned_energy, _scaled_gradient, knot_problem, set_diameter, set_poisson_ratio
+from jaxrod.continuation.arclength.rods import knot_problem, set_diameter, set_poisson_ratio
 from jaxrod.studies.diagram import UNSTABLE_PREFIX, DiagramOptions, unstable_branches
 from jaxrod.studies.twist import study_summary, twist_study
 from jaxrod.linalg.stability import sliding_fraction
@@ -40,7 +40,7 @@ def _options(ds_max, steps):
     # newton_tol: residual of the scaled gradient (~1e-14 roundoff at N = 61); eig_rtol: the
     # negative band at 1e-13 ||J|| ~ 1e-13, below every eigenvalue of interest (sliding modes are
     # told by their shape, not by a band)
-    return ContinuationOptions(ds=0.05, ds_min=1e-6, ds_max=ds_max, max_steps=steps, newton_tol=1e-10, eig_rtol=1e-13,
+    return ArclengthOptions(ds=0.05, ds_min=1e-6, ds_max=ds_max, max_steps=steps, newton_tol=1e-10, eig_rtol=1e-13,
                                n_eig=6, p_max=7.0 * PI)
 
 
@@ -285,7 +285,7 @@ def test_neighbourhood_is_rebuilt_when_the_diameter_grows_past_its_skin(paths):
     grown = set_diameter(args, D + 1.2 * skin)
     rebuilt = prob.update_args(u, p, grown)
     assert rebuilt.nbr is not args.nbr and rebuilt.nbr.n_candidates >= args.nbr.n_candidates
-    energy = jax.jit(_pinned_energy)
+    energy = jax.jit(prob.energy)
     exact = float(energy(u, p, grown._replace(nbr=None)))
     assert abs(float(energy(u, p, rebuilt)) - exact) <= 1e-12 * abs(exact)
 
@@ -297,7 +297,7 @@ def test_fold_curve_in_nu_follows_the_located_fold(paths):
     IFT slope (benchmarks/fold_curve_nu.py: down to nu = 0, equal to point studies to 4e-14 pi)."""
     rod, br = paths[1][6.3, 0.25]
     (fold,) = _folds(br)
-    opts = ContinuationOptions(ds=-0.5, ds_max=2.0, ds_min=1e-5, max_steps=3, newton_tol=1e-10, p_min=0.0, p_max=0.5)
+    opts = ArclengthOptions(ds=-0.5, ds_max=2.0, ds_min=1e-5, max_steps=3, newton_tol=1e-10, p_min=0.0, p_max=0.5)
     curve = fold_curve(rod.problem, fold, set_poisson_ratio, 0.5, ALG, opts)
     assert len(curve.mu) == 4 and np.all(np.diff(curve.mu) < 0) and np.max(curve.residual) <= 1e-10
     assert curve.mu[-1] < 0.48  # measured 0.4718: the steps grow (25 points from 0.5 to 0 in the benchmark)
@@ -402,7 +402,7 @@ def test_critical_json_events_and_state_file(on_file, paths):
         q, phi = f["q"], float(f["phi"])
     assert phi == ev["phi"]
     # the located state is an equilibrium: the rod's gradient vanishes there (scaled units)
-    g = np.asarray(_scaled_gradient(scene, scene.to_scaled(q), phi))  # the exact energy, every pair
+    g = np.asarray(jax.grad(scene.scaled_energy)(scene.to_scaled(q), phi))  # the exact energy, every pair
     assert np.max(np.abs(g)) <= 1e-9
 
 
@@ -454,7 +454,7 @@ def test_a_located_end_outside_the_studys_bracket_does_not_replace_phi_star():
     first tightening instability is at -11.10996 pi, the path's first event at -11.18414 pi), the
     study's value stays phi* and the event says so; inside the bracket the located value replaces it."""
     from jaxrod.studies.diagram import in_bracket
-    from jaxrod.studies.twist import _summarise
+    from jaxrod.studies.critical_summary import summarise_critical
 
     inst = {"direction": "minus", "phi": -11.10996 * PI, "phi_error": 3e-5 * PI, "bracket": [0, 0],
             "dlambda_dphi": 0.0, "from_branch": "symmetric-"}
@@ -463,7 +463,7 @@ def test_a_located_end_outside_the_studys_bracket_does_not_replace_phi_star():
         critical = {"instabilities": [dict(inst)], "events": [
             {"instability": 0, "located": True, "within_bracket": within, "phi": located, "kind": "branch_point",
              "critical_eigenvalue": 1e-16, "residual": 1e-14, "iterations": 3, "state_file": None}]}
-        _summarise(critical)
+        summarise_critical(critical)
         assert critical["phi_minus"] == expected
         assert ("phi_minus_located" in critical) == within
 

@@ -18,20 +18,20 @@ import pytest
 
 import jaxrod as jr
 from jaxrod import critical_twist, michell_critical_twist, michell_ring
-from jaxrod.continuation.arclength import ContinuationOptions, PseudoArclength, Result, continuation, emanating_directions, \
+from jaxrod.continuation.arclength import ArclengthOptions, PseudoArclength, Result, continuation, emanating_directions, \
     switch_branches, branch_point_curve
 from jaxrod.continuation.arclength.rods import pinned_problem, set_poisson_ratio, sliding_slice
 
 N = 32
 ALG = PseudoArclength()
-# critical_twist's options (the stable-only engine's, not the pseudo-arclength ContinuationOptions above)
+# critical_twist's options (the stable-only engine's ContinuationOptions)
 STABLE_ONLY = jr.ContinuationOptions(tol=1e-10 * math.pi, gtol=3e-11)
 # the scaled gradient's roundoff floor is ~1e-11 (the stretching stiffness EA l^2/B ~ 1e4 at D/R = 0.01);
 # ||J|| ~ 4e4, so eig_rtol = 1e-13 puts the negative band at ~4e-9, far above the eigenvalues' noise (~1e-11)
 # and below the buckled branch's negative eigenvalue at the first predicted point
-TRIVIAL = ContinuationOptions(ds=2.0, ds_max=8.0, p_max=1.2 * michell_critical_twist(0.5), newton_tol=5e-11,
+TRIVIAL = ArclengthOptions(ds=2.0, ds_max=8.0, p_max=1.2 * michell_critical_twist(0.5), newton_tol=5e-11,
                               eig_rtol=1e-13)
-BUCKLED = ContinuationOptions(ds=1.0, ds_max=1.0, p_min=0.0, p_max=2 * michell_critical_twist(0.5), max_steps=6,
+BUCKLED = ArclengthOptions(ds=1.0, ds_max=1.0, p_min=0.0, p_max=2 * michell_critical_twist(0.5), max_steps=6,
                               newton_tol=5e-11, eig_rtol=1e-13)
 
 
@@ -117,7 +117,7 @@ def test_branch_point_curve_in_nu_equals_critical_twist(ring, buckled):
     IFT slope is phi*(0.5)/1.5 all along."""
     scene, cp, _, _ = ring
     rod8, ev8, _, _ = buckled
-    opts = ContinuationOptions(ds=-0.5, ds_max=2.0, newton_tol=5e-11, p_min=-0.01, p_max=0.51, max_steps=100,
+    opts = ArclengthOptions(ds=-0.5, ds_max=2.0, newton_tol=5e-11, p_min=-0.01, p_max=0.51, max_steps=100,
                                report_at=(0.0, 0.25))
     curve = branch_point_curve(rod8.problem, ev8, set_poisson_ratio, 0.5, ALG, opts)
     assert curve.result is Result.BOUNDARY and curve.mu[-1] < 0.0 and np.max(curve.residual) <= 5e-11

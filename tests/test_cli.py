@@ -203,7 +203,7 @@ def test_trefoil_study_json_files_and_resume(tmp_path, capsys):
 def test_failed_computation_is_one_line_with_advice(monkeypatch, capsys, tmp_path, exc, code, words):
     # Issue 8, defect 3: a computation that fails (no crossing in range, no equilibrium) or is
     # interrupted ends in one line that says what to do, not a traceback.
-    import jaxrod.cli as cli
+    import jaxrod.cli.trefoil as trefoil_command
     from jaxrod import NoCrossingError
     from jaxrod.solve.solvers import ConvergenceError
 
@@ -214,7 +214,7 @@ def test_failed_computation_is_one_line_with_advice(monkeypatch, capsys, tmp_pat
     def fail(args):
         raise errors[exc]
 
-    monkeypatch.setattr(cli, "_trefoil", fail)
+    monkeypatch.setattr(trefoil_command, "run", fail)
     assert main(["trefoil", "--out", str(tmp_path / "t")]) == code
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("jaxrod: ") and words in err[0], err
@@ -234,7 +234,7 @@ def test_progress_bar_on_a_terminal_shows_twist_steps_and_eta(monkeypatch):
 
     screen = Terminal()
     monkeypatch.setattr(sys, "stderr", screen)
-    bar = cli._Progress(types.SimpleNamespace(quiet=False), 4.0, "trefoil")
+    bar = cli.Progress(types.SimpleNamespace(quiet=False), 4.0, "trefoil")
     bar.say("relaxing the knot at phi = 0")
     bar.update(1.5, steps=3, branch="symmetric+")
     bar.close()
@@ -243,7 +243,7 @@ def test_progress_bar_on_a_terminal_shows_twist_steps_and_eta(monkeypatch):
     assert "phi 1.50/4.00 pi" in text and "<" in text and "steps=3" in text
     piped = io.StringIO()
     monkeypatch.setattr(sys, "stderr", piped)
-    bar = cli._Progress(types.SimpleNamespace(quiet=False), 4.0, "trefoil")
+    bar = cli.Progress(types.SimpleNamespace(quiet=False), 4.0, "trefoil")
     bar.say("a line")
     bar.update(1.0, steps=1)
     bar.close()
@@ -268,20 +268,20 @@ def test_cli_xla_flags_are_added_unless_the_user_set_them():
     import subprocess
     import sys
 
-    from jaxrod.cli import _add_cli_xla_flags
+    from jaxrod.cli import add_cli_xla_flags
 
     env = {"XLA_FLAGS": "--xla_force_host_platform_device_count=2"}
-    _add_cli_xla_flags(env)
+    add_cli_xla_flags(env)
     assert env["XLA_FLAGS"].split() == ["--xla_force_host_platform_device_count=2",
                                         "--xla_cpu_use_fusion_emitters=false", "--xla_backend_optimization_level=1"]
     mine = {"XLA_FLAGS": "--xla_cpu_use_fusion_emitters=true --xla_backend_optimization_level=3"}
-    _add_cli_xla_flags(mine)
+    add_cli_xla_flags(mine)
     assert mine["XLA_FLAGS"] == "--xla_cpu_use_fusion_emitters=true --xla_backend_optimization_level=3"
     one = {"XLA_FLAGS": "--xla_backend_optimization_level=2"}  # the user's value of one flag stays
-    _add_cli_xla_flags(one)
+    add_cli_xla_flags(one)
     assert one["XLA_FLAGS"].split() == ["--xla_backend_optimization_level=2", "--xla_cpu_use_fusion_emitters=false"]
     empty = {}
-    _add_cli_xla_flags(empty)
+    add_cli_xla_flags(empty)
     assert empty["XLA_FLAGS"] == "--xla_cpu_use_fusion_emitters=false --xla_backend_optimization_level=1"
     code = "import jaxrod.cli; from jax._src import xla_bridge; print(len(xla_bridge._backends))"
     assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip() == "0"
@@ -295,18 +295,18 @@ def test_a_users_compile_cache_keeps_every_program(monkeypatch, tmp_path):
 
     import jax
 
-    from jaxrod.cli import _enable_compilation_cache
+    from jaxrod.cli import enable_compilation_cache
 
     before = jax.config.jax_persistent_cache_min_compile_time_secs
     try:
         monkeypatch.setenv("JAX_COMPILATION_CACHE_DIR", str(tmp_path / "user"))
         monkeypatch.delenv("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", raising=False)
         jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
-        assert _enable_compilation_cache(argparse.Namespace()) is None  # the user's folder, kept
+        assert enable_compilation_cache(argparse.Namespace()) is None  # the user's folder, kept
         assert jax.config.jax_persistent_cache_min_compile_time_secs == 0.0
         monkeypatch.setenv("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "2")  # the user's choice stays
         jax.config.update("jax_persistent_cache_min_compile_time_secs", 2.0)
-        _enable_compilation_cache(argparse.Namespace())
+        enable_compilation_cache(argparse.Namespace())
         assert jax.config.jax_persistent_cache_min_compile_time_secs == 2.0
     finally:
         jax.config.update("jax_persistent_cache_min_compile_time_secs", before)
@@ -317,9 +317,9 @@ def test_workers_run_jobs_in_order_hand_back_values_and_errors():
     # job as soon as the study has found that end; the main thread collects them.
     import threading
 
-    from jaxrod.cli import _Workers
+    from jaxrod.studies.runs import Workers
 
-    workers = _Workers(start=False)
+    workers = Workers(start=False)
     ran = []
     for i in range(4):
         workers.submit(("job", i), lambda cancel, i=i: ran.append(i) or i * i)
@@ -328,14 +328,14 @@ def test_workers_run_jobs_in_order_hand_back_values_and_errors():
     assert workers.results() == {("job", i): i * i for i in range(4)} and ran == [0, 1, 2, 3]
     assert workers.keys == {("job", i) for i in range(4)}
 
-    failing = _Workers()
+    failing = Workers()
     failing.submit("bad", lambda cancel: 1 / 0)
     with pytest.raises(ZeroDivisionError):
         failing.results()
 
     # stop(): a running job sees cancel, the queued ones never start
     started, later = threading.Event(), []
-    stopping = _Workers()
+    stopping = Workers()
 
     def long_job(cancel):
         started.set()

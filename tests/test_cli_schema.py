@@ -4,7 +4,6 @@ command's --json names the critical twists with jaxrod.io.schema's keys.
 The JSON tests run each command's own JSON path on real results without computing them again:
 command 1's critical.json and the committed atlas (benchmarks/results), and, for --accuracy, a
 known sequence of levels in place of the continuation."""
-import inspect
 import json
 import math
 import pathlib
@@ -14,6 +13,7 @@ import types
 import pytest
 
 from jaxrod import cli
+from jaxrod.studies.runs import critical_json
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
 PI = math.pi
@@ -25,7 +25,7 @@ def _subparsers(parser):
 
 
 def _commands(parser=None):
-    return _subparsers(parser or cli._build_parser()).choices
+    return _subparsers(parser or cli.build_parser()).choices
 
 
 def _options(parser=None):
@@ -42,17 +42,17 @@ def _flag(action):
 
 # ------------------------------------------------------------------------------------ help texts
 def test_usage_help_and_dispatch_name_every_command(capsys):
-    parser = cli._build_parser()
+    parser = cli.build_parser()
     commands = list(_commands(parser))
     assert {"michell", "analyze", "trefoil", "knot", "atlas", "helix", "critical-curve"} <= set(commands)
     assert re.search(r"\{([^}]*)\}", parser.format_usage()).group(1).split(",") == commands
     assert cli.main(["--help"]) == 0
     usage = capsys.readouterr().out.split("\n\n")[0]
-    dispatch = inspect.getsource(cli._main)
+    assert list(cli.COMMANDS) == commands  # each command parsed is run by its module
     for command in commands:
         assert command in usage.split("{")[1], command
         assert f"``jaxrod {command}" in cli.__doc__, command
-        assert f'"{command}"' in dispatch, command
+        assert callable(cli.COMMANDS[command].run), command
 
 
 _DEFAULT = re.compile(r"\bdefault\b(?P<colon>:?)\s*")
@@ -85,8 +85,8 @@ def _resolved_in_code():
 
 def _same(action, text):
     default = action.default
-    if action.type is cli._angle:
-        return math.isclose(cli._angle(text), default, rel_tol=1e-12)
+    if action.type is cli.parse_angle:
+        return math.isclose(cli.parse_angle(text), default, rel_tol=1e-12)
     if isinstance(default, bool):
         return False
     if isinstance(default, (int, float)):
@@ -139,7 +139,7 @@ def test_every_stated_default_and_choice_is_the_codes():
     for command, sides in (("atlas", atlas.SIDES), ("critical-curve", tuple(critical_curve.SIDE_SIGNS))):
         assert commands[command].get_default("sides") == ",".join(sides) == "plus,minus"
     texts = [a.help or "" for _, a in _options()] + [s.description or "" for s in commands.values()] + \
-        [a.help or "" for a in _subparsers(cli._build_parser())._choices_actions]
+        [a.help or "" for a in _subparsers(cli.build_parser())._choices_actions]
     for text in texts:
         assert set(re.findall(r"\b\d_\d\b", text)) <= knots, text
 
@@ -147,8 +147,9 @@ def test_every_stated_default_and_choice_is_the_codes():
 def _minimums():
     """(command, flag) -> the smallest value the command takes, from the code."""
     from jaxrod.model.scenes import MIN_TREFOIL_NODES
+    from jaxrod.studies.runs.michell import MICHELL_MIN_NODES
 
-    return {("michell", "--N"): cli.MICHELL_MIN_NODES, ("trefoil", "--N"): MIN_TREFOIL_NODES,
+    return {("michell", "--N"): MICHELL_MIN_NODES, ("trefoil", "--N"): MIN_TREFOIL_NODES,
             ("knot", "--N"): MIN_TREFOIL_NODES, ("atlas", "--N"): MIN_TREFOIL_NODES,
             ("critical-curve", "--N"): MIN_TREFOIL_NODES, ("analyze", "--n-samples"): 4,
             ("analyze", "--smoothing-modes"): 1}
@@ -171,13 +172,13 @@ def test_every_stated_minimum_is_enforced_with_an_error_naming_the_flag(tmp_path
 
 
 def test_every_angle_option_takes_negative_values_and_multiples_of_pi():
-    parser = cli._build_parser()
+    parser = cli.build_parser()
     before = {"analyze": ["centre.npz"]}
-    angles = [(command, action) for command, action in _options(parser) if action.type is cli._angle]
-    assert {_flag(a) for _, a in angles} == set(cli._ANGLE_OPTIONS)
+    angles = [(command, action) for command, action in _options(parser) if action.type is cli.parse_angle]
+    assert {_flag(a) for _, a in angles} == set(cli.ANGLE_OPTIONS)
     for command, action in angles:
         for text, value in (("-8.5pi", -8.5 * PI), ("0.25*pi", 0.25 * PI), ("-3.7", -3.7), ("12pi", 12 * PI)):
-            args = parser.parse_args(cli._join_angle_values([command, *before.get(command, []), _flag(action), text]))
+            args = parser.parse_args(cli.join_angle_values([command, *before.get(command, []), _flag(action), text]))
             assert getattr(args, action.dest) == pytest.approx(value, rel=1e-15), (command, _flag(action), text)
 
 
@@ -243,7 +244,7 @@ def test_trefoil_and_knot_study_json(monkeypatch, tmp_path, capsys):
     # an end located on the extended system: its kind, and no bracket
     summary = {"phi_plus": 20.3, "phi_plus_error": None, "phi_plus_located": {"kind": "fold"}, "phi_minus": None,
                "phi_minus_error": None, "steps": 3}
-    out = cli._critical_json(summary, critical=critical)
+    out = critical_json(summary, critical=critical)
     _check_both_sides(out)
     assert out["phi_plus_kind"] == "fold" and out["phi_plus_error"] is None and out["phi_minus_kind"] is None
     assert out["steps"] == 3 and out["phi_plus_located"] == {"kind": "fold"}

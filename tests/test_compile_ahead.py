@@ -1,4 +1,4 @@
-"""The study's head start (``study._compile_ahead``): the per-step analysis run once on the drawn
+"""The study's head start (``jaxrod.studies.twist.compile_ahead``): the per-step analysis run once on the drawn
 shape in a thread beside the first relaxation must compile the very programs the continuation
 then calls (same shapes, dtypes and weak types); a change that made them differ would silently
 turn the head start into extra work. Checked by counting XLA compilations (persistent-cache loads
@@ -7,14 +7,14 @@ import jax.monitoring as monitoring
 
 import jaxrod as jr
 from jaxrod.linalg.stability import CONTACT_NEGATIVE_TOL, branch_analysis
-from jaxrod.studies.twist import _compile_ahead
+from jaxrod.studies.twist import compile_ahead
 
 COMPILE_EVENT = "/jax/core/compile/backend_compile_duration"
 
 
 def test_the_analysis_compiled_ahead_is_the_one_the_continuation_calls():
     scene = jr.trefoil(8.0, 292.0, 45)  # an N no other test uses: nothing of it compiled yet
-    ahead = _compile_ahead(scene)
+    ahead = compile_ahead(scene)
     assert ahead is not None  # a dense knot: the head start runs
     relaxed = jr.relax_to_minimum(scene, 0.0)
     ahead.join()
@@ -26,7 +26,7 @@ def test_the_analysis_compiled_ahead_is_the_one_the_continuation_calls():
 
     monitoring.register_event_duration_secs_listener(listen)
     try:
-        # as ``continuation.engine._Engine.analyse`` calls it on each accepted state
+        # as ``continuation.engine.ContinuationEngine.analyse`` calls it on each accepted state
         stab, *_ = branch_analysis(scene, relaxed.q, relaxed.phi, 0, k=8, tol=CONTACT_NEGATIVE_TOL, ref=None,
                                    pinv_tol=CONTACT_NEGATIVE_TOL, nbr=relaxed.neighbourhood)
     finally:
@@ -37,4 +37,4 @@ def test_the_analysis_compiled_ahead_is_the_one_the_continuation_calls():
 
 def test_no_head_start_on_the_sparse_path():
     # from sparse_contact.SPARSE_MIN_DOF DOFs on the continuation calls other programs
-    assert _compile_ahead(jr.trefoil(8.0, 292.0, 251)) is None
+    assert compile_ahead(jr.trefoil(8.0, 292.0, 251)) is None

@@ -196,13 +196,13 @@ def test_a_level_sequence_out_of_its_asymptotic_range_is_not_called_converged_no
     # N = 61, 121, then a shape-mode pair crossing zero at 241, 481. The last change is tiny (5.6e-4 pi)
     # but the measured order (7.4) says the levels are not one asymptotic sequence; the message said
     # "error estimate 5.6e-04 pi > 1.0e-02 pi" before.
-    from jaxrod.studies.accuracy import Level, _unconverged_reason
+    from jaxrod.studies.accuracy import Level, unconverged_reason
 
     pis = (-11.475440, -11.184210, -11.093990, -11.093434)
     kinds = ("jump", "jump", "unstable", "unstable")
     levels = [Level(n, v * math.pi, 1e-4, k, 0.0, 1.0) for n, v, k in zip((61, 121, 241, 481), pis, kinds)]
     ext = richardson([lv.N for lv in levels], [lv.phi_star for lv in levels])
     assert not ext.asymptotic and ext.order > 4
-    why = _unconverged_reason(481, ext, 0.01 * math.pi, levels)
+    why = unconverged_reason(481, ext, 0.01 * math.pi, levels)
     assert "not in their asymptotic range" in why and "not an error estimate" in why
     assert "changed kind" in why and "241: unstable" in why and ">" not in why

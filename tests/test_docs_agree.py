@@ -16,7 +16,7 @@ README = (REPO / "README.md").read_text(encoding="utf-8")
 
 
 def _help_of(command, flag):
-    parser = cli._build_parser()
+    parser = cli.build_parser()
     sub = next(a for a in parser._actions if a.dest == "command").choices[command]
     return next(a.help for a in sub._actions if flag in a.option_strings)
 

@@ -23,6 +23,7 @@ NS = (120, 240)
 # (m, t, nu): lambda = 14.1 and 16.6; theta_max = 109 and 147 degrees; gamma = 2/3 and 1
 SETS = ((20.0, 300.0, 0.5), (10.0, 300.0, 0.0))
 D_OVER_L = 2e-4
+NO_STABILITY = el.EndLoadOptions(with_stability=False)
 
 
 def _rod(N, nu, d, contact=None):
@@ -37,7 +38,7 @@ def helices():
         for (m, t, nu) in SETS:
             ref = el.localized_helix(m, t, 1.0 / (1.0 + nu))
             rod = _rod(N, nu, ref.d)
-            e = el.solve(rod, ref.R, el.helical_start(rod, m, t, ref.R), k=4)
+            e = el.solve(rod, ref.R, el.helical_start(rod, m, t, ref.R), el.EndLoadOptions(k=4))
             out[N, m] = (ref, rod, e, el.end_loads(rod, e.q, ref.R, e.neighbourhood))
     return out
 
@@ -110,10 +111,10 @@ def test_end_loads_are_derivatives_of_the_equilibrium_energy(helices):
     energies = []
     for ds in (-h, h):
         r2 = el.with_shortening(rod, ref.d + ds)
-        energies.append(el.solve(r2, ref.R, e.q, with_stability=False).energy)
+        energies.append(el.solve(r2, ref.R, e.q, NO_STABILITY).energy)
     assert abs(-(energies[1] - energies[0]) / (2 * h) / loads.T - 1.0) < 1e-6
     h = 1e-3
-    energies = [el.solve(rod, ref.R + dp, e.q, with_stability=False).energy for dp in (-h, h)]
+    energies = [el.solve(rod, ref.R + dp, e.q, NO_STABILITY).energy for dp in (-h, h)]
     assert abs((energies[1] - energies[0]) / (2 * h) / loads.M - 1.0) < 1e-6
 
 
@@ -136,14 +137,14 @@ def test_force_control_reproduces_the_displacement_controlled_state(helices):
     for end in ("slide", "free"):
         fe = el.ForceLoadedRod(rod, end)
         u = fe.u_from(e.q, np.array([2e-3, -1e-3, -ref.d])) + 1e-3 * rng.standard_normal(rod.n_dof + fe.k)
-        args = (ref.R, loads.T, fe._neighbourhood(u, ref.R))
-        h, z = fe._hessian(u, args)
+        args = (ref.R, loads.T, fe.neighbourhood(u, ref.R))
+        h, z = fe.hessian(u, args)
         v = rng.standard_normal(u.size)
         eps = 1e-6
-        fd = (fe._value_and_grad(u + eps * v, args)[1] - fe._value_and_grad(u - eps * v, args)[1]) / (2 * eps)
+        fd = (fe.value_and_grad(u + eps * v, args)[1] - fe.value_and_grad(u - eps * v, args)[1]) / (2 * eps)
         assert np.max(np.abs(fd - h @ v)) < 1e-6 * np.max(np.abs(h @ v)), end
         # the zero mode: the energy is invariant under the rotation about the axis
-        assert abs(fe._value_and_grad(u, args)[1] @ z[:, 0]) < 1e-9 * np.linalg.norm(z)
+        assert abs(fe.value_and_grad(u, args)[1] @ z[:, 0]) < 1e-9 * np.linalg.norm(z)
 
 
 def test_straight_rod_buckling_moment_under_tension():
@@ -184,7 +185,9 @@ def test_bad_input_is_refused_naming_the_parameter():
         ("phi", lambda: el.solve(rod, float("nan"), q0)),
         ("q0", lambda: el.solve(rod, 0.0, np.full_like(q0, np.inf))),
         ("q0", lambda: el.solve(rod, 0.0, q0[:-1])),
-        ("gtol", lambda: el.solve(rod, 0.0, q0, gtol=-1.0)),
+        ("gtol", lambda: el.solve(rod, 0.0, q0, el.EndLoadOptions(gtol=-1.0))),
+        ("max_step", lambda: el.EndLoadOptions(max_step=0.0)),
+        ("max_steps", lambda: el.EndLoadOptions(max_steps=-1)),
         ("phi", lambda: el.end_loads(rod, q0, float("inf"))),
         ("m\\^2 < 4 t", lambda: el.localized_helix(10.0, 20.0, 1.0)),
         ("m must be finite", lambda: el.localized_helix(float("nan"), 20.0, 1.0)),

@@ -71,7 +71,7 @@ def test_mirror_image_has_opposite_moment_and_the_same_tension():
         rod = el.shortened_rod(N, 1.0, Material.from_ratio(B=1.0, nu=1.0 / gamma - 1.0, D=2e-4), shortening=ref.d)
         got = []
         for sign in (1.0, -1.0):
-            e = el.solve_from_helix(rod, sign * m, t, sign * ref.R, k=4)
+            e = el.solve_from_helix(rod, sign * m, t, sign * ref.R, el.EndLoadOptions(k=4))
             loads = el.end_loads(rod, e.q, sign * ref.R, e.neighbourhood)
             got.append((loads.M, loads.T, e.stability.n_negative, e.Lk))
         (M1, T1, k1, lk1), (M2, T2, k2, lk2) = got
@@ -133,7 +133,7 @@ def test_stiff_rods_converge_to_the_same_relative_accuracy(capsys):
         h = 1.0 / (N - 2)
         force = tol * B / h ** 2  # the residual force allowed per node
         assert 1e-6 * B <= force <= 1e-6 * B + 5e-13 * EA
-        e = el.solve_from_helix(rod, m, t, ref.R, with_stability=False)
+        e = el.solve_from_helix(rod, m, t, ref.R, el.EndLoadOptions(with_stability=False))
         assert e.solution.converged and e.solution.grad_norm <= tol
         loads = el.end_loads(rod, e.q, ref.R, e.neighbourhood)
         got[EA] = (loads.M / B, loads.T / B)

@@ -121,12 +121,12 @@ def test_negative_tolerance_is_unchanged_for_the_rods_of_the_tests():
 def test_grown_engine_computes_the_pairs_needed():
     ring = jr.michell_ring(300)
     opts = cont.ContinuationOptions().resolved(ring, cont.Task.CRITICAL_TWIST, 1.0)
-    sparse = cont._Engine(ring, cont.Task.CRITICAL_TWIST, opts, sparse=True)
-    assert cont._grown_engine(sparse, 2) is sparse  # 2 + K_MARGIN <= k = 8
-    grown = cont._grown_engine(sparse, 8)  # index 8: the old "index 8 outside the 8 eigenpairs"
+    sparse = cont.ContinuationEngine(ring, cont.Task.CRITICAL_TWIST, opts, sparse=True)
+    assert cont.grown_engine(sparse, 2) is sparse  # 2 + K_MARGIN <= k = 8
+    grown = cont.grown_engine(sparse, 8)  # index 8: the old "index 8 outside the 8 eigenpairs"
     assert grown.opts.k == 8 + cont.K_MARGIN and grown.sparse
-    dense = cont._Engine(ring, cont.Task.CRITICAL_TWIST, opts, sparse=False)
-    assert cont._grown_engine(dense, 8) is dense  # dense computes LOWEST_COUNT pairs anyway
+    dense = cont.ContinuationEngine(ring, cont.Task.CRITICAL_TWIST, opts, sparse=False)
+    assert cont.grown_engine(dense, 8) is dense  # dense computes LOWEST_COUNT pairs anyway
 
 
 # ---------------------------------------------------------------------------------------------
@@ -147,16 +147,16 @@ def _check_inside(phi, err, bracket):
 
 
 def test_phi_from_the_bracket_stays_inside_it():
-    phi, err = cont._locate(*BRACKET_C1, LAMBDA_C1, DLAMBDA_C1, 1.0)  # was 29.0031 +- 0.0085
+    phi, err = cont.branch_end_in_bracket(*BRACKET_C1, LAMBDA_C1, DLAMBDA_C1, 1.0)  # was 29.0031 +- 0.0085
     _check_inside(phi, err, BRACKET_C1)
     # An extrapolation inside the bracket is kept, with the far end as its error.
-    phi, err = cont._locate(1.0, 1.1, 3e-6, -1e-4, 1.0)
+    phi, err = cont.branch_end_in_bracket(1.0, 1.1, 3e-6, -1e-4, 1.0)
     assert phi == pytest.approx(1.03) and err == pytest.approx(0.07)
-    phi, err = cont._locate(-1.0, -1.1, 3e-6, 1e-4, -1.0)  # the opening side
+    phi, err = cont.branch_end_in_bracket(-1.0, -1.1, 3e-6, 1e-4, -1.0)  # the opening side
     assert phi == pytest.approx(-1.03) and err == pytest.approx(0.07)
     # Beyond the lost end, or no derivative: the midpoint.
     for lam, dlam in ((1e-3, -1e-4), (1e-6, 0.0), (1e-6, math.nan)):
-        phi, err = cont._locate(1.0, 1.1, lam, dlam, 1.0)
+        phi, err = cont.branch_end_in_bracket(1.0, 1.1, lam, dlam, 1.0)
         assert phi == pytest.approx(1.05) and err == pytest.approx(0.05)
 
 
@@ -170,16 +170,16 @@ def _state(phi, eigenvalues, eigenvectors):
 def test_a_state_with_the_critical_eigenvalue_in_the_band_is_past_the_end():
     tol = 1e-6
     lost = _state(9.5 * math.pi, [-2e-5, 1e-7, 3e-5], np.eye(3))  # the critical mode is e0
-    critical = cont._negative_modes(lost, tol)
+    critical = cont.negative_modes(lost, tol)
     assert critical.shape == (3, 1)
     # Accepted by the stability test (-5.3e-7 > -1e-6) but past the zero of the critical mode.
     band = _state(9.246 * math.pi, [-5.29e-7, 2e-5, 7e-5], np.eye(3))
-    assert cont._past_zero(critical, band) == pytest.approx(-5.29e-7)
+    assert cont.eigenvalue_past_zero(critical, band) == pytest.approx(-5.29e-7)
     # Before the zero, or a negative sliding mode that is not the critical one: not past.
-    assert cont._past_zero(critical, _state(9.229 * math.pi, [8.06e-8, 2e-5, 7e-5], np.eye(3))) is None
+    assert cont.eigenvalue_past_zero(critical, _state(9.229 * math.pi, [8.06e-8, 2e-5, 7e-5], np.eye(3))) is None
     sliding = _state(9.229 * math.pi, [-1e-7, 8e-8, 7e-5], np.eye(3)[:, [1, 0, 2]])
-    assert cont._past_zero(critical, sliding) is None
-    assert cont._past_zero(None, band) is None
+    assert cont.eigenvalue_past_zero(critical, sliding) is None
+    assert cont.eigenvalue_past_zero(None, band) is None
 
 
 def test_end_trial_aims_at_the_zero_of_the_critical_eigenvalue():
@@ -191,8 +191,8 @@ def test_end_trial_aims_at_the_zero_of_the_critical_eigenvalue():
     prev = _state(9.22926 * math.pi, [8.06e-8, 1.93e-5, 6.85e-5], v)
     lost = _state(9.24618 * math.pi, [-5.29e-7, 1.98e-5, 6.88e-5], v)
     tol = 2e-4 * math.pi
-    critical = cont._negative_modes(_state(9.5 * math.pi, [-2e-5, 2e-5, 7e-5], v), 1e-6)
-    trial, probe = cont._end_trial(older, prev, lost.phi, lost, 1.0, tol, 1e-6, 0, False, 0, critical)
+    critical = cont.negative_modes(_state(9.5 * math.pi, [-2e-5, 2e-5, 7e-5], v), 1e-6)
+    trial, probe = cont.end_trial(older, prev, lost.phi, lost, 1.0, tol, 1e-6, 0, False, 0, critical)
     zero = prev.phi + (lost.phi - prev.phi) * 8.06e-8 / (8.06e-8 + 5.29e-7)
     assert not probe
     assert trial == pytest.approx(zero - 0.3 * tol, abs=1e-12)

@@ -82,7 +82,7 @@ def test_one_default_young_modulus_for_the_api_and_the_cli():
     assert cli.PAPER_YOUNG_MODULUS == scenes.PAPER_YOUNG_MODULUS == 0.474
     for factory in (scenes.trefoil, scenes.knot, scenes.torus_knot):
         assert inspect.signature(factory).parameters["E"].default == scenes.PAPER_YOUNG_MODULUS
-    parser = cli._build_parser()
+    parser = cli.build_parser()
     args = parser.parse_args(["trefoil"])
     assert args.E == scenes.PAPER_YOUNG_MODULUS
     assert jr.trefoil(8.0, 292.0, 61).material.B == pytest.approx(0.474 * math.pi * 8.0**4 / 64)

@@ -1,4 +1,4 @@
-"""The open overhand knot's builder, its linking number and its guard rails (issue 19, item 4).
+"""The open overhand knot's builder, its linking number and its guard rails.
 
 Fast (no relaxation: compiling the contact Hessian alone takes longer than this file may):
 the pulled knot's loop size against T is measured by benchmarks/open_knot.py."""
@@ -37,7 +37,7 @@ def test_builder_geometry_and_linking(built):
 
 def test_pull_step_keeps_topology(built):
     scene, q = built
-    new, q2 = ok._moved(scene, q, 0.8 * float(scene.shortening))
+    new, q2 = ok.moved_to_excess(scene, q, 0.8 * float(scene.shortening))
     x1 = np.asarray(scene.nodes(jnp.asarray(q)))
     x2 = np.asarray(new.nodes(jnp.asarray(q2)))
     assert float(new.shortening) == pytest.approx(0.8 * float(scene.shortening))
@@ -86,12 +86,15 @@ def test_fit_prefactor_recovers_a_power_law():
 
 @pytest.mark.parametrize("kwargs, name", [
     (dict(N=30), "N"), (dict(N=40), "N"), (dict(L=-1.0), "L"), (dict(D=0.0), "D"), (dict(loop=-0.1), "loop"),
-    (dict(loop=0.2), "loop"), (dict(loop=1e-4), "loop"), (dict(phi=float("nan")), "phi"), (dict(Lk0=2.5), "Lk0"),
+    (dict(loop=0.2), "loop"), (dict(loop=1e-4), "loop"), (dict(phi=float("nan")), "phi"),
+    (dict(options=dict(Lk0=2.5)), "Lk0"), (dict(options=dict(B=0.0)), "B"), (dict(options=dict(delta=2.0)), "delta"),
 ])
 def test_bad_input_refused_naming_the_parameter(kwargs, name):
     args = dict(N=N, L=L, D=D, loop=LOOP)
     args.update(kwargs)
     with pytest.raises(ValueError, match=name):
+        if "options" in args:
+            args["options"] = ok.OpenKnotOptions(**args["options"])
         ok.open_overhand_knot(**args)
 
 

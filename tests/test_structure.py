@@ -88,3 +88,57 @@ def test_the_import_graph_is_read():
 def test_no_import_cycle():
     cycle = _cycle(_graph())
     assert cycle is None, " -> ".join(cycle)
+
+
+# The layers, lowest first: a module imports only from its own layer and the layers before it.
+# ``aot`` (the compile cache) and ``validation`` (argument checks) serve every layer.
+LAYERS = ("base", "model", "measure", "linalg", "solve", "continuation", "io", "studies", "cli")
+BASE = ("jaxrod.aot", "jaxrod.validation")
+
+
+def _layer(module):
+    if module in BASE:
+        return 0
+    parts = module.split(".")
+    if len(parts) == 1:  # the package itself: the public API, above everything
+        return len(LAYERS)
+    return LAYERS.index(parts[1])
+
+
+def test_every_module_is_in_a_layer():
+    for name in _graph():
+        _layer(name)  # raises ValueError for a module outside the layers
+
+
+def test_layers_import_only_downward():
+    upward = sorted(f"{name} -> {target}" for name, targets in _graph().items() for target in targets
+                    if _layer(target) > _layer(name))
+    assert not upward, upward
+
+
+def test_the_layer_check_sees_an_upward_import():
+    assert _layer("jaxrod.model.scenes") < _layer("jaxrod.linalg.stability") < _layer("jaxrod.cli.trefoil")
+
+
+# Size: no library file over MAX_FILE_LINES lines, no function over MAX_FUNCTION_LINES (from its
+# ``def`` to its last line, docstring included).
+MAX_FILE_LINES, MAX_FUNCTION_LINES = 600, 80
+
+
+def _oversized():
+    out = set()
+    for path in sorted(PACKAGE.rglob("*.py")):
+        text = path.read_text(encoding="utf-8")
+        rel = path.relative_to(PACKAGE.parent).as_posix()
+        if text.count("\n") > MAX_FILE_LINES:
+            out.add(rel)
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                if node.end_lineno - node.lineno + 1 > MAX_FUNCTION_LINES:
+                    out.add(f"{rel}:{node.name}")
+    return out
+
+
+def test_no_file_or_function_over_the_size_limits():
+    over = _oversized()
+    assert not over, sorted(over)

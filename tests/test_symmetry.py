@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from jaxrod.continuation import ContinuationOptions
-from jaxrod.continuation.engine import ROUND_OFF_ASYMMETRY, SYMMETRIC_TOL, _Engine
+from jaxrod.continuation.engine import ROUND_OFF_ASYMMETRY, SYMMETRIC_TOL, ContinuationEngine
 from jaxrod.continuation.options import Task
 from jaxrod.solve.equilibrium import relax
 from jaxrod.model.geometry import resample_closed
@@ -76,7 +76,7 @@ def test_a_corrected_state_that_slid_is_brought_back_to_the_symmetric_branch(kno
     # antisymmetric displacement (what the corrector leaves along the nearly null sliding modes)
     # comes back symmetric and converged, near where it was.
     opts = ContinuationOptions().resolved(knot, Task.FOLLOW_TWIST, 1.0)
-    engine = _Engine(knot, Task.FOLLOW_TWIST, opts)
+    engine = ContinuationEngine(knot, Task.FOLLOW_TWIST, opts)
     phi = -2.0 * math.pi
     e0 = relax(knot, phi, np.asarray(knot.q_init), replace(engine.corrector_options, max_steps=None))
     edge = knot.length / N
@@ -87,14 +87,14 @@ def test_a_corrected_state_that_slid_is_brought_back_to_the_symmetric_branch(kno
     push = push - symmetrize(knot, push + q) + q  # the antisymmetric part of the push
     slid = replace(e0, q=q + push, x=np.asarray(knot.positions(q + push)))
     assert two_fold_asymmetry(slid.x).asymmetry > ROUND_OFF_ASYMMETRY * edge
-    back = engine._kept_symmetric(e0.q, slid, phi, previous=e0)
+    back = engine.kept_symmetric(e0.q, slid, phi, previous=e0)
     assert back is not slid
     assert two_fold_asymmetry(back.x).asymmetry < 1e-11 * edge
     assert back.solution.grad_norm <= opts.gtol
     assert np.max(np.abs(back.x - e0.x)) < 1e-3 * edge
     # keep_symmetry=False: the state is left as the corrector gave it
-    off = _Engine(knot, Task.FOLLOW_TWIST, ContinuationOptions(keep_symmetry=False).resolved(knot, Task.FOLLOW_TWIST, 1.0))
-    assert off._kept_symmetric(e0.q, slid, phi, previous=e0) is slid
+    off = ContinuationEngine(knot, Task.FOLLOW_TWIST, ContinuationOptions(keep_symmetry=False).resolved(knot, Task.FOLLOW_TWIST, 1.0))
+    assert off.kept_symmetric(e0.q, slid, phi, previous=e0) is slid
 
 
 def test_a_diagram_path_starts_where_the_critical_eigenvalue_is_resolved(knot):
@@ -169,7 +169,7 @@ def test_a_pinned_knot_problem_is_projected_onto_the_symmetry_with_its_gauge_kep
     # knot_problem's symmetrize hook: the state projected in all DOFs, then moved rigidly (and its
     # twist angles shifted) until the 7 pinned DOFs are back at their values, so that the free DOFs
     # alone describe a symmetric state; event_curve's relaxation keeps a symmetric start symmetric
-    from jaxrod.continuation.arclength.event_curve import _relaxed
+    from jaxrod.continuation.arclength.event_curve import relax_problem
     from jaxrod.continuation.arclength.rods import knot_problem
 
     edge = knot.length / N
@@ -188,5 +188,5 @@ def test_a_pinned_knot_problem_is_projected_onto_the_symmetry_with_its_gauge_kep
     back = prob.symmetrize(u_off, SYMMETRIC_TOL)
     assert two_fold_asymmetry(rod.nodes(back)).asymmetry / edge < 1e-12
     assert np.max(np.abs(back - u_off)) < 1e-4  # the push, and the rigid motion that restores the pins
-    relaxed = _relaxed(prob, back, phi + 0.1, symmetric=True)
+    relaxed = relax_problem(prob, back, phi + 0.1, symmetric=True)
     assert two_fold_asymmetry(rod.nodes(relaxed)).asymmetry / edge < 1e-11

@@ -6,7 +6,7 @@ import pathlib
 import numpy as np
 
 from jaxrod.studies import atlas
-from jaxrod.studies.twist import _summarise, tightening_side
+from jaxrod.studies.critical_summary import summarise_critical, tightening_side
 
 RESULTS = pathlib.Path(__file__).resolve().parent.parent / "benchmarks" / "results" / "atlas"
 
@@ -24,7 +24,7 @@ def _summary(table):
     critical = {"instabilities": [{"direction": "plus", "phi": 6.4 * math.pi, "phi_error": 1e-4, "dlambda_dphi": -1.0},
                                   {"direction": "minus", "phi": -6.4 * math.pi, "phi_error": 1e-4,
                                    "dlambda_dphi": 1.0}]}
-    _summarise(critical, table)
+    summarise_critical(critical, table)
     return critical
 
 

@@ -242,7 +242,7 @@ def test_a_shape_mode_inside_the_near_zero_band_is_flagged(opening):
     import dataclasses
     import warnings
 
-    from jaxrod.continuation import CONTACT_NEGATIVE_TOL, ContinuationOptions, Task, _warn_if_band_hides_shape_modes
+    from jaxrod.continuation import CONTACT_NEGATIVE_TOL, ContinuationOptions, Task, warn_if_band_hides_shape_modes
     from jaxrod.linalg.stability import shape_modes_in_band
 
     path, _ = opening
@@ -265,5 +265,5 @@ def test_a_shape_mode_inside_the_near_zero_band_is_flagged(opening):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         for state in (sliding, shape, shape):
-            _warn_if_band_hides_shape_modes(point.scene, "symmetric+", state, opts, warned)
+            warn_if_band_hides_shape_modes(point.scene, "symmetric+", state, opts, warned)
     assert len(caught) == 1 and "reported stable, but 1 mode(s) that change the shape" in str(caught[0].message)
