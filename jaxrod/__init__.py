@@ -33,7 +33,7 @@ from .model.scenes import (  # noqa: E402
     trefoil,
 )
 from .solve.solvers import LBFGS, ConvergenceError, DampedNewton, Newton, Solution, StopReason, minimise  # noqa: E402
-from .linalg.stability import Stability, critical_twist_derivative, eigenvalue_phi_derivative, stability  # noqa: E402
+from .linalg.stability import Stability, critical_twist_derivative, eigenvalue_phi_derivative  # noqa: E402
 from .solve.equilibrium import (  # noqa: E402
     Equilibrium, EquilibriumOptions, RelaxOptions, TopologyChangeError, relax, relax_to_minimum, solve_equilibrium,
 )
@@ -44,6 +44,11 @@ from .continuation import (  # noqa: E402
 from .solve.dynamics import DynamicsOptions, DynamicsResult, damped_dynamics  # noqa: E402
 from .model import contact, topology  # noqa: E402
 from .studies import endloads  # noqa: E402  (rods under end loads: jaxrod.studies.endloads)
+from .continuation.kinds import EventKind  # noqa: E402
+from .api import (  # noqa: E402
+    CriticalEnd, CriticalTwists, SolveOptions, StabilityReport, critical_twist_sensitivity, critical_twists, equilibrium,
+    stability,
+)
 
 # analysis (scipy.interpolate) and plotting (matplotlib) load on first use, e.g. ``jaxrod.io.plotting``:
 # together they were 0.6 s of the 2.0 s ``import jaxrod`` (measured with -X importtime), paid by
@@ -60,54 +65,32 @@ def __getattr__(name):
 
 __version__ = "0.1.0"
 
+# The public API: one name per task (``jaxrod.api`` describes them). The other attributes above
+# (solvers, lower-level entries, result types of the engines) stay importable from here for the
+# code that uses them, and are documented in their own modules.
 __all__ = [
+    # scenes (call by keyword: N nodes, D diameter, L length, material, nu)
     "Material",
-    "ClosedRod",
-    "ClampedRod",
-    "FreeRod",
     "ring",
     "michell_ring",
-    "closed_curve",
+    "knot",
+    "torus_knot",
     "clamped_rod",
-    "free_rod",
-    "michell_critical_twist",
-    "clamped_critical_twist",
-    "LBFGS",
-    "Newton",
-    "Solution",
-    "StopReason",
-    "ConvergenceError",
-    "minimise",
-    "Stability",
-    "stability",
-    "eigenvalue_phi_derivative",
-    "critical_twist_derivative",
+    # an equilibrium at a twist, from a start
+    "equilibrium",
+    "SolveOptions",
     "Equilibrium",
-    "solve_equilibrium",
-    "EquilibriumOptions",
-    "relax",
-    "RelaxOptions",
-    "relax_to_minimum",
-    "TopologyChangeError",
-    "DampedNewton",
-    "CriticalPoint",
-    "NoCrossingError",
-    "critical_twist",
+    # stability: the one rule
+    "stability",
+    "StabilityReport",
+    # continuation: on_point(PathPoint)
     "follow_twist",
-    "TwistPath",
     "ContinuationOptions",
     "Observer",
-    "PathStop",
-    "PathPoint",
-    "Instability",
-    "topology",
-    "analysis",
-    "contact",
-    "plotting",
-    "trefoil",
-    "torus_knot",
-    "knot",
-    "damped_dynamics",
-    "DynamicsOptions",
-    "DynamicsResult",
+    "TwistPath",
+    # the critical twists on both sides, and their sensitivity to a parameter
+    "critical_twists",
+    "CriticalTwists",
+    "EventKind",
+    "critical_twist_sensitivity",
 ]

@@ -156,3 +156,20 @@ def test_damped_dynamics_takes_its_knobs_in_one_options_object():
     assert "options" in params and not {"gamma", "temperature", "dt", "seed", "chunk"} & set(params)
     with pytest.raises(TypeError, match="DynamicsOptions"):
         jr.damped_dynamics(jr.michell_ring(24), 0.0, 1.0, 1e-2, None, 1.0)
+
+
+# What a docstring of the public API says: the units of its numbers (rad, mm, pi, dimensionless,
+# physical units) or the shapes of its arrays ((n,), (N, 3), (k,)).
+UNIT_OR_SHAPE = ("rad", " pi", "mm", "dimensionless", "units", "(n", "(N", "(k")
+
+
+def test_all_is_short_and_has_no_duplicates():
+    assert len(jr.__all__) == len(set(jr.__all__)) <= 20
+    assert len({id(getattr(jr, name)) for name in jr.__all__}) == len(jr.__all__)
+
+
+@pytest.mark.parametrize("name", jr.__all__)
+def test_every_public_name_has_a_docstring_with_shapes_and_units(name):
+    doc = inspect.getdoc(getattr(jr, name)) or ""
+    assert len(doc) >= 100, f"jaxrod.{name}: its docstring is too short to say what it is"
+    assert any(word in doc for word in UNIT_OR_SHAPE), f"jaxrod.{name}: its docstring gives no unit nor shape"

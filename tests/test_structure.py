@@ -100,7 +100,7 @@ def _layer(module):
     if module in BASE:
         return 0
     parts = module.split(".")
-    if len(parts) == 1:  # the package itself: the public API, above everything
+    if len(parts) == 1 or module == "jaxrod.api":  # the package and its public API, above everything
         return len(LAYERS)
     return LAYERS.index(parts[1])
 

@@ -18,7 +18,8 @@ __all__ = ["EventKind", "SHAPE_EVENTS", "SOFT_EVENTS"]
 
 
 class EventKind(str, enum.Enum):
-    """Where a branch changes (see the module docstring)."""
+    """Where a branch changes (see the module docstring): the kind of an event located at a twist
+    phi (rad) of a path; a ``str`` (JSON writes "fold", "branch_point", ...)."""
 
     FOLD = "fold"  # the path turns back in the parameter, an eigenvalue crossing zero
     BRANCH_POINT = "branch_point"  # the Morse index changes without a fold

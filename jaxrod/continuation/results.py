@@ -117,8 +117,8 @@ class PathStop(_ValueEnum):
 @dataclass(frozen=True)
 class TwistPath:
     """Result of ``follow_twist``: ``points`` (PathPoint per accepted step, in order),
-    ``instabilities`` (Instability per branch end met), ``stop`` (a ``PathStop``), ``reason``
-    (the same in words, with the twist where it happened), ``seconds``."""
+    ``instabilities`` (Instability per branch end met, its phi in rad), ``stop`` (a ``PathStop``),
+    ``reason`` (the same in words, with the twist where it happened), ``seconds``."""
 
     points: list
     instabilities: list

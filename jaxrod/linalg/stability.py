@@ -411,24 +411,36 @@ def eigenvalue_phi_derivative(scene, q, phi, index, cluster_rtol=1e-4, nbr=None)
     return lam, dlam, v, dq
 
 
+def _parameter_tangent(scene, parameter):
+    """The scene's tangent (a pytree like the scene) along one continuous parameter: a name in
+    ``scene.PARAMETERS`` (changed as ``scene.with_params`` changes it), or a callable ``scene ->
+    tangent scene``."""
+    if callable(parameter):
+        return parameter(scene)
+    names = tuple(getattr(scene, "PARAMETERS", ()))
+    if parameter not in names:
+        raise ValueError(f"parameter must be one of {', '.join(names)} or a callable scene -> tangent scene, "
+                         f"got {parameter!r}")
+    m = scene.material
+    base = {"nu": lambda: m.B / m.C - 1.0, "contact_stiffness": lambda: getattr(scene, "contact_stiffness", None)}
+    value = base.get(parameter, lambda: getattr(m, parameter))()
+    if value is None:
+        raise ValueError(f"a {type(scene).__name__} has no {parameter}")
+    value = jnp.asarray(value, dtype=float)
+    return jax.jvp(lambda t: scene.with_params(**{parameter: value + t}), (jnp.zeros(()),), (jnp.ones(()),))[1]
+
+
 def critical_twist_derivative(scene, critical, parameter, cluster_rtol=1e-4, pinv_tol=0.0):
     """d phi* / d(parameter) at a critical point, by the implicit function theorem on
     lambda(q*(phi, p), phi, p) = 0:  d phi*/dp = -(d lambda/dp) / (d lambda/d phi).
 
-    critical: a ``CriticalPoint`` of ``scene``; parameter: a material field name ('B', 'C', 'EA')
-    or a callable ``scene -> tangent scene`` giving any direction in the scene's parameters.
-    Refuses knots (``jaxrod.validation.refuse_knot``).
+    critical: a ``CriticalPoint`` of ``scene``; parameter: a name in ``scene.PARAMETERS`` ('B',
+    'C', 'EA', 'D', 'nu', 'contact_stiffness', changed as ``scene.with_params`` changes it: nu sets
+    C = B/(1+nu) at fixed B) or a callable ``scene -> tangent scene`` giving any direction in the
+    scene's parameters. Refuses knots (``jaxrod.validation.refuse_knot``).
     """
     refuse_knot(scene, "critical_twist_derivative")
-    if isinstance(parameter, str):
-        if parameter not in ("B", "C", "EA", "D"):
-            raise ValueError(f"parameter must be one of 'B', 'C', 'EA', 'D' or a callable, got {parameter!r}")
-        zero = _zero_tangent(scene)
-        material = zero.material
-        object.__setattr__(material, parameter, jnp.ones_like(getattr(scene.material, parameter)))
-        dscene = zero
-    else:
-        dscene = parameter(scene)
+    dscene = _parameter_tangent(scene, parameter)
     eq = critical.equilibrium
     u = scene.to_scaled(np.asarray(eq.q, dtype=float))
     nbr = eq.neighbourhood if eq.neighbourhood is not None else scene.neighbourhood(eq.q, eq.phi)

@@ -205,7 +205,8 @@ def trefoil(D, L, N, E=PAPER_YOUNG_MODULUS, nu=0.5, chirality="right", contact_s
 
 def knot(name, D, L, N, E=PAPER_YOUNG_MODULUS, nu=0.5, contact_stiffness=DEFAULT_CONTACT_STIFFNESS, Lk0=None):
     """A closed rod tied in the knot ``name`` ('3_1', '4_1', '5_1', '5_2'; see ``knot_points``)
-    of diameter D and length L with N nodes. Refuses L/D below the knot's ideal ropelength
+    of diameter D and length L (mm) with N nodes, Young's modulus E (MPa) and Poisson ratio nu;
+    energies in N mm. Refuses L/D below the knot's ideal ropelength
     (``IDEAL_ROPELENGTH``), N below 24 or (with contact) below L/D; warns when L/D is within 25%
     of the ideal. The curve is the parametrisation scaled to length L, not yet relaxed.
     D, L, E, nu and contact_stiffness may be jax tracers (see ``trefoil``); name, N and Lk0 must

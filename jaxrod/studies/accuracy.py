@@ -53,7 +53,7 @@ import numpy as np
 from ..validation import check_finite, check_int_at_least, check_positive
 
 __all__ = ["Extrapolation", "richardson", "Level", "SideConvergence", "converged_critical_twists", "refine_scene",
-           "THEORETICAL_ORDER", "unconverged_reason"]
+           "THEORETICAL_ORDER", "unconverged_reason", "coarse_companion", "CoarseEstimates", "CoarseLevelTooSmall"]
 
 # The discrete elastic rod's energies are second-order accurate in the edge length (Michell's
 # ring: tests/test_michell.py measures 2.00).
@@ -514,6 +514,19 @@ class _LevelStore:
         write_json(os.path.join(self.out, "convergence.json"), {s: r.as_json() for s, r in results.items()})
 
 
+class CoarseLevelTooSmall(ValueError):
+    """The coarse level (N + 1) / 2 of an error estimate would be below the rod's resolution."""
+
+
+class CoarseEstimates(dict):
+    """{side: (Level, Extrapolation)} of ``coarse_companion``, and ``reasons``: {side: why there is
+    no estimate} for each side asked for that has none."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.reasons = {}
+
+
 def coarse_companion(scene, out, critical, span=16 * math.pi, step=0.5 * math.pi, tol=None, margin=0.5 * math.pi,
                      progress=None, cancel=None, sides=("plus", "minus")):
     """An error estimate for a finished twist study (``jaxrod.studies.twist.twist_study`` in ``out``, of the
@@ -528,9 +541,9 @@ def coarse_companion(scene, out, critical, span=16 * math.pi, step=0.5 * math.pi
     instabilities (their bracketed phi), so it may run while ``jaxrod.studies.diagram`` works on the same
     study (the CLI runs the two at once). sides: the sides to estimate (a side needs only its own
     first end and the step files before it, so the CLI starts each once that end is found, while
-    the study goes on). Returns {side: (Level,
-    Extrapolation)} for the sides with an end; {} when N_c is below the rod's resolution (8
-    nodes; a knot: 24, and L/D)."""
+    the study goes on). Returns a ``CoarseEstimates``, {side: (Level, Extrapolation)} for the sides
+    estimated, whose ``reasons`` say why each other side asked for has none. Raises
+    ``CoarseLevelTooSmall`` when N_c is below the rod's resolution (8 nodes; a knot: 24, and L/D)."""
     import glob
     import os
 
@@ -543,14 +556,16 @@ def coarse_companion(scene, out, critical, span=16 * math.pi, step=0.5 * math.pi
     if scene.has_term("contact"):  # a knot: at least 24 nodes, and edges no longer than the diameter
         need = max(24, math.ceil(float(scene.length) / float(scene.material.D) - 1e-9))
     if N_c < need:
-        return {}
+        raise CoarseLevelTooSmall(f"no error estimate from N = {N_c}: the coarse level needs at least {need} nodes "
+                                  f"(the study's N = {N} would have to be at least {2 * need - 1})")
     tol = critical.get("tol") if tol is None else tol
-    found = {}
+    found = CoarseEstimates()
     for side in sides:
         if side not in ("plus", "minus"):
             raise ValueError(f"sides: 'plus' or 'minus', got {side!r}")
         first = [c for c in critical["instabilities"] if c["direction"] == side]
         if not first:
+            found.reasons[side] = "the study found no branch end on this side"
             continue
         phi_star, branch = first[0]["phi"], first[0]["from_branch"]
         phi_error = float(first[0].get("phi_error", 0.0))
@@ -561,6 +576,7 @@ def coarse_companion(scene, out, critical, span=16 * math.pi, step=0.5 * math.pi
                 if str(f["branch"]) == branch and abs(float(f["phi"])) <= target:
                     best = (float(f["phi"]), np.asarray(f["q"]))
         if best is None:
+            found.reasons[side] = f"no step of {branch} on file {margin / math.pi:.3g} pi or more before its end"
             continue
         phi_start, q = best
         coarse = refine_scene(scene, np.asarray(q)[: 3 * N].reshape(N, 3), N_c)
@@ -570,6 +586,7 @@ def coarse_companion(scene, out, critical, span=16 * math.pi, step=0.5 * math.pi
         level, reason, _ = _level(coarse, side, phi_start, start, span, step, tol or 1e-3 * math.pi, say, cancel)
         if level is None:
             say(f"{side}: no estimate from N = {N_c}: {reason}")
+            found.reasons[side] = reason
             continue
         found[side] = (level, richardson([N_c, N], [level.phi_star, phi_star], [level.phi_error, phi_error]))
     return found

@@ -42,8 +42,8 @@ from ..io.atomic import savez as _savez, write_json as _write_json, write_rows a
 from ..continuation.end_check import VANISHING_EIGENVALUE, study_mode, verify_end
 from ..continuation.kinds import SHAPE_EVENTS
 
-__all__ = ["DiagramOptions", "BranchEnd", "Diagram", "follow_branch_end", "locate_end", "end_capacity", "end_rows",
-           "unstable_branches", "in_bracket", "UNSTABLE_PREFIX"]
+__all__ = ["DiagramOptions", "BranchEnd", "EndNotFound", "Diagram", "follow_branch_end", "locate_end", "end_capacity",
+           "end_rows", "unstable_branches", "in_bracket", "UNSTABLE_PREFIX"]
 
 from ..solve.equilibrium import equilibrium_from_solution
 from ..io.records import step_record
@@ -101,6 +101,15 @@ class DiagramOptions:
                 raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
 
 
+class EndNotFound(LookupError):
+    """A path met no branch end: ``end`` is the ``BranchEnd`` with its points and the reason
+    (``end.message``)."""
+
+    def __init__(self, message, end):
+        super().__init__(message)
+        self.end = end
+
+
 @dataclass
 class BranchEnd:
     """One stable branch's end and the unstable branch beyond it.
@@ -127,12 +136,24 @@ class BranchEnd:
     rows_k: tuple | None = field(default=None, repr=False)  # (k, negative_tol) they were computed with
 
     @property
+    def located(self):
+        """Whether the end was met and located to the event tolerance."""
+        return self.event is not None and bool(self.event.converged)
+
+    def _event_or_reason(self):
+        if self.event is None:
+            raise EndNotFound(f"no branch end on this path: {self.message or 'none met'}", self)
+        return self.event
+
+    @property
     def kind(self):
-        return None if self.event is None else self.event.kind
+        """The ``EventKind`` of the end met; raises ``EndNotFound`` (with ``message``) without one."""
+        return self._event_or_reason().kind
 
     @property
     def phi(self):
-        return None if self.event is None else float(self.event.p)
+        """The twist of the end met (rad); raises ``EndNotFound`` (with ``message``) without one."""
+        return float(self._event_or_reason().p)
 
     @property
     def unstable(self):
@@ -209,7 +230,9 @@ def follow_branch_end(scene, q, phi, sign, options=None, *, p_min=-math.inf, p_m
     beyond it for ``options.unstable_points`` points. capacity: the contact list's padded size
     (``knot_problem``; default: the neighbourhood's own at (q, phi)). observer(point): called after
     each accepted point (``jaxrod.continuation.arclength.continuation``; an exception raised there stops the
-    run). Returns a ``BranchEnd`` (direction and from_branch left empty)."""
+    run). Returns a ``BranchEnd`` (direction and from_branch left empty); where the path met no end,
+    or did not locate it, ``located`` is False and ``message`` says why (its ``kind`` and ``phi``
+    then raise ``EndNotFound`` rather than answer None)."""
     from ..continuation.arclength import ArclengthOptions, PseudoArclength, continuation_until, \
         restabilisation
     from ..continuation.arclength.rods import knot_problem
@@ -474,8 +497,8 @@ def _diagram_dict(diagram, options):
     from dataclasses import asdict
 
     def end(e):
-        row = {"direction": e.direction, "from_branch": e.from_branch, "kind": e.kind,
-               "phi_over_pi": None if e.phi is None else e.phi / math.pi, "points": len(e.points),
+        row = {"direction": e.direction, "from_branch": e.from_branch, "kind": None if e.event is None else e.kind,
+               "phi_over_pi": None if e.event is None else e.phi / math.pi, "points": len(e.points),
                "unstable_points": len(e.unstable), "message": e.message, "seconds": e.seconds,
                # whether this end is the study's instability, confirmed (``end_check``), and what vanishes there
                "located": e.event is not None and bool(e.event.converged), "confirmed": bool(e.confirmed),

@@ -171,7 +171,7 @@ class _KnotStudy:
 
     def _estimate_job(self, side, entry):
         """The N' = (N+1)/2 error estimate of one side's first end (``coarse_companion``)."""
-        from ..accuracy import coarse_companion
+        from ..accuracy import CoarseLevelTooSmall, coarse_companion
 
         def job(cancel):
             t_side = time.perf_counter()
@@ -179,9 +179,12 @@ class _KnotStudy:
                 self.announced.append(side)
                 self.say(f"estimating the discretisation error of phi*: each end again at N = "
                          f"{(self.options.N + 1) // 2}")
-            found = coarse_companion(self.scene, self.options.out, {"instabilities": [entry]}, span=self.span,
-                                     step=self.options.step, tol=self.options.tol, progress=self.say, cancel=cancel,
-                                     sides=(side,))
+            try:
+                found = coarse_companion(self.scene, self.options.out, {"instabilities": [entry]}, span=self.span,
+                                         step=self.options.step, tol=self.options.tol, progress=self.say,
+                                         cancel=cancel, sides=(side,))
+            except CoarseLevelTooSmall:  # no estimate at this N (the summary says so)
+                return None, time.perf_counter() - t_side
             return found.get(side), time.perf_counter() - t_side
         return job
 
