@@ -79,18 +79,14 @@ __all__ = [
     # an equilibrium at a twist, from a start
     "equilibrium",
     "SolveOptions",
-    "Equilibrium",
     # stability: the one rule
     "stability",
-    "StabilityReport",
     # continuation: on_point(PathPoint)
     "follow_twist",
     "ContinuationOptions",
     "Observer",
-    "TwistPath",
     # the critical twists on both sides, and their sensitivity to a parameter
     "critical_twists",
-    "CriticalTwists",
     "EventKind",
     "critical_twist_sensitivity",
 ]

@@ -207,7 +207,7 @@ def test_failed_computation_is_one_line_with_advice(monkeypatch, capsys, tmp_pat
     from jaxrod import NoCrossingError
     from jaxrod.solve.solvers import ConvergenceError
 
-    errors = {"no_crossing": NoCrossingError("negative count stayed 0 from phi = 0 to 20"),
+    errors = {"no_crossing": NoCrossingError("negative count stayed 0 from phi = +0.000000 pi to +6.366198 pi"),
               "convergence": ConvergenceError("relaxation did not converge: Solution(...)\nmore"),
               "interrupt": KeyboardInterrupt()}
 

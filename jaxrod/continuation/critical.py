@@ -170,7 +170,8 @@ class _CrossingSearch:
             phi_next = prev.phi + direction * h
             if direction * (phi_next - phi_stop) > 1e-12:
                 raise NoCrossingError(
-                    f"negative count stayed {count0} from phi = {phi_start:.6g} to {phi_stop:.6g}"
+                    f"negative count stayed {count0} from phi = {phi_start / math.pi:+.6f} pi "
+                    f"to {phi_stop / math.pi:+.6f} pi"
                 )
             s = self.engine.step(prev, dq, phi_next, index,
                                  guess=min(prev.stability.eigenvalues[0], lam_t + dlam_t * (phi_next - prev.phi)))
@@ -201,8 +202,8 @@ class _CrossingSearch:
         h *= 0.5
         if h < self.engine.opts.step / 1024.0:
             raise ConvergenceError(
-                f"the equilibrium branch could not be followed beyond phi = {prev.phi:.8g} "
-                f"({prev.phi / math.pi:.6f} pi): steps down to {2 * h:.2e} failed (a fold or a jump?)"
+                f"the equilibrium branch could not be followed beyond phi = {prev.phi / math.pi:+.8f} pi: "
+                f"steps down to {2 * h:.2e} failed (a fold or a jump?)"
             ) from None
         self.say(f"corrector failed at phi = {phi_next / math.pi:+.4f} pi: step halved to {h:.3e}")
         return h
@@ -242,7 +243,8 @@ class _CrossingSearch:
             # a fixed negative_tol = 1e-10 far above its eigenvalues).
             raise ConvergenceError(
                 f"critical twist: the crossing eigenvalue has the same sign ({f_lo:.3e}, {f_hi:.3e}) at both ends "
-                f"of the bracket [{lo.phi:.8g}, {hi.phi:.8g}] where the negative count changed: negative_tol = "
+                f"of the bracket [{lo.phi / math.pi:+.8f}, {hi.phi / math.pi:+.8f}] pi where the negative count "
+                f"changed: negative_tol = "
                 f"{negative_tol:.3g} is not small against the eigenvalues")
         return lo, hi, f_hi, at_lo, evals
 
@@ -259,7 +261,7 @@ class _CrossingSearch:
             s = engine.step(base, base_dq, phi_c, ref=v_ref,
                             guess=min(base.stability.eigenvalues[0], f_base + d_base * (phi_c - base.phi)))
             if not s.ok:
-                raise ConvergenceError(f"critical twist refinement: no equilibrium at phi = {phi_c:.10g} "
+                raise ConvergenceError(f"critical twist refinement: no equilibrium at phi = {phi_c / math.pi:+.10f} pi "
                                        f"({s.refusal.detail})")
             e, f_c, d_c = s.equilibrium, s.eigenvalue, s.dlambda_dphi
             self.stepped(e.phi, int(e.stability.n_negative))

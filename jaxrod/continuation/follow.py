@@ -182,7 +182,7 @@ def _stable_start(engine, start, phi_start, given):
     if s.equilibrium.stability.n_negative:
         st = s.equilibrium.stability
         raise ValueError(
-            f"the starting state at phi = {e0.phi:.6g} is unstable ({st.n_negative} negative eigenvalue(s), "
+            f"the starting state at phi = {e0.phi / math.pi:+.6f} pi is unstable ({st.n_negative} negative eigenvalue(s), "
             f"lowest {st.eigenvalues[0]:.3e}): follow_twist follows a stable branch; start from a minimum "
             "(jaxrod.relax_to_minimum)")
     return s
@@ -348,20 +348,20 @@ class _Follower:
         phi_c, phi_err = branch_end_in_bracket(prev.phi, lost_phi, inst.eigenvalue, rate, direction)
         inst = replace(inst, phi=phi_c, phi_error=phi_err, bracket=(prev.phi, lost_phi), from_branch=state.branch,
                        negative_tol=engine.opts.negative_tol)
-        self.say(f"[{state.branch}] branch ends at phi* = {inst.phi / math.pi:+.6f} pi +- {inst.phi_error:.1e} rad "
+        self.say(f"[{state.branch}] branch ends at phi* = {inst.phi / math.pi:+.6f} pi +- {inst.phi_error / math.pi:.1e} pi "
                  f"({kind}; last: {state.lost_refusal}); critical eigenvalue {inst.eigenvalue:.3e}, "
                  f"d/dphi {inst.dlambda_dphi:.3e}")
         if not engine.opts.switch or state.switches >= engine.opts.max_switches:
             state = self.record(state, inst)
             return replace(state, phase=Phase.DONE, stop=PathStop.BRANCH_ENDED,
-                           reason=f"branch ended at phi = {inst.phi:.8g} ({kind})")
+                           reason=f"branch ended at phi = {inst.phi / math.pi:+.8f} pi ({kind})")
         found, choice = _switch_branch(engine, prev, state.tangent, lost_phi, inst.mode, state.lost_equilibrium,
                                        self.say)
         inst = replace(inst, switch=choice)
         if found is None:
             state = self.record(replace(state, switches=state.switches + 1), inst)
             return replace(state, phase=Phase.DONE, stop=PathStop.NO_STABLE_BRANCH,
-                           reason=f"no stable branch found beyond phi = {lost_phi:.8g}")
+                           reason=f"no stable branch found beyond phi = {lost_phi / math.pi:+.8f} pi")
         new_name = _next_branch_name(state.branch[:-1]) + state.branch[-1]
         state = self.record(state, replace(inst, to_branch=new_name, jumped_to=found.equilibrium))
         state = replace(state, phase=Phase.FOLLOW, branch=new_name, prev=found.equilibrium, tangent=found.tangent,

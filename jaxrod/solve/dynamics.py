@@ -229,7 +229,8 @@ def damped_dynamics(scene, phi_start, phi_stop, rate, q0=None, options=None, *, 
         phi = phi_start + rate * dt * steps
         q = np.asarray(scene.from_scaled(np.asarray(u)))
         if not np.all(np.isfinite(q)):
-            raise FloatingPointError(f"the dynamics blew up at phi = {phi:.6g}: take a smaller dt (was {dt:.3g})")
+            raise FloatingPointError(f"the dynamics blew up at phi = {phi / math.pi:+.6f} pi: "
+                                     f"take a smaller dt (was {dt:.3g})")
         upd = nbr.update(scene, q, phi)
         new = upd.nbr
         if abs(float(new.wr_ref) - records["Wr"][-1]) >= 1.0 and scene.has_term("contact"):
@@ -250,7 +251,8 @@ def damped_dynamics(scene, phi_start, phi_stop, rate, q0=None, options=None, *, 
         if k % 50 == 49:
             say(f"phi = {phi / math.pi:+.5f} pi, Wr = {records['Wr'][-1]:.4f}, E = {records['energy'][-1]:.6g}")
     if stop == "topology":
-        raise TopologyChangeError(f"the writhe jumped by 1 or more within one chunk at phi = {phi:.6g}: a strand "
+        raise TopologyChangeError(f"the writhe jumped by 1 or more within one chunk at phi = "
+                                  f"{phi / math.pi:+.6f} pi: a strand "
                                   f"passed through another (take a smaller dt than {dt:.3g})")
     arrays = {name: np.asarray(values) for name, values in records.items()}
     return DynamicsResult(**arrays, transition_phi=float(arrays["phi"][transition]) if transition >= 0 else math.nan,

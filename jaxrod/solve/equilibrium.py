@@ -323,7 +323,7 @@ def relax_to_minimum(scene, phi=0.0, q0=None, options=None, *, push=None, max_pu
         e = min(found, key=lambda f: (not f.stability.stable, f.energy))
     if e.stability.stable:
         return e
-    raise ConvergenceError(f"no stable equilibrium found near the relaxed state at phi = {phi:.6g} after "
+    raise ConvergenceError(f"no stable equilibrium found near the relaxed state at phi = {phi / math.pi:+.6f} pi after "
                            f"{max_pushes} pushes along the unstable mode: {e.stability!r}")
 
 

@@ -43,13 +43,15 @@ from ..continuation.end_check import VANISHING_EIGENVALUE, study_mode, verify_en
 from ..continuation.kinds import SHAPE_EVENTS
 
 __all__ = ["DiagramOptions", "BranchEnd", "EndNotFound", "Diagram", "follow_branch_end", "locate_end", "end_capacity",
-           "end_rows", "unstable_branches", "in_bracket", "UNSTABLE_PREFIX"]
+           "end_rows", "unstable_branches", "in_bracket", "UNSTABLE_PREFIX", "START_TOL", "twist_message",
+           "end_message"]
 
-from ..solve.equilibrium import equilibrium_from_solution
+from ..solve.equilibrium import RelaxOptions, equilibrium_from_solution
 from ..io.records import step_record
 from ..solve.solvers import Solution
 from ..linalg.stability import DEFAULT_NEGATIVE_TOL
 from .critical_summary import summarise_critical
+from .path_messages import end_message, extra_crossings, twist_message
 from .study_files import UNSTABLE_PREFIX, critical_mode, final_header, is_unstable, read_table
 from .threads import Cancelled, run_all
 
@@ -189,6 +191,13 @@ START_EIGENVALUE = 1e-7
 # ... stepping back from the study's last stable state by at most this much twist (rad).
 MAX_START_BACK = 0.05 * math.pi
 
+# The residual (scaled units) at which a path's start is taken when Newton cannot bring it down to
+# ``DiagramOptions.newton_tol`` (a roundoff floor above that tolerance): the equilibrium solver's own
+# convergence test (``RelaxOptions.gtol``), so that a state ``relax`` or ``jaxrod.equilibrium``
+# called converged is a valid start. A start that Newton does bring below newton_tol is corrected
+# to it, as before: the located ends do not change.
+START_TOL = RelaxOptions.gtol
+
 
 def backed_off_start(scene, q, phi, eigenvalue, rate, sign):
     """The state to start an end's path from: (q, phi) itself where the critical eigenvalue there
@@ -230,7 +239,9 @@ def follow_branch_end(scene, q, phi, sign, options=None, *, p_min=-math.inf, p_m
     beyond it for ``options.unstable_points`` points. capacity: the contact list's padded size
     (``knot_problem``; default: the neighbourhood's own at (q, phi)). observer(point): called after
     each accepted point (``jaxrod.continuation.arclength.continuation``; an exception raised there stops the
-    run). Returns a ``BranchEnd`` (direction and from_branch left empty); where the path met no end,
+    run). The start is corrected on phi to ``options.newton_tol``, or, where Newton's residual floor
+    lies above it, taken at a residual of at most START_TOL (a state the equilibrium solver called
+    converged). Returns a ``BranchEnd`` (direction and from_branch left empty); where the path met no end,
     or did not locate it, ``located`` is False and ``message`` says why (its ``kind`` and ``phi``
     then raise ``EndNotFound`` rather than answer None)."""
     from ..continuation.arclength import ArclengthOptions, PseudoArclength, continuation_until, \
@@ -260,8 +271,9 @@ def follow_branch_end(scene, q, phi, sign, options=None, *, p_min=-math.inf, p_m
             return f"still unstable {past} points past the end" if past >= o.max_unstable_points else ""
         return "followed past the end" if past >= o.unstable_points else ""
 
-    br = continuation_until(rod.problem, PseudoArclength(), opts, stop, observer=observer)
-    points, events, message = br.points, br.events, br.message
+    br = continuation_until(rod.problem, PseudoArclength(), opts, stop, observer=observer,
+                            start_tol=max(o.newton_tol, START_TOL))
+    points, events, message = br.points, br.events, twist_message(br)
     end = _first_end(events)
     if end is not None and not end.converged:
         if end.residual <= o.event_tol and end.critical_eigenvalue <= o.event_tol:
@@ -274,6 +286,7 @@ def follow_branch_end(scene, q, phi, sign, options=None, *, p_min=-math.inf, p_m
             message = (f"the end was detected near {end.p / math.pi:+.8f} pi but not located to event_tol "
                        f"{o.event_tol:.0e} (residual {end.residual:.1e}, eigenvalue {end.critical_eigenvalue:.1e})")
     elif end is not None:
+        message = end_message(end, br)
         back = restabilisation(events, end.step) if o.until_restable else None
         if back is not None:  # (a later chunk may have ended otherwise, e.g. at a soft fold past it)
             message = f"followed past the end until it restabilised at {back.p / math.pi:+.8f} pi ({back.kind})"
@@ -281,20 +294,6 @@ def follow_branch_end(scene, q, phi, sign, options=None, *, p_min=-math.inf, p_m
             o.max_unstable_points if o.until_restable else o.unstable_points)]
         return BranchEnd("", "", end, points, rod, message, time.perf_counter() - t0, restabilised=back)
     return BranchEnd("", "", end, points, rod, message, time.perf_counter() - t0)
-
-
-def extra_crossings(ev):
-    """A sentence when the located event ``ev`` changes the Morse index by more than its
-    multiplicity (a simple fold or branch point changes it by exactly that): another eigenvalue
-    crossed zero within the same step, a near-double event (measured on the trefoil at N = 961: the
-    opening 'fold' took the index 0 -> 2, three eigenvalues ~1e-9 at the point before it); else ''."""
-    jump = int(ev.morse_after) - int(ev.morse_before)
-    if jump <= int(ev.multiplicity):
-        return ""
-    return (f"the {ev.kind} located at {ev.p / math.pi:+.8f} pi changes the Morse index by {jump} "
-            f"({ev.morse_before} -> {ev.morse_after}), more than its multiplicity {ev.multiplicity}: another "
-            "eigenvalue crosses zero within the same step (a near-double event); phi* is this event's, the "
-            "crossing next to it is not located")
 
 
 def in_bracket(phi, inst):

@@ -34,17 +34,18 @@ def _point(problem, opts, c, t, ds, arclength):
     return Point(u, p, t, vals, vecs, morse, c.iterations, ds, arclength, soft)
 
 
-def continuation(problem, alg, opts, *, observer=None, start=None, throw=True, known=()):
+def continuation(problem, alg, opts, *, observer=None, start=None, throw=True, known=(), start_tol=None):
     """Follow the branch of F(u, p) = 0 through (problem.u0, problem.p0) by ``alg`` (PseudoArclength).
 
     start: optional (u (n,), p, tangent (n+1,)): a predicted point and direction (a branch switch);
     the first point is then corrected on the hyperplane through it orthogonal to the tangent,
     otherwise on p = p0, and the path starts towards sign(opts.ds) in p.
+    start_tol: the first point is taken at a residual up to this where Newton stops above newton_tol.
     observer(point) is called after each accepted point. Folds and branch points found between
     consecutive points are located (``Branch.events``); known: events located before on the same
     path (earlier chunks), which a locator landing on one does not take for a new event.
-    throw=True raises ContinuationError (with
-    ``.branch``) when the corrector fails or an event is not located to ``opts.event_tol``;
+    throw=True raises ContinuationError (with ``.branch``) when the corrector fails or an event is
+    not located to ``opts.event_tol``;
     throw=False returns the branch with ``result`` and ``message`` saying so.
     """
     be = problem.backend
@@ -59,7 +60,7 @@ def continuation(problem, alg, opts, *, observer=None, start=None, throw=True, k
     else:
         z_pred = np.append(np.asarray(start[0], dtype=float), float(start[1]))
         t0 = np.asarray(start[2], dtype=float) / np.linalg.norm(start[2])
-    c = correct(be, lin, z_pred, t0, opts.newton_tol, opts.newton_max_iter)
+    c = _accepted_start(correct(be, lin, z_pred, t0, opts.newton_tol, opts.newton_max_iter), start_tol)
     if not c.converged:
         return _finish(Branch([], [], Result.CORRECTOR_FAILED, f"the start did not converge: residual "
                               f"{c.residual:.3g} after {c.iterations} Newton iterations"), throw)
@@ -115,16 +116,18 @@ def continuation(problem, alg, opts, *, observer=None, start=None, throw=True, k
     return _finish(Branch(points, events, result, message, slides=slides), throw)
 
 
-def continuation_until(problem, alg, opts, stop, *, start=None, observer=None):
+def continuation_until(problem, alg, opts, stop, *, start=None, observer=None, start_tol=None):
     """``continuation`` in chunks of ``opts.max_steps`` steps, until ``stop(points, events)``
     returns a message (a non-empty str; checked after each chunk) or a chunk ends otherwise
     (boundary, corrector failure, an event not located). Each chunk starts from the last point with
     its tangent and the step it had reached; arclengths, event steps and slides are those of the
-    whole path. start: as for ``continuation``. Returns a Branch: ``result`` is Result.STOPPED with
+    whole path. start, start_tol: as for ``continuation`` (start_tol: the first chunk's first
+    point only). Returns a Branch: ``result`` is Result.STOPPED with
     stop's message, or the last chunk's result and message. Never raises for a failed chunk."""
     points, events, slides = [], [], []
     while True:
-        br = continuation(problem, alg, opts, start=start, throw=False, observer=observer, known=events)
+        br = continuation(problem, alg, opts, start=start, throw=False, observer=observer, known=events,
+                          start_tol=None if points else start_tol)
         offset = len(points) - (1 if points else 0)
         if points:  # a chunk restarts its arclength at 0: carry it on from the last point
             s0 = points[-1].arclength
@@ -214,6 +217,14 @@ def _slide(problem, opts, fold, direction, step):
     slide = Slide(fold, float(p1), c.z[:-1].copy(), float(np.linalg.norm(c.z[:-1] - u0)), e_fold - e_new,
                   sol.iterations, step)
     return slide, c
+
+
+def _accepted_start(c, start_tol):
+    """The start's Correction c, taken as converged where Newton stopped above newton_tol (a
+    roundoff floor above it) at a residual of at most start_tol (None: never)."""
+    if not c.converged and start_tol is not None and c.residual <= start_tol:
+        return replace(c, converged=True)
+    return c
 
 
 def _finish(branch, throw):
