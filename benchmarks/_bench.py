@@ -82,3 +82,8 @@ def fmt(value, spec, missing="none"):
 # allows), stable branches only, a quarter turn each way: the same CLI code path in a few seconds.
 TINY_CLI_ARGS = ["trefoil", "--D", "8", "--L", "140", "--N", "24", "--phi-min", "-0.5pi", "--phi-max", "0.5pi",
                  "--stable-only", "--no-extrapolation"]
+
+
+def markdown(lines):
+    """``lines`` (a title first) as the text of a Markdown results file, the provenance under the title."""
+    return "\n".join([lines[0], "", provenance_line(), *lines[1:]]) + "\n"

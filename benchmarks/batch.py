@@ -21,7 +21,7 @@ import math  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 
-from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, markdown, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
 RESULTS = results_dir()
 
@@ -100,7 +100,7 @@ def main(argv):
                      f"{t['batched_eigh'] * 1e3:.1f} ms | {t['serial_eigh'] / t['batched_eigh']:.2f}x |")
     os.makedirs(RESULTS, exist_ok=True)
     with open(os.path.join(RESULTS, "batch.md"), "w") as f:
-        f.write("\n".join(lines) + "\n")
+        f.write(markdown(lines))
     print("\n".join(lines))
 
 

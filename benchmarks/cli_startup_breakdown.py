@@ -20,7 +20,7 @@ import subprocess  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 
-from _bench import SMOKE, TINY_CLI_ARGS, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, TINY_CLI_ARGS, markdown, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
 ARGS = pick(["trefoil", "--D", "8", "--L", "292", "--N", "121", "--phi-min", "-12pi", "--phi-max", "14pi"],
             TINY_CLI_ARGS) + ["--quiet"]
@@ -92,7 +92,7 @@ def main():
     lines.append("| main() in all | " + " | ".join(f"{r['main_s']:.1f}" for r in (cold, warm, nofig)) + " |")
     lines += ["", f"Figures: {warm['main_s'] - nofig['main_s']:.1f} s of the warm run (warm minus --no-figures)."]
     with open(os.path.join(results_dir(), "cli_startup_breakdown.md"), "w") as f:
-        f.write("\n".join(lines) + "\n")
+        f.write(markdown(lines))
     print("\n".join(lines))
 
 

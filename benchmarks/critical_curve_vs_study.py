@@ -18,6 +18,7 @@ instability against a fine-step reference.
 Writes benchmarks/results/critical_curve_vs_study.json (after every step: a rerun goes on from it,
 while the runs' folders are still in the temporary directory) and critical_curve_vs_study.md.
 Run: python benchmarks/critical_curve_vs_study.py [--no-reference]   (~25 min on one core)
+Small mode (``--smoke``): one ratio (0.04) at N = 31, the opening side, three reference points.
 """
 import os
 
@@ -39,12 +40,18 @@ from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401 
 HERE = os.path.dirname(os.path.abspath(__file__))
 RESULTS = results_dir()
 # the runs' own folders (step files the reference starts from): scratch space, not results
-WORK = os.path.join(tempfile.gettempdir(), "jaxrod_critical_curve_vs_study")
+WORK = pick(os.path.join(tempfile.gettempdir(), "jaxrod_critical_curve_vs_study"), os.path.join(RESULTS, "runs"))
 JSON = os.path.join(RESULTS, "critical_curve_vs_study.json")
 MD = os.path.join(RESULTS, "critical_curve_vs_study.md")
 EXE = shutil.which("jaxrod") or os.path.join(os.path.dirname(sys.executable), "jaxrod")
-RATIOS = "0.018:0.032:0.002"
-N, L = 61, 292.0
+# small mode: one ratio of a tight knot at N = 31, the opening side only (its first instability near
+# +7 pi), a point study over a quarter turn (no event: nothing to compare, the same code), and the
+# reference's first few arclength points
+RATIOS = pick("0.018:0.032:0.002", "0.04")
+N, L = pick(61, 31), 292.0
+SIDES = pick(("plus", "minus"), ("plus",))
+PHI_RANGE = pick(("-16pi", "16pi"), ("-0.25pi", "0.25pi"))
+REFERENCE_POINTS = pick(4000, 3)
 PI = math.pi
 AGREE = 1e-8  # pi
 
@@ -66,8 +73,8 @@ def _save(data):
 def run_curve():
     t = time.perf_counter()
     out = os.path.join(WORK, "curve")
-    run = subprocess.run([EXE, "critical-curve", "--ratios", RATIOS, "--N", str(N), "--out", out, "--fresh", "--json",
-                          "--quiet"], capture_output=True, text=True)
+    run = subprocess.run([EXE, "critical-curve", "--ratios", RATIOS, "--N", str(N), "--sides", ",".join(SIDES),
+                          "--out", out, "--fresh", "--json", "--quiet"], capture_output=True, text=True)
     if run.returncode != 0:
         raise RuntimeError(run.stderr)
     result = json.loads(run.stdout)
@@ -79,8 +86,8 @@ def run_curve():
 def run_study(ratio):
     t = time.perf_counter()
     out = os.path.join(WORK, f"study_{ratio:.4f}")
-    run = subprocess.run([EXE, "trefoil", "--D", repr(ratio * L), "--L", repr(L), "--N", str(N), "--phi-min=-16pi",
-                          "--phi-max", "16pi", "--out", out, "--json", "--no-figures", "--quiet", "--no-extrapolation",
+    run = subprocess.run([EXE, "trefoil", "--D", repr(ratio * L), "--L", repr(L), "--N", str(N),
+                          f"--phi-min={PHI_RANGE[0]}", "--phi-max", PHI_RANGE[1], "--out", out, "--json", "--no-figures", "--quiet", "--no-extrapolation",
                           "--fresh"], capture_output=True, text=True)
     if run.returncode != 0:
         raise RuntimeError(run.stderr)
@@ -105,7 +112,8 @@ def run_reference(ratio, side, study_out):
     sign = 1.0 if side == "plus" else -1.0
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        end = follow_branch_end(scene, q0, 0.0, sign, DiagramOptions(ds_max=0.05, max_points=4000, unstable_points=1),
+        end = follow_branch_end(scene, q0, 0.0, sign, DiagramOptions(ds_max=0.05, max_points=REFERENCE_POINTS,
+                                                                           unstable_points=1),
                                 p_min=-16.5 * PI, p_max=16.5 * PI)
     ev = end.event
     return {"phi_over_pi": None if ev is None else float(ev.p) / PI, "kind": None if ev is None else ev.kind,
@@ -120,7 +128,7 @@ def _f(v, fmt):
 
 def report(data):
     curve = data["curve"]
-    lines = ["# `jaxrod critical-curve` against point studies, N = 61 (trefoil)", "",
+    lines = ["# `jaxrod critical-curve` against point studies, N = 61 (trefoil)", "", provenance_line(), "",
              f"`jaxrod critical-curve --ratios {RATIOS} --N {N}` (default start ratio, both sides): "
              f"{curve['wall_seconds']:.0f} s wall. Point studies: `jaxrod trefoil --D r*292 --L 292 --N 61 "
              "--phi-min=-16pi --phi-max 16pi --no-extrapolation`. Reference: the branch through the point "
@@ -187,7 +195,7 @@ def main(with_reference=True):
             _save(data)
     if with_reference:
         for r in ratios:
-            for side in ("plus", "minus"):
+            for side in SIDES:
                 key = f"{r:.4f}_{side}"
                 if key not in data["references"]:
                     print(f"reference at D/L = {r}, {side} ...", flush=True)

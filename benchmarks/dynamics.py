@@ -20,7 +20,7 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, markdown, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
 RESULTS = results_dir()
 PI = math.pi
@@ -91,7 +91,7 @@ def main(argv):
                      f"{r['phi_left_branch_over_pi'] - phi_c / PI:+.3f} pi | {r['phi_writhe_jump_over_pi']:.3f} pi | "
                      f"{r['Wr_end']:.3f} |")
     with open(os.path.join(RESULTS, "dynamics.md"), "w") as f:
-        f.write("\n".join(lines) + "\n")
+        f.write(markdown(lines))
     print("\n".join(lines))
 
 

@@ -33,7 +33,7 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, markdown, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
 RESULTS = results_dir()
 CSV = os.path.join(RESULTS, "dynamics_accuracy.csv")
@@ -172,7 +172,7 @@ def report():
               "leaving the branch ('beyond') has no fit: its lower bound is the slowest run's time for an error above "
               "the stated one."]
     with open(os.path.join(RESULTS, "dynamics_accuracy.md"), "w") as f:
-        f.write("\n".join(lines) + "\n")
+        f.write(markdown(lines))
     print("\n".join(lines))
 
 

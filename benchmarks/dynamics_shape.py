@@ -27,7 +27,7 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, markdown, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
 RESULTS = results_dir()
 PI = math.pi
@@ -107,7 +107,7 @@ def main(argv):
         lines.append(f"| {r['method']} | {r['T']} | {r['seed']} | {r['phi_over_pi']:.3f} | {r['Wr']:.3f} | "
                      f"{r['peaks']} | {r['symmetry_order']} | {r['seconds']:.0f} |")
     with open(os.path.join(RESULTS, "dynamics_shape.md"), "w") as f:
-        f.write("\n".join(lines) + "\n")
+        f.write(markdown(lines))
     print("\n".join(lines))
 
 

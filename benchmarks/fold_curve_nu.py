@@ -37,7 +37,7 @@ from jaxrod.continuation.arclength import ArclengthOptions, PseudoArclength, con
 from jaxrod.continuation.arclength.rods import knot_problem, set_poisson_ratio  # noqa: E402
 
 PI = math.pi
-from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, markdown, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
 
 D, L = 8.0, 292.0
 N = pick(121, 61)  # the small mode: the fewest nodes whose start at phi = 0 is a minimum
@@ -144,7 +144,7 @@ def write_md(s):
         lines.append(f"| {r['nu']:g} | {r['curve_phi_over_pi']:.10f} | {study} | {diff} | {r['curve_dphi_dnu']:.6f} | "
                      f"{central} | {rel} | {r['michell_over_pi']:.6f} | {r['study_seconds']:.0f} |")
     with open(os.path.join(OUT, "fold_curve_nu.md"), "w") as f:
-        f.write("\n".join(lines) + "\n")
+        f.write(markdown(lines))
 
 
 def plot(mu, p, rows):

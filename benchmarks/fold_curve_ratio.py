@@ -43,7 +43,7 @@ from jaxrod.continuation.arclength.rods import knot_problem, set_diameter  # noq
 from jaxrod.model.symmetry import two_fold_asymmetry  # noqa: E402
 
 PI = math.pi
-from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, markdown, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
 
 L, D0, NU = 292.0, 8.0, 0.5
 N = pick(128, 61)  # the small mode: the fewest nodes whose start at phi = 0 is a minimum
@@ -309,7 +309,7 @@ def report(s):
                   "event of smaller |phi*|.", ""]
         lines += _curve_lines(high, sorted(high["curve"], key=lambda r: (r["side"], r["D_over_L"])))
     with open(os.path.join(OUT, "fold_curve_ratio.md"), "w") as f:
-        f.write("\n".join(lines) + "\n")
+        f.write(markdown(lines))
     plot(rows, s, sorted(high["curve"], key=lambda r: (r["side"], r["D_over_L"])))
 
 

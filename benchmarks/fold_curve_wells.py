@@ -35,7 +35,7 @@ from jaxrod.model.material import Material  # noqa: E402
 from jaxrod.model.scenes import DEFAULT_CONTACT_STIFFNESS, PAPER_YOUNG_MODULUS, trefoil_points  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _bench import COMMITTED_RESULTS, SMOKE, pick  # noqa: E402
+from _bench import COMMITTED_RESULTS, SMOKE, markdown, pick  # noqa: E402
 from fold_curve_ratio import CHECKS, L, N, NU, OUT, SIDES, options  # noqa: E402
 
 PI = math.pi
@@ -148,7 +148,7 @@ def report(base, runs):
                      + " | ".join(cell(s) for s in (0.0,) + SHIFTS) + f" | {best:g} | {diff:.1e} |")
     lines += ["", f"The curve equals a point study to {AGREE:g} pi at {agree} of {total} ratios."]
     with open(os.path.join(OUT, "fold_curve_wells.md"), "w") as f:
-        f.write("\n".join(lines) + "\n")
+        f.write(markdown(lines))
     print("\n".join(lines))
 
 

@@ -36,7 +36,7 @@ from jaxrod.continuation.arclength.rods import knot_problem, set_diameter, set_p
 
 PI = math.pi
 D, L = 8.0, 292.0
-from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, markdown, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
 OUT = results_dir()
 # (N, side, start of the pseudo-arclength path (from follow_twist), p bound, steps)
@@ -138,7 +138,7 @@ def write_md(rows):
               "gives the 13.47 that issue 17 measured by finite differences of two whole studies, where the "
               "fixed-branch formula gave 5 to 11."]
     with open(os.path.join(OUT, "fold_sensitivity.md"), "w") as f:
-        f.write("\n".join(lines) + "\n")
+        f.write(markdown(lines))
 
 
 if __name__ == "__main__":

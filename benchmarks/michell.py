@@ -22,7 +22,7 @@ import time  # noqa: E402
 import jaxrod  # noqa: E402
 from jaxrod import EquilibriumOptions, critical_twist, michell_critical_twist, michell_ring, solve_equilibrium  # noqa: E402,E501
 
-from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, markdown, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
 NEWTON_EXACT_COUNT = EquilibriumOptions(method="newton", negative_tol=0.0)
 from jaxrod.io.plotting import plot_convergence  # noqa: E402
 
@@ -130,7 +130,7 @@ def main():
         "![accuracy against time](michell.png)",
     ]
     with open(os.path.join(OUT, "michell.md"), "w") as f:
-        f.write("\n".join(lines) + "\n")
+        f.write(markdown(lines))
     chart_rows = [dict(r) for r in rows]
     chart_rows.append(dict(label=f"jaxrod + Richardson ({N2}, {N3})", N=N3, rel_error=rich_rel, seconds=rich_secs))
     plot_convergence(chart_rows, os.path.join(OUT, "michell.png"),

@@ -27,7 +27,8 @@ torque M and tension T, minimised over a, gives
 small a: M ~ 2 (2/3)^(3/4) B^(1/4) T^(3/4) r^(1/2)), and the hat curve's slope
 d(extension)/d(turns) = -4 pi r / sin 2a.
 
-Writes benchmarks/results/plectoneme.csv and plectoneme.png; prints the summary numbers.
+Writes benchmarks/results/plectoneme.csv, plectoneme.json (the summary, with the commit and command)
+and plectoneme.png; prints the summary numbers. Small mode (``--smoke``): T = 100, N = 40, a dozen points.
 """
 import csv
 import json
@@ -45,7 +46,7 @@ from jaxrod.studies import endloads as el  # noqa: E402
 from jaxrod.model.contact import contact_count  # noqa: E402
 from jaxrod.model.material import Material  # noqa: E402
 
-from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, pick, provenance, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
 TWO_PI = 2.0 * math.pi
 
@@ -66,10 +67,10 @@ class Continuation:
         self.w = r_weight  # weight of R (rad) against the scaled DOFs in the arclength
 
     def nbr(self, u, phi):
-        return self.fr._neighbourhood(u, phi)
+        return self.fr.neighbourhood(u, phi)
 
     def grad(self, u, phi, nbr):
-        return self.fr._value_and_grad(u, (phi, self.T, nbr))[1]
+        return self.fr.value_and_grad(u, (phi, self.T, nbr))[1]
 
     def corrector(self, u, phi, tu, tphi, u_pred, phi_pred, gtol=1e-8, max_it=25, diverge=None):
         """Bordered Newton on [grad(u, phi) = 0, tangent . ((u, phi) - predictor) = 0]."""
@@ -91,7 +92,7 @@ class Continuation:
                 if np.max(np.abs(g)) < gtol:
                     return u, phi, it
                 x_built = self._x(u)
-            h, z = self.fr._hessian(u, (phi, self.T, nbr))
+            h, z = self.fr.hessian(u, (phi, self.T, nbr))
             z = z[:, 0] / max(np.linalg.norm(z), 1e-300)
             h = h + (np.max(np.abs(np.diag(h))) + 1.0) * np.outer(z, z)
             eps = 1e-6
@@ -114,8 +115,8 @@ class Continuation:
         for _ in range(max_it):
             if np.max(np.linalg.norm(self._x(u) - x_built, axis=1)) > 0.25 * self.D:
                 nbr, x_built = self.nbr(u, phi), self._x(u)
-            val, g = self.fr._value_and_grad(u, (phi, self.T, nbr))
-            h, z = self.fr._hessian(u, (phi, self.T, nbr))
+            val, g = self.fr.value_and_grad(u, (phi, self.T, nbr))
+            h, z = self.fr.hessian(u, (phi, self.T, nbr))
             z = z[:, 0] / max(np.linalg.norm(z), 1e-300)
             h = h + (np.max(np.abs(np.diag(h))) + 1.0) * np.outer(z, z)
             lam = float(np.linalg.eigvalsh(h)[0])
@@ -131,7 +132,7 @@ class Continuation:
             cap = 0.25 * self.D / float(self.rod.length_scale)
             d *= min(1.0, 0.5 / max(np.max(np.abs(d)), 1e-300), cap / max(np.max(np.abs(d[:n_x])), 1e-300))
             for _ in range(30):
-                v2, _ = self.fr._value_and_grad(u + d, (phi, self.T, nbr))
+                v2, _ = self.fr.value_and_grad(u + d, (phi, self.T, nbr))
                 if v2 <= val + 1e-14 * abs(val):
                     break
                 d *= 0.5
@@ -140,7 +141,7 @@ class Continuation:
 
     def lowest_mode(self, u, phi):
         nbr = self.nbr(u, phi)
-        h, z = self.fr._hessian(u, (phi, self.T, nbr))
+        h, z = self.fr.hessian(u, (phi, self.T, nbr))
         z = z[:, 0] / max(np.linalg.norm(z), 1e-300)
         h = h + (np.max(np.abs(np.diag(h))) + 1.0) * np.outer(z, z)
         lam, vec = np.linalg.eigh(h)
@@ -445,8 +446,11 @@ def main():
         return replot()
     quick = "--quick" in sys.argv
     D = float(sys.argv[sys.argv.index("--D") + 1]) if "--D" in sys.argv else 0.015
-    res = run(D=D, max_points=60 if quick else 600, time_budget=120 if quick else 540)
+    # small mode: a coarse rod and the first points of the loop branch (the straight branch, the
+    # secant's start, a few pseudo-arclength steps), no contact reached
+    res = run(T=pick(400.0, 100.0), D=D, N=pick(160, 40), max_points=pick(60 if quick else 600, 12), time_budget=pick(120 if quick else 540, 60))
     summ = summarise(res)
+    summ["provenance"] = provenance()
     print(json.dumps(summ, indent=1, default=float))
     tag = "" if "--D" not in sys.argv else f"_D{D:g}"  # another diameter: its own files
     write_csv(res["rows"], os.path.join(results_dir(), f"plectoneme{tag}.csv"))

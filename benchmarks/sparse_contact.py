@@ -13,6 +13,7 @@ are skipped).
     python benchmarks/sparse_contact.py                  # N = 61, 121, 241, 481, 961
     python benchmarks/sparse_contact.py --N 121 241
     python benchmarks/sparse_contact.py --report-only    # tables and charts from the CSV
+    python benchmarks/sparse_contact.py --smoke          # small mode: N = 61, a quarter turn, one side
 
 Writes benchmarks/results/sparse_contact.{csv,md,png} and sparse_contact_accuracy.png (accuracy
 against time, issue 18 item 4).
@@ -37,7 +38,9 @@ RESULTS = results_dir()
 CSV = os.path.join(RESULTS, "sparse_contact.csv")
 FIELDS = ["N", "n_dof", "engine", "side", "relax_s", "first_s", "warm_s", "phi_over_pi", "phi_error_over_pi",
           "bracket_lo_over_pi", "bracket_hi_over_pi", "kind", "points", "load_1min"]
-SIDES = {"opening": 7.5 * math.pi, "tightening": -12.0 * math.pi}
+# small mode: N = 61 (the fewest nodes whose relaxed knot is a minimum), one side, a quarter turn: both
+# engines, the child process and the report, no branch end reached
+SIDES = pick({"opening": 7.5 * math.pi, "tightening": -12.0 * math.pi}, {"opening": 0.25 * math.pi})
 
 
 def child(N, engines):
@@ -136,7 +139,7 @@ def report(rows):
              f"(tightening). 'first': the first call for that N in its process (compilation included); 'warm': the "
              f"same call again in the same process (compiled code in memory). {platform.machine()}, "
              f"{os.cpu_count()} cores, BLAS threads 1; one child process per N, both engines in it; "
-             f"`python benchmarks/sparse_contact.py`.", "",
+             f"`python benchmarks/sparse_contact.py`.", "", provenance_line(), "",
              "| N | n | side | sparse first (s) | sparse warm (s) | dense first (s) | dense warm (s) | ratio warm | "
              "sparse phi*/pi (bracket) | dense phi*/pi (bracket) | brackets overlap | kind sparse / dense |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
@@ -189,7 +192,7 @@ def report(rows):
 
 def main():
     parser = argparse.ArgumentParser()
-    parser.add_argument("--N", type=int, nargs="*", default=[61, 121, 241, 481, 961])
+    parser.add_argument("--N", type=int, nargs="*", default=pick([61, 121, 241, 481, 961], [61]))
     parser.add_argument("--report-only", action="store_true")
     parser.add_argument("--dense-max", type=int, default=481)
     parser.add_argument("--child", type=int, default=None)

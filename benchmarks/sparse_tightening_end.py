@@ -26,7 +26,7 @@ import subprocess  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 
-from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, markdown, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
 RESULTS = results_dir()
 PI = math.pi
@@ -119,7 +119,7 @@ def main():
             lines.append(f"- N = {N}: |sparse - dense| = {abs(a['phi_over_pi'] - b['phi_over_pi']):.1e} pi; time "
                          f"dense / sparse = {b['seconds'] / a['seconds']:.1f}x")
     with open(os.path.join(RESULTS, "sparse_tightening_end.md"), "w") as fh:
-        fh.write("\n".join(lines) + "\n")
+        fh.write(markdown(lines))
     print("\n".join(lines))
 
 

@@ -28,7 +28,7 @@ from jaxrod.continuation.arclength import ArclengthOptions, PseudoArclength, con
 from jaxrod.continuation.arclength.rods import knot_problem  # noqa: E402
 
 PI = math.pi
-from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, markdown, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
 OUT = results_dir()
 # N = 121's folds (benchmarks/results/bifurcation_trefoil.md)
@@ -75,7 +75,7 @@ def main():
         dist = "--" if r["distance_from_121_over_pi"] is None else f"{r['distance_from_121_over_pi']:+.2e} pi"
         lines.append(f"| {r['side']} | {evs or r['message']} | {dist} | {r['seconds']:.0f} |")
     with open(os.path.join(OUT, "trefoil_n120.md"), "w") as f:
-        f.write("\n".join(lines) + "\n")
+        f.write(markdown(lines))
 
 
 if __name__ == "__main__":

@@ -42,7 +42,7 @@ import jaxrod  # noqa: E402,F401  (float64 before any test builds arrays)
 # workers, which take whole files in collection order (``--no-loadscope-reorder`` in pyproject.toml:
 # by default xdist reorders files by their number of tests, which ignored this list), finish
 # together. Files not listed (short ones, or new ones) come after, alphabetically.
-_LONGEST_FIRST = ("test_notebooks.py", "test_bifurcation_knots.py", "test_resume.py", "test_critical_curve_checks.py",
+_LONGEST_FIRST = ("test_benchmarks_smoke_a.py", "test_benchmarks_smoke_b.py", "test_notebooks.py", "test_bifurcation_knots.py", "test_resume.py", "test_critical_curve_checks.py",
                   "test_branch_check.py", "test_atlas.py", "test_readme.py", "test_sparse_stability.py", "test_notebook_damped_dynamics.py",
                   "test_symmetry.py", "test_convergence.py", "test_notebook_bifurcation_diagram.py",
                   "test_bifurcation_rods.py", "test_endloads.py", "test_helix_checks.py", "test_interrupt_and_lock.py", "test_energy.py",
