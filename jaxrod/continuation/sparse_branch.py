@@ -106,19 +106,14 @@ def sparse_branch_analysis(scene, q, phi, index, k=8, tol=DEFAULT_NEGATIVE_TOL, 
     result beyond the eigensolver's tolerance. cluster_rtol and pinv_tol are accepted for
     signature compatibility and ignored (no near-null sliding modes without contact).
     """
-    if scene.has_term("contact"):
-        from ..linalg.sparse_contact import contact_branch_analysis
+    from ..linalg.sparse_contact import contact_branch_analysis, tracked_mode_inputs
 
+    if scene.has_term("contact"):
         n_neg, lam, vec, lam_i, dlam, v, dq = contact_branch_analysis(
             scene, q, phi, index, k=k, tol=tol, cluster_rtol=1e-4 if cluster_rtol is None else cluster_rtol, ref=ref,
             pinv_tol=pinv_tol, nbr=nbr, guess=guess)
         return _stability_from_lowest(lam, vec, int(scene.n_zero_modes), n_neg, int(k), tol), lam_i, dlam, v, dq
-    u = scene.to_scaled(np.asarray(q, dtype=float))
-    if nbr is None:
-        nbr = scene.neighbourhood(jnp.asarray(q), phi)
-    index = int(index)
-    if index < 0:
-        raise ValueError(f"index must be >= 0, got {index}")
+    u, nbr, index = tracked_mode_inputs(scene, q, phi, nbr, index)
     n_neg = int(ss.inertia_at_equilibrium(scene, u, phi, nbr, tol))
     # The tracked eigenpair must be among those computed: k, or more when the index needs it.
     k = int(k) if index < int(k) else min(index + EXTRA_PAIRS, int(u.shape[0]) - int(scene.n_zero_modes))

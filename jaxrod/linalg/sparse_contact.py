@@ -366,6 +366,18 @@ def _deflated_tangent(hs, b, skip_vecs):
     return -_constrained_solve(_constrained(hs, 0.0, C), hs, lambda v: v - C @ np.linalg.lstsq(C, v, rcond=None)[0], b)
 
 
+def tracked_mode_inputs(scene, q, phi, nbr, index):
+    """(u, nbr, index) for a branch analysis at q: the scaled DOFs, the neighbourhood (built at q
+    when None) and the tracked mode's index, checked to be >= 0."""
+    u = scene.to_scaled(np.asarray(q, dtype=float))
+    if nbr is None:
+        nbr = scene.neighbourhood(jnp.asarray(q), phi)
+    index = int(index)
+    if index < 0:
+        raise ValueError(f"index must be >= 0, got {index}")
+    return u, nbr, index
+
+
 def contact_branch_analysis(scene, q, phi, index, k=8, tol=1e-6, cluster_rtol=1e-4, ref=None, pinv_tol=0.0, nbr=None,
                             guess=None):
     """What ``jaxrod.linalg.stability.branch_analysis`` computes, for rods with contact at O(N):
@@ -374,12 +386,7 @@ def contact_branch_analysis(scene, q, phi, index, k=8, tol=1e-6, cluster_rtol=1e
     pairs, or with ``ref`` the one overlapping it most; the tangent leaves out the tracked mode's
     cluster and the near-null modes |lambda| <= pinv_tol, as the dense analysis does.
     (``sparse_branch.sparse_branch_analysis`` wraps it into the dense analysis' tuple.)"""
-    u = scene.to_scaled(np.asarray(q, dtype=float))
-    if nbr is None:
-        nbr = scene.neighbourhood(jnp.asarray(q), phi)
-    index = int(index)
-    if index < 0:
-        raise ValueError(f"index must be >= 0, got {index}")
+    u, nbr, index = tracked_mode_inputs(scene, q, phi, nbr, index)
     hs = sparse_hessian(scene, u, phi, nbr)
     n_neg, start = _count_and_start(hs, tol)
     m = max(int(k), index + EXTRA_PAIRS, n_neg + EXTRA_PAIRS)
