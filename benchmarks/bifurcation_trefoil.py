@@ -31,7 +31,8 @@ from dataclasses import replace  # noqa: E402
 import numpy as np  # noqa: E402
 
 import jaxrod as jr  # noqa: E402
-from jaxrod.continuation.arclength import ArclengthOptions, PseudoArclength, Result, continuation  # noqa: E402
+from jaxrod.continuation import ContinuationOptions  # noqa: E402
+from jaxrod.continuation.arclength import PseudoArclength, Result, continuation  # noqa: E402
 from jaxrod.continuation.arclength.rods import knot_problem  # noqa: E402
 
 from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
@@ -60,8 +61,8 @@ def run_side(scene, side):
         for ds_max in STEP_LIMITS:
             e = states[start]
             rod = knot_problem(scene, np.asarray(e.q), e.phi)
-            opts = ArclengthOptions(ds=0.05 * sign, ds_min=1e-6, ds_max=ds_max, max_steps=CHUNK, newton_tol=1e-10,
-                                       eig_rtol=1e-13, n_eig=6, p_min=-13 * PI, p_max=14 * PI)
+            opts = ContinuationOptions(ds=0.05 * sign, ds_min=1e-6, ds_max=ds_max, max_steps=CHUNK, newton_tol=1e-10,
+                                       eig_rtol=1e-13, k=6, p_min=-13 * PI, p_max=14 * PI)
             t = time.perf_counter()
             points, evs, start_at, result = [], [], None, None
             while len(points) < MAX_POINTS:

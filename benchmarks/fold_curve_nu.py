@@ -33,7 +33,8 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 import jaxrod as jr  # noqa: E402
-from jaxrod.continuation.arclength import ArclengthOptions, PseudoArclength, continuation, fold_at, fold_curve  # noqa: E402
+from jaxrod.continuation import ContinuationOptions  # noqa: E402
+from jaxrod.continuation.arclength import PseudoArclength, continuation, fold_at, fold_curve  # noqa: E402
 from jaxrod.continuation.arclength.rods import knot_problem, set_poisson_ratio  # noqa: E402
 
 PI = math.pi
@@ -51,8 +52,8 @@ ALG = PseudoArclength()
 
 
 def _path_options(p_max, steps=40):
-    return ArclengthOptions(ds=0.05, ds_min=1e-6, ds_max=0.25, max_steps=steps, newton_tol=1e-10, eig_rtol=1e-13,
-                               n_eig=6, p_max=p_max)
+    return ContinuationOptions(ds=0.05, ds_min=1e-6, ds_max=0.25, max_steps=steps, newton_tol=1e-10, eig_rtol=1e-13,
+                               k=6, p_max=p_max)
 
 
 def locate_opening_fold(nu, below):
@@ -72,7 +73,7 @@ def main():
     located = time.perf_counter() - t0
     print(f"fold at nu = {NU0}: {fold.p / PI:.10f} pi ({located:.0f} s)", flush=True)
     t0 = time.perf_counter()
-    opts = ArclengthOptions(ds=-0.5, ds_max=2.0, ds_min=1e-5, max_steps=CURVE_STEPS, newton_tol=1e-10, p_min=-0.005,
+    opts = ContinuationOptions(ds=-0.5, ds_max=2.0, ds_min=1e-5, max_steps=CURVE_STEPS, newton_tol=1e-10, p_min=-0.005,
                                p_max=NU0 + 1e-9)
     curve = fold_curve(rod.problem, fold, set_poisson_ratio, NU0, ALG, opts)
     curve_seconds = time.perf_counter() - t0

@@ -37,7 +37,8 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 import jaxrod as jr  # noqa: E402
-from jaxrod.continuation.arclength import ArclengthOptions, PseudoArclength  # noqa: E402
+from jaxrod.continuation import ContinuationOptions  # noqa: E402
+from jaxrod.continuation.arclength import PseudoArclength  # noqa: E402
 from jaxrod.continuation.arclength.event_curve import EventCurveOptions, event_curve  # noqa: E402
 from jaxrod.continuation.arclength.rods import knot_problem, set_diameter  # noqa: E402
 from jaxrod.model.symmetry import two_fold_asymmetry  # noqa: E402
@@ -72,7 +73,7 @@ def options(sign, max_points=60):
 
 
 def _path(sign):
-    return ArclengthOptions(ds=0.05 * sign, ds_min=1e-6, ds_max=0.5, newton_tol=1e-10, eig_rtol=1e-13, n_eig=6,
+    return ContinuationOptions(ds=0.05 * sign, ds_min=1e-6, ds_max=0.5, newton_tol=1e-10, eig_rtol=1e-13, k=6,
                                p_min=-20 * PI, p_max=16 * PI)
 
 

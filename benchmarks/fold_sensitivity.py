@@ -31,7 +31,8 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 import jaxrod as jr  # noqa: E402
-from jaxrod.continuation.arclength import ArclengthOptions, PseudoArclength, continuation, fold_at, fold_sensitivity  # noqa: E402
+from jaxrod.continuation import ContinuationOptions  # noqa: E402
+from jaxrod.continuation.arclength import PseudoArclength, continuation, fold_at, fold_sensitivity  # noqa: E402
 from jaxrod.continuation.arclength.rods import knot_problem, set_diameter, set_poisson_ratio  # noqa: E402
 
 PI = math.pi
@@ -48,8 +49,8 @@ PARAMETERS = pick((("nu", set_poisson_ratio, 0.5, 1e-3), ("D", set_diameter, D, 
 
 def _options(sign, bound, steps):
     kw = dict(p_max=bound * PI) if sign > 0 else dict(p_min=bound * PI)
-    return ArclengthOptions(ds=0.05 * sign, ds_min=1e-6, ds_max=0.25, max_steps=steps, newton_tol=1e-10,
-                               eig_rtol=1e-13, n_eig=6, **kw)
+    return ContinuationOptions(ds=0.05 * sign, ds_min=1e-6, ds_max=0.25, max_steps=steps, newton_tol=1e-10,
+                               eig_rtol=1e-13, k=6, **kw)
 
 
 def main():

@@ -8,7 +8,7 @@ stable-only engine) from phi = 0 through the symmetric branch's end onto the buc
 on ``knot_problem`` towards phi = 0, with two step limits, until the first event that costs the
 buckled branch its stability (a fold or a branch point: the Morse index goes 0 -> 1). Soft folds
 (the path turning back along the sliding mode, a saddle-node of the discretisation's tiny
-sliding landscape) are crossed by a slide (``ArclengthOptions.soft_folds = "slide"``): the rod
+sliding landscape) are crossed by a slide (``ContinuationOptions.soft_folds = "slide"``): the rod
 relaxes to the neighbouring minimum, its strands slipping, and the path goes on.
 
 The loop on each side is [buckled branch's end, symmetric branch's end]: twisting up, the
@@ -31,7 +31,8 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 import jaxrod as jr  # noqa: E402
-from jaxrod.continuation.arclength import ArclengthOptions, PseudoArclength, continuation  # noqa: E402
+from jaxrod.continuation import ContinuationOptions  # noqa: E402
+from jaxrod.continuation.arclength import PseudoArclength, continuation  # noqa: E402
 from jaxrod.continuation.arclength.rods import knot_problem  # noqa: E402
 from jaxrod.model.topology import writhe  # noqa: E402
 
@@ -123,8 +124,8 @@ def run_with_points(scene, side, e, ds_max):
     points, events, slides, start, br = [], [], [], None, None
     chunk = CHUNK
     while len(points) < MAX_STEPS:
-        opts = ArclengthOptions(ds=0.05 * sign, ds_min=1e-6, ds_max=ds_max, max_steps=chunk, newton_tol=NEWTON_TOL,
-                                   eig_rtol=1e-13, n_eig=6, p_min=-13 * PI, p_max=14 * PI)
+        opts = ContinuationOptions(ds=0.05 * sign, ds_min=1e-6, ds_max=ds_max, max_steps=chunk, newton_tol=NEWTON_TOL,
+                                   eig_rtol=1e-13, k=6, p_min=-13 * PI, p_max=14 * PI)
         br = continuation(rod.problem, PseudoArclength(), opts, start=start, throw=False)
         points += br.points[1:] if points else br.points
         events += br.events

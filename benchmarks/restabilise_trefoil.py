@@ -26,7 +26,8 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 import jaxrod as jr  # noqa: E402
-from jaxrod.continuation.arclength import ArclengthOptions, PseudoArclength, emanating_directions, switch_branches  # noqa: E402
+from jaxrod.continuation import ContinuationOptions  # noqa: E402
+from jaxrod.continuation.arclength import PseudoArclength, emanating_directions, switch_branches  # noqa: E402
 from jaxrod.studies.diagram import DiagramOptions, follow_branch_end  # noqa: E402
 from jaxrod.model.topology import writhe  # noqa: E402
 
@@ -47,8 +48,8 @@ def event_row(e):
 
 # The branch met at a restabilising branch point, each half followed for MET_STEPS steps.
 MET_STEPS = pick(25, 2)
-MET_OPTIONS = ArclengthOptions(ds=0.05, ds_min=1e-6, ds_max=0.5, max_steps=MET_STEPS, newton_tol=1e-11, eig_rtol=1e-13,
-                                  n_eig=6, resolve_crossings=1e-5)
+MET_OPTIONS = ContinuationOptions(ds=0.05, ds_min=1e-6, ds_max=0.5, max_steps=MET_STEPS, newton_tol=1e-11, eig_rtol=1e-13,
+                                  k=6, resolve_crossings=1e-5)
 
 
 def met_branch(end):

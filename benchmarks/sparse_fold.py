@@ -38,7 +38,8 @@ def child(N, backends):
     import numpy as np
 
     import jaxrod as jr
-    from jaxrod.continuation.arclength import ArclengthOptions, PseudoArclength, continuation
+    from jaxrod.continuation import ContinuationOptions
+    from jaxrod.continuation.arclength import PseudoArclength, continuation
     from jaxrod.linalg.bordered import DenseBackend, SparseBackend
     from jaxrod.continuation.arclength.rods import assemble_pinned_hessian, knot_problem
 
@@ -56,8 +57,8 @@ def child(N, backends):
           file=sys.stderr, flush=True)
     # resolve_crossings: a step across which the Morse index jumps by more than 1 is halved, so that a
     # fold and a crossing next to it are located apart (N = 961: a branch point 2.4e-5 pi before the fold)
-    opts = ArclengthOptions(ds=0.05, ds_min=1e-6, ds_max=4.0, max_steps=MAX_STEPS, newton_tol=1e-10, eig_rtol=1e-13,
-                               n_eig=6, p_max=7.0 * PI, resolve_crossings=1e-5)
+    opts = ContinuationOptions(ds=0.05, ds_min=1e-6, ds_max=4.0, max_steps=MAX_STEPS, newton_tol=1e-10, eig_rtol=1e-13,
+                               k=6, p_max=7.0 * PI, resolve_crossings=1e-5)
     for name in backends:
         backend = SparseBackend(assemble_pinned_hessian) if name == "sparse" else DenseBackend()
         t = time.perf_counter()

@@ -38,7 +38,8 @@ def child(N):
     import numpy as np
 
     import jaxrod as jr
-    from jaxrod.continuation.arclength import ArclengthOptions, PseudoArclength, continuation
+    from jaxrod.continuation import ContinuationOptions
+    from jaxrod.continuation.arclength import PseudoArclength, continuation
     from jaxrod.linalg.bordered import DenseBackend, SparseBackend
     from jaxrod.continuation.arclength.rods import assemble_pinned_hessian, knot_problem
 
@@ -47,8 +48,8 @@ def child(N):
     e = [p.equilibrium for p in path.points if abs(p.equilibrium.phi / PI + 10.0) < 1e-9][0]
     rod0 = knot_problem(scene, np.asarray(e.q), e.phi, backend=SparseBackend(assemble_pinned_hessian))
     pins = np.asarray(rod0.pins)
-    opts = ArclengthOptions(ds=-0.05, ds_min=1e-6, ds_max=1.0, max_steps=MAX_STEPS, newton_tol=1e-10, eig_rtol=1e-13,
-                               n_eig=6, p_min=-11.6 * PI, resolve_crossings=1e-5)
+    opts = ContinuationOptions(ds=-0.05, ds_min=1e-6, ds_max=1.0, max_steps=MAX_STEPS, newton_tol=1e-10, eig_rtol=1e-13,
+                               k=6, p_min=-11.6 * PI, resolve_crossings=1e-5)
     for name in ("sparse", "dense"):
         backend = SparseBackend(assemble_pinned_hessian) if name == "sparse" else DenseBackend()
         t = time.perf_counter()

@@ -4,7 +4,7 @@ distance from N = 121's fold.
 
 The paper's rod (D, L) = (8, 292) mm. From the stable-only engine's state at 6.3 pi (opening) or
 -11.0 pi (tightening), ``jaxrod.continuation.arclength.continuation`` on ``knot_problem`` with the step control
-that watches the spectrum (``ArclengthOptions.resolve_crossings``: a step across which the Morse
+that watches the spectrum (``ContinuationOptions.resolve_crossings``: a step across which the Morse
 index changes by more than 1 is retried at half the step, down to 1e-5). Without it, the opening
 side's symmetry pair and the fold fall into one step (Morse 0 -> 3), and the fold system's Newton
 converges onto the branch point, which also solves it.
@@ -24,7 +24,8 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 import jaxrod as jr  # noqa: E402
-from jaxrod.continuation.arclength import ArclengthOptions, PseudoArclength, continuation  # noqa: E402
+from jaxrod.continuation import ContinuationOptions  # noqa: E402
+from jaxrod.continuation.arclength import PseudoArclength, continuation  # noqa: E402
 from jaxrod.continuation.arclength.rods import knot_problem  # noqa: E402
 
 PI = math.pi
@@ -47,8 +48,8 @@ def main():
         e = old.points[-1].equilibrium
         rod = knot_problem(scene, np.asarray(e.q), e.phi)
         kw = dict(p_max=bound * PI) if sign > 0 else dict(p_min=bound * PI)
-        opts = ArclengthOptions(ds=0.05 * sign, ds_min=1e-6, ds_max=0.25, max_steps=steps, newton_tol=1e-10,
-                                   eig_rtol=1e-13, n_eig=6, resolve_crossings=1e-5, **kw)
+        opts = ContinuationOptions(ds=0.05 * sign, ds_min=1e-6, ds_max=0.25, max_steps=steps, newton_tol=1e-10,
+                                   eig_rtol=1e-13, k=6, resolve_crossings=1e-5, **kw)
         br = continuation(rod.problem, PseudoArclength(), opts, throw=False)
         seconds = time.perf_counter() - t0
         events = [dict(kind=ev.kind, phi_over_pi=ev.p / PI, multiplicity=ev.multiplicity,

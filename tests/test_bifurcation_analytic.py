@@ -4,7 +4,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxrod.continuation.arclength import (BifurcationProblem, ContinuationError, ArclengthOptions, PseudoArclength, Result,
+from jaxrod.continuation import ContinuationOptions
+from jaxrod.continuation.arclength import (BifurcationProblem, ContinuationError, PseudoArclength, Result,
                                 continuation, emanating_directions, fold_at, fold_curve, fold_sensitivity,
                                 switch_branches)
 from jaxrod.continuation.arclength.locate import FOLD_QUADRATIC_ITERATIONS
@@ -41,7 +42,7 @@ def fold_problem():
 def test_fold_through_onto_unstable_branch(fold_problem, ds, u0, p0, morse):
     prob = BifurcationProblem(fold_energy, u0, p0, 0.0) if p0 != 1.0 else fold_problem
     seen = []
-    br = continuation(prob, ALG, ArclengthOptions(ds=ds, p_min=-1.0, p_max=1.3, n_eig=1), observer=seen.append)
+    br = continuation(prob, ALG, ContinuationOptions(ds=ds, p_min=-1.0, p_max=1.3, k=1), observer=seen.append)
     assert br.result is Result.BOUNDARY and len(seen) == len(br.points) - 1
     assert all(q is r for q, r in zip(seen, br.points[1:]))  # the observer saw every accepted point
     (e,) = br.events
@@ -68,7 +69,7 @@ def pitchfork_energy(u, p, args):
 @pytest.fixture(scope="module")
 def pitchfork():
     prob = BifurcationProblem(pitchfork_energy, [0.0, -0.5], -0.5)
-    return prob, continuation(prob, ALG, ArclengthOptions(ds=0.1, p_max=1.5))
+    return prob, continuation(prob, ALG, ContinuationOptions(ds=0.1, p_max=1.5))
 
 
 def test_simple_branch_points_on_trivial_branch(pitchfork):
@@ -83,7 +84,7 @@ def test_simple_branch_points_on_trivial_branch(pitchfork):
     assert np.count_nonzero(np.diff(signs)) == 2
     assert list(signs) == [bordered_det_sign(prob, q) for q in br.points]
     # another step and start: the same points
-    other = continuation(prob, ALG, ArclengthOptions(ds=0.07, p_max=1.5), start=([0.0, -0.37], -0.37, [0, 1, 1]))
+    other = continuation(prob, ALG, ContinuationOptions(ds=0.07, p_max=1.5), start=([0.0, -0.37], -0.37, [0, 1, 1]))
     assert np.allclose([e.p for e in other.events], [0.0, 1.0], rtol=0, atol=1e-12)
 
 
@@ -92,7 +93,7 @@ def test_switch_at_simple_branch_points(pitchfork):
     e0, e1 = br.events
     (d0,) = emanating_directions(prob, e0)
     assert d0.order == 3 and abs(d0.kappa + 1) <= 1e-10 and d0.predicted_morse == (0, 0)  # p = x^2 + O(x^4)
-    opts = ArclengthOptions(ds=0.05, p_min=-1.0, p_max=3.0)
+    opts = ContinuationOptions(ds=0.05, p_min=-1.0, p_max=3.0)
     from_zero = switch_branches(prob, e0, ALG, opts)
     assert len(from_zero) == 2 and {b.origin["sign"] for b in from_zero} == {1, -1}
     for b in from_zero:
@@ -145,7 +146,7 @@ def d4_energy(u, p, a):
 @pytest.mark.parametrize("a", [3.0, 0.5])
 def test_double_branch_point(a):
     prob = BifurcationProblem(d4_energy, [0.0, 0.0, 0.0], -0.3, a)
-    br = continuation(prob, ALG, ArclengthOptions(ds=0.1, p_max=0.5))
+    br = continuation(prob, ALG, ContinuationOptions(ds=0.1, p_max=0.5))
     (e,) = br.events
     check_located(e, "branch_point", 0.0, [0.0, 0.0, 0.0])
     assert (e.multiplicity, e.morse_before, e.morse_after) == (2, 0, 2) and e.v.shape == (3, 2)
@@ -163,7 +164,7 @@ def test_double_branch_point(a):
         assert abs(-1 / d.kappa - (2 / a if diagonal else 2.0)) <= 1e-10
         assert d.predicted_morse == ((diag_morse,) * 2 if diagonal else (axis_morse,) * 2)
     assert sorted(kinds) == [False, False, True, True]
-    branches = switch_branches(prob, e, ALG, ArclengthOptions(ds=0.05, p_min=-1.0, p_max=0.5), directions=dirs)
+    branches = switch_branches(prob, e, ALG, ContinuationOptions(ds=0.05, p_min=-1.0, p_max=0.5), directions=dirs)
     assert len(branches) == 8
     for b in branches:
         x, y, z = b.u.T
@@ -180,7 +181,7 @@ def test_double_branch_point(a):
 def test_o2_circle_of_solutions_is_flagged():
     # isotropic quartic: every kernel direction is a branch (a circle, with a rotation zero mode)
     prob = BifurcationProblem(d4_energy, [0.0, 0.0, 0.0], -0.3, 1.0)
-    (e,) = continuation(prob, ALG, ArclengthOptions(ds=0.1, p_max=0.3)).events
+    (e,) = continuation(prob, ALG, ContinuationOptions(ds=0.1, p_max=0.3)).events
     assert e.multiplicity == 2
     dirs = emanating_directions(prob, e)
     assert len(dirs) == 2 and not any(d.isolated for d in dirs)
@@ -197,7 +198,7 @@ def test_split_pair_inside_one_step_gives_two_simple_branch_points():
         return quartic - p * x ** 2 / 2 - (p - delta) * y ** 2 / 2 + z ** 2 / 2
 
     prob = BifurcationProblem(energy, [0.0, 0.0, 0.0], -0.3, delta)
-    e0, e1 = continuation(prob, ALG, ArclengthOptions(ds=0.1, p_max=0.3)).events
+    e0, e1 = continuation(prob, ALG, ContinuationOptions(ds=0.1, p_max=0.3)).events
     assert e0.step == e1.step  # the Morse index went 0 -> 2 in one step
     check_located(e0, "branch_point", 0.0, [0.0, 0.0, 0.0])
     check_located(e1, "branch_point", delta, [0.0, 0.0, 0.0])
@@ -214,7 +215,7 @@ def test_imperfect_bifurcation_fold():
         return x ** 4 / 4 - p * x ** 2 / 2 + y ** 2 / 2 + x ** 2 * y ** 2 / 2 + eps * x
 
     prob = BifurcationProblem(energy, [1.0, 0.0], 1.0, eps)
-    br = continuation(prob, ALG, ArclengthOptions(ds=-0.1, p_max=1.0))
+    br = continuation(prob, ALG, ContinuationOptions(ds=-0.1, p_max=1.0))
     (e,) = br.events
     xf = (eps / 2) ** (1 / 3)
     check_located(e, "fold", 3 * xf ** 2, [xf, 0.0])
@@ -227,11 +228,11 @@ def test_imperfect_bifurcation_fold():
 def test_fold_curve_in_second_parameter():
     mu0 = 0.3
     prob = BifurcationProblem(fold_energy, [1.0, 0.0], 1.0, mu0)
-    (fold,) = continuation(prob, ALG, ArclengthOptions(ds=-0.1, p_max=1.2)).events
+    (fold,) = continuation(prob, ALG, ContinuationOptions(ds=-0.1, p_max=1.2)).events
     check_located(fold, "fold", -mu0 ** 2 / 4, [-mu0 / 2, 0.0])
     reached = []
     for ds in (0.1, -0.1):
-        c = fold_curve(prob, fold, lambda args, mu: mu, mu0, ALG, ArclengthOptions(ds=ds, p_min=-1.0, p_max=1.0))
+        c = fold_curve(prob, fold, lambda args, mu: mu, mu0, ALG, ContinuationOptions(ds=ds, p_min=-1.0, p_max=1.0))
         assert c.result is Result.BOUNDARY and len(c.mu) >= 5
         assert np.max(np.abs(c.p + c.mu ** 2 / 4)) <= 1e-10
         assert np.max(np.abs(c.u[:, 0] + c.mu / 2)) <= 1e-10
@@ -243,7 +244,7 @@ def test_fold_curve_in_second_parameter():
     # (Newton on the fold system at fixed mu): p* = -mu^2/4, dp*/dmu = -mu/2, u* = (-mu/2, 0)
     set_mu = lambda args, mu: mu  # noqa: E731
     assert abs(fold_sensitivity(prob, fold, set_mu, mu0) + mu0 / 2) <= 1e-10
-    moved = fold_at(prob, fold, set_mu, mu0, 0.8, ArclengthOptions())
+    moved = fold_at(prob, fold, set_mu, mu0, 0.8, ContinuationOptions())
     assert moved.converged and moved.residual <= 1e-10 and moved.iterations <= FOLD_QUADRATIC_ITERATIONS
     assert abs(moved.p + 0.8 ** 2 / 4) <= 1e-12 and abs(moved.dp_dmu + 0.4) <= 1e-12
     assert np.max(np.abs(moved.u - [-0.4, 0.0])) <= 1e-12 and abs(abs(moved.v[0]) - 1.0) <= 1e-12
@@ -258,23 +259,23 @@ def ending_energy(u, p, args):
 
 def test_corrector_failure_is_reported():
     prob = BifurcationProblem(ending_energy, [0.0, 0.0], 1.0)
-    br = continuation(prob, ALG, ArclengthOptions(ds=0.1), throw=False)
+    br = continuation(prob, ALG, ContinuationOptions(ds=0.1), throw=False)
     assert br.result is Result.CORRECTOR_FAILED and "ds_min" in br.message
     assert br.u[-1, 0] > 0.99 and abs(br.p[-1] - 1) < 0.01  # got to the end of the branch
     (e,) = br.events
     check_located(e, "fold", 1.25, [0.75, 0.0])
     with pytest.raises(ContinuationError, match="corrector failed") as err:
-        continuation(prob, ALG, ArclengthOptions(ds=0.1))
+        continuation(prob, ALG, ContinuationOptions(ds=0.1))
     assert len(err.value.branch.points) == len(br.points)
     # a start that Newton cannot converge in one iteration
-    opts = ArclengthOptions(ds=0.1, newton_max_iter=1)
+    opts = ContinuationOptions(ds=0.1, newton_max_iter=1)
     bad = BifurcationProblem(fold_energy, [1.1, 0.0], 1.0, 0.0)
     with pytest.raises(ContinuationError, match="start did not converge"):
         continuation(bad, ALG, opts)
     failed = continuation(bad, ALG, opts, throw=False)
     assert failed.result is Result.CORRECTOR_FAILED and not failed.points
     with pytest.raises(ValueError):
-        ArclengthOptions(ds=0.0)
+        ContinuationOptions(ds=0.0)
 
 
 # Soft folds: E = x^2/2 + (1 - cos y) + k y^2/2 - p y, with y marked soft by the hook (a stand-in for
@@ -297,7 +298,7 @@ def test_soft_fold_is_no_branch_end_and_is_slid_across(soft_folds):
     from scipy.optimize import brentq
 
     prob = BifurcationProblem(washboard_energy, [0.0, 0.0], 0.0, None, soft_modes=y_is_soft)
-    opts = ArclengthOptions(ds=0.05, ds_max=0.1, p_max=1.5, max_steps=120, soft_folds=soft_folds)
+    opts = ContinuationOptions(ds=0.05, ds_max=0.1, p_max=1.5, max_steps=120, soft_folds=soft_folds)
     br = continuation(prob, ALG, opts)
     y_fold = np.arccos(-WASHBOARD_K)
     p_fold = np.sin(y_fold) + WASHBOARD_K * y_fold
@@ -313,7 +314,7 @@ def test_soft_fold_is_no_branch_end_and_is_slid_across(soft_folds):
         return
     # slid: relaxed at p_fold + slide_dp into the next well of the washboard, then on to p_max
     (slide,) = br.slides
-    p1 = p_fold + opts.slide_dp
+    p1 = p_fold + opts.resolved_arclength().slide_dp  # the default
     y_next = brentq(lambda y: np.sin(y) + WASHBOARD_K * y - p1, 2 * np.pi, 2.5 * np.pi)
     assert abs(slide.p - p1) <= 1e-14 and abs(slide.u[1] - y_next) <= 1e-10 and abs(slide.u[0]) <= 1e-12
     assert slide.energy_drop > 0 and abs(slide.distance - (y_next - y_fold)) <= 1e-8
@@ -333,9 +334,9 @@ def near_pair_energy(u, p, args):
 
 def test_spectrum_watching_step_control_separates_nearly_coincident_branch_points():
     prob = BifurcationProblem(near_pair_energy, [0.0, 0.0], 0.45)
-    coarse = continuation(prob, ALG, ArclengthOptions(ds=0.1, ds_max=0.1, p_max=1.5))
+    coarse = continuation(prob, ALG, ContinuationOptions(ds=0.1, ds_max=0.1, p_max=1.5))
     assert any(abs(b.morse_index - a.morse_index) == 2 for a, b in zip(coarse.points, coarse.points[1:]))
-    fine = continuation(prob, ALG, ArclengthOptions(ds=0.1, ds_max=0.1, p_max=1.5, resolve_crossings=1e-6))
+    fine = continuation(prob, ALG, ContinuationOptions(ds=0.1, ds_max=0.1, p_max=1.5, resolve_crossings=1e-6))
     # no step crosses more than one eigenvalue, and each crossing is a simple branch point, located
     assert all(abs(b.morse_index - a.morse_index) <= 1 for a, b in zip(fine.points, fine.points[1:]))
     e0, e1 = fine.events
@@ -398,7 +399,7 @@ def test_an_unstable_branch_is_followed_until_it_restabilises():
 
     x0 = -1.2
     prob = BifurcationProblem(s_curve_energy, [x0, 0.0], x0 ** 3 - x0)
-    opts = ArclengthOptions(ds=0.1, ds_max=0.2, max_steps=5, n_eig=1, p_min=-3.0, p_max=3.0)
+    opts = ContinuationOptions(ds=0.1, ds_max=0.2, max_steps=5, k=1, p_min=-3.0, p_max=3.0)
     br, back = until_stable(prob, ALG, opts, max_points=200, keep=3)
     r = 1 / np.sqrt(3)
     lost, = [e for e in br.events if e.morse_after > e.morse_before]
@@ -423,11 +424,11 @@ def test_the_branch_met_where_an_unstable_branch_restabilises():
 
     p0 = 1.2
     prob = BifurcationProblem(pitchfork_energy, [np.sqrt(p0 - 1.0), 1.0], p0)
-    opts = ArclengthOptions(ds=0.1, ds_max=0.2, max_steps=5, n_eig=2, p_min=-3.0, p_max=4.0)
+    opts = ContinuationOptions(ds=0.1, ds_max=0.2, max_steps=5, k=2, p_min=-3.0, p_max=4.0)
     _, back = until_stable(prob, ALG, opts, max_points=200, keep=3)
     check_located(back, "branch_point", 2.0, [1.0, 1.0])
     assert (back.morse_before, back.morse_after) == (1, 0)
-    halves = switch_branches(prob, back, ALG, ArclengthOptions(ds=0.05, ds_max=0.1, max_steps=10, n_eig=2,
+    halves = switch_branches(prob, back, ALG, ContinuationOptions(ds=0.05, ds_max=0.1, max_steps=10, k=2,
                                                                   p_min=-3.0, p_max=4.0))
     by_side = {}
     for br in halves:
@@ -454,7 +455,7 @@ def test_a_fold_outside_the_step_is_not_reported_again():
     p0 = x0 ** 3 - eps * x0
     prob = BifurcationProblem(small_s_energy, [x0, 0.0], p0, eps)
     t = np.array([1.0, 0.0, 3 * x0 ** 2 - eps])  # along the curve, x growing
-    opts = ArclengthOptions(ds=0.2, ds_max=0.2, max_steps=1, n_eig=1, p_min=-1.0, p_max=1.0)
+    opts = ContinuationOptions(ds=0.2, ds_max=0.2, max_steps=1, k=1, p_min=-1.0, p_max=1.0)
     br = continuation(prob, ALG, opts, start=([x0, 0.0], p0, t), throw=False)
     assert br.points[0].u[0] > -r and br.points[1].u[0] > r  # the step crosses the second fold only
     (e,) = br.events
@@ -476,7 +477,7 @@ def two_crossings_energy(u, p, args):
 
 def test_a_branch_point_already_located_is_not_taken_for_the_next():
     prob = BifurcationProblem(two_crossings_energy, [0.0, 0.0], -0.11)
-    opts = ArclengthOptions(ds=0.13, ds_max=0.13, max_steps=2, n_eig=2, p_min=-1.0, p_max=1.0)
+    opts = ContinuationOptions(ds=0.13, ds_max=0.13, max_steps=2, k=2, p_min=-1.0, p_max=1.0)
     br = continuation(prob, ALG, opts, throw=False)
     assert [q.morse_index for q in br.points] == [0, 1, 0] and br.points[2].p > 0.1
     first, second = br.events
@@ -587,7 +588,7 @@ def a_is_soft(u, p, values, vectors, threshold=5e-3):
 
 def test_a_branch_point_whose_null_vector_mixes_with_a_soft_mode_is_located_where_J_is_singular():
     prob = BifurcationProblem(mixed_slide_energy, [0.0, 0.0], 0.93, None, soft_modes=a_is_soft)
-    br = continuation(prob, ALG, ArclengthOptions(ds=0.05, ds_max=0.05, p_max=1.1, max_steps=10))
+    br = continuation(prob, ALG, ContinuationOptions(ds=0.05, ds_max=0.05, p_max=1.1, max_steps=10))
     (bp,) = br.events_of("branch_point")
     check_located(bp, "branch_point", 1.0 - MIXED_C ** 2 / MIXED_S, [0.0, 0.0])
     assert (bp.morse_before, bp.morse_after) == (0, 1)

@@ -25,7 +25,8 @@ import numpy as np
 import pytest
 
 import jaxrod as jr
-from jaxrod.continuation.arclength import ArclengthOptions, PseudoArclength, Result, continuation, fold_at, fold_curve, \
+from jaxrod.continuation import ContinuationOptions
+from jaxrod.continuation.arclength import PseudoArclength, Result, continuation, fold_at, fold_curve, \
     fold_sensitivity
 from jaxrod.continuation.arclength.rods import knot_problem, set_diameter, set_poisson_ratio
 from jaxrod.studies.diagram import UNSTABLE_PREFIX, DiagramOptions, unstable_branches
@@ -40,8 +41,8 @@ def _options(ds_max, steps):
     # newton_tol: residual of the scaled gradient (~1e-14 roundoff at N = 61); eig_rtol: the
     # negative band at 1e-13 ||J|| ~ 1e-13, below every eigenvalue of interest (sliding modes are
     # told by their shape, not by a band)
-    return ArclengthOptions(ds=0.05, ds_min=1e-6, ds_max=ds_max, max_steps=steps, newton_tol=1e-10, eig_rtol=1e-13,
-                               n_eig=6, p_max=7.0 * PI)
+    return ContinuationOptions(ds=0.05, ds_min=1e-6, ds_max=ds_max, max_steps=steps, newton_tol=1e-10, eig_rtol=1e-13,
+                               k=6, p_max=7.0 * PI)
 
 
 # The README's branch end of command 1 (follow_twist at N = 121): 6.46490 pi +- 5e-5 pi
@@ -297,7 +298,7 @@ def test_fold_curve_in_nu_follows_the_located_fold(paths):
     IFT slope (benchmarks/fold_curve_nu.py: down to nu = 0, equal to point studies to 4e-14 pi)."""
     rod, br = paths[1][6.3, 0.25]
     (fold,) = _folds(br)
-    opts = ArclengthOptions(ds=-0.5, ds_max=2.0, ds_min=1e-5, max_steps=3, newton_tol=1e-10, p_min=0.0, p_max=0.5)
+    opts = ContinuationOptions(ds=-0.5, ds_max=2.0, ds_min=1e-5, max_steps=3, newton_tol=1e-10, p_min=0.0, p_max=0.5)
     curve = fold_curve(rod.problem, fold, set_poisson_ratio, 0.5, ALG, opts)
     assert len(curve.mu) == 4 and np.all(np.diff(curve.mu) < 0) and np.max(curve.residual) <= 1e-10
     assert curve.mu[-1] < 0.48  # measured 0.4718: the steps grow (25 points from 0.5 to 0 in the benchmark)

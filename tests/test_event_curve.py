@@ -10,7 +10,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxrod.continuation.arclength import BifurcationProblem, ArclengthOptions
+from jaxrod.continuation import ContinuationOptions
+from jaxrod.continuation.arclength import BifurcationProblem
 from jaxrod.continuation.arclength.event_curve import EventCurveOptions, event_curve
 
 
@@ -30,7 +31,7 @@ def _crossing_energy(u, p, mu):
     return x**3 / 3.0 - (p - mu) * x + 0.5 * (p - 0.5 + mu) * y**2 + 0.25 * y**4
 
 
-OPTS = ArclengthOptions(ds=-0.02, ds_min=1e-8, ds_max=0.05, newton_tol=1e-12, n_eig=2, p_min=-2.0, p_max=3.0)
+OPTS = ContinuationOptions(ds=-0.02, ds_min=1e-8, ds_max=0.05, newton_tol=1e-12, k=2, p_min=-2.0, p_max=3.0)
 
 
 def test_fold_curve_of_a_parabola():

@@ -1,7 +1,11 @@
-"""The stable-only twist continuation: branches of equilibria in the imposed twist phi, kept to
-stable states.
+"""Continuation of rod equilibria: one entry, two algorithms, one options class.
 
-Two entries, each ``entry(scene, phi_start, phi_stop, options, *, ...)``:
+``continuation(problem, algorithm, options, *, observer)`` (``entry``): ``StableOnly()`` on a
+``TwistProblem`` follows the stable branch in the imposed twist phi (-> ``TwistPath``);
+``PseudoArclength()`` on a ``BifurcationProblem`` follows any branch through folds, locating
+folds and branch points on extended systems (-> ``arclength.Branch``; switching, fold curves and
+event curves live in ``arclength``). The stable-only algorithm's two task entries, each
+``entry(scene, phi_start, phi_stop, options, *, ...)``:
 
 * ``critical_twist(scene, phi_start, phi_stop, options, *, q0, observer)`` -> ``CriticalPoint``:
   the first twist where the negative count changes (rings and clamped rods), refined by Newton
@@ -14,7 +18,9 @@ Two entries, each ``entry(scene, phi_start, phi_stop, options, *, ...)``:
 fields take the scene-aware defaults), ``observer`` one ``Observer`` (progress lines, points,
 instabilities, states). Read in this order:
 
-* ``options``   ContinuationOptions, Task, Observer; the defaults (contact-aware tolerances)
+* ``entry``     continuation, TwistProblem
+* ``algorithms``  StableOnly, PseudoArclength
+* ``options``   ContinuationOptions (both algorithms), Task, Observer; the defaults (contact-aware tolerances)
 * ``memory``    the dense path's memory estimate and its refusal before anything is compiled
 * ``kinds``     EventKind: what both engines report (fold, branch point, unstable, jump ...)
 * ``results``   CriticalPoint, PathPoint, Instability, TwistPath, PathStop
@@ -25,6 +31,7 @@ instabilities, states). Read in this order:
 * ``ends``      where a followed branch ends: critical mode, end trials, phi*, the near-zero band
 * ``switching`` the switch to the buckled branch
 * ``follow``    follow_twist and its loop (_Follower)
+* ``arclength`` the pseudo-arclength algorithm: corrector, events, location, switching, curves
 """
 from ..linalg.stability import CONTACT_NEGATIVE_TOL, DEFAULT_NEGATIVE_TOL  # noqa: F401 (where callers have found them)
 from .options import (CONTACT_GTOL, CORRECTOR_MAX_STEPS, LINEAR_ALGEBRA, MAX_REFINE,  # noqa: F401
@@ -41,8 +48,10 @@ from .state import PathState, Phase
 from .ends import branch_end_in_bracket, eigenvalue_past_zero, end_trial, negative_modes  # noqa: F401
 from .ends import warn_if_band_hides_shape_modes
 from .follow import follow_twist, follows_sparse
+from .algorithms import PseudoArclength, StableOnly
+from .entry import TwistProblem, continuation
 
-__all__ = ["check_dense_memory", "dense_memory_bytes", "available_memory_bytes", "default_negative_tol",
+__all__ = ["continuation", "TwistProblem", "StableOnly", "PseudoArclength", "check_dense_memory", "dense_memory_bytes", "available_memory_bytes", "default_negative_tol",
            "ContinuationOptions", "Observer", "Task", "PathStop", "StepFailure", "EventKind", "CriticalPoint",
            "critical_twist", "NoCrossingError", "PathPoint", "Instability", "TwistPath", "follow_twist", "follows_sparse",
            "PathState", "Phase", "warn_if_band_hides_shape_modes"]

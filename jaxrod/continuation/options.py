@@ -1,6 +1,7 @@
-"""How a stable-only continuation runs: ``ContinuationOptions`` (every tolerance, budget and
-behaviour knob, None meaning the scene-aware default that ``resolved`` fills in), ``Task`` (which
-entry the defaults are for) and ``Observer`` (the callbacks: progress lines, points, states)."""
+"""How a continuation runs: ``ContinuationOptions`` (every tolerance, budget and behaviour knob
+of both algorithms, None meaning the default that ``resolved`` (stable-only, scene-aware) or
+``resolved_arclength`` (pseudo-arclength) fills in), ``Task`` (which stable-only entry the defaults
+are for) and ``Observer`` (the callbacks: progress lines, points, states)."""
 from __future__ import annotations
 
 import enum
@@ -78,6 +79,42 @@ class ContinuationOptions:
       then accept with a warning, a step whose corrected state's lowest eigenvalues are not those
       predicted along the branch (``branch_check.departure``). Default True.
 
+    Pseudo-arclength (``PseudoArclength``; ``resolved_arclength`` fills in the defaults):
+    ds: first arclength step (default 0.05); its sign picks the initial direction of p. |ds| is
+      then adapted in [ds_min, ds_max] (defaults 1e-8, 0.2) from the corrector's convergence.
+    p_min, p_max: the run stops when p leaves [p_min, p_max] (that point is kept); default
+      unbounded. max_steps: at most this many steps (default 200); a step below ds_min that fails
+      also stops the run.
+    newton_tol: absolute tolerance on the residual norm (default 1e-12); newton_max_iter: Newton
+      iterations per corrector (default 10).
+    eig_rtol: lambda < -eig_rtol * ||J|| counts as negative (default 1e-10).
+    detect_events: detect and locate folds and branch points (default True); event_tol: a located
+      event must have residual and critical eigenvalue below it (default 1e-10); locate_max_iter:
+      Newton iterations to locate one (default 20).
+    soft_folds: where the path turns back in p along a soft mode (an Event "soft_fold", only for
+      problems with a ``soft_modes`` hook; on a loose knot, a saddle-node of the tiny sliding
+      landscape that the discretisation adds to the slide, a symmetry of the continuum rod).
+      "slide" (default): relax at p_fold + slide_dp (default 1e-3) in the direction the path was
+      going, from the fold kicked by slide_kick (default 1e-2) downhill along its soft mode (steps
+      capped at 10 slide_kick), and go on from the minimum reached (a ``Slide`` in
+      ``Branch.slides``), as the physical rod would, its strands slipping by a fraction of an
+      edge; "follow": follow the path back along the sliding saddles. Needs the problem's ``energy``.
+    resolve_crossings: a step control that watches the spectrum (default 0: off). A step across
+      which the Morse index changes by more than 1 (several eigenvalues crossing zero between two
+      points, e.g. a fold next to a symmetry pair) is refused and retried at half the step, down to
+      this step size, so that nearly coincident events fall into separate brackets; a crossing
+      still multiple at that size is a multiple event (a symmetric double branch point), located
+      as one. A refused step counts towards max_steps.
+    report_at: values of the continued parameter at which a two-parameter curve (``fold_curve``,
+      ``branch_point_curve``: values of mu) also gives a point exactly, corrected on the
+      hyperplane mu = value from the chord of the step that crosses it.
+
+    Both algorithms: k, the eigenpairs kept per state (stable-only default 8, pseudo-arclength 4;
+    pseudo-arclength keeps at least Morse index + 2).
+
+    A field that the chosen algorithm does not read is refused when the options are resolved
+    (ValueError naming it), so a setting is never silently ignored.
+
     ``updated(**values)`` is a copy with the values that are not None replaced.
     """
 
@@ -96,6 +133,34 @@ class ContinuationOptions:
     perturbation: float | None = None
     keep_symmetry: bool | None = None
     check_branch: bool | None = None
+    ds: float | None = None
+    ds_min: float | None = None
+    ds_max: float | None = None
+    p_min: float | None = None
+    p_max: float | None = None
+    max_steps: int | None = None
+    newton_tol: float | None = None
+    newton_max_iter: int | None = None
+    eig_rtol: float | None = None
+    detect_events: bool | None = None
+    event_tol: float | None = None
+    locate_max_iter: int | None = None
+    soft_folds: str | None = None
+    slide_dp: float | None = None
+    slide_kick: float | None = None
+    resolve_crossings: float | None = None
+    report_at: tuple | None = None
+
+    def __post_init__(self):
+        # pseudo-arclength values are checked as soon as one is given (with the defaults of the rest)
+        if any(getattr(self, key) is not None for key in ARCLENGTH_FIELDS):
+            _check_arclength(self._arclength_values())
+
+    def _arclength_values(self):
+        values = {key: getattr(self, key) if getattr(self, key) is not None else d
+                  for key, d in ARCLENGTH_DEFAULTS.items()}
+        values["report_at"] = tuple(float(v) for v in values["report_at"])
+        return values
 
     def updated(self, **values):
         """A copy with every value that is not None replaced."""
@@ -105,6 +170,7 @@ class ContinuationOptions:
         """Every None filled in for ``scene`` (with or without contact) and ``task`` (a ``Task``);
         span: |phi_stop - phi_start|. Raises ValueError naming a value that is not allowed."""
         task = Task(task)
+        _refuse_unread(self, ARCLENGTH_FIELDS, "the stable-only continuation")
         contact = scene.has_term("contact")
         critical = task is Task.CRITICAL_TWIST
         defaults = {
@@ -148,7 +214,54 @@ class ContinuationOptions:
         values["check_branch"] = bool(values["check_branch"])
         if not isinstance(values["branch"], str) or not values["branch"]:
             raise ValueError(f"branch must be a non-empty name, got {values['branch']!r}")
-        return ContinuationOptions(**values)
+        return replace(self, **values)
+
+    def resolved_arclength(self):
+        """Every pseudo-arclength None filled in with its default (see the class docstring), the
+        values checked (ValueError naming the one that is wrong, or a stable-only field that is
+        set). Resolving twice changes nothing."""
+        _refuse_unread(self, STABLE_ONLY_FIELDS, "pseudo-arclength continuation")
+        values = self._arclength_values()
+        _check_arclength(values)
+        return replace(self, **values)
+
+
+ARCLENGTH_DEFAULTS = {
+    "ds": 0.05, "ds_min": 1e-8, "ds_max": 0.2, "p_min": -math.inf, "p_max": math.inf, "max_steps": 200,
+    "newton_tol": 1e-12, "newton_max_iter": 10, "k": 4, "eig_rtol": 1e-10, "detect_events": True,
+    "event_tol": 1e-10, "locate_max_iter": 20, "soft_folds": "slide", "slide_dp": 1e-3, "slide_kick": 1e-2,
+    "resolve_crossings": 0.0, "report_at": (),
+}
+# The fields only one algorithm reads (k is read by both).
+ARCLENGTH_FIELDS = tuple(key for key in ARCLENGTH_DEFAULTS if key != "k")
+STABLE_ONLY_FIELDS = ("step", "tol", "negative_tol", "gtol", "jump_tol", "corrector_max_steps", "max_refine",
+                      "linear_algebra", "branch", "switch", "max_switches", "perturbation", "keep_symmetry",
+                      "check_branch")
+
+
+def _refuse_unread(options, unread, algorithm):
+    """ValueError naming the fields of ``options`` that are set but that ``algorithm`` never reads."""
+    given = [key for key in unread if getattr(options, key) is not None]
+    if given:
+        raise ValueError(f"{', '.join(given)}: not read by {algorithm} (leave them None)")
+
+
+def _check_arclength(v):
+    """ValueError naming the pseudo-arclength value that is not allowed."""
+    if v["soft_folds"] not in ("slide", "follow"):
+        raise ValueError(f"soft_folds must be 'slide' or 'follow', got {v['soft_folds']!r}")
+    if not (v["slide_dp"] > 0 and v["slide_kick"] > 0):
+        raise ValueError("slide_dp and slide_kick must be > 0")
+    if not (0 < v["ds_min"] <= abs(v["ds"]) <= v["ds_max"]):
+        raise ValueError(f"need 0 < ds_min <= |ds| <= ds_max, got {v['ds_min']}, {v['ds']}, {v['ds_max']}")
+    if not (v["resolve_crossings"] == 0.0 or v["ds_min"] <= v["resolve_crossings"]):
+        raise ValueError("resolve_crossings must be 0 (off) or >= ds_min")
+    if not v["p_min"] < v["p_max"]:
+        raise ValueError("need p_min < p_max")
+    if not all(math.isfinite(x) for x in v["report_at"]):
+        raise ValueError(f"report_at: finite values, got {v['report_at']}")
+    if v["max_steps"] < 1 or v["newton_max_iter"] < 1 or v["k"] < 1:
+        raise ValueError("max_steps, newton_max_iter and k must be >= 1")
 
 
 # Without contact, an eigenvalue counts as negative below -NEGATIVE_TOL_FRACTION times the bending
@@ -213,10 +326,16 @@ def observed(observer, what, calls):
 
 def checked_options(options):
     """``options`` (None: ``ContinuationOptions()``); TypeError if it is not a
-    ``ContinuationOptions`` (for example the pseudo-arclength engine's ``ArclengthOptions``)."""
+    ``ContinuationOptions``."""
     if options is None:
         return ContinuationOptions()
     if not isinstance(options, ContinuationOptions):
         raise TypeError(f"options must be a jaxrod.ContinuationOptions, got "
                         f"{type(options).__module__}.{type(options).__name__}")
     return options
+
+
+def arclength_options(options):
+    """``options`` (None: the defaults) resolved for pseudo-arclength continuation; TypeError if it
+    is not a ``ContinuationOptions``, ValueError naming a value that is not allowed."""
+    return checked_options(options).resolved_arclength()

@@ -178,7 +178,7 @@ class Diagram:
 
 
 # The smallest step (scaled arclength) down to which a step whose Morse index changes by more than 1
-# is halved (``jaxrod.continuation.arclength.ArclengthOptions.resolve_crossings``).
+# is halved (``jaxrod.ContinuationOptions.resolve_crossings``).
 RESOLVE_CROSSINGS = 1e-5
 
 # The path starts where the study's critical eigenvalue is at least START_EIGENVALUE (scaled units):
@@ -244,15 +244,16 @@ def follow_branch_end(scene, q, phi, sign, options=None, *, p_min=-math.inf, p_m
     converged). Returns a ``BranchEnd`` (direction and from_branch left empty); where the path met no end,
     or did not locate it, ``located`` is False and ``message`` says why (its ``kind`` and ``phi``
     then raise ``EndNotFound`` rather than answer None)."""
-    from ..continuation.arclength import ArclengthOptions, PseudoArclength, continuation_until, \
+    from ..continuation import ContinuationOptions
+    from ..continuation.arclength import PseudoArclength, continuation_until, \
         restabilisation
     from ..continuation.arclength.rods import knot_problem
 
     o = options or DiagramOptions()
     t0 = time.perf_counter()
     rod = knot_problem(scene, np.asarray(q), float(phi), capacity=capacity)
-    opts = ArclengthOptions(ds=math.copysign(min(0.05, o.ds_max), sign), ds_min=1e-6, ds_max=o.ds_max,
-                            max_steps=o.chunk, newton_tol=o.newton_tol, eig_rtol=1e-13, n_eig=o.n_eig,
+    opts = ContinuationOptions(ds=math.copysign(min(0.05, o.ds_max), sign), ds_min=1e-6, ds_max=o.ds_max,
+                            max_steps=o.chunk, newton_tol=o.newton_tol, eig_rtol=1e-13, k=o.n_eig,
                             event_tol=o.event_tol, p_min=p_min, p_max=p_max,
                             # a step across which the Morse index changes by more than 1 is retried
                             # smaller, so that a fold and a crossing next to it are located apart: on the

@@ -8,6 +8,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..kinds import SHAPE_EVENTS, SOFT_EVENTS
+from ..options import arclength_options
 from .corrector import advance, correct, tangent
 from .events import find_events
 from .results import Branch, ContinuationError, Point, Result, Slide
@@ -15,8 +16,8 @@ from .results import Branch, ContinuationError, Point, Result, Slide
 
 def _point(problem, opts, c, t, ds, arclength):
     spectrum = problem.backend.spectrum
-    vals, vecs, morse = spectrum(c.lin[1], opts.n_eig, problem.n_zero_modes, opts.eig_rtol)
-    if morse + 2 > opts.n_eig:  # keep the eigenpairs that can cross next (the locators start from them)
+    vals, vecs, morse = spectrum(c.lin[1], opts.k, problem.n_zero_modes, opts.eig_rtol)
+    if morse + 2 > opts.k:  # keep the eigenpairs that can cross next (the locators start from them)
         vals, vecs, morse = spectrum(c.lin[1], morse + 2, problem.n_zero_modes, opts.eig_rtol)
     u, p = c.z[:-1].copy(), float(c.z[-1])
     soft = np.zeros(vals.shape, dtype=bool)
@@ -24,7 +25,7 @@ def _point(problem, opts, c, t, ds, arclength):
         # The hook splits the soft direction(s) off within the span of the computed (lowest)
         # eigenvectors: (values, vectors, soft) with the soft directions' Rayleigh quotients and
         # the Ritz pairs of J on the rest of the span. All negative eigenvalues lie in that span
-        # (n_eig >= Morse index + 2), so by interlacing the Morse index on the complement of the
+        # (k >= Morse index + 2), so by interlacing the Morse index on the complement of the
         # soft directions counts the negative Ritz values there.
         vals, vecs, soft = (np.asarray(a) for a in problem.soft_modes(u, p, vals, vecs))
         soft = soft.astype(bool)
@@ -47,7 +48,9 @@ def continuation(problem, alg, opts, *, observer=None, start=None, throw=True, k
     throw=True raises ContinuationError (with ``.branch``) when the corrector fails or an event is
     not located to ``opts.event_tol``;
     throw=False returns the branch with ``result`` and ``message`` saying so.
+    opts: a ``ContinuationOptions`` (None: the defaults), resolved for pseudo-arclength.
     """
+    opts = arclength_options(opts)
     be = problem.backend
 
     def lin(u, p):
@@ -124,6 +127,7 @@ def continuation_until(problem, alg, opts, stop, *, start=None, observer=None, s
     whole path. start, start_tol: as for ``continuation`` (start_tol: the first chunk's first
     point only). Returns a Branch: ``result`` is Result.STOPPED with
     stop's message, or the last chunk's result and message. Never raises for a failed chunk."""
+    opts = arclength_options(opts)
     points, events, slides = [], [], []
     while True:
         br = continuation(problem, alg, opts, start=start, throw=False, observer=observer, known=events,

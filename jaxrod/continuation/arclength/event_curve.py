@@ -43,7 +43,8 @@ import numpy as np
 from ...model.symmetry import SYMMETRIC_TOL
 from ..kinds import SHAPE_EVENTS, EventKind
 from .continuation import continuation
-from .options import ArclengthOptions, PseudoArclength
+from ..algorithms import PseudoArclength
+from ..options import ContinuationOptions, arclength_options
 from .results import Result
 from .two_parameter import _branch_point_system, fold_sensitivity
 
@@ -56,7 +57,7 @@ __all__ = ["EventCurve", "EventCurveOptions", "EventCurvePoint", "event_curve", 
 class EventCurveOptions:
     """Settings of ``event_curve``.
 
-    path: the ArclengthOptions of the short runs in p (ds, whose sign is the direction in p
+    path: the ContinuationOptions of the short runs in p (ds, whose sign is the direction in p
     towards the event, ds_max, tolerances, p bounds); algorithm: their PseudoArclength; delta: the
     gap in p kept between the start of each run and the event (> 0); max_jump: a start that
     relaxes further than this (max-norm in u) from the last one has left the branch (buckled,
@@ -64,7 +65,7 @@ class EventCurveOptions:
     points per call / at most per try.
     """
 
-    path: ArclengthOptions
+    path: ContinuationOptions
     delta: float
     algorithm: PseudoArclength = PseudoArclength()
     max_jump: float = float("inf")
@@ -72,6 +73,7 @@ class EventCurveOptions:
     max_points: int = 60
 
     def __post_init__(self):
+        object.__setattr__(self, "path", arclength_options(self.path))
         if not self.delta > 0:
             raise ValueError(f"delta must be > 0, got {self.delta!r}")
         if not self.max_jump > 0:

@@ -167,7 +167,7 @@ def _classified(problem, opts, morse, u, p, J, Fp, res, it):
     """The _FoldTry of a fold-system run that ended at (u, p), or None if it diverged."""
     if not np.isfinite(res):
         return None
-    vals, vecs, _ = problem.backend.spectrum(J, opts.n_eig + max(morse), problem.n_zero_modes, opts.eig_rtol)
+    vals, vecs, _ = problem.backend.spectrum(J, opts.k + max(morse), problem.n_zero_modes, opts.eig_rtol)
     k = int(np.argmin(np.abs(vals)))
     ok = bool(res <= opts.event_tol and abs(vals[k]) <= opts.event_tol)
     soft = ok and _critical_mode_is_soft(problem, u, p, vals, vecs)
@@ -361,7 +361,7 @@ def simple_branch_point(problem, opts, u, p, v0, morse, step, tangent):
     res = _norm(F, st)  # beta = 0 too
     if not np.isfinite(res) or res > opts.event_tol:
         return None
-    vals, vecs, _ = be.spectrum(J, opts.n_eig + max(morse), problem.n_zero_modes, opts.eig_rtol)
+    vals, vecs, _ = be.spectrum(J, opts.k + max(morse), problem.n_zero_modes, opts.eig_rtol)
     k = int(np.argmin(np.abs(vals)))
     if abs(vals[k]) > opts.event_tol or _null_vector_is_slide(problem, u, p, vals[[k]], vecs[:, [k]]):
         return None  # not singular, or singular along a slide only (a soft fold, not a branch point)

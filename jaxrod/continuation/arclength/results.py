@@ -28,7 +28,7 @@ class ContinuationError(RuntimeError):
 @dataclass
 class Point:
     """One converged point. u (n,), tangent (n+1,) unit, last component dp/ds; eigenvalues
-    (n_eig,) ascending and eigenvectors (n, n_eig), zero modes removed; arclength from the start."""
+    (k,) ascending and eigenvectors (n, k), zero modes removed; arclength from the start."""
 
     u: np.ndarray
     p: float
@@ -39,7 +39,7 @@ class Point:
     iterations: int
     ds: float
     arclength: float
-    soft: np.ndarray = None  # (n_eig,) bool: soft modes (``BifurcationProblem.soft_modes``), not in morse_index
+    soft: np.ndarray = None  # (k,) bool: soft modes (``BifurcationProblem.soft_modes``), not in morse_index
 
     @property
     def z(self):
@@ -89,7 +89,7 @@ class Event:
 
 @dataclass
 class Slide:
-    """A jump across a soft fold (``ArclengthOptions.soft_folds = "slide"``): from the located
+    """A jump across a soft fold (``ContinuationOptions.soft_folds = "slide"``): from the located
     ``fold`` (an Event of kind "soft_fold") to the minimum ``u`` (n,) reached by relaxing at
     p = fold.p + direction * slide_dp; distance |u - fold.u|, energy_drop E(fold.u, p) - E(u, p)
     (>= 0), iterations of the relaxation. The branch goes on from u; ``step`` is the index of the

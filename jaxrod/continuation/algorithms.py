@@ -1,0 +1,40 @@
+"""The continuation algorithms, as objects handed to ``jaxrod.continuation.continuation``.
+
+``StableOnly``: natural continuation in the imposed twist, kept to stable states (a damped-Newton
+minimiser as corrector), each branch end located and, on knots, switched past. ``PseudoArclength``:
+Keller's pseudo-arclength on F(u, p) = grad_u E = 0, through folds and along unstable branches,
+with folds and branch points located on extended systems. Both read one ``ContinuationOptions``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class StableOnly:
+    """Natural continuation in phi kept to stable states: each step is predicted along the
+    branch's tangent and corrected by minimisation, so the path never leaves the stable branch;
+    where it ends (a fold or branch point) the end is located to ``ContinuationOptions.tol`` and,
+    with ``switch``, the path goes on from the stable buckled branch. Its settings are the
+    stable-only fields of ``ContinuationOptions``."""
+
+
+@dataclass(frozen=True)
+class PseudoArclength:
+    """Keller's pseudo-arclength: tangent predictor, Newton on the bordered (n+1) corrector.
+
+    min_cos: a step whose tangent turns by more than acos(min_cos) is refused and retried smaller
+    (it may have jumped to another branch), and so is one whose corrector moved the point by
+    more than ``max_correction`` * ds from the predictor. Measured on the trefoil at N = 121, whose
+    opening fold sits next to a nearly degenerate pair of modes: without that test, paths with
+    ds_max = 0.25 and 1 landed on a nearby branch there (tangents still within min_cos) and found
+    another fold; with it, ds_max = 0.25, 0.4 and 1 from two starts give the same fold to 1e-14 pi,
+    the accepted steps next to it corrected by at most 0.18 ds. The step grows by ``grow`` after a corrector that
+    needed at most ``fast_iterations`` iterations, shrinks by ``shrink`` on failure.
+    """
+
+    min_cos: float = 0.9
+    max_correction: float = 0.2
+    grow: float = 1.5
+    shrink: float = 0.5
+    fast_iterations: int = 3
