@@ -31,7 +31,7 @@ def main():
     t0 = time.perf_counter()
     scratch = tempfile.mkdtemp(prefix="jaxrod-accuracy-")
     # small mode: the fewest nodes the knot's contact allows, its three levels (41, 81, 161), one side
-    result = converged_critical_twists(jr.trefoil(8.0, 292.0, pick(61, 41)), pick(0.01, 0.5) * math.pi,
+    result = converged_critical_twists(jr.trefoil(D=8.0, L=292.0, N=pick(61, 41)), pick(0.01, 0.5) * math.pi,
                                        sides=pick(("plus", "minus"), ("plus",)), N_max=pick(481, 161), out=scratch,
                                        progress=lambda s: print(f"[{time.perf_counter() - t0:6.1f} s] {s}",
                                                                  file=sys.stderr, flush=True))

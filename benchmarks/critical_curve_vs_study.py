@@ -108,7 +108,7 @@ def run_reference(ratio, side, study_out):
     with np.load(os.path.join(study_out, "steps", f"{side}_0000.npz")) as f:
         q0, phi0 = np.asarray(f["q"]), float(f["phi"])
     assert phi0 == 0.0
-    scene = trefoil(ratio * L, L, N)
+    scene = trefoil(D=ratio * L, L=L, N=N)
     sign = 1.0 if side == "plus" else -1.0
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

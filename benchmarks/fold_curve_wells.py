@@ -47,14 +47,14 @@ AGREE = 1e-6  # pi: issue 17's acceptance 6
 
 
 def shifted_trefoil(D, shift):
-    """``jr.trefoil(D, L, N)`` with its nodes placed ``shift`` edges further along the same curve."""
+    """``jr.trefoil(N=N, D=D, L=L)`` with its nodes placed ``shift`` edges further along the same curve."""
     M = max(4 * N, 400)
     pts = trefoil_points(M)
     loop = np.vstack([pts, pts[:1]])
     s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(loop, axis=0), axis=1))])
     targets = (s[:-1] + shift * s[-1] / N) % s[-1]  # each point moved shift edges along the polyline
     moved = np.stack([np.interp(targets, s, loop[:, k]) for k in range(3)], axis=1)
-    return jr.closed_curve(moved, Material.from_engineering(PAPER_YOUNG_MODULUS, NU, D), N=N, length=L,
+    return jr.closed_curve(moved, material=Material.from_engineering(PAPER_YOUNG_MODULUS, NU, D), N=N, length=L,
                            name="right-handed trefoil", contact_stiffness=DEFAULT_CONTACT_STIFFNESS)
 
 
@@ -82,7 +82,7 @@ def main():
         os.replace(tmp, paths[side])
 
     # the construction reproduces the trefoil at shift 0
-    assert np.array_equal(np.asarray(shifted_trefoil(8.0, 0.0).q_init), np.asarray(jr.trefoil(8.0, L, N).q_init))
+    assert np.array_equal(np.asarray(shifted_trefoil(8.0, 0.0).q_init), np.asarray(jr.trefoil(D=8.0, L=L, N=N).q_init))
     for side in sides:
         sign = SIDES[side]["sign"]
         for ratio in CHECKS:

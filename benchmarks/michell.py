@@ -78,7 +78,7 @@ def main():
     analytic = michell_critical_twist(NU)
     rows = []
     for N in NS:
-        scene = michell_ring(N, nu=NU)
+        scene = michell_ring(N=N, nu=NU)
         for label, fn in (("jaxrod (Newton on eigenvalue)", ours), ("baseline (bisection on count)", bisection)):
             phi, evals, secs, first = timed(fn, scene, analytic)
             rel = (phi - analytic) / analytic

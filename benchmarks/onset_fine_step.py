@@ -91,7 +91,7 @@ def main():
             located = summary[f"phi_{side}_over_pi"]
             q, phi = _state_before(out, side)
             sign = 1.0 if side == "plus" else -1.0
-            reference, how = fine_step_zero(trefoil(D, L, N), q, phi, sign * 0.0002 * math.pi)
+            reference, how = fine_step_zero(trefoil(D=D, L=L, N=N), q, phi, sign * 0.0002 * math.pi)
         rows.append((ratio, side, summary[f"phi_{side}_kind"], located, reference, how, abs(located - reference)))
         print(rows[-1], flush=True)
     lines = ["| D/L | side | located kind | located (π) | fine-step reference (π) | reference from | difference (π) |",

@@ -47,7 +47,7 @@ def child(N, engines):
     import jaxrod as jr
     from jaxrod.continuation import ContinuationOptions, follow_twist
 
-    scene = jr.trefoil(8.0, 292.0, N)
+    scene = jr.trefoil(D=8.0, L=292.0, N=N)
     for engine in engines:
         t = time.perf_counter()
         start = jr.relax(scene, 0.0, options=jr.RelaxOptions(linear_algebra=engine))

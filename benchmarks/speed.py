@@ -27,7 +27,7 @@ a new run skips rows already there unless --force), then writes BENCHMARKS.md an
     python benchmarks/speed.py --quick              # tiny versions, into a temporary folder
     python benchmarks/speed.py --smoke              # smaller still (Michell N = 16, a quarter turn of the knot)
     python benchmarks/speed.py --report-only        # tables and chart from speed.csv
-    python benchmarks/speed.py --md-path BENCHMARKS.md   # the report at the repo root
+    python benchmarks/speed.py --md-path /tmp/speed.md   # the report elsewhere (the docs' Performance page reads speed.csv)
 """
 import os
 
@@ -154,7 +154,7 @@ def _call(jr, entry, scene, phi_start, phi_stop, options, observer, **kwargs):
 
 def _run_michell(jr, N, verbose):
     analytic = michell_analytic()
-    scene = jr.michell_ring(N, nu=NU)
+    scene = jr.michell_ring(N=N, nu=NU)
     progress = (lambda s: _say("    " + s)) if verbose else None
 
     def once():

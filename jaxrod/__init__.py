@@ -69,7 +69,7 @@ __version__ = "0.1.0"
 # (solvers, lower-level entries, result types of the engines) stay importable from here for the
 # code that uses them, and are documented in their own modules.
 __all__ = [
-    # scenes (call by keyword: N nodes, D diameter, L length, material, nu)
+    # scenes: the shape positional, every quantity keyword-only (N nodes, D diameter, L length, material, nu)
     "Material",
     "ring",
     "michell_ring",

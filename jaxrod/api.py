@@ -1,11 +1,12 @@
 """The notebook user's API: one call per task, for rings, knots and clamped rods alike.
 
-Scene builders (``ring``, ``michell_ring``, ``knot``, ``trefoil``, ``torus_knot``, ``clamped_rod``)
-take their arguments by keyword under one naming convention: ``N`` the node count, ``D`` the rod's
-diameter and ``L`` its length (mm for knots; rings and clamped rods in units of their radius or
-length), ``material`` a ``Material``, ``nu`` the Poisson ratio. Their positional orders differ
-(``knot(name, D, L, N)``, ``ring(N, material)``, ``clamped_rod(N, length, material)``): call them
-by keyword.
+Scene builders (``ring``, ``michell_ring``, ``knot``, ``trefoil``, ``torus_knot``, ``clamped_rod``,
+``free_rod``, ``closed_curve``) share one convention: the shape is positional (``knot(name)``,
+``torus_knot(p, q)``, ``closed_curve(points)``; none for the others) and every quantity is
+keyword-only, under one naming: ``N`` the node count, ``D`` the rod's diameter and ``L`` its length
+(mm for knots; rings and clamped rods in units of their radius or length), ``material`` a
+``Material``, ``nu`` the Poisson ratio. For example ``knot("3_1", N=61, D=8.0, L=292.0)``,
+``ring(N=48, material=m)``, ``clamped_rod(N=41, length=1.0, material=m)``.
 
 The tasks:
 
@@ -190,7 +191,8 @@ class CriticalEnd:
     eigenvalue); bracket: (phi_a, phi_b) where the stability changed; phi_error: bound on the
     location error (rad); q: (n,) the state at the end (physical DOFs); mode: (n,) the critical
     mode (scaled DOFs); multiplicity: eigenvalues crossing together; discretisation_error: an
-    estimate of |phi* - phi*(N -> inf)| (rad) when asked, else None; source: the located object
+    estimate of |phi* - phi*(N -> inf)| (rad) when asked (``critical_twists(...,
+    discretisation_error=True)``), else None; source: the located object
     (a ``CriticalPoint`` or the study's ``BranchEnd``), which ``critical_twist_sensitivity`` reads."""
 
     side: str
@@ -229,13 +231,26 @@ def _ring_end(scene, side, phi_stop, options):
                        multiplicity=int(cp.multiplicity), source=cp)
 
 
-def _knot_ends(scene, phi_min, phi_max, options):
+def _knot_ends(scene, phi_min, phi_max, options, error=False):
     """{side: CriticalEnd} of a knot: the twist study's first end on each side, located exactly on
-    the extended system (``unstable_branches``), as ``run_knot_study`` does."""
+    the extended system (``unstable_branches``), as ``run_knot_study`` does; with ``error`` each
+    end's discretisation error from the study's files (``_knot_errors``)."""
+    import contextlib
+    import tempfile
+
+    # the coarse companion starts from the study's step files: only then are they written
+    with tempfile.TemporaryDirectory(prefix="jaxrod-critical-") if error else contextlib.nullcontext() as out:
+        found, study = _located_knot_ends(scene, phi_min, phi_max, options, out)
+        if error and set(found) == {"plus", "minus"}:  # else critical_twists refuses the missing side
+            found = _knot_errors(scene, study, out, found, max(-phi_min, phi_max), options)
+    return found
+
+
+def _located_knot_ends(scene, phi_min, phi_max, options, out):
     from .studies.diagram import unstable_branches
     from .studies.twist import twist_study
 
-    study = twist_study(scene, phi_min, phi_max, options)
+    study = twist_study(scene, phi_min, phi_max, options, out=out)
     diagram = unstable_branches(scene, study, parallel=False)
     found = {}
     for inst, end in zip(study.critical.get("instabilities", []), diagram.ends):
@@ -249,10 +264,59 @@ def _knot_ends(scene, phi_min, phi_max, options):
         found[side] = CriticalEnd(side=side, phi=float(ev.p), kind=EventKind(ev.kind), bracket=tuple(inst["bracket"]),
                                   phi_error=float(ev.residual), q=end.rod.q(ev.u), mode=np.asarray(ev.v[:, 0]),
                                   multiplicity=int(ev.multiplicity), source=end)
+    return found, study
+
+
+def _no_estimate(side, N_c, reason):
+    return RuntimeError(f"{side}: no discretisation error estimate: the end was not found again at the coarse "
+                        f"level N = {N_c}: {reason}")
+
+
+def _knot_errors(scene, study, out, found, span, options):
+    """``found`` with each end's discretisation error: ``coarse_companion`` on the study in ``out``."""
+    from .studies.accuracy import coarse_companion, coarse_level
+    from .studies.twist import study_options
+
+    o = study_options(options)
+    coarse = coarse_companion(scene, out, study.critical, span=span, step=o.step, tol=o.tol, sides=tuple(found))
+    for side in found:
+        if side not in coarse:
+            raise _no_estimate(side, coarse_level(scene), coarse.reasons.get(side, "no end"))
+        found[side] = replace(found[side], discretisation_error=float(coarse[side][1].error))
     return found
 
 
-def critical_twists(scene, phi_min=-8.0 * math.pi, phi_max=8.0 * math.pi, options=None):
+def _ring_errors(scene, ends, phi_min, phi_max, options):
+    """``ends`` with each end's discretisation error: the closed rod resampled to the coarse level
+    (``refine_scene``), its crossing located again, and Richardson's two-level estimate."""
+    from .continuation import NoCrossingError
+    from .studies.accuracy import coarse_level, refine_scene, richardson
+
+    N, N_c = int(scene.n_nodes), coarse_level(scene)
+    coarse = refine_scene(scene, np.asarray(scene.q_init)[: 3 * N].reshape(N, 3), N_c)
+    for side, stop in (("plus", phi_max), ("minus", phi_min)):
+        try:
+            cp = critical_twist(coarse, 0.0, stop, options)
+        except NoCrossingError as exc:
+            raise _no_estimate(side, N_c, exc) from exc
+        end = ends[side]
+        estimate = richardson([N_c, N], [float(cp.phi), end.phi], [float(cp.phi_error), end.phi_error])
+        ends[side] = replace(end, discretisation_error=float(estimate.error))
+    return ends
+
+
+def _check_estimable(scene):
+    """Refuses, before any work, a scene whose discretisation error cannot be estimated."""
+    from .studies.accuracy import coarse_level
+
+    if not getattr(scene, "closed", False):
+        raise ValueError(f"discretisation_error: estimated for closed rods (rings and knots), which are resampled "
+                         f"to a coarser level; got a {type(scene).__name__}")
+    coarse_level(scene)
+
+
+def critical_twists(scene, phi_min=-8.0 * math.pi, phi_max=8.0 * math.pi, options=None, *,
+                    discretisation_error=False):
     """The critical twists of ``scene`` on both sides of phi = 0 within [phi_min, phi_max] (rad):
     the first twist, going up and going down from the relaxed state at phi = 0, where the stable
     branch ends. options: a ``ContinuationOptions`` (None: each engine's defaults).
@@ -260,14 +324,28 @@ def critical_twists(scene, phi_min=-8.0 * math.pi, phi_max=8.0 * math.pi, option
     Rings and clamped rods: the crossing eigenvalue located by ``critical_twist``. Knots: the twist
     study's branch ends (``twist_study``), each located on the extended system as a fold or branch
     point (``unstable_branches``). Returns a ``CriticalTwists``; raises ``NoCrossingError`` (rings)
-    or RuntimeError (knots) naming the side where no end is found in the range."""
+    or RuntimeError (knots) naming the side where no end is found in the range.
+
+    discretisation_error: True also estimates each end's |phi* - phi*(N -> inf)| (rad, in
+    ``CriticalEnd.discretisation_error``): the end is found again on the rod resampled to
+    N_c = (N + 1) / 2 nodes, and the two levels give Richardson's estimate with the order 2 assumed
+    and Roache's factor 3, plus the two locations' own errors (``jaxrod.studies.accuracy``; a knot:
+    ``coarse_companion`` on its twist study). Closed rods only (rings and knots), else ValueError.
+    Where no estimate can be made it raises, never answers None: ``CoarseLevelTooSmall`` (a
+    ValueError), before any work, when N_c is below the rod's resolution (8 nodes; a knot 24 and
+    L/D: the trefoil of D = 8, L = 292 needs N >= 73); RuntimeError naming the reason when the
+    coarse level finds no end."""
     import time
 
     t0 = time.perf_counter()
     if not phi_min < 0.0 < phi_max:
         raise ValueError(f"phi_min must be < 0 < phi_max (rad), got {phi_min!r}, {phi_max!r}")
+    if not isinstance(discretisation_error, (bool, np.bool_)):
+        raise TypeError(f"discretisation_error must be True or False, got {discretisation_error!r}")
+    if discretisation_error:
+        _check_estimable(scene)
     if _is_knot(scene):
-        ends = _knot_ends(scene, phi_min, phi_max, options)
+        ends = _knot_ends(scene, phi_min, phi_max, options, discretisation_error)
         missing = [s for s in ("plus", "minus") if s not in ends]
         if missing:
             raise RuntimeError(f"no branch end on the {' and '.join(missing)} side between "
@@ -275,6 +353,8 @@ def critical_twists(scene, phi_min=-8.0 * math.pi, phi_max=8.0 * math.pi, option
     else:
         ends = {"plus": _ring_end(scene, "plus", phi_max, options),
                 "minus": _ring_end(scene, "minus", phi_min, options)}
+        if discretisation_error:
+            ends = _ring_errors(scene, ends, phi_min, phi_max, options)
     return CriticalTwists(plus=ends["plus"], minus=ends["minus"], seconds=time.perf_counter() - t0)
 
 

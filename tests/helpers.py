@@ -27,14 +27,14 @@ def wobbly_loop(n, seed=0, amp=0.15):
 
 def random_closed_state(n=9, seed=0, material=MAT):
     """A closed-rod scene and a random state q near its initial curve (twist angles random too)."""
-    scene = closed_curve(wobbly_loop(n, seed), material)
+    scene = closed_curve(wobbly_loop(n, seed), material=material)
     rng = np.random.default_rng(seed + 100)
     q = np.asarray(scene.q_init) + np.concatenate([0.02 * rng.normal(size=3 * n), 0.3 * rng.normal(size=n)])
     return scene, jnp.asarray(q)
 
 
 def random_clamped_state(n=9, seed=0, material=MAT):
-    scene = clamped_rod(n, 1.0, material)
+    scene = clamped_rod(N=n, length=1.0, material=material)
     rng = np.random.default_rng(seed)
     q = np.asarray(scene.q_init) + np.concatenate(
         [0.03 * rng.normal(size=3 * (n - 4)), 0.3 * rng.normal(size=n - 3)]
@@ -43,7 +43,7 @@ def random_clamped_state(n=9, seed=0, material=MAT):
 
 
 def random_free_state(n=8, seed=0, material=MAT):
-    scene = free_rod(n, 1.0, material)
+    scene = free_rod(N=n, length=1.0, material=material)
     rng = np.random.default_rng(seed)
     q = np.asarray(scene.q_init) + np.concatenate([0.03 * rng.normal(size=3 * n), 0.3 * rng.normal(size=n - 1)])
     return scene, jnp.asarray(q)

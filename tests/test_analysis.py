@@ -90,7 +90,7 @@ def _twisted_trefoil(n, turns=3, modulation=0.5):
     the rod's nodes lie on a smooth curve to O((h/16)^2) (a linear resampling of a coarse polygon
     would put O(h^2 kappa) kinks into it, i.e. O(1) noise into second differences)."""
     pts = trefoil_points(16 * n) * np.array([1.0, 1.0, -1.0])
-    scene = closed_curve(pts, Material(B=1, C=1 / 1.5, EA=100), N=n)
+    scene = closed_curve(pts, material=Material(B=1, C=1 / 1.5, EA=100), N=n)
     phi = TWO_PI * turns
     q = np.asarray(scene.q_init).copy()
     i = np.arange(n)

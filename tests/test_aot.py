@@ -28,7 +28,7 @@ def folder(tmp_path):
 
 
 def test_a_program_is_exported_once_and_loaded_without_tracing(folder):
-    scene = jr.trefoil(8.0, 292.0, 40)
+    scene = jr.trefoil(D=8.0, L=292.0, N=40)
     u = scene.to_scaled(np.asarray(scene.q_init))
     plain = jax.jit(_body)(scene, u, jnp.asarray(0.3))
     first = aot.cached_jit(_body)
@@ -43,9 +43,9 @@ def test_a_program_is_exported_once_and_loaded_without_tracing(folder):
     assert float(s2) == float(s1)
     np.testing.assert_allclose(np.asarray(g1), np.asarray(plain[0]), rtol=1e-12, atol=1e-12)
     # another shape, and a scene that differs only in a static field, are other programs
-    aot.cached_jit(_body)(jr.trefoil(8.0, 292.0, 41), jr.trefoil(8.0, 292.0, 41).to_scaled(
-        np.asarray(jr.trefoil(8.0, 292.0, 41).q_init)), jnp.asarray(0.3))
-    other = jr.trefoil(8.0, 292.0, 40, chirality="left")
+    aot.cached_jit(_body)(jr.trefoil(D=8.0, L=292.0, N=41), jr.trefoil(D=8.0, L=292.0, N=41).to_scaled(
+        np.asarray(jr.trefoil(D=8.0, L=292.0, N=41).q_init)), jnp.asarray(0.3))
+    other = jr.trefoil(D=8.0, L=292.0, N=40, chirality="left")
     aot.cached_jit(_body)(other, other.to_scaled(np.asarray(other.q_init)), jnp.asarray(0.3))
     assert len(os.listdir(folder)) == 3
 
@@ -64,7 +64,7 @@ def test_static_arguments_key_the_program_or_keep_it_out(folder):
 def test_without_a_folder_it_is_plain_jit_and_the_setting_is_restored(tmp_path):
     assert aot.folder() is None
     before = TRACED["count"]
-    scene = jr.trefoil(8.0, 292.0, 42)  # a shape no other test traced
+    scene = jr.trefoil(D=8.0, L=292.0, N=42)  # a shape no other test traced
     u = scene.to_scaled(np.asarray(scene.q_init))
     aot.cached_jit(_body)(scene, u, jnp.asarray(0.1))
     assert TRACED["count"] == before + 1

@@ -15,9 +15,9 @@ MAX_PARAMETERS = 7
 # off this list by ``test_the_continuation_entries_are_not_exceptions``. The list may only
 # shrink: ``test_every_exception_is_still_needed`` fails once an entry is brought under the limit.
 EXCEPTIONS = {
-    "jaxrod.torus_knot": "a scene constructor: the knot's physical description (p, q, D, L, N, E, nu, radii, "
+    "jaxrod.torus_knot": "a scene constructor: the knot's physical description (p, q, N, D, L, E, nu, radii, "
                          "contact stiffness), not knobs",
-    "jaxrod.knot": "a scene constructor: the knot's physical description (name, D, L, N, E, nu, contact "
+    "jaxrod.knot": "a scene constructor: the knot's physical description (name, N, D, L, E, nu, contact "
                    "stiffness, Lk0), not knobs",
     "jaxrod.continuation.arclength.BifurcationProblem": "a problem's definition (energy, state, parameter, args and its "
                                              "hooks), as BifurcationKit's BifurcationProblem",
@@ -101,7 +101,7 @@ def test_the_continuation_entries_are_not_exceptions():
 def test_an_old_keyword_is_a_type_error():
     from jaxrod.studies.twist import twist_study
 
-    ring = jr.michell_ring(24)
+    ring = jr.michell_ring(N=24)
     with pytest.raises(TypeError, match="step"):
         jr.follow_twist(ring, 0, 1, step=0.1)
     with pytest.raises(TypeError, match="tol"):
@@ -115,9 +115,13 @@ def test_an_old_keyword_is_a_type_error():
 def test_options_and_observer_are_checked():
     from jaxrod.continuation import arclength as bifurcation
 
-    ring = jr.michell_ring(24)
-    with pytest.raises(TypeError, match="jaxrod.ContinuationOptions"):  # the pseudo-arclength engine's class
-        jr.follow_twist(ring, 0.0, 1.0, bifurcation.ArclengthOptions())
+    ring = jr.michell_ring(N=24)
+    with pytest.raises(TypeError, match="jaxrod.ContinuationOptions"):
+        jr.follow_twist(ring, 0.0, 1.0, {"step": 0.1})
+    with pytest.raises(ValueError, match="ds: not read by the stable-only"):  # a pseudo-arclength field
+        jr.follow_twist(ring, 0.0, 1.0, jr.ContinuationOptions(ds=0.1))
+    with pytest.raises(ValueError, match="switch: not read by pseudo-arclength"):
+        jr.ContinuationOptions(switch=False).resolved_arclength()
     with pytest.raises(TypeError, match="Observer"):
         jr.critical_twist(ring, 0.0, 1.0, observer=print)
     with pytest.raises(ValueError, match="observer.on_point"):  # critical_twist never calls it
@@ -129,7 +133,7 @@ def test_options_and_observer_are_checked():
 @pytest.mark.parametrize("entry, kind", [(jr.relax, jr.RelaxOptions), (jr.relax_to_minimum, jr.RelaxOptions),
                                          (jr.solve_equilibrium, jr.EquilibriumOptions)])
 def test_the_equilibrium_solvers_take_their_knobs_in_one_options_object(entry, kind):
-    ring = jr.michell_ring(24)
+    ring = jr.michell_ring(N=24)
     params = inspect.signature(entry).parameters
     assert "options" in params and not {"gtol", "k", "negative_tol", "max_steps", "method"} & set(params)
     with pytest.raises(TypeError, match="gtol"):  # an old keyword
@@ -155,7 +159,7 @@ def test_damped_dynamics_takes_its_knobs_in_one_options_object():
     params = inspect.signature(jr.damped_dynamics).parameters
     assert "options" in params and not {"gamma", "temperature", "dt", "seed", "chunk"} & set(params)
     with pytest.raises(TypeError, match="DynamicsOptions"):
-        jr.damped_dynamics(jr.michell_ring(24), 0.0, 1.0, 1e-2, None, 1.0)
+        jr.damped_dynamics(jr.michell_ring(N=24), 0.0, 1.0, 1e-2, None, 1.0)
 
 
 # What a docstring of the public API says: the units of its numbers (rad, mm, pi, dimensionless,

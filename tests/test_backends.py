@@ -35,7 +35,7 @@ def _agree(facs, shift):
 
 @pytest.fixture(scope="module")
 def knot():
-    scene = jr.trefoil(8.0, 292.0, 61)
+    scene = jr.trefoil(D=8.0, L=292.0, N=61)
     phi = 3.0 * math.pi
     opts = jr.RelaxOptions(with_stability=False, linear_algebra="dense")
     e = jr.relax(scene, phi, jr.relax(scene, 0.0, options=opts).q, opts)
@@ -72,7 +72,7 @@ def _same_solves(facs, rhs):
 
 
 def test_a_ring_without_contact_through_every_backend():
-    scene = jr.michell_ring(48, slenderness=0.05)  # a stiff ring (D/R = 0.01) has ||H|| ~ 1e4: round-off 1e-12
+    scene = jr.michell_ring(N=48, slenderness=0.05)  # a stiff ring (D/R = 0.01) has ||H|| ~ 1e4: round-off 1e-12
     phi = 1.2 * jr.michell_critical_twist(0.5)  # past Michell's threshold: the round ring is a saddle
     e = jr.solve_equilibrium(scene, phi, options=jr.EquilibriumOptions(method="newton", with_stability=False))
     # the banded eigensolver's residuals driven near round-off (its default stops at 1e-12 ||H||)
@@ -84,8 +84,8 @@ def test_a_ring_without_contact_through_every_backend():
 
 
 def test_choose_backend_says_which_and_why():
-    small, big = jr.trefoil(8.0, 292.0, 121), jr.trefoil(8.0, 292.0, 251)
-    ring = jr.michell_ring(256)
+    small, big = jr.trefoil(D=8.0, L=292.0, N=121), jr.trefoil(D=8.0, L=292.0, N=251)
+    ring = jr.michell_ring(N=256)
     assert choose_backend(small).backend.name == "dense"
     backend, reason = choose_backend(big)
     assert backend.name == "sparse" and backend.structured and "contact" in reason

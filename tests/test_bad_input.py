@@ -138,17 +138,17 @@ def _knot():
 
 
 def _ring():
-    return jr.ring(16, MAT)
+    return jr.ring(N=16, material=MAT)
 
 
 # (call, exception, the parameter named in the message)
 API_CASES = [
-    ("ring N='abc'", lambda: jr.ring("abc", MAT), ValueError, "N must be an integer"),
-    ("ring N=None", lambda: jr.ring(None, MAT), ValueError, "N must be an integer"),
-    ("ring N=nan", lambda: jr.ring(NAN, MAT), ValueError, "N must be an integer"),
-    ("ring N=2", lambda: jr.ring(2, MAT), ValueError, "N must be at least"),
-    ("ring radius=0", lambda: jr.ring(16, MAT, radius=0.0), ValueError, "radius"),
-    ("ring material", lambda: jr.ring(16, "steel"), TypeError, "material"),
+    ("ring N='abc'", lambda: jr.ring(N="abc", material=MAT), ValueError, "N must be an integer"),
+    ("ring N=None", lambda: jr.ring(N=None, material=MAT), ValueError, "N must be an integer"),
+    ("ring N=nan", lambda: jr.ring(N=NAN, material=MAT), ValueError, "N must be an integer"),
+    ("ring N=2", lambda: jr.ring(N=2, material=MAT), ValueError, "N must be at least"),
+    ("ring radius=0", lambda: jr.ring(N=16, material=MAT, radius=0.0), ValueError, "radius"),
+    ("ring material", lambda: jr.ring(N=16, material="steel"), TypeError, "material"),
     ("E<0", lambda: jr.Material.from_engineering(E=-1.0, nu=0.5, D=8.0), ValueError, "E"),
     ("nu>0.5", lambda: jr.Material.from_engineering(E=1.0, nu=0.6, D=8.0), ValueError, "nu"),
     ("B=0", lambda: jr.Material(B=0.0, C=1.0, EA=1.0), ValueError, "B"),
@@ -158,15 +158,15 @@ API_CASES = [
     ("trefoil D=nan", lambda: jr.trefoil(D=NAN, L=292.0, N=61), ValueError, "D must be finite"),
     ("trefoil chirality", lambda: jr.trefoil(D=8.0, L=292.0, N=61, chirality="up"), ValueError, "chirality"),
     ("torus knot not coprime", lambda: jr.torus_knot(2, 4, D=1.0, L=100.0, N=120), ValueError, "coprime"),
-    ("clamped length=0", lambda: jr.clamped_rod(41, 0.0, MAT), ValueError, "length"),
-    ("clamped length=inf", lambda: jr.clamped_rod(41, INF, MAT), ValueError, "length"),
-    ("clamped N=3", lambda: jr.clamped_rod(3, 10.0, MAT), ValueError, "N"),
-    ("curve with nan", lambda: jr.closed_curve(np.where(CIRCLE == CIRCLE[3, 0], NAN, CIRCLE), MAT), ValueError,
+    ("clamped length=0", lambda: jr.clamped_rod(N=41, length=0.0, material=MAT), ValueError, "length"),
+    ("clamped length=inf", lambda: jr.clamped_rod(N=41, length=INF, material=MAT), ValueError, "length"),
+    ("clamped N=3", lambda: jr.clamped_rod(N=3, length=10.0, material=MAT), ValueError, "N"),
+    ("curve with nan", lambda: jr.closed_curve(np.where(CIRCLE == CIRCLE[3, 0], NAN, CIRCLE), material=MAT), ValueError,
      "points"),
-    ("curve of one point", lambda: jr.closed_curve(np.ones((30, 3)), MAT), ValueError, "points"),
-    ("curve through itself", lambda: jr.closed_curve(FIGURE_EIGHT_IN_A_PLANE, MAT), ValueError,
+    ("curve of one point", lambda: jr.closed_curve(np.ones((30, 3)), material=MAT), ValueError, "points"),
+    ("curve through itself", lambda: jr.closed_curve(FIGURE_EIGHT_IN_A_PLANE, material=MAT), ValueError,
      "passes through itself"),
-    ("curve in 2D", lambda: jr.closed_curve(CIRCLE[:, :2], MAT), ValueError, "points"),
+    ("curve in 2D", lambda: jr.closed_curve(CIRCLE[:, :2], material=MAT), ValueError, "points"),
     ("phi=nan", lambda: jr.solve_equilibrium(_ring(), phi=NAN), ValueError, "phi"),
     ("q0 shape", lambda: jr.solve_equilibrium(_ring(), q0=np.zeros(3)), ValueError, "q0"),
     ("method", lambda: jr.EquilibriumOptions(method="bfgs"), ValueError, "method"),

@@ -18,7 +18,8 @@ import pytest
 
 import jaxrod as jr
 from jaxrod import critical_twist, michell_critical_twist, michell_ring
-from jaxrod.continuation.arclength import ArclengthOptions, PseudoArclength, Result, continuation, emanating_directions, \
+from jaxrod.continuation import ContinuationOptions
+from jaxrod.continuation.arclength import PseudoArclength, Result, continuation, emanating_directions, \
     switch_branches, branch_point_curve
 from jaxrod.continuation.arclength.rods import pinned_problem, set_poisson_ratio, sliding_slice
 
@@ -29,15 +30,15 @@ STABLE_ONLY = jr.ContinuationOptions(tol=1e-10 * math.pi, gtol=3e-11)
 # the scaled gradient's roundoff floor is ~1e-11 (the stretching stiffness EA l^2/B ~ 1e4 at D/R = 0.01);
 # ||J|| ~ 4e4, so eig_rtol = 1e-13 puts the negative band at ~4e-9, far above the eigenvalues' noise (~1e-11)
 # and below the buckled branch's negative eigenvalue at the first predicted point
-TRIVIAL = ArclengthOptions(ds=2.0, ds_max=8.0, p_max=1.2 * michell_critical_twist(0.5), newton_tol=5e-11,
+TRIVIAL = ContinuationOptions(ds=2.0, ds_max=8.0, p_max=1.2 * michell_critical_twist(0.5), newton_tol=5e-11,
                               eig_rtol=1e-13)
-BUCKLED = ArclengthOptions(ds=1.0, ds_max=1.0, p_min=0.0, p_max=2 * michell_critical_twist(0.5), max_steps=6,
+BUCKLED = ContinuationOptions(ds=1.0, ds_max=1.0, p_min=0.0, p_max=2 * michell_critical_twist(0.5), max_steps=6,
                               newton_tol=5e-11, eig_rtol=1e-13)
 
 
 @pytest.fixture(scope="module")
 def ring():
-    scene = michell_ring(N, nu=0.5)
+    scene = michell_ring(N=N, nu=0.5)
     # phi* is known only to ~1e-12 / |dlambda/dphi| in float64 (eigenvalue roundoff, ||J|| ~ 4e4): ~3e-10
     # relative at N = 32 (benchmarks/results/bifurcation_michell.md). At the default gtol (1e-9)
     # critical_twist's crossing eigenvalue is left at ~8e-12, 7.5e-10 relative above the exact-circle
@@ -117,13 +118,13 @@ def test_branch_point_curve_in_nu_equals_critical_twist(ring, buckled):
     IFT slope is phi*(0.5)/1.5 all along."""
     scene, cp, _, _ = ring
     rod8, ev8, _, _ = buckled
-    opts = ArclengthOptions(ds=-0.5, ds_max=2.0, newton_tol=5e-11, p_min=-0.01, p_max=0.51, max_steps=100,
+    opts = ContinuationOptions(ds=-0.5, ds_max=2.0, newton_tol=5e-11, p_min=-0.01, p_max=0.51, max_steps=100,
                                report_at=(0.0, 0.25))
     curve = branch_point_curve(rod8.problem, ev8, set_poisson_ratio, 0.5, ALG, opts)
     assert curve.result is Result.BOUNDARY and curve.mu[-1] < 0.0 and np.max(curve.residual) <= 5e-11
     for nu in (0.0, 0.25, 0.5):
         (k,) = np.flatnonzero(curve.mu == nu)
-        ref = cp if nu == 0.5 else critical_twist(michell_ring(N, nu=nu), 0.0, 2 * michell_critical_twist(nu),
+        ref = cp if nu == 0.5 else critical_twist(michell_ring(N=N, nu=nu), 0.0, 2 * michell_critical_twist(nu),
                                                   STABLE_ONLY)
         assert abs(curve.p[k] - ref.phi) <= 1e-9 * ref.phi, (nu, curve.p[k], ref.phi)
     assert np.max(np.abs(curve.dp_dmu - curve.p[0] / 1.5)) <= 1e-8 * curve.p[0]

@@ -83,7 +83,7 @@ def _secant_zero(scene, e, lam, v, phi_b, lam_b, iterations=4):
 def test_tightening_onset_is_the_fine_step_zero_not_a_late_jump(tightening):
     out, summary = tightening
     located = summary["phi_minus_over_pi"]
-    scene = trefoil(D, L, N)
+    scene = trefoil(D=D, L=L, N=N)
     q, phi = _step_file(out, -11.25 * math.pi)  # on the branch, 0.02 pi before its end
     reference = _fine_step_zero(scene, q, phi, -0.001 * math.pi, -11.3 * math.pi)
     # the reference is the zero of the tracked eigenvalue to ~1e-9 pi (regula falsi inside a bracket of
@@ -111,7 +111,7 @@ def test_a_zero_between_two_stable_states_is_predicted():
     from jaxrod import michell_critical_twist, michell_ring
     from jaxrod.linalg.stability import branch_analysis
 
-    scene = michell_ring(32)
+    scene = michell_ring(N=32)
     phi_star = michell_critical_twist(0.5)
     phi = 0.9 * phi_star
     e = solve_equilibrium(scene, phi, scene.q_init, EquilibriumOptions(method="newton"))

@@ -24,7 +24,7 @@ def shortened():
     """A rod of length 1 clamped at both ends, the far clamp moved 0.1 towards the near one along
     the axis (end shortening made by hand), equilibria at phi = 2 pi and 4 pi from a bowed start."""
     mat = Material.from_ratio(B=1.0, nu=0.5, D=0.01)
-    rod = jr.clamped_rod(N, 1.0, mat)
+    rod = jr.clamped_rod(N=N, length=1.0, material=mat)
     c = np.asarray(rod.x_clamped).copy()
     c[2:, 2] -= SHORTENING
     q0 = np.asarray(rod.q_init).copy()
@@ -103,7 +103,7 @@ def test_past_greenhill_without_slack_lk_stays_phi_over_two_pi():
     (4.29 pi here) to 6 pi and 6.5 pi, where the straight rod is unstable and the rod coils
     slightly (stretching: the ends cannot come closer). Measured Wr = +1.7e-4 and +2.3e-4."""
     mat = Material.from_ratio(B=1.0, nu=0.5, D=0.01)
-    rod = jr.clamped_rod(N, 1.0, mat)
+    rod = jr.clamped_rod(N=N, length=1.0, material=mat)
     assert 6 * math.pi > jr.clamped_critical_twist(mat.B, mat.C)
     q0 = np.asarray(rod.q_init).copy()
     xi = q0[:3 * (N - 4)].reshape(N - 4, 3)

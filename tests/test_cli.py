@@ -348,3 +348,16 @@ def test_workers_run_jobs_in_order_hand_back_values_and_errors():
     assert started.wait(5.0)
     stopping.stop()
     assert later == []
+
+
+def test_accuracy_mode_with_no_end_in_range_says_so(tmp_path, capsys):
+    # a tight trefoil (L/D = 17.5) at N = 24 reaches neither side's end within +-14 pi: the run
+    # says so per side and exits 1, and convergence.json holds no phi_star (never a made-up value)
+    out = tmp_path / "acc"
+    code = main(["trefoil", "--D", "8", "--L", "140", "--N", "24", "--accuracy", "1pi", "--N-max", "93",
+                 "--no-figures", "--quiet", "--out", str(out)])
+    printed = capsys.readouterr().out
+    assert code == 1
+    assert "phi_plus   = no end (N = 24): NOT CONVERGED" in printed and "before the twist range's end" in printed
+    sides = json.loads((out / "convergence.json").read_text())
+    assert sides["plus"]["phi_star"] is None and sides["plus"]["reached"] is False

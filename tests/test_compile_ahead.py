@@ -13,7 +13,7 @@ COMPILE_EVENT = "/jax/core/compile/backend_compile_duration"
 
 
 def test_the_analysis_compiled_ahead_is_the_one_the_continuation_calls():
-    scene = jr.trefoil(8.0, 292.0, 45)  # an N no other test uses: nothing of it compiled yet
+    scene = jr.trefoil(D=8.0, L=292.0, N=45)  # an N no other test uses: nothing of it compiled yet
     ahead = compile_ahead(scene)
     assert ahead is not None  # a dense knot: the head start runs
     relaxed = jr.relax_to_minimum(scene, 0.0)
@@ -37,4 +37,4 @@ def test_the_analysis_compiled_ahead_is_the_one_the_continuation_calls():
 
 def test_no_head_start_on_the_sparse_path():
     # from sparse_contact.SPARSE_MIN_DOF DOFs on the continuation calls other programs
-    assert compile_ahead(jr.trefoil(8.0, 292.0, 251)) is None
+    assert compile_ahead(jr.trefoil(D=8.0, L=292.0, N=251)) is None

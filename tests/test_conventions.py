@@ -14,7 +14,7 @@ TWO_PI = 2 * math.pi
 
 
 def test_straight_clamped_rod_twisted_by_plus_two_pi_has_Tw_plus_one():
-    scene = clamped_rod(16, 1.0, MAT, axis=(0.3, -0.2, 1.0))
+    scene = clamped_rod(N=16, length=1.0, material=MAT, axis=(0.3, -0.2, 1.0))
     eq = solve_equilibrium(scene, TWO_PI, options=EquilibriumOptions(method="newton"))
     assert eq.Tw == pytest.approx(1.0, abs=1e-12)
     assert eq.Wr == pytest.approx(0.0, abs=1e-12)
@@ -30,7 +30,7 @@ def test_straight_clamped_rod_twisted_by_plus_two_pi_has_Tw_plus_one():
 
 def _closed_state(points, n, phi, material=MAT):
     """Closed-rod scene on ``points`` with twist spread uniformly: theta_i = theta0_i + i phi/N."""
-    scene = closed_curve(points, material, N=n)
+    scene = closed_curve(points, material=material, N=n)
     q = np.asarray(scene.q_init).copy()
     q[3 * n:] += phi * np.arange(n) / n
     return scene, jnp.asarray(q)
@@ -83,7 +83,7 @@ def test_frame_Lk_matches_gauss_linking_of_centreline_and_eccentric_line(curve, 
 def test_ring_equilibrium_at_forty_pi_keeps_its_linking_number(turns):
     phi = TWO_PI * turns
     mat = Material.from_ratio(B=1.0, nu=0.5, D=0.02)
-    scene = ring(48, mat)
+    scene = ring(N=48, material=mat)
     eq = solve_equilibrium(scene, phi, options=EquilibriumOptions(method="newton"))
     assert eq.solution.converged
     assert eq.Lk == pytest.approx(turns, abs=1e-8)

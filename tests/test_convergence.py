@@ -91,11 +91,11 @@ def test_richardson_bad_input_names_the_parameter(N, values, match):
 def test_levels_keep_every_node():
     assert resolution_levels(61, 481) == [61, 121, 241, 481]
     with pytest.raises(ValueError, match="N_max"):
-        converged_critical_twists(jr.michell_ring(16), 0.01 * PI, N_max=40)
+        converged_critical_twists(jr.michell_ring(N=16), 0.01 * PI, N_max=40)
     with pytest.raises(ValueError, match="accuracy"):
-        converged_critical_twists(jr.michell_ring(16), -1.0)
+        converged_critical_twists(jr.michell_ring(N=16), -1.0)
     with pytest.raises(ValueError, match="closed rods"):
-        converged_critical_twists(jr.clamped_rod(11, 1.0, jr.Material.from_ratio(B=1.0, nu=0.5, D=0.01)), 0.01 * PI)
+        converged_critical_twists(jr.clamped_rod(N=11, length=1.0, material=jr.Material.from_ratio(B=1.0, nu=0.5, D=0.01)), 0.01 * PI)
 
 
 def test_michell_ring_converged_to_the_accuracy_asked_for():
@@ -104,7 +104,7 @@ def test_michell_ring_converged_to_the_accuracy_asked_for():
     # is below the accuracy asked for.
     analytic = jr.michell_critical_twist(0.5)
     said = []
-    (side,) = converged_critical_twists(jr.michell_ring(16, nu=0.5), 0.02 * PI, sides=("plus",),
+    (side,) = converged_critical_twists(jr.michell_ring(N=16, nu=0.5), 0.02 * PI, sides=("plus",),
                                         levels=(16, 32, 64), progress=said.append).values()
     assert side.reached, side.reason
     assert [lv.N for lv in side.levels] == [16, 32, 64]
@@ -169,7 +169,7 @@ def test_coarse_companion_of_a_study_brackets_the_converged_value(tmp_path):
 
     from jaxrod.continuation import Observer
 
-    ring = jr.michell_ring(32, nu=0.5)
+    ring = jr.michell_ring(N=32, nu=0.5)
     handed = []  # the CLI starts each end's work here, while the study goes on
     study = twist_study(ring, -0.5 * PI, 6.0 * PI, jr.ContinuationOptions(step=0.5 * PI, tol=1e-3 * PI, max_switches=0),
                         out=str(tmp_path / "ring"), observer=Observer(on_instability=lambda *a: handed.append(a)))

@@ -27,7 +27,7 @@ def _point_study(ratio):
     from jaxrod.model.scenes import knot
     from jaxrod.studies.twist import twist_study
 
-    scene = knot("3_1", ratio * cc.LENGTH, cc.LENGTH, N)  # as jaxrod trefoil --D ratio*292 --L 292 builds it
+    scene = knot("3_1", D=ratio * cc.LENGTH, L=cc.LENGTH, N=N)  # as jaxrod trefoil --D ratio*292 --L 292 builds it
     study = twist_study(scene, -0.5 * math.pi, 16.0 * math.pi, ContinuationOptions(max_switches=0))
     return unstable_branches(scene, study).study.critical
 

@@ -13,7 +13,7 @@ from jaxrod.solve.dynamics import DynamicsOptions, damped_dynamics, stable_time_
 @pytest.fixture(scope="module")
 def ring():
     # A thick ring (D/R = 0.3): stretching is soft enough for a time step of 0.03.
-    scene = jr.michell_ring(16, nu=0.5, slenderness=0.3)
+    scene = jr.michell_ring(N=16, nu=0.5, slenderness=0.3)
     cp = jr.critical_twist(scene, 0.0, 2 * jr.michell_critical_twist(0.5), jr.ContinuationOptions(step=2.0))
     start = jr.solve_equilibrium(scene, phi=0.9 * cp.phi)
     return scene, cp, start

@@ -74,16 +74,16 @@ def test_energy_invariant_under_rigid_motions(kind):
 
 
 def test_energy_zero_for_straight_untwisted_rod():
-    s = clamped_rod(12, 2.0, MAT)
+    s = clamped_rod(N=12, length=2.0, material=MAT)
     assert float(s.energy(jnp.asarray(s.q_init), 0.0)) == pytest.approx(0.0, abs=1e-14)
-    f = free_rod(12, 2.0, MAT)
+    f = free_rod(N=12, length=2.0, material=MAT)
     assert float(f.energy(jnp.asarray(f.q_init), 0.0)) == pytest.approx(0.0, abs=1e-14)
 
 
 def test_twisted_straight_clamped_rod_energy_is_exact():
     # C phi^2 / (2 L) for the clamp midpoints L apart, whatever N and however many turns.
     L = 2.0
-    s = clamped_rod(20, L, MAT)
+    s = clamped_rod(N=20, length=L, material=MAT)
     for phi in (2 * math.pi, -9.0 * math.pi):
         eq = solve_equilibrium(s, phi, options=EquilibriumOptions(method="newton", with_stability=False))
         assert eq.energy == pytest.approx(MAT.C * phi**2 / (2 * L), rel=1e-10)
@@ -99,7 +99,7 @@ def _uniform_ring_state(scene, radius_scale, phi):
 @pytest.mark.parametrize("phi", [0.0, 3.0 * math.pi, -40.0 * math.pi, 40.0 * math.pi])
 def test_circle_with_uniform_twist_is_an_equilibrium(phi):
     mat = Material(B=1.0, C=1.0 / 1.5, EA=1e3)
-    scene = ring(24, mat, radius=2.0)
+    scene = ring(N=24, material=mat, radius=2.0)
     # Gradient of the scaled energy: forces in units of B/l^2, moments in units of B/l.
     grad = jax.jit(jax.grad(scene.scaled_energy))
     q = _uniform_ring_state(scene, 1.0, phi)

@@ -166,5 +166,5 @@ def test_sweep_range_in_help_and_readme(capsys):
     assert main(["helix", "--help"]) == 0
     text = " ".join(capsys.readouterr().out.split())
     assert "from 0.8 R to 1.1 R" in text and "0.9 R" not in text
-    readme = " ".join((Path(__file__).parent.parent / "README.md").read_text().split())
+    readme = " ".join((Path(__file__).parent.parent / "docs" / "guides" / "end-loads.md").read_text().split())
     assert "from 0.8 R to 1.1 R" in readme

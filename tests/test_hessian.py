@@ -27,7 +27,7 @@ def test_colouring_needs_a_fixed_number_of_products():
     # The local part couples DOFs within three consecutive nodes: the number of colours (Hessian-
     # vector products) does not grow with N.
     # (The greedy colouring varies a little with N mod 5, where the closed rod wraps round.)
-    counts = {N: hessian_pattern(jr.michell_ring(N)).n_colours for N in (16, 17, 18, 64, 255, 256)}
+    counts = {N: hessian_pattern(jr.michell_ring(N=N)).n_colours for N in (16, 17, 18, 64, 255, 256)}
     assert max(counts.values()) <= 32
 
 
@@ -65,7 +65,7 @@ def test_neighbourhood_energy_equals_exact_energy(knot):
 
 
 def test_clamped_neighbourhood_keeps_the_twist_branch():
-    scene = jr.clamped_rod(21, 1.0, jr.Material(B=1.0, C=1.0, EA=100.0))
+    scene = jr.clamped_rod(N=21, length=1.0, material=jr.Material(B=1.0, C=1.0, EA=100.0))
     q = scene.q_init
     nbr = scene.neighbourhood(q)
     for phi in (0.0, 3.0, 40.0, -40.0):

@@ -73,7 +73,7 @@ def test_refusal_names_n_and_the_largest_n_that_fits():
 
 def test_the_api_refuses_before_compiling(monkeypatch):
     monkeypatch.setattr(cont.memory, "available_memory_bytes", lambda: GB24)  # where check_dense_memory looks
-    ring = jr.michell_ring(10000)  # no contact: follow_twist and the dense critical_twist are dense
+    ring = jr.michell_ring(N=10000)  # no contact: follow_twist and the dense critical_twist are dense
     with pytest.raises(ValueError, match=r"^N 10000 needs about 82 GB"):
         jr.follow_twist(ring, 0.0, 1.0)
     with pytest.raises(ValueError, match=r"^N 10000 needs about 82 GB"):
@@ -102,7 +102,7 @@ def test_cli_refuses_a_trefoil_too_large_in_one_line(monkeypatch, tmp_path, caps
 
 @pytest.mark.parametrize("N", [2000, 6000, 10000])
 def test_negative_tolerance_is_small_against_a_long_rings_eigenvalues(N):
-    scene = jr.michell_ring(N)
+    scene = jr.michell_ring(N=N)
     tol = cont.ContinuationOptions().resolved(scene, cont.Task.CRITICAL_TWIST, 1.0).negative_tol
     lowest = 7.2 * (2.0 * math.pi / N) ** 4  # measured: 7.1999 (2 pi / N)^4 at N = 512, 2000, 4000
     # Was 1e-10 whatever N: 0.14 of the lowest eigenvalue at N = 2000, 90 times it at N = 10000.
@@ -111,7 +111,7 @@ def test_negative_tolerance_is_small_against_a_long_rings_eigenvalues(N):
 
 
 def test_negative_tolerance_is_unchanged_for_the_rods_of_the_tests():
-    for scene in (jr.michell_ring(128), jr.michell_ring(600)):
+    for scene in (jr.michell_ring(N=128), jr.michell_ring(N=600)):
         assert cont.ContinuationOptions().resolved(scene, cont.Task.CRITICAL_TWIST, 1.0).negative_tol == 1e-10
     knot = jr.trefoil(D=8.0, L=292.0, N=61)
     assert cont.ContinuationOptions().resolved(knot, cont.Task.FOLLOW_TWIST, 1.0).negative_tol == \
@@ -119,7 +119,7 @@ def test_negative_tolerance_is_unchanged_for_the_rods_of_the_tests():
 
 
 def test_grown_engine_computes_the_pairs_needed():
-    ring = jr.michell_ring(300)
+    ring = jr.michell_ring(N=300)
     opts = cont.ContinuationOptions().resolved(ring, cont.Task.CRITICAL_TWIST, 1.0)
     sparse = cont.ContinuationEngine(ring, cont.Task.CRITICAL_TWIST, opts, sparse=True)
     assert cont.grown_engine(sparse, 2) is sparse  # 2 + K_MARGIN <= k = 8

@@ -27,14 +27,14 @@ def _relax(scene):
 
 
 def test_a_rod_relaxed_with_a_stored_turn_of_twist_is_flagged_and_lk0_can_be_given():
-    drawn = jr.closed_curve(pentagram(), MAT, N=61, length=292.0, contact_stiffness=100.0)
+    drawn = jr.closed_curve(pentagram(), material=MAT, N=61, length=292.0, contact_stiffness=100.0)
     assert drawn.Lk0 == -1.0  # the integer nearest the drawn writhe
     eq, said = _relax(drawn)
     assert eq.stability.stable and abs(eq.Wr) < 1e-6 and eq.Tw == pytest.approx(-1.0, abs=1e-6)  # a twisted circle
     assert len(said) == 1 and "stores Tw = -1.000 turns" in said[0] and "Lk0 = -1" in said[0], said
     assert "twist-free with Lk0 = 0" in said[0] and "--lk0" in said[0]
     # Given, the untwisted rod: no twist stored, no warning.
-    given = jr.closed_curve(pentagram(), MAT, N=61, length=292.0, contact_stiffness=100.0, Lk0=0)
+    given = jr.closed_curve(pentagram(), material=MAT, N=61, length=292.0, contact_stiffness=100.0, Lk0=0)
     eq, said = _relax(given)
     assert said == [] and abs(eq.Tw) < 1e-6 and eq.Lk == pytest.approx(0.0, abs=1e-9)
 
@@ -43,12 +43,12 @@ def test_a_writhe_near_a_half_integer_is_flagged():
     t = 2 * math.pi * np.arange(200) / 200
     lemniscate = lambda lift: np.stack([np.sin(t), np.sin(2 * t) / 2, lift * np.cos(t)], axis=1)  # noqa: E731
     with pytest.warns(UserWarning, match=r"writhe 0\.49\d is nearly half-way between two integers: Lk0 = 0 taken"):
-        assert jr.closed_curve(lemniscate(0.38), MAT).Lk0 == 0.0
+        assert jr.closed_curve(lemniscate(0.38), material=MAT).Lk0 == 0.0
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        assert jr.closed_curve(lemniscate(1.0), MAT).Lk0 == 0.0  # writhe 0: no doubt
+        assert jr.closed_curve(lemniscate(1.0), material=MAT).Lk0 == 0.0  # writhe 0: no doubt
     with pytest.raises(ValueError, match="Lk0 must be an integer"):
-        jr.closed_curve(lemniscate(1.0), MAT, Lk0=0.5)
+        jr.closed_curve(lemniscate(1.0), material=MAT, Lk0=0.5)
 
 
 def test_cli_lk0_reaches_the_study_and_the_header_says_which(tmp_path, monkeypatch, capsys):
@@ -85,4 +85,4 @@ def test_one_default_young_modulus_for_the_api_and_the_cli():
     parser = cli.build_parser()
     args = parser.parse_args(["trefoil"])
     assert args.E == scenes.PAPER_YOUNG_MODULUS
-    assert jr.trefoil(8.0, 292.0, 61).material.B == pytest.approx(0.474 * math.pi * 8.0**4 / 64)
+    assert jr.trefoil(D=8.0, L=292.0, N=61).material.B == pytest.approx(0.474 * math.pi * 8.0**4 / 64)

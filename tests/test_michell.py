@@ -14,7 +14,7 @@ from jaxrod.solve.solvers import ConvergenceError
 
 def _phi_star(N, nu, slenderness=0.01):
     analytic = michell_critical_twist(nu)
-    cp = critical_twist(michell_ring(N, nu=nu, slenderness=slenderness), 0.0, 2 * analytic,
+    cp = critical_twist(michell_ring(N=N, nu=nu, slenderness=slenderness), 0.0, 2 * analytic,
                         ContinuationOptions(step=analytic / 8))
     return cp
 
@@ -58,7 +58,7 @@ def test_crossing_eigenvalue_and_its_derivative(series):
     # Finite-difference check of the autodiff derivative along the branch.
     from jaxrod import EquilibriumOptions, eigenvalue_phi_derivative, solve_equilibrium
 
-    scene = michell_ring(64, nu=0.5)
+    scene = michell_ring(N=64, nu=0.5)
     # h = 1e-2: eigenvalues ~5e-7 apart, round-off (~1e-13) and truncation (~h^2 lambda''' ~ 1e-12)
     # both below 1e-6 of the derivative.
     h = 1e-2
@@ -81,7 +81,7 @@ def test_refinement_refuses_a_bracket_without_sign_change(series):
     # A negative_tol that is large against the eigenvalues (as 1e-10 was for N = 2000): the
     # count changes steps after the crossing; the old refinement then converged on a bracket end
     # and reported it as phi* (N = 2000: 6.27 pi for 5.20 pi, error "1.6e-6").
-    ring = michell_ring(32)
+    ring = michell_ring(N=32)
     analytic = michell_critical_twist(0.5)
     with pytest.raises(ConvergenceError, match="same sign"):
         critical_twist(ring, 0.0, 2.0 * analytic, ContinuationOptions(step=analytic / 10.0, negative_tol=5e-3))

@@ -24,13 +24,13 @@ def test_an_end_that_was_not_met_raises_with_its_reason():
 
 
 def test_the_coarse_companion_below_the_resolution_raises(tmp_path):
-    ring = jr.michell_ring(13)  # the coarse level would have 7 nodes, below the 8 a rod needs
+    ring = jr.michell_ring(N=13)  # the coarse level would have 7 nodes, below the 8 a rod needs
     with pytest.raises(CoarseLevelTooSmall, match="at least 8 nodes"):
         coarse_companion(ring, str(tmp_path), {"instabilities": []})
 
 
 def test_the_coarse_companion_says_why_a_side_has_no_estimate(tmp_path):
-    found = coarse_companion(jr.michell_ring(24), str(tmp_path), {"instabilities": [], "tol": 1e-3})
+    found = coarse_companion(jr.michell_ring(N=24), str(tmp_path), {"instabilities": [], "tol": 1e-3})
     assert isinstance(found, CoarseEstimates) and not found
     assert set(found.reasons) == {"plus", "minus"} and all(found.reasons.values())
 

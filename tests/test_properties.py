@@ -47,7 +47,7 @@ def closed_curves(draw):
 
 def _scene(points, D=0.05, contact=None):
     mat = jr.Material.from_engineering(E=1.0, nu=0.3, D=D)
-    return jr.closed_curve(points, mat, N=N, contact_stiffness=contact)
+    return jr.closed_curve(points, material=mat, N=N, contact_stiffness=contact)
 
 
 @jax.jit

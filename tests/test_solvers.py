@@ -67,7 +67,7 @@ def test_relaxation_lbfgs_then_newton_gives_the_stable_circle():
     # N B (2 tan(pi/N))^2 / (2 l) exactly); L-BFGS gets close, Newton polishes to 1e-9.
     mat = Material.from_engineering(E=1.0, nu=0.5, D=0.05)
     n = 40
-    scene = closed_curve(wobbly_loop(n, seed=5, amp=0.07), mat, length=2 * math.pi)
+    scene = closed_curve(wobbly_loop(n, seed=5, amp=0.07), material=mat, length=2 * math.pi)
     eq = solve_equilibrium(scene, 0.0, options=EquilibriumOptions(method="auto", gtol=1e-9))
     assert eq.solution.converged and eq.solution.grad_norm <= 1e-9
     assert eq.stability.n_zero_modes == 7
@@ -84,7 +84,7 @@ def test_clamped_rod_greenhill_threshold():
     exact = clamped_critical_twist(mat.B, mat.C)
     err = []
     for N in (24, 48):  # N = 24: the size test_sparse_stability compiles too (one compilation shared)
-        cp = critical_twist(clamped_rod(N, 1.0, mat), 0.0, 2 * exact, ContinuationOptions(step=exact / 8))
+        cp = critical_twist(clamped_rod(N=N, length=1.0, material=mat), 0.0, 2 * exact, ContinuationOptions(step=exact / 8))
         err.append((cp.phi - exact) / exact)
     assert 0 < err[1] < 5e-3
     assert 3.0 < err[0] / err[1] < 5.0

@@ -24,7 +24,7 @@ PHI = 3.0 * math.pi
 
 @pytest.fixture(scope="module")
 def knot():
-    scene = jr.trefoil(8.0, 292.0, N)
+    scene = jr.trefoil(D=8.0, L=292.0, N=N)
     e0 = jr.relax(scene, 0.0, options=jr.RelaxOptions(with_stability=False, linear_algebra="dense"))
     e = jr.relax(scene, PHI, e0.q, jr.RelaxOptions(with_stability=False, linear_algebra="dense"))
     u = scene.to_scaled(e.q)
@@ -156,8 +156,8 @@ def test_follow_twist_sparse_equals_dense(knot):
 
 
 def test_the_choice_is_automatic_and_stated():
-    assert not choose_backend(jr.trefoil(8.0, 292.0, 121), "auto").backend.structured
-    big = jr.trefoil(8.0, 292.0, 251)  # n_dof = 1004
+    assert not choose_backend(jr.trefoil(D=8.0, L=292.0, N=121), "auto").backend.structured
+    big = jr.trefoil(D=8.0, L=292.0, N=251)  # n_dof = 1004
     assert choose_backend(big, "auto").backend.name == "sparse" and not choose_backend(big, "dense").backend.structured
     with pytest.raises(ValueError, match="linear_algebra"):
         jr.RelaxOptions(linear_algebra="cholmod")

@@ -24,11 +24,11 @@ NEAR = (-5e-4, -1e-4, 1e-4, 5e-4)  # offsets from the (discrete) critical twist
 
 
 def ring_scene(nu):
-    return jr.michell_ring(N, nu)
+    return jr.michell_ring(N=N, nu=nu)
 
 
 def clamped_scene(nu):
-    return jr.clamped_rod(N, 1.0, jr.Material(B=1.0, C=1.0 / (1.0 + nu), EA=1e4))
+    return jr.clamped_rod(N=N, length=1.0, material=jr.Material(B=1.0, C=1.0 / (1.0 + nu), EA=1e4))
 
 
 def dense_blocks(lay, diag, off, a, w):
@@ -121,7 +121,7 @@ def test_layouts_hold_the_hessian_pattern():
     # block_layout checks the pattern itself when built (and raises otherwise); odd closed rods
     # need 3-node blocks.
     for scene, b, K in ((ring_scene(0.5), 8, N // 2), (clamped_scene(0.5), 8, 11),
-                        (jr.michell_ring(9), 12, 3), (jr.michell_ring(11), 12, 4), (jr.michell_ring(4), 8, 2)):
+                        (jr.michell_ring(N=9), 12, 3), (jr.michell_ring(N=11), 12, 4), (jr.michell_ring(N=4), 8, 2)):
         lay = ss.block_layout(scene)
         assert (lay.block_size, lay.num_blocks) == (b, K)
         assert np.array_equal(lay.perm[lay.position], np.arange(scene.n_dof))
@@ -301,7 +301,7 @@ def test_critical_twist_sparse_equals_dense(kind):
         scene, guess = ring_scene(0.5), jr.michell_critical_twist(0.5)
     else:
         mat = jr.Material.from_ratio(B=1.0, nu=0.5, D=0.01)
-        scene, guess = jr.clamped_rod(N, 1.0, mat), jr.clamped_critical_twist(mat.B, mat.C)
+        scene, guess = jr.clamped_rod(N=N, length=1.0, material=mat), jr.clamped_critical_twist(mat.B, mat.C)
     run = lambda la: jr.critical_twist(scene, 0.0, 2 * guess,  # noqa: E731
                                    jr.ContinuationOptions(step=guess / 8, linear_algebra=la))
     sparse, dense = run("sparse"), run("dense")
@@ -336,7 +336,7 @@ def test_linear_algebra_choice():
     from jaxrod.linalg.backend import choose_backend
 
     assert not choose_backend(ring_scene(0.5), "auto").backend.structured
-    assert choose_backend(jr.michell_ring(256), "auto").backend.name == "banded"
-    assert not choose_backend(jr.michell_ring(256), "dense").backend.structured
+    assert choose_backend(jr.michell_ring(N=256), "auto").backend.name == "banded"
+    assert not choose_backend(jr.michell_ring(N=256), "dense").backend.structured
     with pytest.raises(ValueError):
         choose_backend(ring_scene(0.5), "lapack")

@@ -12,7 +12,7 @@ NEWTON = EquilibriumOptions(method="newton")
 
 
 def test_zero_modes_removed_and_counted():
-    scene = ring(24, Material(1.0, 0.7, 1e3))
+    scene = ring(N=24, material=Material(1.0, 0.7, 1e3))
     eq = solve_equilibrium(scene, math.pi, options=NEWTON)
     st = eq.stability
     assert st.n_zero_modes == 7 and st.stable and st.n_negative == 0
@@ -22,12 +22,12 @@ def test_zero_modes_removed_and_counted():
     raw = np.linalg.eigvalsh(np.asarray(scaled_hessian(scene, scene.to_scaled(jnp.asarray(eq.q)), math.pi)))
     assert np.sum(np.abs(raw) < 1e-9) == 7
     assert st.eigenvalues[0] > 1e-4  # the softest physical mode is well away from zero
-    clamped = clamped_rod(12, 1.0, Material(1.0, 0.7, 1e3))
+    clamped = clamped_rod(N=12, length=1.0, material=Material(1.0, 0.7, 1e3))
     assert stability(clamped, clamped.q_init, 0.0).n_zero_modes == 0
 
 
 def test_negative_count_beyond_michell():
-    scene = michell_ring(32)
+    scene = michell_ring(N=32)
     below = solve_equilibrium(scene, 5.0 * math.pi, options=NEWTON).stability
     above = solve_equilibrium(scene, 5.6 * math.pi, options=NEWTON).stability
     assert below.n_negative == 0 and above.n_negative == 2
@@ -37,7 +37,7 @@ def test_critical_twist_derivative_with_respect_to_material():
     # For the ring, C enters the critical condition only through C * phi (twist moment), so
     # phi* is exactly proportional to 1/C at fixed B, EA: d phi*/dC = -phi*/C. B also sets the
     # extensibility ratio B/(EA R^2) = 6e-6 here, so d phi*/dB = phi*/B up to ~1e-5.
-    scene = michell_ring(32, nu=0.5)
+    scene = michell_ring(N=32, nu=0.5)
     an = michell_critical_twist(0.5)
     cp = critical_twist(scene, 0.0, 2 * an, ContinuationOptions(step=an / 8))
     dC = critical_twist_derivative(scene, cp, "C")
@@ -49,7 +49,7 @@ def test_critical_twist_derivative_with_respect_to_material():
     phis = []
     for sgn in (-1, 1):
         m = scene.material
-        s2 = michell_ring(32, nu=0.5)
+        s2 = michell_ring(N=32, nu=0.5)
         s2 = type(s2)(material=Material(B=m.B * (1 + sgn * h), C=m.C, EA=m.EA, D=m.D),
                       rest_lengths=s2.rest_lengths, q_init=s2.q_init, Lk0=s2.Lk0)
         phis.append(critical_twist(s2, 0.0, 2 * an, ContinuationOptions(step=an / 8, tol=1e-10)).phi)
@@ -72,7 +72,7 @@ def test_the_shape_band_scales_with_N_like_the_shape_modes():
 
     rng = np.random.default_rng(3)
     for N, counted in ((121, False), (961, True)):
-        knot = jr.trefoil(8.0, 292.0, N)
+        knot = jr.trefoil(D=8.0, L=292.0, N=N)
         expected = DEFAULT_NEGATIVE_TOL if N == 121 else 0.01 * (2 * np.pi / N) ** 4
         assert scaled_negative_tol(knot) == pytest.approx(expected, rel=1e-12)
         shape = rng.normal(size=(knot.n_dof, 1))  # a random field of node motions changes the shape

@@ -20,7 +20,7 @@ N = 41
 
 @pytest.fixture(scope="module")
 def knot():
-    return trefoil(8.0, 292.0, N)
+    return trefoil(D=8.0, L=292.0, N=N)
 
 
 def _image(scene, q, sym):
@@ -67,7 +67,7 @@ def test_the_drawn_trefoil_is_symmetric_and_a_slid_one_is_not(knot):
 def test_rods_without_the_symmetry_are_left_alone():
     from jaxrod.model.material import Material
 
-    rod = clamped_rod(12, 1.0, Material(B=1.0, C=1.0, EA=1e3))
+    rod = clamped_rod(N=12, length=1.0, material=Material(B=1.0, C=1.0, EA=1e3))
     assert joint_two_fold(rod, np.asarray(rod.q_init), 1.0) is None
 
 
@@ -158,7 +158,7 @@ def test_a_symmetric_saddle_is_not_taken_for_the_start():
     from jaxrod.continuation import follow_twist
 
     n = 48
-    knot = trefoil(8.0, 292.0, n)
+    knot = trefoil(D=8.0, L=292.0, N=n)
     path = follow_twist(knot, 0.0, 0.1 * math.pi, ContinuationOptions(step=0.1 * math.pi, max_switches=0))
     first = path.points[0].equilibrium
     assert first.stability.n_negative == 0

@@ -103,15 +103,15 @@ def test_michell_ring_gradients_in_nu_and_b():
     """The planar ring with its twist spread evenly (phi / N at each vertex) stores C phi^2 / (2 L),
     L = 2 pi, C = B / (1 + nu); its bending and stretching do not depend on nu."""
     N, phi = 24, 3.0
-    q = jnp.asarray(jr.michell_ring(N).q_init).at[3 * N:].set(phi * jnp.arange(N) / N)
+    q = jnp.asarray(jr.michell_ring(N=N).q_init).at[3 * N:].set(phi * jnp.arange(N) / N)
 
     def twist(nu, B=1.0):
-        scene = jr.ring(N, jr.Material.from_ratio(B=B, nu=nu, D=0.01), radius=1.0)
+        scene = jr.ring(N=N, material=jr.Material.from_ratio(B=B, nu=nu, D=0.01), radius=1.0)
         return scene.energy_terms(q, phi)["twist"]
 
     nu = 0.3
     exact = -phi**2 / (2.0 * 2.0 * math.pi * (1.0 + nu) ** 2)
-    assert float(jax.grad(lambda n: jr.michell_ring(N, nu=n).energy(q, phi))(nu)) == pytest.approx(exact, rel=1e-9)
+    assert float(jax.grad(lambda n: jr.michell_ring(N=N, nu=n).energy(q, phi))(nu)) == pytest.approx(exact, rel=1e-9)
     assert float(jax.grad(twist)(nu)) == pytest.approx(exact, rel=1e-9)
     assert float(jax.grad(twist, argnums=1)(nu, 2.0)) == pytest.approx(float(twist(nu, 1.0)), rel=1e-12)
     assert float(jax.grad(jr.michell_critical_twist)(nu)) == pytest.approx(2.0 * math.pi * math.sqrt(3.0))
@@ -122,16 +122,16 @@ def test_michell_ring_gradients_in_nu_and_b():
 @pytest.mark.parametrize("build,message", [
     (lambda: jr.Material(B=-1.0, C=1.0, EA=1.0), "B must be positive"),
     (lambda: jr.Material(B=float("nan"), C=1.0, EA=1.0), "B must be finite"),
-    (lambda: jr.michell_ring(12, nu=0.7), r"nu must lie in \(-1, 0.5\]"),
+    (lambda: jr.michell_ring(N=12, nu=0.7), r"nu must lie in \(-1, 0.5\]"),
     (lambda: jr.trefoil(D=-8.0, L=292.0, N=41), "D must be positive"),
     (lambda: jr.trefoil(D=8.0, L=292.0, N=41, contact_stiffness=0.0), "contact_stiffness must be positive"),
     (lambda: jr.trefoil(D=8.0, L=100.0, N=41), "below the ideal trefoil's ropelength"),
     (lambda: jr.trefoil(D=8.0, L=292.0, N=30), "self-contact needs edges no longer than the diameter"),
-    (lambda: jr.michell_ring(12).with_params(nu=-1.0), r"nu must lie in \(-1, 0.5\]"),
-    (lambda: jr.michell_ring(12).with_params(B=0.0), "B must be positive"),
-    (lambda: jr.michell_ring(12).with_params(nu=0.1, C=1.0), "give C or nu"),
-    (lambda: jr.michell_ring(12).with_params(E=1.0), "with_params sets"),
-    (lambda: jr.clamped_rod(8, 1.0, jr.Material(1.0, 1.0, 1.0)).with_params(contact_stiffness=1.0),
+    (lambda: jr.michell_ring(N=12).with_params(nu=-1.0), r"nu must lie in \(-1, 0.5\]"),
+    (lambda: jr.michell_ring(N=12).with_params(B=0.0), "B must be positive"),
+    (lambda: jr.michell_ring(N=12).with_params(nu=0.1, C=1.0), "give C or nu"),
+    (lambda: jr.michell_ring(N=12).with_params(E=1.0), "with_params sets"),
+    (lambda: jr.clamped_rod(N=8, length=1.0, material=jr.Material(1.0, 1.0, 1.0)).with_params(contact_stiffness=1.0),
      "has no contact stiffness"),
 ])
 def test_concrete_bad_values_still_raise(build, message):
@@ -141,9 +141,9 @@ def test_concrete_bad_values_still_raise(build, message):
 
 def test_a_tracer_reaching_a_structural_parameter_is_named():
     with pytest.raises(ValueError, match="N must be a concrete value"):
-        jax.grad(lambda n: jr.michell_ring(n).energy(jnp.zeros(1), 0.0))(12.0)
+        jax.grad(lambda n: jr.michell_ring(N=n).energy(jnp.zeros(1), 0.0))(12.0)
     with pytest.raises(ValueError, match="Lk0 must be a concrete value"):
-        jax.grad(lambda k: jr.ring(8, jr.Material(1.0, 1.0, 1.0), Lk0=k).energy(jnp.zeros(32), 0.0))(1.0)
+        jax.grad(lambda k: jr.ring(N=8, material=jr.Material(1.0, 1.0, 1.0), Lk0=k).energy(jnp.zeros(32), 0.0))(1.0)
 
 
 def test_a_traced_array_is_not_a_parameter():

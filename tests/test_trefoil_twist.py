@@ -175,7 +175,7 @@ def test_follow_twist_locates_michell_like_critical_twist():
     # Without contact the planar ring stays on its (symmetric) saddle past phi*: the branch ends
     # by an eigenvalue crossing ('unstable'), located by bisection and the eigenvalue's Newton
     # extrapolation; it must agree with critical_twist (Newton on the eigenvalue) at the same N.
-    ring = jr.michell_ring(24, nu=0.5)
+    ring = jr.michell_ring(N=24, nu=0.5)
     analytic = jr.michell_critical_twist(0.5)
     path = jr.follow_twist(ring, 0.0, 1.5 * analytic,
                            jr.ContinuationOptions(step=analytic / 4, tol=1e-4 * PI, switch=False))
@@ -193,7 +193,7 @@ def test_follow_twist_locates_michell_like_critical_twist():
 def test_continuation_options_hold_the_contact_aware_defaults():
     from jaxrod.continuation import CONTACT_GTOL, CONTACT_NEGATIVE_TOL, Task
 
-    knot, ring = jr.trefoil(D=8.0, L=292.0, N=61), jr.michell_ring(24)
+    knot, ring = jr.trefoil(D=8.0, L=292.0, N=61), jr.michell_ring(N=24)
     o = jr.ContinuationOptions()
     k = o.resolved(knot, Task.FOLLOW_TWIST, 10.0)
     assert (k.negative_tol, k.gtol, k.jump_tol, k.step, k.tol) == (CONTACT_NEGATIVE_TOL, 1e-9, 4.0, 0.25 * PI, 2e-4 * PI)

@@ -37,27 +37,27 @@ def test_bad_stiffness(field, value):
 def test_bad_geometry_and_resolution():
     mat = Material(1.0, 1.0, 10.0)
     with pytest.raises(ValueError, match="^N "):
-        ring(3, mat)
+        ring(N=3, material=mat)
     with pytest.raises(ValueError, match="^N "):
-        michell_ring(2)
+        michell_ring(N=2)
     with pytest.raises(ValueError, match="^N "):
-        clamped_rod(4, 1.0, mat)
+        clamped_rod(N=4, length=1.0, material=mat)
     with pytest.raises(ValueError, match="^length "):
-        clamped_rod(10, -1.0, mat)
+        clamped_rod(N=10, length=-1.0, material=mat)
     with pytest.raises(ValueError, match="^length "):
-        clamped_rod(10, math.nan, mat)
+        clamped_rod(N=10, length=math.nan, material=mat)
     with pytest.raises(ValueError, match="^radius "):
-        ring(10, mat, radius=0.0)
+        ring(N=10, material=mat, radius=0.0)
     with pytest.raises(ValueError, match="^nu "):
-        michell_ring(16, nu=0.9)
+        michell_ring(N=16, nu=0.9)
     with pytest.raises(ValueError, match="points"):
-        closed_curve(np.full((10, 3), np.nan), mat)
+        closed_curve(np.full((10, 3), np.nan), material=mat)
     with pytest.raises(ValueError, match="^N "):
-        closed_curve(np.random.default_rng(0).normal(size=(3, 3)), mat)
+        closed_curve(np.random.default_rng(0).normal(size=(3, 3)), material=mat)
 
 
 def test_non_finite_twist():
-    scene = michell_ring(8)
+    scene = michell_ring(N=8)
     with pytest.raises(ValueError, match="^phi "):
         solve_equilibrium(scene, math.nan)
     with pytest.raises(ValueError, match="^phi "):

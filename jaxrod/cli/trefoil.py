@@ -248,6 +248,10 @@ def _accuracy(args, scene, options):
         for side, key in (("plus", "phi_plus"), ("minus", "phi_minus")):
             r = converged.convergence[side]
             ns = "/".join(str(lv.N) for lv in r.levels)
+            if r.extrapolation is None:  # fewer than two levels: no error estimate, maybe no end
+                found = "no end" if r.phi_star is None else f"{r.phi_star / math.pi:+.5f} pi, no error estimate"
+                print(f"{key:10s} = {found} (N = {ns or args.N}): NOT CONVERGED: {r.reason}")
+                continue
             print(f"{key:10s} = {r.phi_star / math.pi:+.5f} pi +- {r.error / math.pi:.1e} pi "
                   f"(N = {ns}, order {r.extrapolation.order:.2f}) " + ("" if r.reached else f"NOT CONVERGED: {r.reason}"))
         print(f"time {converged.seconds:.1f} s; data in {args.out}/")

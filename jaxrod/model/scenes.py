@@ -76,7 +76,7 @@ def _check_material(material):
 AMBIGUOUS_WRITHE = 0.4
 
 
-def closed_curve(points, material, N=None, length=None, Lk0=None, name="closed curve", contact_stiffness=None):
+def closed_curve(points, *, material, N=None, length=None, Lk0=None, name="closed curve", contact_stiffness=None):
     """A closed rod along the closed polyline ``points`` (M,3) (last point not repeating the first).
 
     The curve is resampled to N nodes equally spaced in arc length (default N = M) and scaled to
@@ -187,7 +187,7 @@ def check_knot_resolution(N, D, L, minimum):
 
 
 
-def trefoil(D, L, N, E=PAPER_YOUNG_MODULUS, nu=0.5, chirality="right", contact_stiffness=DEFAULT_CONTACT_STIFFNESS):
+def trefoil(*, N, D, L, E=PAPER_YOUNG_MODULUS, nu=0.5, chirality="right", contact_stiffness=DEFAULT_CONTACT_STIFFNESS):
     """A closed trefoil knot of rod diameter D and length L, N nodes, material (E, nu, D); E in
     MPa for lengths in mm (default 0.474, the seed paper's elastomer), energies then in N mm.
 
@@ -203,7 +203,7 @@ def trefoil(D, L, N, E=PAPER_YOUNG_MODULUS, nu=0.5, chirality="right", contact_s
 
 
 
-def knot(name, D, L, N, E=PAPER_YOUNG_MODULUS, nu=0.5, contact_stiffness=DEFAULT_CONTACT_STIFFNESS, Lk0=None):
+def knot(name, *, N, D, L, E=PAPER_YOUNG_MODULUS, nu=0.5, contact_stiffness=DEFAULT_CONTACT_STIFFNESS, Lk0=None):
     """A closed rod tied in the knot ``name`` ('3_1', '4_1', '5_1', '5_2'; see ``knot_points``)
     of diameter D and length L (mm) with N nodes, Young's modulus E (MPa) and Poisson ratio nu;
     energies in N mm. Refuses L/D below the knot's ideal ropelength
@@ -238,11 +238,12 @@ def _knot_scene(name, points, D, L, N, E, nu, contact_stiffness, title, Lk0=None
             f"L/D = {L / D:.2f} is within {100 * (NEARLY_TIGHT - 1):.0f}% of the ideal {KNOT_NAMES[name]}'s "
             f"{ideal}: the knot is nearly tight, and its equilibria depend on the contact stiffness", stacklevel=3)
     mat = Material.from_engineering(E, nu, D)
-    return closed_curve(points(max(4 * N, 400)), mat, N=N, length=L, name=title, contact_stiffness=contact_stiffness,
-                        Lk0=Lk0)
+    return closed_curve(points(max(4 * N, 400)), material=mat, N=N, length=L, name=title,
+                        contact_stiffness=contact_stiffness, Lk0=Lk0)
 
 
-def torus_knot(p, q, D, L, N, E=PAPER_YOUNG_MODULUS, nu=0.5, radii=(2.0, 1.0), contact_stiffness=DEFAULT_CONTACT_STIFFNESS):
+def torus_knot(p, q, *, N, D, L, E=PAPER_YOUNG_MODULUS, nu=0.5, radii=(2.0, 1.0),
+               contact_stiffness=DEFAULT_CONTACT_STIFFNESS):
     """The (p, q) torus knot ((R + r cos qt) cos pt, (R + r cos qt) sin pt, r sin qt), scaled to
     length L, as a closed rod of diameter D with N nodes. p and q must be coprime integers.
     D, L, E, nu and contact_stiffness may be jax tracers (see ``trefoil``); p, q, N and the radii
@@ -260,10 +261,11 @@ def torus_knot(p, q, D, L, N, E=PAPER_YOUNG_MODULUS, nu=0.5, radii=(2.0, 1.0), c
     t = TWO_PI * np.arange(max(4 * N, 400)) / max(4 * N, 400)
     pts = np.stack([(R + r * np.cos(q * t)) * np.cos(p * t), (R + r * np.cos(q * t)) * np.sin(p * t), r * np.sin(q * t)], axis=1)
     mat = Material.from_engineering(E, nu, D)
-    return closed_curve(pts, mat, N=N, length=L, name=f"T({p},{q}) torus knot", contact_stiffness=contact_stiffness)
+    return closed_curve(pts, material=mat, N=N, length=L, name=f"T({p},{q}) torus knot",
+                        contact_stiffness=contact_stiffness)
 
 
-def ring(N, material, radius=1.0, Lk0=0):
+def ring(*, N, material, radius=1.0, Lk0=0):
     """A planar circular ring of N nodes, rest length 2 pi radius; the initial polygon is the
     regular N-gon whose edges have the rest length. The radius and the material's parameters may
     be jax tracers; N and Lk0 set the scene's structure and must be concrete."""
@@ -280,7 +282,7 @@ def ring(N, material, radius=1.0, Lk0=0):
     return ClosedRod(material=material, rest_lengths=jnp.full(N, edge), q_init=jnp.asarray(q0), Lk0=float(Lk0), name="ring")
 
 
-def michell_ring(N, nu=0.5, slenderness=0.01, radius=1.0):
+def michell_ring(*, N, nu=0.5, slenderness=0.01, radius=1.0):
     """Michell's ring: B = 1, C = B/(1+nu), diameter D = slenderness * radius (EA = 16 B/D^2).
 
     Thin enough (D/R = 0.01) that extensibility shifts the threshold by ~1e-5 relative or less.
@@ -290,10 +292,10 @@ def michell_ring(N, nu=0.5, slenderness=0.01, radius=1.0):
     slenderness = check_positive("slenderness", slenderness)
     radius = check_positive("radius", radius)
     mat = Material.from_ratio(B=1.0, nu=nu, D=slenderness * radius)
-    return ring(N, mat, radius=radius)
+    return ring(N=N, material=mat, radius=radius)
 
 
-def clamped_rod(N, length, material, axis=(0.0, 0.0, 1.0)):
+def clamped_rod(*, N, length, material, axis=(0.0, 0.0, 1.0)):
     """Straight rod of N nodes along ``axis``, clamped at both ends.
 
     The clamped first and last edges are rigid; the material frame of an edge lives at its
@@ -323,7 +325,7 @@ def clamped_rod(N, length, material, axis=(0.0, 0.0, 1.0)):
     )
 
 
-def free_rod(N, length, material):
+def free_rod(*, N, length, material):
     """Straight free rod of N nodes along z. ``length`` and the material's parameters may be jax
     tracers; N must be concrete."""
     _check_material(material)

@@ -53,7 +53,7 @@ import numpy as np
 from ..validation import check_finite, check_int_at_least, check_positive
 
 __all__ = ["Extrapolation", "richardson", "Level", "SideConvergence", "converged_critical_twists", "refine_scene",
-           "THEORETICAL_ORDER", "unconverged_reason", "coarse_companion", "CoarseEstimates", "CoarseLevelTooSmall"]
+           "THEORETICAL_ORDER", "unconverged_reason", "coarse_companion", "coarse_level", "CoarseEstimates", "CoarseLevelTooSmall"]
 
 # The discrete elastic rod's energies are second-order accurate in the edge length (Michell's
 # ring: tests/test_michell.py measures 2.00).
@@ -216,15 +216,19 @@ class SideConvergence:
 
     @property
     def phi_star(self):
-        """The best estimate: the extrapolated value (the finest level's with one level)."""
-        return self.extrapolation.value if self.extrapolation is not None else self.levels[-1].phi_star
+        """The best estimate: the extrapolated value (the finest level's with one level); None
+        where no level found an end (``reason`` says why)."""
+        if self.extrapolation is not None:
+            return self.extrapolation.value
+        return self.levels[-1].phi_star if self.levels else None
 
     @property
     def error(self):
         return self.extrapolation.error if self.extrapolation is not None else math.inf
 
     def as_json(self):
-        return {"side": self.side, "phi_star": self.phi_star, "phi_star_over_pi": self.phi_star / math.pi,
+        phi = self.phi_star
+        return {"side": self.side, "phi_star": phi, "phi_star_over_pi": None if phi is None else phi / math.pi,
                 "error": self.error, "error_over_pi": self.error / math.pi, "accuracy": self.accuracy,
                 "reached": self.reached, "reason": self.reason,
                 "extrapolation": None if self.extrapolation is None else self.extrapolation.as_json(),
@@ -240,8 +244,8 @@ def refine_scene(scene, x, N):
     if not getattr(scene, "closed", False):
         raise ValueError(f"refine_scene: closed rods only (got a {type(scene).__name__})")
     contact = scene.contact_stiffness if scene.has_term("contact") else None
-    return closed_curve(np.asarray(x), scene.material, N=N, length=float(scene.length), Lk0=int(round(scene.Lk0)),
-                        name=scene.name, contact_stiffness=contact)
+    return closed_curve(np.asarray(x), material=scene.material, N=N, length=float(scene.length),
+                        Lk0=int(round(scene.Lk0)), name=scene.name, contact_stiffness=contact)
 
 
 def _level(scene, side, phi_start, start, span, step, tol, say, cancel):
@@ -260,7 +264,8 @@ def _level(scene, side, phi_start, start, span, step, tol, say, cancel):
                         start=start, observer=Observer(on_point=on_point))
     states = tuple((p.equilibrium.phi, np.asarray(p.equilibrium.q)) for p in path.points)
     if not path.instabilities:
-        return None, path.reason, states
+        reason = "no branch end before the twist range's end" if path.reason == "phi_stop" else path.reason
+        return None, f"{reason} ({sign * span / math.pi:+g} pi)", states
     inst = path.instabilities[0]
     if scene.has_term("contact"):
         # The stable-only engine counts eigenvalues inside the near-zero band kept for sliding
@@ -287,7 +292,8 @@ def _level_by_events(scene, side, path, phi_start, tol, say):
     on extended systems), from the last state of ``path`` with no shape mode negative inside the
     near-zero band. Used where the stable-only engine's band hid the end (its last 'stable' state
     already had such modes). Returns (Level or None, reason)."""
-    from ..continuation.arclength import ArclengthOptions, PseudoArclength, continuation
+    from ..continuation import ContinuationOptions
+    from ..continuation.arclength import PseudoArclength, continuation
     from ..continuation.arclength.rods import knot_problem
     from ..continuation.kinds import SHAPE_EVENTS
     from ..linalg.stability import CONTACT_NEGATIVE_TOL
@@ -302,8 +308,8 @@ def _level_by_events(scene, side, path, phi_start, tol, say):
         f"at {hidden_at / math.pi:+.5f} pi); locating it by pseudo-arclength from {e.phi / math.pi:+.5f} pi")
     sign = 1.0 if side == "plus" else -1.0
     lo, hi = sorted((e.phi, hidden_at + sign * 0.5 * math.pi))
-    opts = ArclengthOptions(ds=sign * 0.05, ds_min=1e-6, ds_max=0.25, p_min=lo, p_max=hi, max_steps=120,
-                               newton_tol=1e-10, eig_rtol=1e-13, n_eig=6, resolve_crossings=1e-4)
+    opts = ContinuationOptions(ds=sign * 0.05, ds_min=1e-6, ds_max=0.25, p_min=lo, p_max=hi, max_steps=120,
+                               newton_tol=1e-10, eig_rtol=1e-13, k=6, resolve_crossings=1e-4)
     rod = knot_problem(scene, np.asarray(e.q), e.phi)
     branch = continuation(rod.problem, PseudoArclength(), opts, throw=False)
     events = [ev for ev in branch.events if ev.kind in SHAPE_EVENTS and ev.morse_before == 0]
@@ -407,7 +413,7 @@ def resolution_levels(N_start, N_max):
 def converged_critical_twists(scene, accuracy, sides=("plus", "minus"), N_max=481, span=16 * math.pi,
                               step=0.5 * math.pi, progress=None, parallel=True, levels=None, out=None):
     """The first branch end on each side of the closed rod ``scene`` (the coarsest level, e.g.
-    ``trefoil(D, L, 61)``), refined in N until its extrapolated value's error estimate is below
+    ``trefoil(N=61, D=D, L=L)``), refined in N until its extrapolated value's error estimate is below
     ``accuracy`` (radians). Each level is followed from a state resampled from the previous one,
     its end bracketed to accuracy / 20. Returns {side: SideConvergence}. parallel: the sides in
     two threads (the compiled code is shared). N_max: the finest level allowed (the dense
@@ -518,6 +524,19 @@ class CoarseLevelTooSmall(ValueError):
     """The coarse level (N + 1) / 2 of an error estimate would be below the rod's resolution."""
 
 
+def coarse_level(scene):
+    """N_c = (N + 1) / 2, the coarse level of an error estimate for a rod of N nodes, or ``CoarseLevelTooSmall``
+    when N_c is below the rod's resolution (8 nodes; a knot: 24, and L/D: no edge longer than D)."""
+    N = int(scene.n_nodes)
+    N_c, need = (N + 1) // 2, 8
+    if scene.has_term("contact"):
+        need = max(24, math.ceil(float(scene.length) / float(scene.material.D) - 1e-9))
+    if N_c < need:
+        raise CoarseLevelTooSmall(f"no error estimate from N = {N_c}: the coarse level needs at least {need} nodes "
+                                  f"(N = {N} would have to be at least {2 * need - 1})")
+    return N_c
+
+
 class CoarseEstimates(dict):
     """{side: (Level, Extrapolation)} of ``coarse_companion``, and ``reasons``: {side: why there is
     no estimate} for each side asked for that has none."""
@@ -550,14 +569,7 @@ def coarse_companion(scene, out, critical, span=16 * math.pi, step=0.5 * math.pi
     from ..solve.equilibrium import relax_to_minimum
 
     say = progress or (lambda s: None)
-    N = int(scene.n_nodes)
-    N_c = (N + 1) // 2
-    need = 8
-    if scene.has_term("contact"):  # a knot: at least 24 nodes, and edges no longer than the diameter
-        need = max(24, math.ceil(float(scene.length) / float(scene.material.D) - 1e-9))
-    if N_c < need:
-        raise CoarseLevelTooSmall(f"no error estimate from N = {N_c}: the coarse level needs at least {need} nodes "
-                                  f"(the study's N = {N} would have to be at least {2 * need - 1})")
+    N, N_c = int(scene.n_nodes), coarse_level(scene)
     tol = critical.get("tol") if tol is None else tol
     found = CoarseEstimates()
     for side in sides:

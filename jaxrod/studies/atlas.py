@@ -90,7 +90,7 @@ class AtlasCase:
 def _scene(knot, D_over_L, N, settings):
     from ..model.scenes import knot as make_knot
 
-    return make_knot(knot, D_over_L, 1.0, N, nu=settings.nu, contact_stiffness=settings.contact_stiffness)
+    return make_knot(knot, D=D_over_L, L=1.0, N=N, nu=settings.nu, contact_stiffness=settings.contact_stiffness)
 
 
 def atlas_cases(knots, ratios, N, settings=None, sides=SIDES):

@@ -170,7 +170,7 @@ def first_instabilities(knot, N, ratio, options=None, *, progress=None):
     opts = options or CriticalCurveOptions()
     say = progress or (lambda line: None)
     t0 = time.perf_counter()
-    scene = make_knot(knot, ratio * LENGTH, LENGTH, N, nu=opts.nu, contact_stiffness=opts.contact_stiffness)
+    scene = make_knot(knot, D=ratio * LENGTH, L=LENGTH, N=N, nu=opts.nu, contact_stiffness=opts.contact_stiffness)
     phi_max = opts.span if "plus" in opts.sides else UNASKED_SPAN
     phi_min = -opts.span if "minus" in opts.sides else -UNASKED_SPAN
     study = twist_study(scene, phi_min, phi_max, ContinuationOptions(max_switches=0))
@@ -289,7 +289,7 @@ def _checked_inputs(knot, N, ratios, opts):
         raise ValueError(f"start_ratio = {start:g} must lie within the ratios ({r[0]:g} ... {r[-1]:g})")
     for ratio in r:
         try:
-            make_knot(knot, ratio * LENGTH, LENGTH, N, nu=opts.nu, contact_stiffness=opts.contact_stiffness)
+            make_knot(knot, D=ratio * LENGTH, L=LENGTH, N=N, nu=opts.nu, contact_stiffness=opts.contact_stiffness)
         except ValueError as exc:
             what = "N" if str(exc).startswith("N") else "ratios"
             raise ValueError(f"{what}: {knot} at D/L = {ratio:g}, N = {N}: {exc}") from None

@@ -92,7 +92,7 @@ def shortened_rod(N, length, material, shortening=0.0, axis=(0.0, 0.0, 1.0), con
     strands cross at short contacts with edges near D, as in a knot pulled tight)."""
     if contact_quadrature not in (1, 2, 3):
         raise ValueError(f"contact_quadrature must be 1, 2 or 3 Gauss points per segment, got {contact_quadrature!r}")
-    base = clamped_rod(N, length, material, axis=axis)
+    base = clamped_rod(N=N, length=length, material=material, axis=axis)
     length = float(length)
     s = check_finite("shortening", shortening)
     if not 0.0 <= s < length:

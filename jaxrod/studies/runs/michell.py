@@ -58,7 +58,7 @@ def michell_scene(options):
     """(scene, analytic phi* in rad) of the ring of ``options``."""
     from ...model.scenes import michell_critical_twist, michell_ring
 
-    return michell_ring(options.N, nu=options.nu, slenderness=options.slenderness), michell_critical_twist(options.nu)
+    return michell_ring(N=options.N, nu=options.nu, slenderness=options.slenderness), michell_critical_twist(options.nu)
 
 
 def run_michell(options, observer=None):

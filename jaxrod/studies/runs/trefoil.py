@@ -83,15 +83,16 @@ def study_scene(options):
 
     o = options
     if o.chirality is not None:
-        return trefoil(o.D, o.L, o.N, E=o.E, nu=o.nu, chirality=o.chirality, contact_stiffness=o.contact_stiffness)
+        return trefoil(N=o.N, D=o.D, L=o.L, E=o.E, nu=o.nu, chirality=o.chirality,
+                       contact_stiffness=o.contact_stiffness)
     if o.knot is not None:
-        return knot(o.knot, o.D, o.L, o.N, E=o.E, nu=o.nu, contact_stiffness=o.contact_stiffness, Lk0=o.lk0)
+        return knot(o.knot, N=o.N, D=o.D, L=o.L, E=o.E, nu=o.nu, contact_stiffness=o.contact_stiffness, Lk0=o.lk0)
     from ...measure.analysis import load_polyline
     from ...model.material import Material
 
     points = load_polyline(o.curve)
     try:
-        return closed_curve(points, Material.from_engineering(o.E, o.nu, o.D), N=o.N, length=o.L,
+        return closed_curve(points, material=Material.from_engineering(o.E, o.nu, o.D), N=o.N, length=o.L,
                             name=f"closed curve from {os.path.basename(o.curve)}",
                             contact_stiffness=o.contact_stiffness, Lk0=o.lk0)
     except ValueError as exc:
