@@ -274,7 +274,7 @@ def _no_estimate(side, N_c, reason):
 
 def _knot_errors(scene, study, out, found, span, options):
     """``found`` with each end's discretisation error: ``coarse_companion`` on the study in ``out``."""
-    from .studies.accuracy import coarse_companion, coarse_level
+    from .studies.coarse import coarse_companion, coarse_level
     from .studies.twist import study_options
 
     o = study_options(options)
@@ -290,7 +290,8 @@ def _ring_errors(scene, ends, phi_min, phi_max, options):
     """``ends`` with each end's discretisation error: the closed rod resampled to the coarse level
     (``refine_scene``), its crossing located again, and Richardson's two-level estimate."""
     from .continuation import NoCrossingError
-    from .studies.accuracy import coarse_level, refine_scene, richardson
+    from .studies.accuracy import refine_scene, richardson
+    from .studies.coarse import coarse_level
 
     N, N_c = int(scene.n_nodes), coarse_level(scene)
     coarse = refine_scene(scene, np.asarray(scene.q_init)[: 3 * N].reshape(N, 3), N_c)
@@ -307,7 +308,7 @@ def _ring_errors(scene, ends, phi_min, phi_max, options):
 
 def _check_estimable(scene):
     """Refuses, before any work, a scene whose discretisation error cannot be estimated."""
-    from .studies.accuracy import coarse_level
+    from .studies.coarse import coarse_level
 
     if not getattr(scene, "closed", False):
         raise ValueError(f"discretisation_error: estimated for closed rods (rings and knots), which are resampled "

@@ -164,7 +164,7 @@ def test_cli_accuracy_writes_its_files_and_resumes_from_the_finished_levels(tmp_
 def test_coarse_companion_of_a_study_brackets_the_converged_value(tmp_path):
     # What the CLI prints after a study: each end found again at (N + 1) / 2 from the study's own
     # state, and a rough extrapolation (order assumed, factor 3) that covers the converged value.
-    from jaxrod.studies.accuracy import coarse_companion
+    from jaxrod.studies.coarse import coarse_companion
     from jaxrod.studies.twist import twist_study
 
     from jaxrod.continuation import Observer

@@ -5,7 +5,7 @@ import math
 import pytest
 
 import jaxrod as jr
-from jaxrod.studies.accuracy import CoarseLevelTooSmall
+from jaxrod.studies.coarse import CoarseLevelTooSmall
 
 PI = math.pi
 FAST = jr.ContinuationOptions(step=0.5 * PI)  # the crossing is still located to tol: only the scan is coarser

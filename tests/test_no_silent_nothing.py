@@ -7,7 +7,7 @@ import pytest
 
 import jaxrod as jr
 from jaxrod.continuation import NoCrossingError
-from jaxrod.studies.accuracy import CoarseEstimates, CoarseLevelTooSmall, coarse_companion
+from jaxrod.studies.coarse import CoarseEstimates, CoarseLevelTooSmall, coarse_companion
 from jaxrod.studies.diagram import BranchEnd, EndNotFound
 
 PI = math.pi

@@ -8,10 +8,10 @@ from dataclasses import replace
 import numpy as np
 
 from ..kinds import SHAPE_EVENTS, SOFT_EVENTS
-from ..options import arclength_options
 from .corrector import advance, correct, tangent
 from .events import find_events
 from .results import Branch, ContinuationError, Point, Result, Slide
+from .scales import scaled_options
 
 
 def _point(problem, opts, c, t, ds, arclength):
@@ -38,19 +38,17 @@ def _point(problem, opts, c, t, ds, arclength):
 def continuation(problem, alg, opts, *, observer=None, start=None, throw=True, known=(), start_tol=None):
     """Follow the branch of F(u, p) = 0 through (problem.u0, problem.p0) by ``alg`` (PseudoArclength).
 
-    start: optional (u (n,), p, tangent (n+1,)): a predicted point and direction (a branch switch);
-    the first point is then corrected on the hyperplane through it orthogonal to the tangent,
-    otherwise on p = p0, and the path starts towards sign(opts.ds) in p.
-    start_tol: the first point is taken at a residual up to this where Newton stops above newton_tol.
-    observer(point) is called after each accepted point. Folds and branch points found between
-    consecutive points are located (``Branch.events``); known: events located before on the same
-    path (earlier chunks), which a locator landing on one does not take for a new event.
-    throw=True raises ContinuationError (with ``.branch``) when the corrector fails or an event is
-    not located to ``opts.event_tol``;
-    throw=False returns the branch with ``result`` and ``message`` saying so.
-    opts: a ``ContinuationOptions`` (None: the defaults), resolved for pseudo-arclength.
+    start: optional (u (n,), p, tangent (n+1,)): a predicted point and direction (a branch switch); the first point
+    is then corrected on the hyperplane through it orthogonal to the tangent, otherwise on p = p0, and the path
+    starts towards sign(opts.ds) in p. start_tol: the first point is taken at a residual up to this where Newton
+    stops above newton_tol. observer(point) is called after each accepted point. Folds and branch points found
+    between consecutive points are located (``Branch.events``); known: events located before on the same path
+    (earlier chunks), which a locator landing on one does not take for a new event. throw=True raises
+    ContinuationError (``.branch``) when the corrector fails or an event is not located to ``opts.event_tol``;
+    throw=False returns the branch with ``result`` and ``message`` saying so. opts: a ``ContinuationOptions`` (None:
+    the defaults); newton_tol, event_tol and eig_rtol left None follow from the problem's scale (``scales``).
     """
-    opts = arclength_options(opts)
+    opts = scaled_options(problem, opts, *_start_state(problem, start))
     be = problem.backend
 
     def lin(u, p):
@@ -127,7 +125,7 @@ def continuation_until(problem, alg, opts, stop, *, start=None, observer=None, s
     whole path. start, start_tol: as for ``continuation`` (start_tol: the first chunk's first
     point only). Returns a Branch: ``result`` is Result.STOPPED with
     stop's message, or the last chunk's result and message. Never raises for a failed chunk."""
-    opts = arclength_options(opts)
+    opts = scaled_options(problem, opts, *_start_state(problem, start))
     points, events, slides = [], [], []
     while True:
         br = continuation(problem, alg, opts, start=start, throw=False, observer=observer, known=events,
@@ -221,6 +219,11 @@ def _slide(problem, opts, fold, direction, step):
     slide = Slide(fold, float(p1), c.z[:-1].copy(), float(np.linalg.norm(c.z[:-1] - u0)), e_fold - e_new,
                   sol.iterations, step)
     return slide, c
+
+
+def _start_state(problem, start):
+    """(u, p) where a run starts: the predicted point ``start`` gives, else the problem's own."""
+    return (problem.u0, problem.p0) if start is None else (start[0], start[1])
 
 
 def _accepted_start(c, start_tol):

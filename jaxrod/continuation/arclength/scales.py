@@ -19,11 +19,11 @@ so that a well-scaled problem (||J|| x below ~1e4, ||J|| <= 1) keeps the fixed v
 a stiff one gets tolerances above its floor. The floor estimate is an upper bound of the measured
 one: the stretching force of an edge carries a roundoff of ~eps EA |x_i| (coordinates of size
 |x_i|), summed over n rows, which eps ||J|| |u|_2 bounds. Measured on Michell's pinned ring (Newton
-with p fixed, 19 iterations past convergence, the circle at phi = 0, phi*/2 and 0.99 phi*, and along
+with p fixed, 12 to 19 iterations past convergence, the circle at phi = 0, phi*/2 and 0.99 phi*, and along
 the buckled branch to self-contact): the largest residual over the estimate is 0.17 (N = 16), 0.13
 (N = 32), 0.13 (N = 64), the same at D/R = 0.01, 0.005 and 0.0025 (the floor itself scales with
 1/D^2: 1.1e-11, 4.6e-11, 1.9e-10 at N = 64); the residual of the located double branch point is at
-most 0.20 of it (N = 16, 24, 32, 64 at D/R = 0.0025). Hence NEWTON_FLOOR_FACTOR = 0.5 (3x the
+most 0.20 of it (N = 16, 24, 32, 48, 64 at D/R = 0.0025). Hence NEWTON_FLOOR_FACTOR = 0.5 (3x the
 largest measured floor: 5.5e-11 at N = 64, D/R = 0.01) and
 EVENT_FLOOR_FACTOR = 4 (20x the located residual).
 

@@ -26,8 +26,8 @@ import jax.numpy as jnp
 import numpy as np
 from scipy.optimize import brentq
 
-from ..options import arclength_options
 from .continuation import continuation
+from .scales import scaled_options
 
 
 @dataclass
@@ -170,7 +170,7 @@ def switch_branches(problem, event, alg, opts, *, amplitude=None, directions=Non
     Each starts from the reduced-equation predictor at |r| = amplitude (default |opts.ds|), moving
     away from the branch point; ``branch.origin`` holds the Emanating direction and the sign.
     """
-    opts = arclength_options(opts)
+    opts = scaled_options(problem, opts, event.u, event.p)
     dirs = emanating_directions(problem, event) if directions is None else directions
     r0 = abs(opts.ds) if amplitude is None else float(amplitude)
     branches = []

@@ -17,10 +17,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..options import arclength_options
 from .corrector import advance, correct, tangent
 from .locate import _fold_newton
 from .results import ContinuationError, Event, Result
+from .scales import scaled_options
 
 
 @dataclass
@@ -126,7 +126,7 @@ def fold_at(problem, fold, set_mu, mu0, mu, opts, *, predict=True):
     far off; from the prediction the residual is O((mu - mu0)^2). set_mu(args, mu) -> args,
     traceable, with problem.args at mu0. Returns a FoldPoint with dp*/dmu at mu.
     """
-    opts = arclength_options(opts)
+    opts = scaled_options(problem, opts, fold.u, fold.p)
     v = np.asarray(fold.v[:, 0] if isinstance(fold, Event) else fold.v)
     v = v / np.linalg.norm(v)
     blocks = _fold_blocks(problem, set_mu)
@@ -167,7 +167,7 @@ def fold_curve(problem, fold, set_mu, mu0, alg, opts, *, throw=True, observer=No
     after each point (progress). opts.report_at: values of mu at which the curve also gives a
     point exactly (corrected on the hyperplane mu = value from the chord of the step that crosses it).
     """
-    opts = arclength_options(opts)
+    opts = scaled_options(problem, opts, fold.u, fold.p)
     be, n = problem.backend, problem.n
     base = [problem.args]
     blocks = _fold_blocks(problem, set_mu, base)
@@ -225,7 +225,7 @@ def branch_point_curve(problem, event, set_mu, mu0, alg, opts, *, throw=True, ob
     function theorem (one solve with the system's Jacobian). Returns a FoldCurve (v: the unit
     kernel vector w; beta, ~roundoff on the curve, is not kept). Arguments as ``fold_curve``.
     """
-    opts = arclength_options(opts)
+    opts = scaled_options(problem, opts, event.u, event.p)
     be, n = problem.backend, problem.n
     base = [problem.args]
     v0 = np.asarray(event.v[:, 0]) / np.linalg.norm(event.v[:, 0])

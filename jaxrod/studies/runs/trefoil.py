@@ -2,7 +2,7 @@
 at zero twist and followed to both ends of the twist range (``twist_study``), each branch end
 located exactly and its unstable branch followed (``jaxrod.studies.diagram``) while the study goes
 on, each side's first end found again at N' = (N+1)/2 for an error estimate
-(``accuracy.coarse_companion``), then summary.json, the figures and, if asked, VTK files.
+(``coarse.coarse_companion``), then summary.json, the figures and, if asked, VTK files.
 
     from jaxrod.studies.runs import KnotStudyOptions, run_knot_study, study_scene
     options = KnotStudyOptions(D=8.0, L=292.0, N=121, out="results/trefoil")
@@ -172,7 +172,7 @@ class _KnotStudy:
 
     def _estimate_job(self, side, entry):
         """The N' = (N+1)/2 error estimate of one side's first end (``coarse_companion``)."""
-        from ..accuracy import CoarseLevelTooSmall, coarse_companion
+        from ..coarse import CoarseLevelTooSmall, coarse_companion
 
         def job(cancel):
             t_side = time.perf_counter()
