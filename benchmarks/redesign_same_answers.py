@@ -20,7 +20,7 @@ two print or write:
 - ``critical_curve``: ``jaxrod critical-curve --ratios 0.018:0.032:0.002 --N 61 --json`` (the README's
   example): every number of every row, to 1e-8.
 - ``michell``: ``jaxrod michell --N 1024 --json``: phi_star (rad) to 1e-12, every other number to 1e-8.
-- ``michell_api``: ``critical_twist(michell_ring(1024, nu=0.5), 0, 2 phi_a, ContinuationOptions(step=
+- ``michell_api``: ``critical_twist(michell_ring(N=1024, nu=0.5), 0, 2 phi_a, ContinuationOptions(step=
   phi_a/8, tol=1e-6 pi))``, the call behind the acceptance's phi* = 16.324629844619217 rad: phi_star
   against each other and against that value, to 1e-12.
 
@@ -55,7 +55,7 @@ REPO = os.path.dirname(HERE)
 BASELINE = "7b060a4"  # the last commit before "Move modules into layers"
 LAUNCH = "import sys; from jaxrod.cli import console_main; sys.argv = ['jaxrod'] + sys.argv[1:]; console_main()"
 IGNORED_KEYS = {"seconds", "out"}  # wall times and the run's own --out folder differ from run to run
-# The reference of the acceptance: michell_ring(1024, nu=0.5) through the library's critical_twist with
+# The reference of the acceptance: michell_ring(N=1024, nu=0.5) through the library's critical_twist with
 # ContinuationOptions(step=phi_a/8, tol=1e-6 pi) (BENCHMARKS.md; the command line's own scan, with its
 # --tol, lands elsewhere within its tolerance).
 MICHELL_API = """
@@ -67,7 +67,7 @@ except ImportError:  # the baseline's layout
     from jaxrod.scenes import michell_ring
 N = int(sys.argv[1])
 phi_a = 2 * math.pi * math.sqrt(3) * 1.5
-point = critical_twist(michell_ring(N, nu=0.5), 0.0, 2 * phi_a,
+point = critical_twist(michell_ring(N=N, nu=0.5), 0.0, 2 * phi_a,
                        ContinuationOptions(step=phi_a / 8, tol=1e-6 * math.pi))
 print(json.dumps({"N": N, "phi_star": point.phi, "phi_error": point.phi_error}))
 """
@@ -286,7 +286,7 @@ def case_line(name, result):
                      for h in heads) or "see below"
     only, key = f"{len(c['only_old'])} / {len(c['only_new'])}", c["max_diff_key"]
     tol = f"{CASES[name]['tol']:.0e}" + (f" ({CASES[name]['unit']})" if "unit" in CASES[name] else "")
-    command = ("`critical_twist(michell_ring(N, nu=0.5), 0, 2 phi_a, ContinuationOptions(step=phi_a/8, "
+    command = ("`critical_twist(michell_ring(N=N, nu=0.5), 0, 2 phi_a, ContinuationOptions(step=phi_a/8, "
                f"tol=1e-6 pi))`, N = {result['args'][0]}" if "code" in CASES[name] else f"`{' '.join(result['args'])}`")
     return (f"| {name} | {command} | {c['compared']}, tol {tol} | {c['max_abs_diff']:.1e} "
             f"({f'`{key}`' if key else 'all equal'}) | {head} | only old / new: {only} | "
