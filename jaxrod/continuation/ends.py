@@ -71,7 +71,7 @@ def eigenvalue_past_zero(critical_modes, e, scene=None, band=None):
     None), or None: e is then past the zero of the critical eigenvalue, though the stability test
     (lambda < -negative_tol) passed it. The near-zero band is there for the sliding modes of a
     loose knot (|lambda| ~ 1e-7, changing sign from step to step); the mode that made the branch
-    unstable is not one of them, and where it crosses zero is where the branch ends (issue 16:
+    unstable is not one of them, and where it crosses zero is where the branch ends (e.g.
     a critical eigenvalue of slope -1.2e-5 per rad passes -1e-6 only 0.085 rad after zero).
     With ``scene`` (a knot with contact) and ``band`` (the near-zero band's width) the slide is
     split off e's eigenpairs first (``stability.without_slide``): critical modes captured where the
@@ -172,7 +172,7 @@ def branch_end_in_bracket(phi_stable, phi_lost, lam, dlam, direction):
     lands short, inside), otherwise the bracket's midpoint. The end lies in the bracket, so the
     error bound is the distance from phi* to the bracket's far end (half the bracket at the
     midpoint). (An extrapolation behind the stable end, from a critical eigenvalue already
-    negative there, used to be taken up to 0.1 pi back: issue 16, phi* 0.085 rad before a bracket
+    negative there, used to be taken up to 0.1 pi back: phi* came 0.085 rad before a bracket
     of 4e-4 rad. The end locator now keeps such states out of the stable end: ``eigenvalue_past_zero``.)"""
     a, b = sorted((phi_stable, phi_lost))
     mid = 0.5 * (a + b)

@@ -160,7 +160,7 @@ def shape_modes_in_band(scene, e, negative_tol, strict_tol=None):
     """[(eigenvalue, sliding fraction)] of the equilibrium e's computed modes whose eigenvalue lies
     in the near-zero band [-negative_tol, -strict_tol) kept for the sliding modes of loose knots,
     but which do not slide (``sliding_fraction`` above SLIDING_FRACTION): negative eigenvalues of
-    shape-changing modes that the band counts as zero (issue 17: at N = 481 a pair crossing zero
+    shape-changing modes that the band counts as zero (on the trefoil at N = 481 a pair crossing zero
     at -11.09 pi stayed inside the band down to -12.18 pi). Empty without a band. strict_tol:
     default ``tolerances.scaled_negative_tol(scene)``, 1e-10 up to N ~ 600 and falling as N^-4
     beyond, with the shape modes themselves (the trefoil's sit at ~3e-9 at N = 961, where a fixed

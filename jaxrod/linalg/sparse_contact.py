@@ -1,4 +1,4 @@
-"""O(N) linear algebra for rods WITH self-contact (issue 18): a sparse LDL^T (QDLDL) and its inertia.
+"""O(N) linear algebra for rods WITH self-contact: a sparse LDL^T (QDLDL) and its inertia.
 
 The scaled Hessian of a knot is H = S + w a a^T: S sparse (the local part, ~20 entries per row,
 plus one 12 x 12 block per contact pair in reach, ``jaxrod.model.hessian``) and the holonomy's dense

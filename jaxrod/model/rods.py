@@ -499,10 +499,7 @@ class ClampedRod(Scene):
         Parallel transport along the rod (the tantrix starts and ends on the clamp axis, so it is
         closed) turns the first director by alpha = -holonomy about the axis; the clamp asks for
         d1 = R(phi) d_start = R(theta_end + alpha) d_start, so theta_end = phi + holonomy, lifted
-        to the branch 2 pi (Lk0 - Wr(x)): then Tw = Lk0 + phi / 2 pi - Wr exactly. (Before issue 19
-        the sign of the holonomy was the other one: a buckled rod then met its far clamp turned by
-        phi - 4 pi Wr and reported Lk = Lk0 + phi / 2 pi + 2 Wr; straight rods, with Wr = 0, and
-        the onset of buckling, symmetric in the sign of phi, did not show it.)"""
+        to the branch 2 pi (Lk0 - Wr(x)): then Tw = Lk0 + phi / 2 pi - Wr exactly."""
         raw = tantrix_holonomy(unit(edges(x, False)))
         return _lift(raw, TWO_PI * (self.Lk0 - self._writhe_for_lift(x, nbr)))
 

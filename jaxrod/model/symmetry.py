@@ -14,7 +14,7 @@ keeps its holonomy, since the writhe is unchanged by a rotation and by reversing
 Why a continuation needs it: a loose knot's sliding modes (material slipping along the centreline)
 are nearly null (1e-11 to 1e-7 in scaled units), so a minimiser stopped at its gradient tolerance
 leaves the material anywhere along a slide of the discretisation's tiny landscape, and a path
-drifts from one symmetric placement of the nodes to another (issue 17: at N = 121 the trefoil's
+drifts from one symmetric placement of the nodes to another (at N = 121 the trefoil's
 tightening end came out 7.0e-4 pi apart at two steps, one path in each placement). A slide is odd
 under the symmetry, so the projection onto the symmetric states removes it, and the symmetric
 branch is then one well-defined branch whatever the step. Every instability is still seen: the
