@@ -266,7 +266,7 @@ def test_trefoil_accuracy_json_has_the_studys_keys(monkeypatch, tmp_path, capsys
         states = ((phi_start, q), (0.5 * (phi_start + phi), q))
         return conv.Level(N, phi, tol, "jump", phi_start, 0.01, states), "", states
 
-    monkeypatch.setattr(conv, "_level", known_level)
+    monkeypatch.setattr(conv, "level_of_side", known_level)
     monkeypatch.setattr(equilibrium, "relax_to_minimum", lambda scene, phi, q0=None: None)
     assert cli.main(["trefoil", "--accuracy", "0.01pi", "--N-max", "481", "--no-figures", "--serial", "--json",
                      "--quiet", "--out", str(tmp_path / "acc")]) == 0

@@ -137,7 +137,7 @@ def test_cli_accuracy_writes_its_files_and_resumes_from_the_finished_levels(tmp_
         states = ((phi_start, q), (0.5 * (phi_start + phi), q))
         return conv.Level(N, phi, tol, "jump", phi_start, 0.01, states), "", states
 
-    monkeypatch.setattr(conv, "_level", fake_level)
+    monkeypatch.setattr(conv, "level_of_side", fake_level)
     monkeypatch.setattr(equilibrium, "relax_to_minimum", lambda scene, phi, q0=None: None)
     out = tmp_path / "acc"
     args = ["trefoil", "--accuracy", "0.01pi", "--N-max", "481", "--out", str(out), "--quiet"]
