@@ -47,11 +47,25 @@ FAR_START = math.pi
 class SolveOptions:
     """What ``equilibrium`` returns and how it solves.
 
-    minimum: True (default) returns a minimum: a state that converges to a saddle (along a sliding
-    or a shape mode) is pushed along its negative mode and relaxed again, as ``relax_to_minimum``
-    does; False returns the stationary state the solver converged to, whatever its stability.
-    relax: the solver's ``RelaxOptions`` (tolerance, budgets, linear algebra; None: defaults).
-    far_start: warn when |phi - start twist| exceeds this (rad; default pi)."""
+    Parameters
+    ----------
+    minimum : bool, optional
+        True (default) returns a minimum: a state that converges to a saddle (along a sliding or
+        a shape mode) is pushed along its negative mode and relaxed again, as
+        ``relax_to_minimum`` does; False returns the stationary state the solver converged to,
+        whatever its stability.
+    relax : RelaxOptions or None, optional
+        The solver's tolerance, budgets and linear algebra (None: the defaults).
+    far_start : float, optional
+        Warn when |phi - start twist| exceeds this (rad; default pi).
+
+    Raises
+    ------
+    TypeError
+        ``minimum`` not a bool, or ``relax`` not a ``RelaxOptions``.
+    ValueError
+        ``far_start`` not a positive number.
+    """
 
     minimum: bool = True
     relax: RelaxOptions | None = None
@@ -122,10 +136,35 @@ def _report(scene, q, modes):
 
 
 def stability(scene, state, phi=None, k=8):
-    """The ``StabilityReport`` of a state of ``scene``: ``state`` an ``Equilibrium`` (its twist
-    used) or q (n,) physical DOFs at the twist ``phi`` (rad). k: eigenpairs computed (at least
-    8; more where more are negative). The Morse index counts the negative shape modes; zero modes
-    and sliding modes are counted apart (see ``StabilityReport``)."""
+    """The stability of a state of ``scene`` under the one rule every public function uses.
+
+    The Morse index counts the negative modes that change the shape; the zero modes (rigid
+    motions) and the sliding modes (strands slipping along the centreline, |lambda| within the
+    near-zero band) are counted apart.
+
+    Parameters
+    ----------
+    scene : ClosedRod or ClampedRod
+        The rod.
+    state : Equilibrium or array_like of shape (n_dof,)
+        An equilibrium (its twist and contact neighbourhood used), or physical DOFs q.
+    phi : float, optional
+        Imposed twist (rad); required with a bare q, overrides an equilibrium's twist.
+    k : int, optional
+        Eigenpairs computed (at least 8; more where more are negative).
+
+    Returns
+    -------
+    StabilityReport
+        The lowest eigenvalues (k,) of the scaled Hessian (units of B/l, l the edge length; zero
+        modes removed), eigenvectors (n_dof, k), ``morse_index``, ``n_sliding``,
+        ``n_zero_modes``, ``band`` and ``minimum``.
+
+    Raises
+    ------
+    ValueError
+        A bare q without ``phi``.
+    """
     if isinstance(state, Equilibrium):
         q, phi = np.asarray(state.q), float(state.phi if phi is None else phi)
         nbr = state.neighbourhood
@@ -157,16 +196,43 @@ def _start(scene, phi, start, far):
 
 
 def equilibrium(scene, phi=0.0, start=None, options=None):
-    """An equilibrium of ``scene`` at the imposed twist phi (rad), from ``start``: None (the
-    scene's initial shape, at zero twist), an ``Equilibrium`` (e.g. the state at another twist) or
-    q (n,) physical DOFs. options: ``SolveOptions`` (default: a minimum).
+    """An equilibrium of ``scene`` at an imposed twist, relaxed from ``start``.
 
-    Returns an ``Equilibrium`` whose ``stability`` is a ``StabilityReport``: with the default
-    options a minimum (a state that converged to a saddle is pushed off it along its negative
-    mode and relaxed again); with ``SolveOptions(minimum=False)`` the stationary state the solver
-    reached, whose report names the mode that makes it a saddle (``saddle_mode``, ``saddle_kind``).
-    Warns when phi is more than ``options.far_start`` from the start's twist. Raises
-    ``ConvergenceError`` when no minimum is found near the converged state."""
+    With the default options the result is a minimum: a state that converged to a saddle is
+    pushed off it along its negative mode and relaxed again. Warns (UserWarning) when phi is
+    more than ``options.far_start`` from the start's twist (the solve may land on another branch).
+
+    Parameters
+    ----------
+    scene : ClosedRod or ClampedRod
+        The rod.
+    phi : float, optional
+        Imposed twist (rad; default 0).
+    start : None, Equilibrium or array_like of shape (n_dof,), optional
+        None: the scene's initial shape, at zero twist; an ``Equilibrium`` (e.g. the state at
+        another twist); or physical DOFs q.
+    options : SolveOptions, optional
+        What to return and how to solve (default: a minimum).
+
+    Returns
+    -------
+    Equilibrium
+        q (n_dof,), phi (rad), energy (units of the material: N mm for knots built in mm and
+        MPa), Wr, Tw, Lk, and ``stability`` a ``StabilityReport``; with
+        ``SolveOptions(minimum=False)`` the report names the mode that makes a saddle
+        (``saddle_mode``, ``saddle_kind``).
+
+    Raises
+    ------
+    TypeError
+        ``options`` is not a ``SolveOptions``.
+    ValueError
+        ``start`` of the wrong shape or not finite.
+    ConvergenceError
+        The solver did not converge, or no minimum was found near the converged state.
+    TopologyChangeError
+        The rod passed through itself during the relaxation (a knot's type changed).
+    """
     opts = SolveOptions() if options is None else options
     if not isinstance(opts, SolveOptions):
         raise TypeError(f"options must be a SolveOptions, got {opts!r}")
@@ -318,24 +384,47 @@ def _check_estimable(scene):
 
 def critical_twists(scene, phi_min=-8.0 * math.pi, phi_max=8.0 * math.pi, options=None, *,
                     discretisation_error=False):
-    """The critical twists of ``scene`` on both sides of phi = 0 within [phi_min, phi_max] (rad):
-    the first twist, going up and going down from the relaxed state at phi = 0, where the stable
-    branch ends. options: a ``ContinuationOptions`` (None: each engine's defaults).
+    """The critical twists of ``scene`` on both sides of phi = 0: the first twist, going up and
+    going down from the relaxed state at phi = 0, where the stable branch ends.
 
-    Rings and clamped rods: the crossing eigenvalue located by ``critical_twist``. Knots: the twist
-    study's branch ends (``twist_study``), each located on the extended system as a fold or branch
-    point (``unstable_branches``). Returns a ``CriticalTwists``; raises ``NoCrossingError`` (rings)
-    or RuntimeError (knots) naming the side where no end is found in the range.
+    Rings and clamped rods: the crossing eigenvalue located by ``critical_twist``. Knots: the
+    twist study's branch ends (``twist_study``), each located on the extended system as a fold
+    or branch point (``unstable_branches``).
 
-    discretisation_error: True also estimates each end's |phi* - phi*(N -> inf)| (rad, in
-    ``CriticalEnd.discretisation_error``): the end is found again on the rod resampled to
-    N_c = (N + 1) / 2 nodes, and the two levels give Richardson's estimate with the order 2 assumed
-    and Roache's factor 3, plus the two locations' own errors (``jaxrod.studies.accuracy``; a knot:
-    ``coarse_companion`` on its twist study). Closed rods only (rings and knots), else ValueError.
-    Where no estimate can be made it raises, never answers None: ``CoarseLevelTooSmall`` (a
-    ValueError), before any work, when N_c is below the rod's resolution (8 nodes; a knot 24 and
-    L/D: the trefoil of D = 8, L = 292 needs N >= 73); RuntimeError naming the reason when the
-    coarse level finds no end."""
+    Parameters
+    ----------
+    scene : ClosedRod or ClampedRod
+        The rod.
+    phi_min, phi_max : float, optional
+        The range searched (rad; default -8 pi and 8 pi); phi_min < 0 < phi_max.
+    options : ContinuationOptions, optional
+        Step, tolerances and linear algebra (None: each engine's defaults).
+    discretisation_error : bool, optional
+        Also estimate each end's |phi* - phi*(N -> inf)| (rad, in
+        ``CriticalEnd.discretisation_error``): the end is found again on the rod resampled to
+        N_c = (N + 1) / 2 nodes, and the two levels give Richardson's estimate (order 2 assumed,
+        Roache's factor 3) plus the two locations' own errors. Closed rods only.
+
+    Returns
+    -------
+    CriticalTwists
+        ``plus`` and ``minus``, each a ``CriticalEnd``: phi (rad), kind (``EventKind``),
+        bracket (rad), phi_error (rad), q (n_dof,) and mode (n_dof,).
+
+    Raises
+    ------
+    ValueError
+        phi_min < 0 < phi_max does not hold; ``discretisation_error`` on an open rod; or
+        ``CoarseLevelTooSmall`` (a ValueError, before any work) when N_c is below the rod's
+        resolution (8 nodes; a knot 24 and L/D).
+    TypeError
+        ``discretisation_error`` is not a bool.
+    NoCrossingError
+        A ring or clamped rod whose stability does not change in the range (names the side).
+    RuntimeError
+        A knot with no located end on a side in the range, or a coarse level that finds no end
+        (the message names the side and the reason).
+    """
     import time
 
     t0 = time.perf_counter()
@@ -387,12 +476,34 @@ def parameter_value(scene, parameter):
 
 
 def critical_twist_sensitivity(scene, end, parameter):
-    """d phi* / d parameter (rad per unit of the parameter) at a critical twist ``end`` (a
-    ``CriticalEnd`` of ``critical_twists(scene)``): parameter one of 'B', 'C', 'EA', 'D', 'nu',
-    'contact_stiffness' (changed as ``scene.with_params`` changes it: nu sets C = B/(1+nu), D is
-    the contact diameter only). Rings and clamped rods: the implicit function theorem on the
-    crossing eigenvalue (``critical_twist_derivative``); knots: on the fold system at the located
-    fold (``fold_sensitivity``)."""
+    """The derivative d phi* / d parameter of a critical twist.
+
+    Rings and clamped rods: the implicit function theorem on the crossing eigenvalue
+    (``critical_twist_derivative``); knots: on the fold system at the located fold
+    (``fold_sensitivity``).
+
+    Parameters
+    ----------
+    scene : ClosedRod or ClampedRod
+        The rod the end was located on.
+    end : CriticalEnd
+        An end of ``critical_twists(scene)``.
+    parameter : str
+        'B', 'C', 'EA', 'D', 'nu' or 'contact_stiffness', changed as ``scene.with_params``
+        changes it (nu sets C = B/(1+nu); D is the contact diameter only).
+
+    Returns
+    -------
+    float
+        d phi* / d parameter, in rad per unit of the parameter (e.g. rad/mm for D).
+
+    Raises
+    ------
+    TypeError
+        ``end`` is not a ``CriticalEnd``.
+    ValueError
+        An unknown parameter, or a knot's end that is not a fold.
+    """
     if not isinstance(end, CriticalEnd):
         raise TypeError(f"end must be a CriticalEnd (from critical_twists), got {type(end).__name__}")
     if _is_knot(scene):

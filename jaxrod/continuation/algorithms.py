@@ -15,22 +15,39 @@ class StableOnly:
     """Natural continuation in phi kept to stable states: each step is predicted along the
     branch's tangent and corrected by minimisation, so the path never leaves the stable branch;
     where it ends (a fold or branch point) the end is located to ``ContinuationOptions.tol`` and,
-    with ``switch``, the path goes on from the stable buckled branch. Its settings are the
-    stable-only fields of ``ContinuationOptions``."""
+    with ``switch``, the path goes on from the stable buckled branch.
+
+    It takes no parameters: its settings are the stable-only fields of ``ContinuationOptions``
+    (step, tol, negative_tol, jump_tol, switch, ...).
+    """
 
 
 @dataclass(frozen=True)
 class PseudoArclength:
     """Keller's pseudo-arclength: tangent predictor, Newton on the bordered (n+1) corrector.
 
-    min_cos: a step whose tangent turns by more than acos(min_cos) is refused and retried smaller
-    (it may have jumped to another branch), and so is one whose corrector moved the point by
-    more than ``max_correction`` * ds from the predictor. Measured on the trefoil at N = 121, whose
-    opening fold sits next to a nearly degenerate pair of modes: without that test, paths with
-    ds_max = 0.25 and 1 landed on a nearby branch there (tangents still within min_cos) and found
-    another fold; with it, ds_max = 0.25, 0.4 and 1 from two starts give the same fold to 1e-14 pi,
-    the accepted steps next to it corrected by at most 0.18 ds. The step grows by ``grow`` after a corrector that
-    needed at most ``fast_iterations`` iterations, shrinks by ``shrink`` on failure.
+    The step settings (ds, ds_min, ds_max, tolerances, event detection) are the pseudo-arclength
+    fields of ``ContinuationOptions``.
+
+    Parameters
+    ----------
+    min_cos : float, optional
+        A step whose tangent turns by more than acos(min_cos) is refused and retried smaller (it
+        may have jumped to another branch; default 0.9).
+    max_correction : float, optional
+        So is a step whose corrector moved the point by more than max_correction * ds from the
+        predictor (default 0.2). Measured on the trefoil at N = 121, whose opening fold sits next
+        to a nearly degenerate pair of modes: without that test, paths with ds_max = 0.25 and 1
+        landed on a nearby branch there (tangents still within min_cos) and found another fold;
+        with it, ds_max = 0.25, 0.4 and 1 from two starts give the same fold to 1e-14 pi, the
+        accepted steps next to it corrected by at most 0.18 ds.
+    grow : float, optional
+        The step grows by this factor after a corrector that needed at most ``fast_iterations``
+        iterations (default 1.5).
+    shrink : float, optional
+        The step shrinks by this factor on failure (default 0.5).
+    fast_iterations : int, optional
+        See ``grow`` (default 3).
     """
 
     min_cos: float = 0.9

@@ -22,9 +22,21 @@ from .options import Observer, observed
 
 @dataclass(frozen=True)
 class TwistProblem:
-    """A rod scene twisted from ``phi_start`` towards ``phi_stop`` (rad), from ``start``: an
-    ``Equilibrium`` used as is, an initial guess of the DOFs (n_dof,) at phi_start, or None (the
-    scene's ``q_init``, relaxed first)."""
+    """A rod scene twisted from ``phi_start`` towards ``phi_stop``: the problem ``StableOnly``
+    continues.
+
+    Parameters
+    ----------
+    scene : ClosedRod or ClampedRod
+        The rod.
+    phi_start : float, optional
+        Twist of the first state (rad; default 0).
+    phi_stop : float, optional
+        Twist to reach (rad; default 8 pi).
+    start : Equilibrium or array_like of shape (n_dof,), optional
+        An ``Equilibrium`` used as is, an initial guess of the DOFs at phi_start, or None (the
+        scene's ``q_init``, relaxed first).
+    """
 
     scene: object
     phi_start: float = 0.0
@@ -35,21 +47,38 @@ class TwistProblem:
 def continuation(problem, algorithm, options=None, *, observer=None, **keywords):
     """Follow a branch of equilibria of ``problem`` with ``algorithm``.
 
-    problem: a ``TwistProblem`` (with ``StableOnly``) or a ``BifurcationProblem`` (with
-    ``PseudoArclength``); options: a ``ContinuationOptions`` (None: the defaults); observer: an
-    ``Observer`` (``StableOnly`` calls progress, on_point, on_instability and on_state;
-    ``PseudoArclength`` calls on_point). keywords go to the algorithm's loop: ``resume`` (a
-    ``PathState``) for ``StableOnly``; ``start``, ``throw``, ``start_tol`` for ``PseudoArclength``.
+    Parameters
+    ----------
+    problem : TwistProblem or BifurcationProblem
+        A ``TwistProblem`` (with ``StableOnly``) or a ``BifurcationProblem`` (with
+        ``PseudoArclength``: F(u, p) = grad_u E = 0, u (n,), p the continued parameter).
+    algorithm : StableOnly or PseudoArclength
+        How the branch is followed.
+    options : ContinuationOptions, optional
+        Tolerances and budgets (None: the defaults); each algorithm refuses the fields it never
+        reads.
+    observer : Observer, optional
+        ``StableOnly`` calls progress, on_point, on_instability and on_state;
+        ``PseudoArclength`` calls on_point.
+    **keywords
+        Passed to the algorithm's loop: ``resume`` (a ``PathState``) for ``StableOnly``;
+        ``start``, ``throw``, ``start_tol`` for ``PseudoArclength``.
 
-    Returns:
-        ``TwistPath`` (``StableOnly``): the stable path, its located ends and switches;
-        ``Branch`` (``PseudoArclength``): points with their spectra and the located events.
+    Returns
+    -------
+    TwistPath or Branch
+        ``TwistPath`` (``StableOnly``): the stable path, its located ends and switches.
+        ``Branch`` (``PseudoArclength``): the points with their spectra and the located events.
 
-    Raises:
-        TypeError: an algorithm that is not one of the two, or a problem of the other kind.
-        ValueError: an option the algorithm never reads, or a value that is not allowed.
-        ContinuationError: (``PseudoArclength``, throw=True) a corrector failed or an event was
-            not located to ``event_tol``.
+    Raises
+    ------
+    TypeError
+        An algorithm that is not one of the two, or a problem of the other kind.
+    ValueError
+        An option the algorithm never reads, or a value that is not allowed.
+    ContinuationError
+        (``PseudoArclength``, throw=True) a corrector failed or an event was not located to
+        ``event_tol``.
     """
     if isinstance(algorithm, StableOnly):
         _check_problem(problem, TwistProblem, algorithm)

@@ -1,7 +1,32 @@
 """``follow_twist``: follow a stable branch through its instabilities, with branch switching
 (knots), as a loop of ``_Follower.advance`` over ``PathState`` (follow; locate the end; confirm
 it; at the end, switch branches or stop). Where a branch ends is worked out in ``ends``, the
-switch in ``switching``."""
+switch in ``switching``.
+
+Predictor: the branch tangent dq/dphi (implicit function theorem, near-zero sliding modes
+left out). Corrector: the damped-Newton minimiser of ``relax`` (exact Hessian, capped steps,
+contact lists rebuilt, strand passage refused), which cannot wander onto an unstable branch.
+A step is accepted when the corrector converges, the state stays within ``jump_tol``
+(default D/2) of the predicted shape (a distance blind to material sliding along the
+centreline), the linking number is Lk0 + phi/2 pi (closed rods) and no eigenvalue is below
+-negative_tol (see ``ContinuationEngine``), and none of the last state's lowest shape modes is
+predicted, by its eigenvalue's derivative along the branch, to cross zero inside the step
+(``branch_check``: a minimiser past a branch point lands on a stable state beside the branch;
+``options.check_branch``). Otherwise the step is halved; once the failing twist is
+within ``tol`` of the last accepted one, the branch has ended there (a failure that persists
+as the step goes to zero is not a step-size artefact). Near-zero modes (|lambda| <
+negative_tol: strands sliding in a loose knot, ~1e-7) never count.
+
+Branch switching (unless options.switch is False, at most options.max_switches times): at
+the nearest twist where the branch was lost, the predicted state is pushed by
++-``perturbation`` (default jump_tol, at the node that moves most) along the critical
+eigenvector and relaxed; the lower-energy stable state away from the old branch is the new
+branch ("buckled", then "buckled2", ...; the sign of the direction is appended).
+
+The run is deterministic, so a resumed run reports exactly the points and instabilities
+that the uninterrupted one reports after that state. Knots from
+``sparse_contact.SPARSE_MIN_DOF`` DOFs on take the O(n) path (``linear_algebra``).
+"""
 from __future__ import annotations
 
 import math
@@ -43,44 +68,53 @@ def follows_sparse(scene, linear_algebra="auto"):
 
 
 def follow_twist(scene, phi_start=0.0, phi_stop=None, options=None, *, start=None, observer=None, resume=None):
-    """Follow the stable equilibrium branch from phi_start towards phi_stop (default 8 pi); where
-    it ends (an eigenvalue crosses zero or the branch folds), locate the end to ``options.tol``
-    and switch to the stable buckled branch along the critical eigenvector, then go on.
+    """Follow the stable equilibrium branch from phi_start towards phi_stop; where it ends (an
+    eigenvalue crosses zero or the branch folds), locate the end to ``options.tol`` and switch
+    to the stable buckled branch along the critical eigenvector, then go on.
 
-    scene: closed or clamped rod scene; options: a ``ContinuationOptions`` (step, tol,
-    negative_tol, gtol, jump_tol, k, corrector_max_steps, branch, switch, max_switches,
-    perturbation; None: the scene-aware defaults defined there); start: an ``Equilibrium`` to
-    begin from (used as is; phi_start is then its phi), or an initial guess of the DOFs at
-    phi_start (relaxed first; default scene.q_init); observer: an ``Observer`` whose progress,
-    on_point, on_instability and on_state are called; resume: a ``PathState`` (or
-    ``PathState.from_arrays``) to go on from, in place of phi_start / start / options.branch (the
-    same scene, phi_stop and options must be given).
+    Parameters
+    ----------
+    scene : ClosedRod or ClampedRod
+        The rod.
+    phi_start : float, optional
+        Twist of the first state (rad; default 0).
+    phi_stop : float, optional
+        Twist to reach (rad; default 8 pi); must differ from phi_start.
+    options : ContinuationOptions, optional
+        step, tol, negative_tol, gtol, jump_tol, k, corrector_max_steps, branch, switch,
+        max_switches, perturbation (None: the scene-aware defaults defined there).
+    start : Equilibrium or array_like of shape (n_dof,), optional
+        An ``Equilibrium`` to begin from (used as is; phi_start is then its phi), or an initial
+        guess of the DOFs at phi_start (relaxed first; default ``scene.q_init``).
+    observer : Observer, optional
+        Its progress, on_point, on_instability and on_state are called.
+    resume : PathState, optional
+        A state (or ``PathState.from_arrays``) to go on from, in place of phi_start, start and
+        options.branch (the same scene, phi_stop and options must be given).
 
-    Predictor: the branch tangent dq/dphi (implicit function theorem, near-zero sliding modes
-    left out). Corrector: the damped-Newton minimiser of ``relax`` (exact Hessian, capped steps,
-    contact lists rebuilt, strand passage refused), which cannot wander onto an unstable branch.
-    A step is accepted when the corrector converges, the state stays within ``jump_tol``
-    (default D/2) of the predicted shape (a distance blind to material sliding along the
-    centreline), the linking number is Lk0 + phi/2 pi (closed rods) and no eigenvalue is below
-    -negative_tol (see ``ContinuationEngine``), and none of the last state's lowest shape modes is
-    predicted, by its eigenvalue's derivative along the branch, to cross zero inside the step
-    (``branch_check``: a minimiser past a branch point lands on a stable state beside the branch;
-    ``options.check_branch``). Otherwise the step is halved; once the failing twist is
-    within ``tol`` of the last accepted one, the branch has ended there (a failure that persists
-    as the step goes to zero is not a step-size artefact). Near-zero modes (|lambda| <
-    negative_tol: strands sliding in a loose knot, ~1e-7) never count.
+    Returns
+    -------
+    TwistPath
+        ``points`` (a ``PathPoint`` per accepted step: its branch, ``equilibrium`` with phi in
+        rad and stability, and the tangent dq/dphi (n_dof,)), ``instabilities`` (an ``Instability`` per branch end met),
+        ``stop`` and ``reason`` (why the path stopped: phi_stop reached, or where it could not
+        go on), ``seconds``. A branch that cannot be continued ends the path; it does not raise.
 
-    Branch switching (unless options.switch is False, at most options.max_switches times): at
-    the nearest twist where the branch was lost, the predicted state is pushed by
-    +-``perturbation`` (default jump_tol, at the node that moves most) along the critical
-    eigenvector and relaxed; the lower-energy stable state away from the old branch is the new
-    branch ("buckled", then "buckled2", ...; the sign of the direction is appended).
+    Raises
+    ------
+    ValueError
+        phi_stop equal to phi_start, an unstable starting state, an option out of range or not
+        read by this algorithm, or, on the dense path, a scene whose n x n Hessian does not fit
+        in memory (``check_dense_memory``, naming N).
+    TypeError
+        ``options`` or ``observer`` of the wrong type.
+    ConvergenceError
+        The starting state could not be relaxed.
 
-    The run is deterministic, so a resumed run reports exactly the points and instabilities
-    that the uninterrupted one reports after that state. Returns a ``TwistPath`` (with the
-    points and instabilities of this call). On the dense path, a scene whose n x n Hessian does
-    not fit in memory is refused at once (``check_dense_memory``: ValueError naming N); knots
-    from ``sparse_contact.SPARSE_MIN_DOF`` DOFs on take the O(n) path (``linear_algebra``).
+    Notes
+    -----
+    The predictor, corrector, step acceptance and branch switching are described in the module
+    docstring (``jaxrod.continuation.follow``).
     """
     t0 = time.perf_counter()
     phi_stop = check_finite("phi_stop", 8.0 * math.pi if phi_stop is None else phi_stop)

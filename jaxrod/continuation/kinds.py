@@ -18,8 +18,27 @@ __all__ = ["EventKind", "SHAPE_EVENTS", "SOFT_EVENTS"]
 
 
 class EventKind(str, enum.Enum):
-    """Where a branch changes (see the module docstring): the kind of an event located at a twist
-    phi (rad) of a path; a ``str`` (JSON writes "fold", "branch_point", ...)."""
+    """Where a branch changes: the kind of an event located at a twist phi (rad) of a path.
+
+    A ``str``: each member compares equal to, prints and formats as its value ("fold",
+    "branch_point", ...), which is what studies write to JSON.
+
+    Attributes
+    ----------
+    FOLD : str
+        "fold": the path turns back in the parameter, an eigenvalue crossing zero.
+    BRANCH_POINT : str
+        "branch_point": the Morse index changes without a fold.
+    SOFT_FOLD : str
+        "soft_fold": a turn along a soft (sliding) mode, Morse index unchanged.
+    SOFT_TURN : str
+        "soft_turn": a turn along soft directions with no singular point to locate.
+    UNSTABLE : str
+        "unstable": a followed stable branch acquired a negative eigenvalue (``follow_twist``).
+    JUMP : str
+        "jump": the minimiser following a stable branch left it (a fold, or a subcritical
+        bifurcation; ``follow_twist``).
+    """
 
     FOLD = "fold"  # the path turns back in the parameter, an eigenvalue crossing zero
     BRANCH_POINT = "branch_point"  # the Morse index changes without a fold

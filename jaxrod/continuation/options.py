@@ -34,88 +34,122 @@ class Task(str, enum.Enum):
 
 @dataclass(frozen=True)
 class ContinuationOptions:
-    """Tolerances, budgets and behaviour of a twist continuation, every contact-aware default in
-    one place. None means "the default for the scene and task": ``resolved(scene, task, span)``
-    fills them in (and checks the values, ValueError naming the one that is wrong).
+    """Tolerances, budgets and behaviour of a continuation, every contact-aware default in one place.
 
-    Both entries:
-    step: largest step in phi (rad). Default: critical_twist |phi_stop - phi_start| / 40,
-      follow_twist 0.25 pi.
-    tol: accuracy of the located critical twist or branch end (rad). Default: critical_twist
-      1e-6 pi, follow_twist 2e-4 pi.
-    negative_tol: an eigenvalue counts as negative below -negative_tol. Default 1e-10 (less for
-      long rods: ``default_negative_tol``), or CONTACT_NEGATIVE_TOL = 1e-6 with self-contact
-      (strands sliding along each other sit at |lambda| ~ 1e-7 and must not count).
-    gtol: the equilibria's max |gradient| (scaled energy). Default 1e-9; critical_twist with
-      contact CONTACT_GTOL = 1e-7 (the sliding modes relax only as fast as their stiffness allows).
-    k: eigenpairs kept per state (default 8).
+    Every field defaults to None, "the default for the scene and task": ``resolved(scene, task,
+    span)`` fills them in. A field that the chosen algorithm does not read is refused when the
+    options are resolved, so a setting is never silently ignored. ``updated(**values)`` is a copy
+    with the values that are not None replaced.
 
-    critical_twist:
-    max_refine: Newton steps on the crossing eigenvalue (default MAX_REFINE = 30).
-    linear_algebra: "dense" (n x n Hessian, ``eigh``: O(n^3) per step), "sparse" (O(n) per step:
-      without contact the block-tridiagonal Newton, inertia, eigenpairs and tangent of
-      ``jaxrod.continuation.sparse_branch``; with contact SciPy's sparse LDL^T, ARPACK shift-invert and the
-      host damped Newton of ``jaxrod.linalg.sparse_contact``) or "auto" (the default: sparse from
-      n_dof >= 1000 on, else dense). follow_twist on rods without contact is dense only (it
-      refuses "sparse").
+    Parameters
+    ----------
+    step : float
+        Both twist entries: largest step in phi (rad). Default: critical_twist
+        |phi_stop - phi_start| / 40, follow_twist 0.25 pi.
+    tol : float
+        Both twist entries: accuracy of the located critical twist or branch end (rad).
+        Default: critical_twist 1e-6 pi, follow_twist 2e-4 pi.
+    negative_tol : float
+        Both twist entries: an eigenvalue counts as negative below -negative_tol (units of B/l).
+        Default 1e-10 (less for long rods: ``default_negative_tol``), or CONTACT_NEGATIVE_TOL =
+        1e-6 with self-contact (strands sliding along each other sit at |lambda| ~ 1e-7 and must
+        not count).
+    gtol : float
+        Both twist entries: the equilibria's max |gradient| (scaled energy). Default 1e-9;
+        critical_twist with contact CONTACT_GTOL = 1e-7 (the sliding modes relax only as fast as
+        their stiffness allows).
+    k : int
+        Both algorithms: eigenpairs kept per state (stable-only default 8, pseudo-arclength 4;
+        pseudo-arclength keeps at least Morse index + 2).
+    max_refine : int
+        critical_twist: Newton steps on the crossing eigenvalue (default MAX_REFINE = 30).
+    linear_algebra : {'auto', 'dense', 'sparse'}
+        critical_twist: "dense" (n x n Hessian, ``eigh``: O(n^3) per step), "sparse" (O(n) per
+        step: without contact the block-tridiagonal Newton, inertia, eigenpairs and tangent of
+        ``jaxrod.continuation.sparse_branch``; with contact SciPy's sparse LDL^T, ARPACK
+        shift-invert and the host damped Newton of ``jaxrod.linalg.sparse_contact``) or "auto"
+        (the default: sparse from n_dof >= 1000 on, else dense). follow_twist on rods without
+        contact is dense only (it refuses "sparse").
+    jump_tol : float
+        follow_twist: a corrector further than this from the predicted shape has left the branch
+        (length unit of the scene, e.g. mm). Default D/2 (or L/20 without a diameter).
+    corrector_max_steps : int
+        follow_twist: damped-Newton iterations a corrector may take between two neighbourhood
+        pauses (default CORRECTOR_MAX_STEPS = 60).
+    branch : str
+        follow_twist: name of the branch started on (default 'symmetric'; '+' or '-' is appended).
+    switch : bool
+        follow_twist: at a branch end, switch to the stable buckled branch and go on (default True).
+    max_switches : int
+        follow_twist: at most this many switches (default 3).
+    perturbation : float
+        follow_twist: push along the critical mode when switching (length; default jump_tol).
+    keep_symmetry : bool
+        follow_twist: on a closed rod whose joint lies on a two-fold axis of the state followed
+        (the trefoil as drawn), keep the states on that symmetry while the branch has it: a
+        corrected state that drifted off it by less than ``jump_tol`` (material sliding along
+        nearly null modes) is projected back and finished by the corrector
+        (``jaxrod.model.symmetry``). Default True.
+    check_branch : bool
+        follow_twist: refuse a stable step across which one of the last state's lowest shape
+        modes is predicted, by its eigenvalue's derivative along the branch, to cross zero; the
+        end is then located as any other (``continuation.branch_check``: a minimiser past a
+        branch point lands on the stable state beside the branch, and the instability was
+        reported late); and halve, then accept with a warning, a step whose corrected state's
+        lowest eigenvalues are not those predicted along the branch (``branch_check.departure``).
+        Default True.
+    ds, ds_min, ds_max : float
+        Pseudo-arclength (``PseudoArclength``; ``resolved_arclength`` fills in these defaults):
+        first arclength step (default 0.05; its sign picks the initial direction of p), then
+        adapted in [ds_min, ds_max] (defaults 1e-8, 0.2) from the corrector's convergence.
+    p_min, p_max : float
+        Pseudo-arclength: the run stops when p leaves [p_min, p_max] (that point is kept);
+        default unbounded.
+    max_steps : int
+        Pseudo-arclength: at most this many steps (default 200); a step below ds_min that fails
+        also stops the run.
+    newton_tol : float
+        Pseudo-arclength: absolute tolerance on the residual norm (default 1e-12).
+    newton_max_iter : int
+        Pseudo-arclength: Newton iterations per corrector (default 10).
+    eig_rtol : float
+        Pseudo-arclength: lambda < -eig_rtol * ||J|| counts as negative (default 1e-10).
+    detect_events : bool
+        Pseudo-arclength: detect and locate folds and branch points (default True).
+    event_tol : float
+        Pseudo-arclength: a located event must have residual and critical eigenvalue below it
+        (default 1e-10).
+    locate_max_iter : int
+        Pseudo-arclength: Newton iterations to locate one event (default 20).
+    soft_folds : {'slide', 'follow'}
+        Pseudo-arclength: where the path turns back in p along a soft mode (an Event
+        "soft_fold", only for problems with a ``soft_modes`` hook; on a loose knot, a
+        saddle-node of the tiny sliding landscape that the discretisation adds to the slide, a
+        symmetry of the continuum rod). "slide" (default): relax at p_fold + slide_dp in the
+        direction the path was going, from the fold kicked by slide_kick downhill along its soft
+        mode (steps capped at 10 slide_kick), and go on from the minimum reached (a ``Slide`` in
+        ``Branch.slides``), as the physical rod would, its strands slipping by a fraction of an
+        edge; "follow": follow the path back along the sliding saddles. Needs the problem's
+        ``energy``.
+    slide_dp, slide_kick : float
+        Pseudo-arclength, soft_folds="slide": see above (defaults 1e-3 and 1e-2).
+    resolve_crossings : float
+        Pseudo-arclength: a step control that watches the spectrum (default 0: off). A step
+        across which the Morse index changes by more than 1 (several eigenvalues crossing zero
+        between two points, e.g. a fold next to a symmetry pair) is refused and retried at half
+        the step, down to this step size, so that nearly coincident events fall into separate
+        brackets; a crossing still multiple at that size is a multiple event (a symmetric double
+        branch point), located as one. A refused step counts towards max_steps.
+    report_at : tuple of float
+        Pseudo-arclength: values of the continued parameter at which a two-parameter curve
+        (``fold_curve``, ``branch_point_curve``: values of mu) also gives a point exactly,
+        corrected on the hyperplane mu = value from the chord of the step that crosses it.
 
-    follow_twist:
-    jump_tol: a corrector further than this from the predicted shape has left the branch.
-      Default D/2 (or L/20 without a diameter).
-    corrector_max_steps: damped-Newton iterations a corrector may take between two neighbourhood
-      pauses (default CORRECTOR_MAX_STEPS = 60).
-    branch: name of the branch started on (default 'symmetric'; '+' or '-' is appended).
-    switch: at a branch end, switch to the stable buckled branch and go on (default True).
-    max_switches: at most this many switches (default 3).
-    perturbation: push along the critical mode when switching (default jump_tol).
-    keep_symmetry: on a closed rod whose joint lies on a two-fold axis of the state followed (the
-      trefoil as drawn), keep the states on that symmetry while the branch has it: a corrected
-      state that drifted off it by less than ``jump_tol`` (material sliding along nearly null
-      modes) is projected back and finished by the corrector (``jaxrod.model.symmetry``). Default True.
-    check_branch: refuse a stable step across which one of the last state's lowest shape modes is
-      predicted, by its eigenvalue's derivative along the branch, to cross zero; the end is then
-      located as any other (``continuation.branch_check``: a minimiser past a branch point lands
-      on the stable state beside the branch, and the instability was reported late); and halve,
-      then accept with a warning, a step whose corrected state's lowest eigenvalues are not those
-      predicted along the branch (``branch_check.departure``). Default True.
-
-    Pseudo-arclength (``PseudoArclength``; ``resolved_arclength`` fills in the defaults):
-    ds: first arclength step (default 0.05); its sign picks the initial direction of p. |ds| is
-      then adapted in [ds_min, ds_max] (defaults 1e-8, 0.2) from the corrector's convergence.
-    p_min, p_max: the run stops when p leaves [p_min, p_max] (that point is kept); default
-      unbounded. max_steps: at most this many steps (default 200); a step below ds_min that fails
-      also stops the run.
-    newton_tol: absolute tolerance on the residual norm (default 1e-12); newton_max_iter: Newton
-      iterations per corrector (default 10).
-    eig_rtol: lambda < -eig_rtol * ||J|| counts as negative (default 1e-10).
-    detect_events: detect and locate folds and branch points (default True); event_tol: a located
-      event must have residual and critical eigenvalue below it (default 1e-10); locate_max_iter:
-      Newton iterations to locate one (default 20).
-    soft_folds: where the path turns back in p along a soft mode (an Event "soft_fold", only for
-      problems with a ``soft_modes`` hook; on a loose knot, a saddle-node of the tiny sliding
-      landscape that the discretisation adds to the slide, a symmetry of the continuum rod).
-      "slide" (default): relax at p_fold + slide_dp (default 1e-3) in the direction the path was
-      going, from the fold kicked by slide_kick (default 1e-2) downhill along its soft mode (steps
-      capped at 10 slide_kick), and go on from the minimum reached (a ``Slide`` in
-      ``Branch.slides``), as the physical rod would, its strands slipping by a fraction of an
-      edge; "follow": follow the path back along the sliding saddles. Needs the problem's ``energy``.
-    resolve_crossings: a step control that watches the spectrum (default 0: off). A step across
-      which the Morse index changes by more than 1 (several eigenvalues crossing zero between two
-      points, e.g. a fold next to a symmetry pair) is refused and retried at half the step, down to
-      this step size, so that nearly coincident events fall into separate brackets; a crossing
-      still multiple at that size is a multiple event (a symmetric double branch point), located
-      as one. A refused step counts towards max_steps.
-    report_at: values of the continued parameter at which a two-parameter curve (``fold_curve``,
-      ``branch_point_curve``: values of mu) also gives a point exactly, corrected on the
-      hyperplane mu = value from the chord of the step that crosses it.
-
-    Both algorithms: k, the eigenpairs kept per state (stable-only default 8, pseudo-arclength 4;
-    pseudo-arclength keeps at least Morse index + 2).
-
-    A field that the chosen algorithm does not read is refused when the options are resolved
-    (ValueError naming it), so a setting is never silently ignored.
-
-    ``updated(**values)`` is a copy with the values that are not None replaced.
+    Raises
+    ------
+    ValueError
+        On construction, a pseudo-arclength value out of range; when resolved, a value that is
+        not allowed or a field the algorithm does not read (the message names it).
     """
 
     step: float | None = None
@@ -283,20 +317,35 @@ def _jump_tolerance(scene):
 class Observer:
     """What a continuation tells while it runs; every field is optional (None: not called).
 
-    progress(str): progress lines (every entry, and ``twist_study``).
-    on_step(phi, n_negative): ``critical_twist``, after every equilibrium of the scan and the
-      refinement (e.g. a progress bar).
-    on_point(PathPoint): ``follow_twist`` and ``twist_study``, after every accepted step (e.g. to
-      write rows as they come); ``PathPoint.direction`` says which side ('plus' or 'minus';
-      ``twist_study`` calls it from two threads when it runs both sides at once).
-    on_instability(Instability): ``follow_twist``, as soon as a branch end is located (and, after
-      a switch, before the new branch's first point), so that a study can keep it on file at once;
-      ``twist_study`` calls it as on_instability(direction, index, critical.json entry, (q, phi) the
-      last stable state before the end), once the end is on file.
-    on_state(PathState): ``follow_twist``, after every step tried (and after the points and
-      instabilities that step reported): what ``follow_twist(resume=...)`` goes on from.
+    An entry refuses an observer with a field set that it never calls.
 
-    An entry refuses (ValueError) an observer with a field set that it never calls."""
+    Parameters
+    ----------
+    progress : callable(str), optional
+        Progress lines (every entry, and ``twist_study``).
+    on_step : callable(phi, n_negative), optional
+        ``critical_twist``, after every equilibrium of the scan and the refinement (phi in rad;
+        e.g. a progress bar).
+    on_point : callable(PathPoint), optional
+        ``follow_twist`` and ``twist_study``, after every accepted step (e.g. to write rows as
+        they come); ``PathPoint.direction`` says which side ('plus' or 'minus'; ``twist_study``
+        calls it from two threads when it runs both sides at once).
+    on_instability : callable(Instability), optional
+        ``follow_twist``, as soon as a branch end is located (and, after a switch, before the new
+        branch's first point), so that a study can keep it on file at once; ``twist_study``
+        calls it as on_instability(direction, index, critical.json entry, (q, phi) the last
+        stable state before the end), once the end is on file.
+    on_state : callable(PathState), optional
+        ``follow_twist``, after every step tried (and after the points and instabilities that
+        step reported): what ``follow_twist(resume=...)`` goes on from.
+
+    Raises
+    ------
+    TypeError
+        Raised by the entry it is passed to, when given something other than an ``Observer``.
+    ValueError
+        Raised by the entry it is passed to, for a field set that it never calls (named).
+    """
 
     progress: object = None
     on_step: object = None

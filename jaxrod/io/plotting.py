@@ -8,6 +8,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from ..continuation.kinds import EventKind
+from ..linalg.tolerances import DEFAULT_NEGATIVE_TOL
 from .figures import finish
 from .plot_snapshots import plot_snapshot, plot_snapshots, view_frame
 
@@ -158,17 +159,69 @@ def _draw_critical(axes, critical, colour_start):
                          mec="k", mew=0.8, ls="none", zorder=5)
 
 
-def plot_bifurcation(table, critical=None, path=None, title=None):
-    """Bifurcation diagram of a continuation: Wr against phi/pi (top) and the lowest eigenvalues
-    (bottom, symlog scale, linthresh 1e-7) sharing the x axis.
+def _runs_by_stability(stable):
+    """Consecutive pieces of one branch's polyline: (start, stop, stable) with rows start..stop
+    inclusive; a piece is stable where every row in it is, so the step between a stable and an
+    unstable row belongs to the dashed piece."""
+    step_stable = stable[:-1] & stable[1:]
+    runs, i = [], 0
+    while i < step_stable.shape[0]:
+        j = i
+        while j + 1 < step_stable.shape[0] and step_stable[j + 1] == step_stable[i]:
+            j += 1
+        runs.append((i, j + 1, bool(step_stable[i])))
+        i = j + 1
+    return runs
 
-    table: dict column -> 1-D array, one entry per continuation step, with at least 'phi' (rad),
-      'Wr', 'stable' (bool or 0/1), the eigenvalue columns 'lambda_0', 'lambda_1', ..., and
-      'branch' (str labels; without it all rows are one branch). One series per branch label:
-      filled markers where stable, open where unstable; a branch with no stable row is drawn dashed.
-    critical: optional list of dicts {'phi': rad, 'label': str}: vertical dotted lines, in the
-      legend; with 'kind' ('fold' or 'branch_point') and 'Wr', also a marker at (phi, Wr): a
-      triangle for a fold, a star for a branch point.
+
+def _draw_branch_lines(ax, x, wr, stable, colour, name):
+    """One branch in the diagram: stable pieces solid, unstable pieces dashed, row markers filled
+    where stable and open where unstable; in the legend by its colour alone (a square), so that
+    the line styles keep one meaning."""
+    ax.plot([], [], "s", color=colour, ls="none", label=name)
+    for a, b, st in _runs_by_stability(stable):
+        ax.plot(x[a:b + 1], wr[a:b + 1], "-" if st else "--", color=colour, lw=1.2 if st else 1.0,
+                gid="stable" if st else "unstable")
+    ax.plot(x[stable], wr[stable], "o", color=colour, ms=4, ls="none")
+    ax.plot(x[~stable], wr[~stable], "o", color=colour, ms=4, ls="none", mfc="none")
+
+
+def plot_bifurcation(table, critical=None, path=None, title=None, band=None):
+    """Bifurcation diagram of a continuation: writhe against imposed twist (top; stable pieces
+    solid, unstable ones dashed, folds and branch points marked) and the lowest Hessian
+    eigenvalues (bottom, symlog scale, linthresh 1e-7) sharing the x axis.
+
+    Parameters
+    ----------
+    table : dict of str to array_like
+        One entry per continuation step (1-D, all of one length), with at least 'phi' (rad), 'Wr'
+        (turns), 'stable' (bool, 0/1 or 'True'/'False'), the eigenvalue columns 'lambda_0',
+        'lambda_1', ... (units of B/l, zero modes removed) and optionally 'branch' (str labels;
+        without it all rows are one branch). Rows of a branch are drawn in table order.
+    critical : list of dict, optional
+        ``{'phi': rad, 'label': str}``: vertical dotted lines, in the legend; with 'kind' ('fold'
+        or 'branch_point') and 'Wr', also a marker at (phi, Wr): a triangle for a fold, a star
+        for a branch point.
+    path : str or path-like, optional
+        Save the figure there and close it.
+    title : str, optional
+        Figure title (default "Bifurcation diagram").
+    band : float, optional
+        Half-width of the near-zero band, in units of B/l: the stability count's ``negative_tol``
+        (default ``DEFAULT_NEGATIVE_TOL``). Eigenvalues with ``|lambda| <= band`` (zero and
+        sliding modes, which the count excludes) are left out of the eigenvalue panel, and a
+        note in the panel says so.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure (closed when saved to ``path``).
+
+    Raises
+    ------
+    ValueError
+        If ``table`` is not a dict of columns, has no rows, lacks a column named above or no
+        eigenvalue column, or has columns of different lengths.
     """
     x, branch, labels, n = _table_basics(table)
     wr = _column(table, "Wr", n).astype(float)
@@ -177,27 +230,29 @@ def plot_bifurcation(table, critical=None, path=None, title=None):
     if not lam_cols:
         raise ValueError("table: no eigenvalue columns 'lambda_0', 'lambda_1', ...")
     lam = np.stack([_column(table, c, n).astype(float) for c in lam_cols], axis=1)
+    band = DEFAULT_NEGATIVE_TOL if band is None else float(band)
+    lam = np.where(np.abs(lam) <= band, np.nan, lam)  # the modes the stability count excludes
     fig, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(9.5, 6.5),
                                       gridspec_kw={"height_ratios": [1, 1]})
     for b, lab in enumerate(labels):
         sel = branch == lab
         colour = f"C{b % 10}"
         name = lab or "equilibria"
-        st, un = sel & stable, sel & ~stable
-        top.plot(x[sel], wr[sel], "-" if st.any() else "--", color=colour, lw=1, label=name)
-        top.plot(x[st], wr[st], "o", color=colour, ms=4, ls="none")
-        top.plot(x[un], wr[un], "o", color=colour, ms=4, ls="none", mfc="none")
+        _draw_branch_lines(top, x[sel], wr[sel], stable[sel], colour, name)
         for j in range(lam.shape[1]):
             bottom.plot(x[sel], lam[sel, j], ".-", color=colour, ms=3, lw=0.8,
                         alpha=1.0 if j == 0 else 0.6, label=name if j == 0 else None)
-    # Legend proxies for the marker convention.
-    top.plot([], [], "o", color="0.3", ms=4, label="stable")
-    top.plot([], [], "o", color="0.3", ms=4, mfc="none", label="unstable")
+    # Legend proxies for the line and marker convention.
+    top.plot([], [], "o-", color="0.3", ms=4, label="stable")
+    top.plot([], [], "o--", color="0.3", ms=4, mfc="none", label="unstable")
     if critical and any(c.get("kind") for c in critical):
         top.plot([], [], "v", color="0.3", ms=8, mec="k", label="fold")
         top.plot([], [], "*", color="0.3", ms=9, mec="k", label="branch point")
     bottom.axhline(0.0, color="k", lw=0.8)
     bottom.set_yscale("symlog", linthresh=1e-7)
+    # beside the axes, under the legend: a note inside them would cover eigenvalues
+    bottom.text(1.01, 0.0, f"not drawn:\n|lambda| <= {band:.0e} B/l\n(zero and sliding\nmodes, not counted)",
+                transform=bottom.transAxes, fontsize=7, va="bottom", ha="left", color="0.3", gid="band_note")
     _draw_critical((top, bottom), critical, len(labels))
     top.set_ylabel("writhe Wr (turns)")
     bottom.set_ylabel("lowest Hessian eigenvalues\n(units of B/l; symlog)")

@@ -16,13 +16,34 @@ __all__ = ["Material"]
 class Material:
     """Stiffnesses of the rod.
 
-    B  bending stiffness (E I), C twist stiffness (G J), EA stretching stiffness. For a circular
-    isotropic rod, ``Material.from_engineering(E, nu, D)`` gives B = E pi D^4/64, C = B/(1+nu),
-    EA = E pi D^2/4. ``D`` (diameter) is kept when known: contact and slenderness use it.
+    For a circular isotropic rod, ``Material.from_engineering(E, nu, D)`` gives B = E pi D^4/64,
+    C = B/(1+nu), EA = E pi D^2/4; ``Material.from_ratio(B, nu, D)`` sets EA = 16 B/D^2. Units are
+    the caller's: E in MPa (N/mm^2) with D in mm gives B in N mm^2.
 
     Each parameter may be a jax tracer (``jax.grad``/``jax.jvp``/``jax.vmap`` over a function that
-    builds the material): a concrete value is checked (ValueError naming it) and kept as a float,
-    a traced one is checked only for being a real scalar.
+    builds the material): a concrete value is checked and kept as a float, a traced one is
+    checked only for being a real scalar.
+
+    Parameters
+    ----------
+    B : float
+        Bending stiffness E I (force x length^2, e.g. N mm^2), > 0.
+    C : float
+        Twist stiffness G J (same units as B), > 0.
+    EA : float
+        Stretching stiffness (force, e.g. N), > 0.
+    D : float, optional
+        Rod diameter (length, e.g. mm), > 0; self-contact and slenderness need it.
+
+    Attributes
+    ----------
+    nu : float
+        Poisson ratio implied by B/C = 1 + nu.
+
+    Raises
+    ------
+    ValueError
+        A concrete parameter that is not a positive finite number (the message names it).
     """
 
     B: float

@@ -204,13 +204,43 @@ def trefoil(*, N, D, L, E=PAPER_YOUNG_MODULUS, nu=0.5, chirality="right", contac
 
 
 def knot(name, *, N, D, L, E=PAPER_YOUNG_MODULUS, nu=0.5, contact_stiffness=DEFAULT_CONTACT_STIFFNESS, Lk0=None):
-    """A closed rod tied in the knot ``name`` ('3_1', '4_1', '5_1', '5_2'; see ``knot_points``)
-    of diameter D and length L (mm) with N nodes, Young's modulus E (MPa) and Poisson ratio nu;
-    energies in N mm. Refuses L/D below the knot's ideal ropelength
-    (``IDEAL_ROPELENGTH``), N below 24 or (with contact) below L/D; warns when L/D is within 25%
-    of the ideal. The curve is the parametrisation scaled to length L, not yet relaxed.
-    D, L, E, nu and contact_stiffness may be jax tracers (see ``trefoil``); name, N and Lk0 must
-    be concrete."""
+    """A closed rod tied in a tabulated knot, with soft self-contact.
+
+    The initial curve is the knot's parametrisation (``knot_points``) scaled to length L, not
+    yet relaxed. D, L, E, nu and contact_stiffness may be jax tracers (the checks on L/D are
+    then skipped); name, N and Lk0 must be concrete.
+
+    Parameters
+    ----------
+    name : str
+        '3_1', '4_1', '5_1' or '5_2'.
+    N : int
+        Nodes, at least 24 and, with contact, at least L/D (no edge longer than the diameter).
+    D : float
+        Rod diameter (mm).
+    L : float
+        Rod length (mm); L/D at least the knot's ideal ropelength (``IDEAL_ROPELENGTH``).
+    E : float, optional
+        Young's modulus (MPa = N/mm^2; default 0.474). Energies are then in N mm.
+    nu : float, optional
+        Poisson ratio in (-1, 0.5] (default 0.5): C = B/(1+nu).
+    contact_stiffness : float or None, optional
+        Contact stiffness kappa_c (units of B/D^3; default 100); None: no self-contact.
+    Lk0 : int, optional
+        Linking number at zero twist (default: the drawn curve's writhe, rounded).
+
+    Returns
+    -------
+    ClosedRod
+        The scene; its DOFs ``q_init`` have shape (4 N,): 3 N coordinates (mm), then N twist
+        angles (rad).
+
+    Raises
+    ------
+    ValueError
+        An unknown ``name``, L/D below the ideal ropelength, N too small, or a parameter out of
+        range (the message names it). Warns (UserWarning) when L/D is within 25% of the ideal.
+    """
     if name not in IDEAL_ROPELENGTH:
         raise ValueError(f"knot must be one of {', '.join(IDEAL_ROPELENGTH)}, got {name!r}")
     return _knot_scene(name, lambda n: knot_points(name, n), D, L, N, E, nu, contact_stiffness, KNOT_NAMES[name],
@@ -244,10 +274,40 @@ def _knot_scene(name, points, D, L, N, E, nu, contact_stiffness, title, Lk0=None
 
 def torus_knot(p, q, *, N, D, L, E=PAPER_YOUNG_MODULUS, nu=0.5, radii=(2.0, 1.0),
                contact_stiffness=DEFAULT_CONTACT_STIFFNESS):
-    """The (p, q) torus knot ((R + r cos qt) cos pt, (R + r cos qt) sin pt, r sin qt), scaled to
-    length L, as a closed rod of diameter D with N nodes. p and q must be coprime integers.
-    D, L, E, nu and contact_stiffness may be jax tracers (see ``trefoil``); p, q, N and the radii
-    (the drawn curve) must be concrete."""
+    """The (p, q) torus knot ((R + r cos qt) cos pt, (R + r cos qt) sin pt, r sin qt) as a
+    closed rod, scaled to length L, not yet relaxed.
+
+    D, L, E, nu and contact_stiffness may be jax tracers; p, q, N and the radii must be concrete.
+
+    Parameters
+    ----------
+    p, q : int
+        Coprime positive integers: turns around the torus axis and through its hole.
+    N : int
+        Nodes, at least 4 and, with contact, at least L/D.
+    D : float
+        Rod diameter (mm).
+    L : float
+        Rod length (mm).
+    E : float, optional
+        Young's modulus (MPa; default 0.474). Energies are then in N mm.
+    nu : float, optional
+        Poisson ratio in (-1, 0.5] (default 0.5).
+    radii : (float, float), optional
+        (R, r) of the drawn curve (default (2, 1)); only the shape matters, it is rescaled to L.
+    contact_stiffness : float or None, optional
+        Contact stiffness kappa_c (units of B/D^3; default 100); None: no self-contact.
+
+    Returns
+    -------
+    ClosedRod
+        The scene; ``q_init`` has shape (4 N,).
+
+    Raises
+    ------
+    ValueError
+        p and q not coprime, N too small, a traced radius, or a parameter out of range.
+    """
     p = check_int_at_least("p", p, 1)
     q = check_int_at_least("q", q, 1)
     if math.gcd(p, q) != 1:
@@ -266,9 +326,34 @@ def torus_knot(p, q, *, N, D, L, E=PAPER_YOUNG_MODULUS, nu=0.5, radii=(2.0, 1.0)
 
 
 def ring(*, N, material, radius=1.0, Lk0=0):
-    """A planar circular ring of N nodes, rest length 2 pi radius; the initial polygon is the
-    regular N-gon whose edges have the rest length. The radius and the material's parameters may
-    be jax tracers; N and Lk0 set the scene's structure and must be concrete."""
+    """A planar circular ring: the regular N-gon whose edges have the rest length 2 pi radius / N.
+
+    The radius and the material's parameters may be jax tracers; N and Lk0 set the scene's
+    structure and must be concrete.
+
+    Parameters
+    ----------
+    N : int
+        Nodes, at least 4.
+    material : Material
+        Stiffnesses (B, C, EA and optionally D).
+    radius : float, optional
+        Radius of the rest circle (length unit of the material; default 1).
+    Lk0 : int, optional
+        Linking number at zero twist (default 0).
+
+    Returns
+    -------
+    ClosedRod
+        The scene; ``q_init`` has shape (4 N,): 3 N coordinates, then N twist angles (rad).
+
+    Raises
+    ------
+    TypeError
+        ``material`` is not a ``Material``.
+    ValueError
+        N below 4, a radius that is not positive, or a traced Lk0.
+    """
     _check_material(material)
     N = check_int_at_least("N", N, 4)
     radius = check_positive("radius", radius)
@@ -283,10 +368,31 @@ def ring(*, N, material, radius=1.0, Lk0=0):
 
 
 def michell_ring(*, N, nu=0.5, slenderness=0.01, radius=1.0):
-    """Michell's ring: B = 1, C = B/(1+nu), diameter D = slenderness * radius (EA = 16 B/D^2).
+    """Michell's ring: B = 1, C = B/(1+nu), diameter D = slenderness * radius, EA = 16 B/D^2.
 
-    Thin enough (D/R = 0.01) that extensibility shifts the threshold by ~1e-5 relative or less.
+    At the default D/R = 0.01 extensibility shifts the critical twist by ~1e-5 relative or less.
     nu, slenderness and radius may be jax tracers (their values then unchecked); N must be concrete.
+
+    Parameters
+    ----------
+    N : int
+        Nodes, at least 4.
+    nu : float, optional
+        Poisson ratio in (-1, 0.5] (default 0.5).
+    slenderness : float, optional
+        D / radius (default 0.01).
+    radius : float, optional
+        Ring radius (default 1; energies then in units of B/radius).
+
+    Returns
+    -------
+    ClosedRod
+        The ring scene (see ``ring``).
+
+    Raises
+    ------
+    ValueError
+        N below 4, nu outside (-1, 0.5], or a slenderness or radius that is not positive.
     """
     nu = check_finite("nu", nu)
     slenderness = check_positive("slenderness", slenderness)
@@ -302,6 +408,30 @@ def clamped_rod(*, N, length, material, axis=(0.0, 0.0, 1.0)):
     midpoint, so the clamps act at the midpoints of the end edges, and those are ``length`` apart
     (edge length = length/(N-2)). The twisted straight rod then stores exactly C phi^2/(2 length).
     ``length`` and the material's parameters may be jax tracers; N and the axis must be concrete.
+
+    Parameters
+    ----------
+    N : int
+        Nodes, at least 5.
+    length : float
+        Distance between the clamps (length unit of the material).
+    material : Material
+        Stiffnesses (B, C, EA and optionally D).
+    axis : (3,) array_like, optional
+        Direction of the rod (default z); normalised.
+
+    Returns
+    -------
+    ClampedRod
+        The scene; ``q_init`` has shape (4 N - 15,): the 3 (N - 4) coordinates of the free
+        nodes, then the N - 3 free edges' twist angles (rad).
+
+    Raises
+    ------
+    TypeError
+        ``material`` is not a ``Material``.
+    ValueError
+        N below 5, a length that is not positive, or an axis that is not a finite non-zero 3-vector.
     """
     _check_material(material)
     N = check_int_at_least("N", N, 5)

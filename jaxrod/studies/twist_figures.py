@@ -52,7 +52,7 @@ def branch_figures(out, title=""):
     marks = event_marks(critical, table)
     written = []
     p = os.path.join(out, "bifurcation.png")
-    plotting.plot_bifurcation(table, marks, p, title=title or None)
+    plotting.plot_bifurcation(table, marks, p, title=title or None, band=critical.get("negative_tol"))
     written.append(p)
     p = os.path.join(out, "linking.png")
     plotting.plot_linking(table, [{"phi": m["phi"], "label": m["label"]} for m in marks], p, title=title or None)
