@@ -12,7 +12,8 @@ from jaxrod.studies import atlas
 from jaxrod.model import contact, scenes
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
-README = (REPO / "README.md").read_text(encoding="utf-8")
+# the user documentation: the README and the pages of the docs site
+README = "\n".join(p.read_text(encoding="utf-8") for p in [REPO / "README.md", *sorted((REPO / "docs").rglob("*.md"))])
 
 
 def _help_of(command, flag):
@@ -23,7 +24,7 @@ def _help_of(command, flag):
 
 def test_the_contact_stiffness_has_one_unit_everywhere():
     # contact_energy multiplies the double integral by kappa_c * B / D**3.
-    x = jr.trefoil(8.0, 292.0, 61)
+    x = jr.trefoil(D=8.0, L=292.0, N=61)
     assert x.contact_stiffness == scenes.DEFAULT_CONTACT_STIFFNESS
     texts = {"jaxrod.model.contact": contact.__doc__, "closed_curve": scenes.closed_curve.__doc__,
              "trefoil --contact-stiffness": _help_of("trefoil", "--contact-stiffness"),

@@ -1,0 +1,275 @@
+"""MkDocs hook: the pages whose content the code and the benchmark results hold.
+
+- ``cli.md``: each command's ``--help``, from the argparse parsers of ``jaxrod.cli.parser``;
+- ``validation.md`` and ``performance.md``: tables read from ``benchmarks/results/*.json`` (and
+  ``speed.csv``), each row with the command that reproduces it;
+- the benchmarks' charts (``benchmarks/results/*.png``) are added to the site from where they live
+  (the notebooks come in through the links in ``docs/examples/``, rendered by mkdocs-jupyter, not
+  executed).
+
+A page asks for a table with a marker line ``<!-- generated: NAME -->``. Nothing is typed twice,
+so the pages cannot drift from the parsers or the results.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import pathlib
+
+from mkdocs.structure.files import File
+
+REPO = pathlib.Path(__file__).resolve().parent.parent
+RESULTS = REPO / "benchmarks" / "results"
+CHARTS = ("speed.png", "sparse_contact.png", "dynamics_accuracy.png", "michell.png", "helical_buckling.png",
+          "peer_pyelastica.png", "tension_twist.png", "fold_curve_nu.png", "fold_curve_ratio.png",
+          "hysteresis_trefoil.png", "bifurcation_trefoil.png", "plectoneme.png", "open_knot.png",
+          "accuracy_trefoil.png", "trefoil_convergence.png")
+PI = math.pi
+
+
+def on_files(files, config):
+    for name in CHARTS:
+        if (RESULTS / name).exists():
+            files.append(File.generated(config, f"results/{name}", abs_src_path=str(RESULTS / name)))
+    return files
+
+
+def on_page_markdown(markdown, page, config, files):
+    for name, make in GENERATORS.items():
+        marker = f"<!-- generated: {name} -->"
+        if marker in markdown:
+            markdown = markdown.replace(marker, make())
+    return markdown
+
+
+# ---------------------------------------------------------------------------------------- CLI
+
+def cli_reference():
+    os.environ.setdefault("COLUMNS", "100")  # argparse wraps help at the terminal's width
+    from jaxrod.cli import parser as cli_parser
+
+    top = cli_parser.build_parser()
+    sub = next(a for a in top._actions if a.dest == "command")
+    parts = ["## jaxrod", "", "```text", top.format_help().rstrip(), "```", ""]
+    for name, command in sub.choices.items():
+        parts += [f"## jaxrod {name}", "", "```text", command.format_help().rstrip(), "```", ""]
+    return "\n".join(parts)
+
+
+# ---------------------------------------------------------------------------------- tables
+
+def _load(name):
+    path = RESULTS / name
+    return json.loads(path.read_text()) if path.exists() else None
+
+
+def _table(header, rows):
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(str(cell) for cell in row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def _missing(name):
+    return f"no result file (`benchmarks/results/{name}`)"
+
+
+def validation_table():
+    rows = []
+    same = _load("redesign_same_answers.json")
+    if same and "michell" in same["cases"]:
+        case = same["cases"]["michell"]
+        phi = next(h["new"] for h in case["headlines"] if h["key"] == "phi_star")
+        n = case["args"][case["args"].index("--N") + 1]
+        exact = 2 * PI * math.sqrt(3) * 1.5
+        rows.append(["Michell's ring, ν = 0.5: φ* = 2π√3 (1 + ν)", f"{exact / PI:.7f} π",
+                     f"{phi / PI:.7f} π (N = {n})", f"{(phi - exact) / exact:.1e} relative",
+                     f"`jaxrod {' '.join(case['args'])}`"])
+    else:
+        rows.append(["Michell's ring", "", _missing("redesign_same_answers.json"), "", ""])
+    tension = _load("tension_twist.json")
+    if tension:
+        finest = max(r["N"] for r in tension["onset"])
+        onset = [r for r in tension["onset"] if r["N"] == finest]
+        low = min(onset, key=lambda r: r["t"])
+        worst = max(abs(r["rel_err"]) for r in onset)
+        rows.append(["Greenhill: clamped rod under tension T and twist, onset moment M_c (→ 8.9868 B/L as T → 0)",
+                     f"continuum clamped problem, M_c L/B = {low['M_c_continuum']:.4f} at TL²/B = {low['t']:g}",
+                     f"{low['M_c']:.4f} (N = {finest})",
+                     f"≤ {worst:.1e} relative over TL²/B = " + ", ".join(format(r["t"], "g") for r in onset),
+                     "`python benchmarks/tension_twist.py`"])
+    else:
+        rows.append(["Greenhill", "", _missing("tension_twist.json"), "", ""])
+    accuracy = _load("accuracy_trefoil.json")
+    if accuracy:
+        paper = {"plus": "8 π (simulation and experiment, ±2 π; opposite sign convention)",
+                 "minus": "11.6 π (simulation; experiment ~10 π ± 2 π; opposite sign convention)"}
+        for side in ("minus", "plus"):
+            s = accuracy[side]
+            rows.append([f"trefoil (D, L) = (8, 292) mm, {'tightening' if side == 'minus' else 'opening'} side",
+                         paper[side], f"{s['phi_star_over_pi']:+.5f} π ± {s['error_over_pi']:.1e} π "
+                         f"(N = {', '.join(str(n) for n in s['extrapolation']['N'])}, extrapolated)",
+                         f"{abs(abs(s['phi_star_over_pi']) - (8.0 if side == 'plus' else 11.6)):.2f} π from the paper",
+                         "`jaxrod trefoil --D 8 --L 292 --accuracy 0.01pi --out results/acc`"])
+    else:
+        rows.append(["trefoil against the paper", "", _missing("accuracy_trefoil.json"), "", ""])
+    helix = _load("helix_reference.json")
+    if helix:
+        valid = [r for r in helix["rows"] if r.get("reference_valid")]
+        m_err = max(abs(r["m_rel_error"]) for r in valid)
+        t_err = max(abs(r["t_rel_error"]) for r in valid)
+        m_x = max(abs(r["m_extrapolated_rel_error"]) for r in valid)
+        t_x = max(abs(r["t_extrapolated_rel_error"]) for r in valid)
+        rows.append(["localized helix of a clamped rod (Neukirch, van der Heijden & Thompson 2002, eqs. 14–15)",
+                     "end moment m = ML/B and tension t = TL²/B at the analytic (d, R)",
+                     f"{len(valid)} loops, N = {helix['N']}",
+                     f"m ≤ {m_err:.1e}, t ≤ {t_err:.1e} relative; Richardson: {m_x:.1e}, {t_x:.1e}",
+                     "`python benchmarks/helix_reference.py`"])
+    else:
+        rows.append(["helix against NvdHT", "", _missing("helix_reference.json"), "", ""])
+    peer = _load("peer_pyelastica.json")
+    if peer:
+        best = peer["at_pyelastica_best"]
+        rows.append(["localized helix against PyElastica (same rod, same ends; θ(s) envelope, L1 error)",
+                     f"PyElastica {peer['pyelastica_version']}: {best['pyelastica_best_err']:.1e} "
+                     f"in {best['pyelastica_s']:.0f} s (n = {best['pyelastica_n']})",
+                     f"jaxrod N = {best['jaxrod_N']}: {best['jaxrod_err']:.1e} in {best['jaxrod_warm_s']:.1f} s warm",
+                     "both against the analytic envelope", "`python benchmarks/peer_pyelastica.py`"])
+    else:
+        rows.append(["helix against PyElastica", "", _missing("peer_pyelastica.json"), "", ""])
+    plectoneme = _load("plectoneme.json")
+    if plectoneme:
+        p = plectoneme
+        rows.append(["plectoneme at constant tension: torque plateau (two-phase model with hard contact, "
+                     "Clauvelin–Audoly–Neukirch superhelix form)",
+                     f"M L/B = {p['two_phase_M_p']:.2f}, extension {p['two_phase_slope']:.4f} L per turn",
+                     f"{p['plateau_M_mean']:.2f} ({p['plateau_M_min']:.2f} … {p['plateau_M_max']:.2f}), "
+                     f"{p['slope_ext_per_turn']:.4f} L per turn (N = {p['N']})",
+                     f"{abs(p['plateau_M_mean'] / p['two_phase_M_p'] - 1):.1e} relative (mean torque)",
+                     "`python benchmarks/plectoneme.py`"])
+    # CWF: no benchmark writes its result yet; the row says so until one does
+    cwf = _load("cwf.json")
+    rows.append(["CWF", "", "not yet reproduced: " + _missing("cwf.json") if cwf is None
+                 else json.dumps(cwf)[:80], "", ""])
+    return _table(["reference", "reference value", "jaxrod", "error", "reproduce"], rows)
+
+
+def _machine(text):
+    return text or "x86_64, 2 cores"
+
+
+REDESIGN_TASKS = {"command1": "command 1 (the whole trefoil study with its diagram)", "michell": "Michell's ring, N = 1024",
+                  "michell_api": "Michell's ring, N = 1024, from Python", "helix": "the localized helix, N = 240",
+                  "critical_curve": "critical curve, 8 ratios, N = 61", "accuracy": "the trefoil to 0.01 π (accuracy mode)"}
+
+
+def _command(args):
+    if args[0].isdigit():
+        return f"`critical_twist(michell_ring(N={args[0]}), ...)`"
+    return f"`jaxrod {' '.join(args)}`"
+
+
+def performance_table():
+    rows = []
+    same = _load("redesign_same_answers.json")
+    if same:
+        for name, case in same["cases"].items():
+            if "runs" in case:  # cold and second processes
+                runs = case["runs"].get("new", [])
+                cold = [r["seconds"] for r in runs if r.get("kind") == "cold"]
+                warm = [r["seconds"] for r in runs if r.get("kind") == "warm"]
+                time = f"{min(cold):.1f} s cold / {min(warm):.1f} s second process" if cold and warm else ""
+            else:
+                time = f"{case['seconds']['new']:.1f} s"
+            rows.append([REDESIGN_TASKS.get(name, name), _command(case["args"]), time, same.get("machine", ""),
+                         "`python benchmarks/redesign_same_answers.py`"])
+    start = _load("cli_start.json")
+    if start:
+        for setting, runs in start.items():  # the CLI's XLA flags against XLA's defaults
+            run = runs[0]
+            rows.append([f"command 1, {setting}", "`jaxrod trefoil --D 8 --L 292 --N 121 ...`",
+                         f"{run['cold_s']:.1f} s cold / {run['warm_s']:.1f} s second process", "x86_64, 2 cores",
+                         "`python benchmarks/cli_start.py`"])
+    diagram = _load("command1_diagram.json")
+    if diagram:
+        for name, runs in diagram.items():
+            run = runs[0]
+            rows.append([f"command 1, {name}", "`jaxrod trefoil --D 8 --L 292 --N 121 ...`",
+                         f"{run['cold_s']:.1f} s cold / {run['warm_s']:.1f} s second process", "x86_64, 2 cores",
+                         "`python benchmarks/command1_diagram.py`"])
+    for name, what in (("sparse_fold.json", "opening fold"), ("sparse_tightening_end.json", "tightening end")):
+        for row in _load(name) or ():
+            rows.append([f"trefoil {what} on the extended system, N = {row['N']}",
+                         f"pseudo-arclength continuation, {row['backend']} backend", f"{row['seconds']:.1f} s",
+                         "x86_64, 2 cores", f"`python benchmarks/{name[:-5]}.py`"])
+    return _table(["task", "what runs", "time", "machine", "reproduce"], rows)
+
+
+def speed_table():
+    path = RESULTS / "speed.csv"
+    if not path.exists():
+        return _missing("speed.csv")
+    rows = []
+    with path.open() as f:
+        for r in csv.DictReader(f):
+            if r["engine"] != "current" or r["status"] != "ok":
+                continue
+            warm = f"{float(r['warm_s']):.2f} s" if r["warm_s"] else ""
+            rows.append([r["case"], r["N"], r["side"], f"{float(r['first_s']):.1f} s", warm,
+                         f"{float(r['phi_star_over_pi']):+.6f} π", f"{r['cpu_count']} cores, jax {r['jax_version']}"])
+    return _table(["problem", "N", "side", "first call (compilation included)", "warm", "φ*", "machine"], rows)
+
+
+def _csv_rows(name):
+    path = RESULTS / name
+    if not path.exists():
+        return None
+    with path.open() as f:
+        return list(csv.DictReader(f))
+
+
+def sparse_contact_table():
+    rows = _csv_rows("sparse_contact.csv")
+    if rows is None:
+        return _missing("sparse_contact.csv")
+    out = [[r["N"], r["n_dof"], r["side"], r["engine"], f"{float(r['first_s']):.1f} s", f"{float(r['warm_s']):.1f} s",
+            f"{float(r['phi_over_pi']):+.6f} π ± {float(r['phi_error_over_pi']):.0e} π"] for r in rows]
+    return _table(["N", "DOFs", "side", "backend", "first call", "warm", "φ*"], out)
+
+
+def dynamics_table():
+    rows = _csv_rows("dynamics_accuracy.csv")
+    if rows is None:
+        return _missing("dynamics_accuracy.csv")
+    out = []
+    for r in rows:
+        how = f"continuation, tol {r['tol']} π" if r["method"] == "continuation" else f"damped dynamics, ramp {r['rate']}"
+        phi = f"{float(r['phi_over_pi']):+.4f} π" if r["phi_over_pi"] else "beyond the range"
+        error = f"{float(r['error_over_pi']):.4f} π" if r["error_over_pi"] else ""
+        out.append([r["N"], r["side"], how, phi, error, f"{float(r['seconds']):.1f} s"])
+    return _table(["N", "side", "method", "φ* read", "error", "wall time"], out)
+
+
+def peer_table():
+    peer = _load("peer_pyelastica.json")
+    if peer is None:
+        return _missing("peer_pyelastica.json")
+    out = []
+    best = dict(peer["at_pyelastica_best"], N=peer["at_pyelastica_best"]["jaxrod_N"])
+    best["err_l1"] = f"{best['target_err']:.2e} (PyElastica's best, {best['pyelastica_best_err']:.2e}, + 2 %)"
+    for r in peer["at_jaxrod_error"] + [best]:
+        n, err = r["N"], r["err_l1"]
+        err = err if isinstance(err, str) else f"{err:.2e}"
+        jaxrod = f"N = {n}: {r['jaxrod_cold_s']:.1f} s cold, {r['jaxrod_warm_s']:.2f} s warm"
+        if "pyelastica_s" not in r:  # PyElastica never reached this error in its runs
+            out.append([err, jaxrod, "not reached", ""])
+            continue
+        out.append([err, jaxrod, f"n = {r['pyelastica_n']}: {r['pyelastica_s']:.0f} s",
+                    f"{r['pyelastica_s'] / r['jaxrod_cold_s']:.0f}× / {r['pyelastica_s'] / r['jaxrod_warm_s']:.0f}×"])
+    return _table(["envelope error E", "jaxrod", "PyElastica to reach it", "ratio, cold / warm"], out)
+
+
+GENERATORS = {"cli": cli_reference, "validation": validation_table, "performance": performance_table,
+              "speed": speed_table, "sparse_contact": sparse_contact_table, "dynamics": dynamics_table,
+              "peer": peer_table}
