@@ -14,6 +14,7 @@ when the working tree differs from it) and the command that produced a results f
 """
 import functools
 import os
+import platform
 import subprocess
 import sys
 import tempfile
@@ -64,6 +65,17 @@ def provenance():
     script = os.path.relpath(os.path.abspath(sys.argv[0]), REPO)
     command = " ".join(["python", script, *sys.argv[1:]] + (["--smoke"] if SMOKE else []))
     return {"commit": commit, "command": command}
+
+
+def provenance_json():
+    """The provenance with the machine, as a JSON results file's ``"provenance"`` field."""
+    return {**provenance(), "machine": platform.processor() or platform.machine()}
+
+
+def with_provenance(data):
+    """``data`` (a dict, or a list stored under ``"rows"``) with its ``"provenance"`` field first."""
+    body = data if isinstance(data, dict) else {"rows": data}
+    return {"provenance": provenance_json(), **{k: v for k, v in body.items() if k != "provenance"}}
 
 
 def provenance_line():

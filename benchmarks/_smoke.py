@@ -4,8 +4,14 @@
 spreads them over the test files (``tests/test_benchmarks_smoke_a.py``, ``_b.py``; split by the times
 measured one script at a time with the suite's XLA flags) so that the
 suite's workers share them about evenly by time. ``NO_SMOKE``: scripts that have no small mode,
-with the reason. ``run`` runs one script in a subprocess, its results in a folder of its own.
+with the reason. ``OWN_PROCESS``: scripts that must run in a process of their own, with the reason.
+
+``run`` runs one script in a subprocess, its results in a folder of its own. ``run_many`` runs
+several scripts one after another in one subprocess (``runpy``, as ``__main__``): Python, JAX and
+jaxrod are imported once and a program one script compiled is not compiled again by the next, which
+is most of a small run's time.
 """
+import json
 import os
 import subprocess
 import sys
@@ -22,8 +28,8 @@ SCRIPTS = {
     "accuracy_trefoil.py": _entry("b", ["accuracy_trefoil.json", "accuracy_trefoil.png"]),
     "atlas_parallel.py": _entry("b", ["atlas_parallel.md"], ["1"]),
     "batch.py": _entry("a", ["batch.md"], ["2"]),
-    "bifurcation_michell.py": _entry("a", ["bifurcation_michell.csv", "bifurcation_michell.md",
-                                           "bifurcation_michell.png"]),
+    "bifurcation_michell.py": _entry("a", ["bifurcation_michell.csv", "bifurcation_michell.json",
+                                           "bifurcation_michell.md", "bifurcation_michell.png"]),
     "bifurcation_trefoil.py": _entry("a", ["bifurcation_trefoil.csv", "bifurcation_trefoil.json",
                                            "bifurcation_trefoil.md", "bifurcation_trefoil.png"]),
     "critical_curve_vs_study.py": _entry("b", ["critical_curve_vs_study.json", "critical_curve_vs_study.md"]),
@@ -47,7 +53,7 @@ SCRIPTS = {
                                           "hysteresis_trefoil.md", "hysteresis_trefoil.png"]),
     "michell.py": _entry("b", ["michell.md", "michell.png"]),
     "onset_fine_step.py": _entry("a", ["onset_fine_step.md"]),
-    "open_knot.py": _entry("b", ["open_knot.csv", "open_knot.json"]),
+    "open_knot.py": _entry("a", ["open_knot.csv", "open_knot.json"]),
     "plectoneme.py": _entry("b", ["plectoneme.csv", "plectoneme.json", "plectoneme.png"]),
     "redesign_same_answers.py": _entry("b", ["redesign_same_answers.md", "redesign_same_answers.json"]),
     "restabilise_trefoil.py": _entry("a", ["restabilise_trefoil.json", "restabilise_trefoil.md"]),
@@ -76,10 +82,8 @@ def all_scripts():
 def run(script, out, timeout=600):
     """Run ``script`` in its small mode with its results in ``out``. -> (returncode, seconds, output)."""
     entry = SCRIPTS[script]
-    env = dict(os.environ, JAXROD_SMOKE="1", JAXROD_BENCH_OUT=str(out), OPENBLAS_NUM_THREADS="1",
-               MPLBACKEND="Agg")
     t = time.perf_counter()
-    proc = subprocess.run([sys.executable, os.path.join(HERE, script), *entry["args"]], cwd=HERE, env=env,
+    proc = subprocess.run([sys.executable, os.path.join(HERE, script), *entry["args"]], cwd=HERE, env=_env(out),
                           capture_output=True, text=True, timeout=timeout)
     return proc.returncode, time.perf_counter() - t, proc.stdout + proc.stderr
 
@@ -87,3 +91,89 @@ def run(script, out, timeout=600):
 def missing_outputs(script, out):
     """The files ``script`` should have written to ``out`` but did not."""
     return [name for name in SCRIPTS[script]["outputs"] if not os.path.exists(os.path.join(out, name))]
+
+# Scripts run in a process of their own, not in ``run_many``'s shared one, and why.
+OWN_PROCESS = {
+    "speed.py": "switches off JAX's compilation cache (jax.config) for its timings, which would carry over "
+                "to the scripts after it",
+}
+
+_MARK = "@@smoke-result@@ "
+
+
+def _env(out):
+    return dict(os.environ, JAXROD_SMOKE="1", JAXROD_BENCH_OUT=str(out), OPENBLAS_NUM_THREADS="1",
+                MPLBACKEND="Agg")
+
+
+def run_many(scripts, out_root, timeout=900):
+    """Run ``scripts`` in their small mode one after another in one subprocess, each with its results
+    in ``out_root/<script stem>``. -> {script: (returncode, seconds, output)}; a script the process
+    never reached (it crashed or timed out) has returncode None and the process's output."""
+    outs = {script: os.path.join(str(out_root), script[:-3]) for script in scripts}
+    cmd = [sys.executable, os.path.abspath(__file__), "--run-many", json.dumps(outs)]
+    try:
+        proc = subprocess.run(cmd, cwd=HERE, env=_env(out_root), capture_output=True, text=True, timeout=timeout)
+        text = proc.stdout + proc.stderr
+    except subprocess.TimeoutExpired as exc:
+        text = f"timed out after {timeout} s\n{exc.stdout or ''}{exc.stderr or ''}"
+    results = {}
+    for line in text.splitlines():
+        if line.startswith(_MARK):
+            r = json.loads(line[len(_MARK):])
+            results[r["script"]] = (r["returncode"], r["seconds"], r["output"])
+    return {s: results.get(s, (None, 0.0, text[-6000:])) for s in scripts}
+
+
+def _exit_code(exc):
+    code = exc.code
+    return 0 if code is None else code if isinstance(code, int) else 1
+
+
+def _run_here(script, out):
+    """Run ``script`` as ``__main__`` in this process, its results in ``out``. -> (returncode, output)."""
+    import contextlib
+    import io
+    import runpy
+    import traceback
+
+    import _bench
+    import matplotlib
+    import matplotlib.pyplot as plt
+
+    os.makedirs(out, exist_ok=True)
+    os.environ["JAXROD_BENCH_OUT"] = out
+    _bench.results_dir.cache_clear()
+    path = os.path.join(HERE, script)
+    argv, cwd, sys_path = sys.argv[:], os.getcwd(), sys.path[:]
+    sys.argv = [path, *SCRIPTS[script]["args"]]
+    buf, code = io.StringIO(), 0
+    try:
+        with contextlib.redirect_stdout(buf), contextlib.redirect_stderr(buf):
+            runpy.run_path(path, run_name="__main__")
+    except SystemExit as exc:
+        code = _exit_code(exc)
+        if code:
+            buf.write(f"\nSystemExit: {exc.code}\n")
+    except BaseException:  # noqa: BLE001  (any failure of the script is reported under its name)
+        buf.write(traceback.format_exc())
+        code = 1
+    finally:
+        sys.argv, sys.path[:] = argv, sys_path
+        os.chdir(cwd)
+        plt.close("all")
+        matplotlib.rcdefaults()
+    return code, buf.getvalue()
+
+
+def _main_run_many(outs):
+    sys.path.insert(0, HERE)
+    for script, out in outs.items():
+        t = time.perf_counter()
+        code, output = _run_here(script, out)
+        result = dict(script=script, returncode=code, seconds=time.perf_counter() - t, output=output[-6000:])
+        print(_MARK + json.dumps(result), flush=True)
+
+
+if __name__ == "__main__" and sys.argv[1:2] == ["--run-many"]:
+    _main_run_many(json.loads(sys.argv[2]))

@@ -35,7 +35,7 @@ from jaxrod.continuation import ContinuationOptions  # noqa: E402
 from jaxrod.continuation.arclength import PseudoArclength, Result, continuation  # noqa: E402
 from jaxrod.continuation.arclength.rods import knot_problem  # noqa: E402
 
-from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, pick, provenance_line, results_dir, with_provenance  # noqa: E402,F401  (benchmarks/ is on the path)
 
 PI = math.pi
 N = pick(121, 61)
@@ -134,8 +134,8 @@ def main():
         w.writeheader()
         w.writerows(rows)
     with open(os.path.join(OUT, "bifurcation_trefoil.json"), "w") as f:
-        json.dump(dict(N=N, summary=summary, events=events, machine=platform.processor() or platform.machine()), f,
-                  indent=1)
+        json.dump(with_provenance(dict(N=N, summary=summary, events=events,
+                                       machine=platform.processor() or platform.machine())), f, indent=1)
     plot(rows, summary)
     write_md(summary, events)
 
@@ -168,6 +168,7 @@ def plot(rows, summary):
 
 def write_md(summary, events):
     lines = [f"# Trefoil (8, 292) mm, N = {N}: branch ends as folds of the extended system", "",
+             provenance_line(), "",
              "Written by `benchmarks/bifurcation_trefoil.py`. Each side: 2 starts x 3 step limits "
              f"(ds_max {STEP_LIMITS}).", "",
              "A run counts when its first event is a fold (the branch end); runs whose first event is "

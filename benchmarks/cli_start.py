@@ -25,7 +25,7 @@ import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 
-from _bench import SMOKE, TINY_CLI_ARGS, fmt, markdown, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, TINY_CLI_ARGS, fmt, markdown, pick, provenance_line, results_dir, with_provenance  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
 ARGS = pick(["trefoil", "--D", "8", "--L", "292", "--N", "121", "--phi-min", "-12pi", "--phi-max", "14pi"],
             TINY_CLI_ARGS)
@@ -94,7 +94,7 @@ def main():
     with open(os.path.join(results_dir(), "cli_start.md"), "w") as f:
         f.write(markdown(lines))
     with open(os.path.join(results_dir(), "cli_start.json"), "w") as f:
-        json.dump(rows, f, indent=1)
+        json.dump(with_provenance(rows), f, indent=1)
     print("\n".join(lines))
 
 

@@ -27,7 +27,7 @@ import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 
-from _bench import SMOKE, TINY_CLI_ARGS, fmt, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, TINY_CLI_ARGS, fmt, pick, provenance_line, results_dir, with_provenance  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
 ARGS = pick(["trefoil", "--D", "8", "--L", "292", "--N", "121", "--phi-min", "-12pi", "--phi-max", "14pi"],
@@ -107,13 +107,15 @@ def main(argv=None):
                "blas_threads": os.environ.get("OPENBLAS_NUM_THREADS"), "runs": runs,
                "timestamp": time.strftime("%Y-%m-%d %H:%M:%S")}
     with open(os.path.join(args.out, "command1.json"), "w") as f:
-        json.dump(summary, f, indent=2)
+        json.dump(with_provenance(summary), f, indent=2)
 
     def stat(name, key, fn):
         return fn([r[key] for r in runs[name]])
 
     lines = [
         "# Command 1: the whole trefoil study, previous release against current",
+        "",
+        provenance_line(),
         "",
         f"`jaxrod trefoil --D 8 --L 292 --N 121 --phi-min -12pi --phi-max 14pi` (`benchmarks/command1.py`, "
         f"{summary['timestamp']}): each version in a fresh process, `cli.main` twice with `--no-cache` "

@@ -23,7 +23,7 @@ import tempfile  # noqa: E402
 
 from cli_start import ARGS, run_cli  # noqa: E402  (benchmarks/ is on the path: this script's folder)
 
-from _bench import SMOKE, fmt, markdown, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, fmt, markdown, pick, provenance_line, results_dir, with_provenance  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
 SETTINGS = {"stable only (--stable-only)": ["--stable-only"], "whole diagram (default)": []}
 if SMOKE:  # one process: the tiny study (already --stable-only) stands for both settings
@@ -85,7 +85,7 @@ def main():
     with open(os.path.join(results_dir(), "command1_diagram.md"), "w") as f:
         f.write(markdown(lines))
     with open(os.path.join(results_dir(), "command1_diagram.json"), "w") as f:
-        json.dump(rows, f, indent=1)
+        json.dump(with_provenance(rows), f, indent=1)
     print("\n".join(lines))
 
 

@@ -36,7 +36,7 @@ import warnings  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, pick, provenance_line, results_dir, with_provenance  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
 RESULTS = results_dir()
 # the runs' own folders (step files the reference starts from): scratch space, not results
@@ -66,7 +66,7 @@ def _load():
 def _save(data):
     tmp = JSON + ".tmp"
     with open(tmp, "w") as f:
-        json.dump(data, f, indent=1, sort_keys=True)
+        json.dump(with_provenance(data), f, indent=1, sort_keys=True)
     os.replace(tmp, JSON)
 
 

@@ -20,7 +20,7 @@ import tempfile  # noqa: E402
 
 from cli_start import ARGS, run_cli  # noqa: E402  (benchmarks/ is on the path: this script's folder)
 
-from _bench import SMOKE, markdown, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, markdown, pick, provenance_line, results_dir, with_provenance  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
 STEPS = pick(("0.25pi", "0.5pi", "1pi"), ("0.5pi",))
 
@@ -71,7 +71,7 @@ def main():
     with open(os.path.join(results_dir(), "diagram_steps.md"), "w") as f:
         f.write(markdown(lines))
     with open(os.path.join(results_dir(), "diagram_steps.json"), "w") as f:
-        json.dump(runs, f, indent=1)
+        json.dump(with_provenance(runs), f, indent=1)
     print("\n".join(lines))
 
 

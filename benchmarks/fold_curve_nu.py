@@ -38,7 +38,7 @@ from jaxrod.continuation.arclength import PseudoArclength, continuation, fold_at
 from jaxrod.continuation.arclength.rods import knot_problem, set_poisson_ratio  # noqa: E402
 
 PI = math.pi
-from _bench import SMOKE, markdown, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, markdown, pick, provenance_line, results_dir, with_provenance  # noqa: E402,F401  (benchmarks/ is on the path)
 
 D, L = 8.0, 292.0
 N = pick(121, 61)  # the small mode: the fewest nodes whose start at phi = 0 is a minimum
@@ -115,7 +115,7 @@ def main():
                    slope_vs_curve_differences_max_rel=slope_check, point_studies=rows)
     os.makedirs(OUT, exist_ok=True)
     with open(os.path.join(OUT, "fold_curve_nu.json"), "w") as f:
-        json.dump(summary, f, indent=1)
+        json.dump(with_provenance(summary), f, indent=1)
     with open(os.path.join(OUT, "fold_curve_nu.csv"), "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["nu", "phi_star_over_pi", "dphi_star_dnu", "residual"])

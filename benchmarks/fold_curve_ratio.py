@@ -44,7 +44,7 @@ from jaxrod.continuation.arclength.rods import knot_problem, set_diameter  # noq
 from jaxrod.model.symmetry import two_fold_asymmetry  # noqa: E402
 
 PI = math.pi
-from _bench import SMOKE, markdown, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, markdown, pick, provenance_line, results_dir, with_provenance  # noqa: E402,F401  (benchmarks/ is on the path)
 
 L, D0, NU = 292.0, 8.0, 0.5
 N = pick(128, 61)  # the small mode: the fewest nodes whose start at phi = 0 is a minimum
@@ -221,7 +221,7 @@ def _saver(path, data):
     def save():
         tmp = path + ".tmp"
         with open(tmp, "w") as f:
-            json.dump(data, f, indent=1)
+            json.dump(with_provenance(data), f, indent=1)
         os.replace(tmp, path)
     return save
 

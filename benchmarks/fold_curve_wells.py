@@ -35,7 +35,7 @@ from jaxrod.model.material import Material  # noqa: E402
 from jaxrod.model.scenes import DEFAULT_CONTACT_STIFFNESS, PAPER_YOUNG_MODULUS, trefoil_points  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _bench import COMMITTED_RESULTS, SMOKE, markdown, pick  # noqa: E402
+from _bench import COMMITTED_RESULTS, SMOKE, markdown, pick, with_provenance  # noqa: E402
 from fold_curve_ratio import CHECKS, L, N, NU, OUT, SIDES, options  # noqa: E402
 
 PI = math.pi
@@ -78,7 +78,7 @@ def main():
     def save(side):
         tmp = paths[side] + ".tmp"
         with open(tmp, "w") as f:
-            json.dump(done[side], f, indent=1)
+            json.dump(with_provenance(done[side]), f, indent=1)
         os.replace(tmp, paths[side])
 
     # the construction reproduces the trefoil at shift 0

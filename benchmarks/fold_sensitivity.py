@@ -37,7 +37,7 @@ from jaxrod.continuation.arclength.rods import knot_problem, set_diameter, set_p
 
 PI = math.pi
 D, L = 8.0, 292.0
-from _bench import SMOKE, markdown, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, markdown, pick, provenance_line, results_dir, with_provenance  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
 OUT = results_dir()
 # (N, side, start of the pseudo-arclength path (from follow_twist), p bound, steps)
@@ -110,7 +110,7 @@ def main():
                   flush=True)
     os.makedirs(OUT, exist_ok=True)
     with open(os.path.join(OUT, "fold_sensitivity.json"), "w") as f:
-        json.dump(dict(D=D, L=L, rows=rows), f, indent=1)
+        json.dump(with_provenance(dict(D=D, L=L, rows=rows)), f, indent=1)
     write_md(rows)
 
 

@@ -19,7 +19,7 @@ import numpy as np  # noqa: E402
 from jaxrod.studies import endloads as el  # noqa: E402
 from jaxrod.model.material import Material  # noqa: E402
 
-from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, pick, provenance_line, results_dir, with_provenance  # noqa: E402,F401  (benchmarks/ is on the path)
 SETS = pick(((20.0, 300.0, 0.5), (30.0, 400.0, 0.3), (10.0, 300.0, 0.0), (15.0, 250.0, 0.5)), ((20.0, 300.0, 0.5),))
 NS = pick((120, 240, 480), (120, 240))
 D = 2e-4  # D/L: stretch T/EA = t (D/L)^2/16 < 1e-6
@@ -73,7 +73,7 @@ def main():
     print("free end:", free)
     out = dict(sets=SETS, N=NS, D_over_L=D, rows=rows, richardson=rich, free_end=free)
     with open(os.path.join(results_dir(), "helical_buckling.json"), "w") as fh:
-        json.dump(out, fh, indent=1)
+        json.dump(with_provenance(out), fh, indent=1)
     figure(rows, states)
 
 

@@ -20,7 +20,7 @@ for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 from jaxrod.studies import endloads as el  # noqa: E402
 from jaxrod.cli import main as cli  # noqa: E402
 
-from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, pick, provenance_line, results_dir, with_provenance  # noqa: E402,F401  (benchmarks/ is on the path)
 
 N = pick(400, 201)
 # (m, t, B, C): the loop whose (d, R) is imposed; lambda = 14.1, 16.6, 13.9
@@ -76,7 +76,8 @@ def main():
               f"t / t(EA = 1e7) - 1 = {s['t_vs_EA_1e7']:+.1e} (stretch estimate {s['stretch_shift']:.1e}), "
               f"Morse {s['morse']}, reference valid {s['reference_valid']}; {s['seconds']:.0f} s", flush=True)
     with open(os.path.join(results_dir(), "helix_reference.json"), "w") as f:
-        json.dump({"N": N, "rows": rows, "mirror_m": mirror, "mirror_t": mirror_t, "stiff": stiff}, f, indent=2)
+        json.dump(with_provenance({"N": N, "rows": rows, "mirror_m": mirror, "mirror_t": mirror_t, "stiff": stiff}),
+                  f, indent=2)
 
 
 if __name__ == "__main__":

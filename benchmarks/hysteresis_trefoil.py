@@ -37,7 +37,7 @@ from jaxrod.continuation.arclength.rods import knot_problem  # noqa: E402
 from jaxrod.model.topology import writhe  # noqa: E402
 
 PI = math.pi
-from _bench import COMMITTED_RESULTS, SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401
+from _bench import COMMITTED_RESULTS, SMOKE, pick, provenance_line, results_dir, with_provenance  # noqa: E402,F401
 HERE = os.path.dirname(os.path.abspath(__file__))
 OUT = results_dir()
 N = pick(121, 61)  # the small mode: the fewest nodes whose start at phi = 0 is a minimum
@@ -111,7 +111,7 @@ def main():
         w.writeheader()
         w.writerows(rows)
     with open(os.path.join(OUT, "hysteresis_trefoil.json"), "w") as f:
-        json.dump(dict(N=N, D=8.0, L=292.0, summary=summary), f, indent=1)
+        json.dump(with_provenance(dict(N=N, D=8.0, L=292.0, summary=summary)), f, indent=1)
     plot(rows, summary)
     write_md(summary)
 
@@ -172,6 +172,7 @@ def plot(rows, summary):
 
 def write_md(summary):
     lines = [f"# Trefoil (8, 292) mm, N = {N}: hysteresis loops", "",
+             provenance_line(), "",
              "Written by `benchmarks/hysteresis_trefoil.py`. Twisting up, the symmetric knot buckles at the "
              "symmetric branch's end; untwisting, the buckled knot stays stable down to the buckled branch's end.", "",
              "| side | symmetric end /pi | buckled end /pi | kind | width /pi | spread over step limits /pi | slides |",

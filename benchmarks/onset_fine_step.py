@@ -97,7 +97,7 @@ def main():
     lines = ["| D/L | side | located kind | located (π) | fine-step reference (π) | reference from | difference (π) |",
              "|---|---|---|---|---|---|---|"]
     lines += [f"| {r:.3f} | {s} | {k} | {a:+.10f} | {b:+.10f} | {h} | {d:.1e} |" for r, s, k, a, b, h, d in rows]
-    text = ("# Located onsets against fine-step references (trefoil, L = 292, N = 61)\n\n"
+    text = ("# Located onsets against fine-step references (trefoil, L = 292, N = 61)\n\n" + provenance_line() + "\n\n"
             "`python benchmarks/onset_fine_step.py`: the study's located onset, and the first zero of the "
             "lowest eigenvalues followed by Newton in steps of 2e-4 π from the study's last stable state "
             "(regula falsi at the end); where Newton finds no state past a twist even in steps of 1e-7 π, the "

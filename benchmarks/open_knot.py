@@ -40,7 +40,7 @@ import time
 for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
-from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, pick, provenance_line, results_dir, with_provenance  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
 OUT = results_dir()
 PARTS = os.path.join(OUT, "open_knot")
@@ -212,7 +212,7 @@ def combine():
                    circle_loop=dict(e_sqrtT=2 * math.pi / math.sqrt(2), span_sqrtT=math.sqrt(2),
                                     note="a circular loop of radius R: B pi/R + T 2 pi R least at R = sqrt(B/2T)"))
     with open(os.path.join(OUT, "open_knot.json"), "w") as f:
-        json.dump(summary, f, indent=1)
+        json.dump(with_provenance(summary), f, indent=1)
     print(json.dumps(dict(cases=table, loose_limit=fits, collapse=collapse, resolution=resolution), indent=1))
     _figure(results, steps, fits)
 

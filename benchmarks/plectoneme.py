@@ -46,7 +46,7 @@ from jaxrod.studies import endloads as el  # noqa: E402
 from jaxrod.model.contact import contact_count  # noqa: E402
 from jaxrod.model.material import Material  # noqa: E402
 
-from _bench import SMOKE, pick, provenance, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, pick, provenance, provenance_line, results_dir, with_provenance  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
 TWO_PI = 2.0 * math.pi
 
@@ -456,7 +456,7 @@ def main():
     write_csv(res["rows"], os.path.join(results_dir(), f"plectoneme{tag}.csv"))
     figure(res, summ, os.path.join(results_dir(), f"plectoneme{tag}.png"))
     with open(os.path.join(results_dir(), f"plectoneme{tag}.json"), "w") as fh:
-        json.dump(summ, fh, indent=1, default=float)
+        json.dump(with_provenance(summ), fh, indent=1, default=float)
 
 if __name__ == "__main__":
     main()

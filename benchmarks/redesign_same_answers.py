@@ -28,8 +28,8 @@ A number passes where ``|new - old| <= tol * max(1, |old|)``; timings (``seconds
 that only one version prints are listed, not failed. Writes redesign_same_answers.md and .json to
 ``benchmarks/results`` (rewritten after each case, so an interrupted run keeps what it finished).
 
-Small mode (``--smoke``): command 1 at N = 41 over -0.5pi ... 0.5pi (no end there), the library's
-Michell call at N = 64, the helix at N = 90, one warm process per version; the other cases only when
+Small mode (``--smoke``): command 1 at N = 41 over -0.5pi ... 0.5pi (no end there; its cold process
+only, no timing) and the library's Michell call at N = 64; the other cases only when
 named with ``--cases`` (their small inputs: critical-curve at one ratio and N = 41, the accuracy mode
 from N = 37).
 """
@@ -48,7 +48,7 @@ import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 
-from _bench import fmt, pick, provenance, provenance_line, results_dir  # noqa: E402  (benchmarks/ is on the path)
+from _bench import fmt, pick, provenance, provenance_line, results_dir, with_provenance  # noqa: E402  (benchmarks/ is on the path)
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
@@ -325,7 +325,7 @@ def ends_lines(result):
 def write_results(results, meta, out):
     """redesign_same_answers.json (everything) and .md (the tables), from the cases done so far."""
     with open(os.path.join(out, "redesign_same_answers.json"), "w") as f:
-        json.dump({**meta, "cases": results}, f, indent=2)
+        json.dump(with_provenance({**meta, "cases": results}), f, indent=2)
     lines = ["# Same answers: the release before the redesign against the working tree", "",
              provenance_line(), "",
              f"Baseline {meta['baseline']} (`git archive`), each command as a process of its own per version "
@@ -349,11 +349,12 @@ def write_results(results, meta, out):
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--baseline", default=BASELINE, help=f"the release to compare with (default {BASELINE})")
-    # the small mode runs one case of each kind (the study, a library call, a --json command): the
-    # others take the same path at 20-40 s a version, which the smoke test cannot spare
-    p.add_argument("--cases", default=pick(",".join(CASES), "command1,michell_api,helix"),
-                   help="comma-separated cases (default: all; small mode: command1,michell_api,helix)")
-    p.add_argument("--reps", type=int, default=pick(2, 1), help="warm processes per version for command 1")
+    # the small mode runs one case of each kind (the study; a --json case, here the library call):
+    # the others take the same path at 20-40 s a version, which the smoke test cannot spare
+    p.add_argument("--cases", default=pick(",".join(CASES), "command1,michell_api"),
+                   help="comma-separated cases (default: all; small mode: command1,michell_api)")
+    p.add_argument("--reps", type=int, default=pick(2, 0),
+                   help="warm processes per version for command 1 (default 2; small mode 0: no timing)")
     p.add_argument("--timeout", type=float, default=None, help="seconds allowed to one process (default none)")
     args = p.parse_args(argv)
     meta = {**provenance(), "baseline": args.baseline, "timestamp": time.strftime("%Y-%m-%d %H:%M:%S"),

@@ -32,7 +32,7 @@ from jaxrod.studies.diagram import DiagramOptions, follow_branch_end  # noqa: E4
 from jaxrod.model.topology import writhe  # noqa: E402
 
 PI = math.pi
-from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, pick, provenance_line, results_dir, with_provenance  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
 RESULTS = results_dir()
 SIDES = pick({"opening": (1.0, 6.3), "tightening": (-1.0, -11.0)}, {"opening": (1.0, 6.3)})
@@ -85,7 +85,8 @@ def main():
 
     if sys.argv[1:] == ["--report-only"]:
         with open(os.path.join(RESULTS, "restabilise_trefoil.json")) as fh:
-            return report(json.load(fh))
+            data = json.load(fh)
+        return report(data["rows"] if isinstance(data, dict) else data)  # committed files may hold the bare list
     scene = jr.trefoil(D=8.0, L=292.0, N=N)
     rows = []
     for side, (sign, start) in SIDES.items():
@@ -106,12 +107,12 @@ def main():
         print(json.dumps(row), flush=True)
     os.makedirs(RESULTS, exist_ok=True)
     with open(os.path.join(RESULTS, "restabilise_trefoil.json"), "w") as fh:
-        json.dump(rows, fh, indent=1)
+        json.dump(with_provenance(rows), fh, indent=1)
     report(rows)
 
 
 def report(rows):
-    lines = ["# Where the trefoil's unstable branches lead", "",
+    lines = ["# Where the trefoil's unstable branches lead", "", provenance_line(), "",
              "Trefoil (8, 292), N = 121: each symmetric branch's end located on the extended system, then the "
              "unstable branch beyond it followed by pseudo-arclength continuation until the Morse index comes back "
              "to 0 (`python benchmarks/restabilise_trefoil.py`; `DiagramOptions(until_restable=True)`).", "",

@@ -25,7 +25,7 @@ import subprocess  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 
-from _bench import SMOKE, markdown, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, markdown, pick, provenance_line, results_dir, with_provenance  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
 RESULTS = results_dir()
 PI = math.pi
@@ -92,7 +92,7 @@ def main():
             print(out.stderr[-3000:], file=sys.stderr)
     os.makedirs(RESULTS, exist_ok=True)
     with open(os.path.join(RESULTS, "sparse_fold.json"), "w") as fh:
-        json.dump(rows, fh, indent=2)
+        json.dump(with_provenance(rows), fh, indent=2)
     lines = ["# The trefoil's opening fold on the extended system: sparse (host) backend against dense", "",
              "Trefoil (8, 292), nu = 0.5; pseudo-arclength continuation from the symmetric branch at 6 pi to the fold "
              "(`python benchmarks/sparse_fold.py`; time: the continuation from 6 pi to 120 points past the start, "

@@ -26,7 +26,7 @@ import subprocess  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 
-from _bench import SMOKE, markdown, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, markdown, pick, provenance_line, results_dir, with_provenance  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
 RESULTS = results_dir()
 PI = math.pi
@@ -98,7 +98,7 @@ def main():
     for r in rows:  # runs before the 'located' field: a located event has a finite residual <= 1e-10
         r.setdefault("located", r["residual"] is not None and math.isfinite(r["residual"]) and r["residual"] <= 1e-10)
     with open(os.path.join(RESULTS, "sparse_tightening_end.json"), "w") as fh:
-        json.dump(rows, fh, indent=2)
+        json.dump(with_provenance(rows), fh, indent=2)
     lines = ["# The trefoil's tightening end on the extended system: sparse (host) backend against dense", "",
              "Trefoil (8, 292), nu = 0.5; pseudo-arclength continuation from the symmetric branch at -10 pi towards "
              "-11.6 pi, the first event at which the Morse index grows (`python benchmarks/sparse_tightening_end.py`; "

@@ -24,7 +24,7 @@ import numpy as np  # noqa: E402
 from jaxrod.studies import endloads as el  # noqa: E402
 from jaxrod.model.material import Material  # noqa: E402
 
-from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, pick, provenance_line, results_dir, with_provenance  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
 NU = 0.5
 D = 2e-4
@@ -115,7 +115,7 @@ def main():
     on = onset()
     ht = hat()
     with open(os.path.join(results_dir(), "tension_twist.json"), "w") as fh:
-        json.dump(dict(onset=on, hat=ht), fh, indent=1, default=float)
+        json.dump(with_provenance(dict(onset=on, hat=ht)), fh, indent=1, default=float)
     figure(on, ht)
 
 

@@ -29,7 +29,7 @@ from jaxrod.continuation.arclength import PseudoArclength, continuation  # noqa:
 from jaxrod.continuation.arclength.rods import knot_problem  # noqa: E402
 
 PI = math.pi
-from _bench import SMOKE, markdown, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, markdown, pick, provenance_line, results_dir, with_provenance  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
 OUT = results_dir()
 # N = 121's folds (benchmarks/results/bifurcation_trefoil.md)
@@ -65,7 +65,7 @@ def main():
                          distance_from_121_over_pi=(first["phi_over_pi"] - FOLD_121[side] / PI) if first else None))
     os.makedirs(OUT, exist_ok=True)
     with open(os.path.join(OUT, "trefoil_n120.json"), "w") as f:
-        json.dump(rows, f, indent=1)
+        json.dump(with_provenance(rows), f, indent=1)
     lines = ["# The trefoil at N = 120 (three-fold symmetric): first instabilities", "",
              "(D, L) = (8, 292); `benchmarks/trefoil_n120.py`; pseudo-arclength on `knot_problem` with "
              "`resolve_crossings = 1e-5` (a step that changes the Morse index by more than 1 is halved).", "",
