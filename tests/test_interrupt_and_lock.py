@@ -15,9 +15,9 @@ from jaxrod.io.locking import LOCK_NAME, FolderInUseError, folder_lock
 from test_cli import EXE
 
 # Long enough that the run is still going when it is signalled, however fast the machine: small
-# steps (~500 of them; the test stops the run within seconds of its start, so they cost nothing);
+# steps (~2400 of them; the test stops the run within seconds of its start, so they cost nothing);
 # N = 61 shares its compiled code with the other CLI tests (one cache per test session).
-STUDY = ["trefoil", "--N", "61", "--phi-min", "-12pi", "--phi-max", "12pi", "--step", "0.05pi", "--no-figures",
+STUDY = ["trefoil", "--N", "61", "--phi-min", "-12pi", "--phi-max", "12pi", "--step", "0.01pi", "--no-figures",
          "--quiet"]
 
 
