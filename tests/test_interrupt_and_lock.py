@@ -2,6 +2,7 @@
 (it aborted with 134 and "terminate called ..." while its two threads were inside XLA), and a
 second run into a folder in use is refused in one line (it used to interleave its rows with the
 first run's: 53 duplicate rows), the lock going with the process that held it, even on kill -9."""
+import shlex
 import signal
 import subprocess
 import sys
@@ -86,3 +87,20 @@ def test_the_lock_is_released_when_its_holder_is_killed_and_refuses_the_api_mean
             pass
     with folder_lock(out):
         pass
+
+
+def test_ctrl_c_stops_a_study_whose_parent_ignored_it(tmp_path):
+    # a background job of a non-interactive shell (or a pytest-xdist worker's child) starts with
+    # SIGINT ignored; the command line takes Ctrl-C back, so the study still stops and says so
+    out = tmp_path / "study"
+    command = " ".join(shlex.quote(a) for a in [EXE, *STUDY, "--out", str(out)])
+    first = subprocess.Popen(["sh", "-c", f"trap '' INT; exec {command}"], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True)  # exec: the same pid, SIGINT ignored
+    _wait_until_both_directions_run(first, out)
+    first.send_signal(signal.SIGINT)
+    try:
+        _, stderr = first.communicate(timeout=120)
+    finally:
+        first.kill()
+    assert first.returncode == 130, stderr[-2000:]
+    assert stderr.strip().splitlines() == [f"jaxrod: interrupted; the same command resumes from what is in {out}/"]

@@ -50,12 +50,17 @@ def main(argv=None):
     if threading.current_thread() is not threading.main_thread():
         return _main(argv)
     previous = signal.signal(signal.SIGTERM, _interrupt)
+    # Ctrl-C raises KeyboardInterrupt even where the parent left SIGINT ignored (a background job
+    # of a non-interactive shell, a pytest-xdist worker): Python installs its handler only if
+    # SIGINT was not ignored at start-up, and an ignored Ctrl-C let a study run on to its end.
+    previous_int = signal.signal(signal.SIGINT, signal.default_int_handler)
     interval = sys.getswitchinterval()
     sys.setswitchinterval(SWITCH_INTERVAL)
     try:
         return _main(argv)
     finally:
         signal.signal(signal.SIGTERM, previous)
+        signal.signal(signal.SIGINT, previous_int)
         sys.setswitchinterval(interval)
 
 
