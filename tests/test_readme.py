@@ -38,3 +38,19 @@ def test_the_readme_links_exist():
     root = os.path.dirname(README)
     for target in re.findall(r"\]\(([^)#:]+)(?:#[^)]*)?\)", _text()):
         assert os.path.exists(os.path.join(root, target)), target
+
+
+def test_readme_figures_are_the_stored_results():
+    # the numbers the README quotes for command 1 and the accuracy mode are those in benchmarks/results
+    import json
+    import pathlib
+
+    results = pathlib.Path(README).parent / "benchmarks" / "results"
+    text = open(README, encoding="utf-8").read()
+    ends = json.loads((results / "redesign_same_answers.json").read_text())["cases"]["command1"]["ends_new"]
+    assert f"{ends[0]:+.7f} π (opening)" in text and f"{ends[-1]:+.7f} π (tightening)".replace("-", "−") in text
+    acc = json.loads((results / "accuracy_trefoil.json").read_text())
+    plus, minus = acc["plus"], acc["minus"]
+    assert f"{plus['phi_star_over_pi']:+.3f} π ± {plus['error_over_pi']:.0e} π".replace("e-04", "e-4") in text
+    assert f"{minus['phi_star_over_pi']:.3f} π ± {minus['error_over_pi']:.1e} π".replace("-", "−", 1).replace(
+        "e-03", "e-3") in text
