@@ -45,7 +45,7 @@ import jaxrod  # noqa: E402,F401  (float64 before any test builds arrays)
 _LONGEST_FIRST = ("test_benchmarks_smoke_a.py", "test_benchmarks_smoke_b.py", "test_notebooks.py", "test_bifurcation_knots.py", "test_resume.py", "test_critical_curve_checks.py",
                   "test_branch_check.py", "test_atlas.py", "test_readme.py", "test_sparse_stability.py", "test_notebook_damped_dynamics.py",
                   "test_symmetry.py", "test_convergence.py", "test_notebook_bifurcation_diagram.py",
-                  "test_getting_started.py", "test_newcomer.py", "test_critical_error.py", "test_located_once.py",
+                  "test_newcomer.py", "test_critical_error.py", "test_located_once.py",
                   "test_docs_blocks.py", "test_traceable.py", "test_extending.py", "test_backends.py",
                   "test_bifurcation_rods.py", "test_endloads.py", "test_helix_checks.py", "test_interrupt_and_lock.py", "test_energy.py",
                   "test_event_curve.py", "test_conventions.py", "test_hessian.py", "test_topology.py",

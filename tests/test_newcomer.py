@@ -1,8 +1,11 @@
-"""A newcomer's six tasks, each in at most ten lines, using only the names in ``jaxrod.__all__``:
-the trefoil (D = 8, L = 292, nu = 0.5) at N = 61 and Michell's ring. Also: the trefoil relaxed at
+"""A newcomer's six tasks, each in at most ten lines, using only the names in ``jaxrod.__all__``, as
+docs/getting-started.md writes them (its blocks run top to bottom here, once, and these tests check
+their results): the trefoil (D = 8, L = 292, nu = 0.5) at N = 61 and Michell's ring. Also: the trefoil relaxed at
 -4 pi from its zero-twist state is a minimum, and every function that reports stability gives it
 the same Morse index and count of sliding modes."""
 import math
+import pathlib
+import re
 
 import jax
 import jax.numpy as jnp
@@ -12,25 +15,42 @@ import pytest
 import jaxrod as jr
 
 PI = math.pi
+PAGE = pathlib.Path(__file__).resolve().parent.parent / "docs" / "getting-started.md"
 for _name in ("equilibrium", "stability", "critical_twists", "follow_twist", "knot", "michell_ring",
               "critical_twist_sensitivity", "Observer", "ContinuationOptions", "EventKind", "SolveOptions"):
     assert _name in jr.__all__, _name
 
 
 @pytest.fixture(scope="module")
-def trefoil():
-    return jr.knot("3_1", D=8.0, L=292.0, N=61, nu=0.5)
+def page():
+    """docs/getting-started.md's blocks run in order: the newcomer's six tasks as the page writes them."""
+    namespace = {"__name__": "getting_started"}
+    for block in re.findall(r"^```python\n(.*?)^```", PAGE.read_text(), flags=re.S | re.M):
+        exec(compile(block, str(PAGE), "exec"), namespace)
+    return namespace
 
 
 @pytest.fixture(scope="module")
-def relaxed(trefoil):
-    return jr.equilibrium(trefoil, 0.0)
+def trefoil(page):
+    return page["trefoil"]
 
 
 @pytest.fixture(scope="module")
-def ends(trefoil):
-    # the point study on both sides (twist study, each end located on the extended system): ~1 min
-    return jr.critical_twists(trefoil, -12.0 * PI, 7.5 * PI)
+def relaxed(page):
+    return page["eq"]
+
+
+@pytest.fixture(scope="module")
+def ends(page):
+    # the point study on both sides (twist study, each end located on the extended system)
+    return page["ends"]
+
+
+def test_the_page_has_six_tasks_in_public_names_only():
+    text = PAGE.read_text()
+    assert len(re.findall(r"^```python\n", text, flags=re.M)) == 6
+    used = set(re.findall(r"\bjr\.(\w+)", "".join(re.findall(r"^```python\n(.*?)^```", text, flags=re.S | re.M))))
+    assert used and used <= set(jr.__all__), used - set(jr.__all__)
 
 
 def test_1_the_trefoil_relaxed(relaxed):
@@ -78,23 +98,20 @@ def test_4_grad_of_the_energy(trefoil, relaxed):
     assert float(jax.grad(energy)(0.5)) == pytest.approx(float(fd_nu), rel=1e-6)
 
 
-def test_5_a_continuation_that_records_the_writhe(trefoil, relaxed):
-    writhe = []
-    path = jr.follow_twist(trefoil, 0.0, PI, jr.ContinuationOptions(step=0.5 * PI),
-                           start=relaxed, observer=jr.Observer(on_point=lambda p: writhe.append(p.equilibrium.Wr)))
-    assert path.completed and len(writhe) == len(path.points) >= 3
-    assert writhe[0] == pytest.approx(relaxed.Wr, abs=1e-6) and all(math.isfinite(w) for w in writhe)
-
-
-def test_6_michell_ring_at_second_order():
-    nu, N = 0.5, 60
-    ends = jr.critical_twists(jr.michell_ring(N=N, nu=nu), -8 * PI, 8 * PI)
+def test_6_michell_ring_at_second_order(page):
+    nu, N = page["nu"], page["N"]
     analytic = 2 * PI * math.sqrt(3.0) * (1.0 + nu)
-    for end, sign in zip(ends, (1, -1)):
+    assert page["analytic"] == pytest.approx(analytic, rel=1e-15)
+    for end, sign in ((page["plus"], 1), (page["minus"], -1)):
         rel = (sign * end.phi - analytic) / analytic
         assert 20.0 / N ** 2 < rel < 40.0 / N ** 2  # from above, c / N^2 with c ~ 31
-    slope = jr.critical_twist_sensitivity(jr.michell_ring(N=N, nu=nu), ends.plus, "nu")
-    assert slope == pytest.approx(ends.plus.phi / (1.0 + nu), rel=1e-6)  # phi* ~ (1 + nu)
+    assert page["slope"] == pytest.approx(page["plus"].phi / (1.0 + nu), rel=1e-6)  # phi* ~ (1 + nu)
+
+
+def test_5_a_continuation_that_records_the_writhe(page, relaxed):
+    writhe, path = page["writhe"], page["path"]
+    assert path.completed and len(writhe) == len(path.points) >= 3
+    assert writhe[0] == pytest.approx(relaxed.Wr, abs=1e-6) and all(math.isfinite(w) for w in writhe)
 
 
 def test_minus_4pi_is_a_minimum_under_every_stability_report(trefoil, relaxed):
