@@ -14,8 +14,8 @@ import jaxrod.studies.critical_curve as cc
 
 N = 61
 # 0.0187: the symmetric state at phi = 0 is a saddle of a shape mode (lowest eigenvalue -6.6e-5), so
-# the branch starts at the minimum off the symmetry
-RATIOS = (0.0187, 0.0192, 0.0237)
+# the branch starts at the minimum off the symmetry; 0.0237, a thicker rod, for comparison
+RATIOS = (0.0187, 0.0237)
 
 
 def _point_study(ratio):
