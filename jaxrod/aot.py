@@ -63,7 +63,7 @@ def enable(path):
 def _prune(path):
     """Remove the programs of other code versions (an upgraded or edited jaxrod never reads
     them again; each file's name starts with the version it was exported by)."""
-    mine = _code_version()[:16] + "-"
+    mine = code_version()[:16] + "-"
     for name in os.listdir(path):
         if name.endswith(".jaxexport") and not name.startswith(mine):
             try:
@@ -93,7 +93,7 @@ def folder():
 
 
 @functools.lru_cache(maxsize=1)
-def _code_version():
+def code_version():
     """SHA-256 of every jaxrod module's source and of JAX's and jaxlib's versions."""
     import jaxlib
 
@@ -166,7 +166,7 @@ def cached_jit(fn=None, *, static_argnames=()):
             with _LOCK:
                 program = programs.get(key, False)
                 if program is False:
-                    name = f"{_code_version()[:16]}-{fn.__qualname__}-{key[:24]}.jaxexport"
+                    name = f"{code_version()[:16]}-{fn.__qualname__}-{key[:24]}.jaxexport"
                     program = programs[key] = _load_or_export(fn, statics, [k for k, _ in dynamic], treedef,
                                                               leaves, os.path.join(where, name))
         if program is None:
@@ -181,7 +181,7 @@ def _key(fn, treedef, leaves, statics):
     tree = str(treedef)
     if "..." in tree:  # an abbreviated static field (a long array's repr): not a faithful key
         return None
-    parts = [f"{fn.__module__}.{fn.__qualname__}", tree, ",".join(_leaf_key(x) for x in leaves), _code_version()]
+    parts = [f"{fn.__module__}.{fn.__qualname__}", tree, ",".join(_leaf_key(x) for x in leaves), code_version()]
     for name in sorted(statics):
         text = _static_key(statics[name])
         if text is None:

@@ -77,7 +77,7 @@ def test_programs_of_another_code_version_are_removed(tmp_path):
     where = tmp_path / "programs"
     where.mkdir()
     (where / "0123456789abcdef-_body-00.jaxexport").write_bytes(b"old")
-    mine = where / f"{aot._code_version()[:16]}-_body-11.jaxexport"
+    mine = where / f"{aot.code_version()[:16]}-_body-11.jaxexport"
     mine.write_bytes(b"current")
     with aot.kept_in(str(where)):
         pass

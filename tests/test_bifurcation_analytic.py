@@ -497,15 +497,15 @@ def test_the_test_functions_adjoint_equals_reverse_mode_through_the_bordered_sol
     """``singular_tests`` (the branch-point locator's Newton matrix) and ``wjw_gradient`` (the fold
     locator's) come from a jitted linearisation, the backend's bordered solves and two contracted
     third-derivative gradients: they equal reverse-mode differentiation of the traceable
-    ``_singular_tests`` (through the bordered solve) and of w^T J w, to roundoff."""
+    ``traced_singular_tests`` (through the bordered solve) and of w^T J w, to roundoff."""
     import jax
 
     prob = BifurcationProblem(coupled_energy, [0.3, -0.7, 0.5, 1.1], 0.4, 0.8)
     u, p, b = jnp.array([0.3, -0.7, 0.5, 1.1]), jnp.asarray(0.4), np.array([0.5, 0.1, -0.3, 0.8])
     (gu, gp), (st, F, J, Fp, w) = prob.singular_tests(u, p, prob.args, b)
     # the references jitted: eagerly each operation compiles on its own (8.5 s; 1.5 s jitted)
-    ref_u, ref_p = jax.jit(jax.jacrev(lambda x, q: prob._singular_tests(x, q, prob.args, b)[0], argnums=(0, 1)))(u, p)
-    ref_st = jax.jit(lambda x, q: prob._singular_tests(x, q, prob.args, b)[0])(u, p)
+    ref_u, ref_p = jax.jit(jax.jacrev(lambda x, q: prob.traced_singular_tests(x, q, prob.args, b)[0], argnums=(0, 1)))(u, p)
+    ref_st = jax.jit(lambda x, q: prob.traced_singular_tests(x, q, prob.args, b)[0])(u, p)
     np.testing.assert_allclose(st, ref_st, rtol=1e-13, atol=1e-14)
     np.testing.assert_allclose(gu, ref_u, rtol=1e-11, atol=1e-12)
     np.testing.assert_allclose(gp, ref_p, rtol=1e-11, atol=1e-12)

@@ -499,19 +499,19 @@ def test_the_knot_problem_linearises_with_the_scene_programs_to_roundoff(paths):
     scene, runs = paths
     rod, branch = runs[6.0, 1.0]
     prob = rod.problem
-    assert prob._programs is not None
+    assert prob.scene_programs is not None
     rng = np.random.default_rng(0)
     # off the equilibrium (F of order one), within the neighbourhood's reach (1e-3 edge lengths)
     u = np.asarray(branch.points[3].u) + 1e-3 * rng.standard_normal(prob.n)
     p = float(branch.points[3].p)
     F, J, Fp = prob.linearise(u, p, prob.args)
-    Fg, Jg, Fpg = prob._linearise(jax.numpy.asarray(u), jax.numpy.asarray(p), prob.args)
+    Fg, Jg, Fpg = prob.traced_linearise(jax.numpy.asarray(u), jax.numpy.asarray(p), prob.args)
     for mine, generic in ((F, Fg), (J, Jg), (Fp, Fpg)):
         scale = float(np.max(np.abs(np.asarray(generic))))
         assert scale > 0 and np.max(np.abs(np.asarray(mine) - np.asarray(generic))) <= 1e-12 * scale
     a, c = rng.standard_normal(u.size), rng.standard_normal(u.size)
-    gu, gp = prob._contracted(u, p, prob.args, a, c, 0.7)
-    fns = problem_module._functions(prob.energy, None, prob.jacobian, prob.backend)
+    gu, gp = prob.contracted(u, p, prob.args, a, c, 0.7)
+    fns = problem_module.problem_functions(prob.energy, None, prob.jacobian, prob.backend)
     gug, gpg = fns.bilinear_gradient(u, p, prob.args, a, c, jax.numpy.asarray(0.7))
     scale = float(np.max(np.abs(np.asarray(gug))))
     assert scale > 0 and np.max(np.abs(np.asarray(gu) - np.asarray(gug))) <= 1e-11 * scale

@@ -35,7 +35,7 @@ SCRIPT = textwrap.dedent("""
     def killed_study(moment):
         kill = lambda: os.kill(os.getpid(), signal.SIGKILL)
         saves = [0]
-        real_savez = study._savez
+        real_savez = study.savez
 
         def savez(path, **arrays):
             # mid-row: the 6th step file, after its row of branch.csv; a partial temporary file is
@@ -49,7 +49,7 @@ SCRIPT = textwrap.dedent("""
                     kill()
             real_savez(path, **arrays)
 
-        study._savez = savez
+        study.savez = savez
 
         def progress(message):
             if moment == "mid-bisection" and " refused (" in message:

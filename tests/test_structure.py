@@ -142,3 +142,37 @@ def _oversized():
 def test_no_file_or_function_over_the_size_limits():
     over = _oversized()
     assert not over, sorted(over)
+
+
+def _private_uses(text):
+    """Underscore names of jaxrod that a test file imports (``from jaxrod.x import _y``,
+    ``import jaxrod.x._y``) or reaches as an attribute of a jaxrod module it imported."""
+    tree = ast.parse(text)
+    modules, out = set(), set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("jaxrod"):
+            out |= {f"{node.module}.{a.name}" for a in node.names if a.name.startswith("_") and not a.name.startswith("__")}
+            out |= {node.module + "." + part for part in node.module.split(".") if part.startswith("_")}
+            modules |= {a.asname or a.name for a in node.names}
+        if isinstance(node, ast.Import):
+            for a in node.names:
+                if a.name.startswith("jaxrod"):
+                    out |= {a.name for part in a.name.split(".") if part.startswith("_") and not part.startswith("__")}
+                    modules.add(a.asname or a.name.split(".")[0])
+    for node in ast.walk(tree):
+        if (isinstance(node, ast.Attribute) and node.attr.startswith("_") and not node.attr.startswith("__")
+                and isinstance(node.value, ast.Name) and node.value.id in modules):
+            out.add(f"{node.value.id}.{node.attr}")
+    return out
+
+
+def test_no_test_reaches_a_private_name_of_jaxrod():
+    tests = pathlib.Path(__file__).resolve().parent
+    found = {f"{p.name}: {use}" for p in sorted(tests.glob("*.py")) for use in _private_uses(p.read_text(encoding="utf-8"))}
+    assert not found, sorted(found)
+
+
+def test_the_private_name_check_sees_one():
+    assert _private_uses("from jaxrod.studies.twist import _x\nimport jaxrod.aot as aot\naot._y()\n") == {
+        "jaxrod.studies.twist._x", "aot._y"}
+    assert _private_uses("import numpy as np\nfrom jaxrod.api import stability\nnp._x\nstability.__doc__\n") == set()

@@ -41,7 +41,7 @@ import numpy as np
 from ..continuation import (CONTACT_NEGATIVE_TOL, ContinuationOptions, Observer, check_dense_memory,
                             follow_twist, follows_sparse)
 from ..continuation.options import checked_options, observed
-from ..io.atomic import savez as _savez, write_json as _write_json
+from ..io.atomic import savez, write_json
 from ..io.locking import holds_output_folder
 from ..io.records import ROW_KEYS, ROW_UNITS, step_record
 from ..linalg.stability import DEFAULT_NEGATIVE_TOL
@@ -113,7 +113,7 @@ def _instability_dict(inst, scene, out, direction, index):
     if out:
         name = f"critical_mode_{direction}_{index}.npz"
         mode_q = np.asarray(scene.from_scaled(inst.mode))
-        _savez(os.path.join(out, name), mode_scaled=inst.mode, mode_q=mode_q, q=before.q, phi=before.phi)
+        savez(os.path.join(out, name), mode_scaled=inst.mode, mode_q=mode_q, q=before.q, phi=before.phi)
         d["mode_file"] = name
     return d
 
@@ -268,8 +268,8 @@ class _StudyRun:
                         self.critical = json.load(f)
             else:
                 _clear_folder(self.out)
-                _write_json(self.path("run.json"), params)
-            _write_json(self.path("branch_units.json"), ROW_UNITS)
+                write_json(self.path("run.json"), params)
+            write_json(self.path("branch_units.json"), ROW_UNITS)
         if self.critical.get("negative_tol") is None:
             self.critical["negative_tol"] = CONTACT_NEGATIVE_TOL if self.scene.has_term("contact") \
                 else DEFAULT_NEGATIVE_TOL
@@ -299,7 +299,7 @@ class _StudyRun:
                     w.writeheader()
                 # An undefined value (Lk_gauss between whole turns) is an empty cell, not "nan".
                 w.writerow({key: "" if isinstance(v, float) and math.isnan(v) else v for key, v in row.items()})
-            _savez(os.path.join(self.out, "steps", f"{direction}_{counter:04d}.npz"), q=e.q, phi=e.phi,
+            savez(os.path.join(self.out, "steps", f"{direction}_{counter:04d}.npz"), q=e.q, phi=e.phi,
                    branch=point.branch, **extra)
 
     def record_instability(self, direction, inst):
@@ -319,15 +319,15 @@ class _StudyRun:
         moment resumes from the last state on file, and drops what came after it."""
         if self.out:
             with self.lock:
-                _savez(self.path(f"state_{direction}.npz"), **path_state.to_arrays())
-                _write_json(self.path("time.json"),
+                savez(self.path(f"state_{direction}.npz"), **path_state.to_arrays())
+                write_json(self.path("time.json"),
                             {"seconds_total": self.seconds_before + time.perf_counter() - self.t0})
         self.stop_if_cancelled()  # after the state is on file: a resumed run goes on from it
 
     def write_critical(self, table=None):
         summarise_critical(self.critical, table)
         if self.out:
-            _write_json(self.path("critical.json"), self.critical)
+            write_json(self.path("critical.json"), self.critical)
 
     def follow(self, direction, target, state, start):
         """One direction: ``follow_twist`` from phi = 0 (or from its saved state) to ``target``."""
@@ -374,8 +374,8 @@ class _StudyRun:
         summarise_critical(critical, table)
         seconds = time.perf_counter() - self.t0
         if self.out:
-            _write_json(self.path("critical.json"), critical)
-            _write_json(self.path("time.json"), {"seconds_total": self.seconds_before + seconds})
+            write_json(self.path("critical.json"), critical)
+            write_json(self.path("time.json"), {"seconds_total": self.seconds_before + seconds})
         return StudyResult(table=table, critical=critical, out=self.out, seconds=seconds,
                            seconds_total=self.seconds_before + seconds,
                            end_states=end_states(critical, self.end_states, self.out))

@@ -67,12 +67,12 @@ class BifurcationProblem:
         # shared by every problem built from them: a rod's problems at other starts (a study's
         # branch ends, each a new ``knot_problem``) trace and load nothing again (measured on the
         # trefoil at N = 121: 15 s of tracing and cache loads per diagram, for 4 branch ends)
-        fns = _functions(energy, residual, jacobian, self.backend)
+        fns = problem_functions(energy, residual, jacobian, self.backend)
         self.F, self.hvp = fns.F, fns.hvp
-        self._linearise, self._singular_tests = fns._linearise, fns._singular_tests
+        self.traced_linearise, self.traced_singular_tests = fns.traced_linearise, fns.traced_singular_tests
         self.energy_value, self.linearise, self.bilinear_gradient = fns.energy_value, fns.linearise, fns.bilinear_gradient
         self.hvp_derivative, self.directional_derivatives = fns.hvp_derivative, fns.directional_derivatives
-        self._programs = programs
+        self.scene_programs = programs
         if programs is not None:
             self.linearise = programs.linearise
         elif getattr(self.backend, "host", False):
@@ -81,14 +81,14 @@ class BifurcationProblem:
 
     def wjw_gradient(self, u, p, args, w):
         """Gradient of w^T J(u, p) w in (u, p): (E'''[w, w, .] (n,), w^T J_p w); exact, by JAX."""
-        return self._contracted(u, p, args, w, w, 0.0)
+        return self.contracted(u, p, args, w, w, 0.0)
 
-    def _contracted(self, u, p, args, a, c, t):
+    def contracted(self, u, p, args, a, c, t):
         """``bilinear_gradient`` with a and c as host arrays and t as a float64 scalar: a jitted
         output (committed to its device) and a host array are two signatures to jit, i.e. two
         compilations of the same program (2 s each for a knot at N = 121)."""
-        if self._programs is not None:
-            return self._programs.bilinear_gradient(u, p, args, a, c, t)
+        if self.scene_programs is not None:
+            return self.scene_programs.bilinear_gradient(u, p, args, a, c, t)
         return self.bilinear_gradient(u, p, args, np.asarray(a, dtype=float), np.asarray(c, dtype=float),
                                       jnp.asarray(t, dtype=jnp.float64))
 
@@ -111,8 +111,8 @@ class BifurcationProblem:
         w, sigma = self.backend.bordered_solve(J, b, b, 0.0, np.zeros(n), 1.0)
         y, _ = self.backend.bordered_solve(J, b, b, 0.0, np.asarray(Fp), 0.0)
         w, y = np.asarray(w), np.asarray(y)
-        g0u, g0p = self._contracted(u, p, args, w, w, 0.0)
-        g1u, g1p = self._contracted(u, p, args, w, -y, 1.0)
+        g0u, g0p = self.contracted(u, p, args, w, w, 0.0)
+        g1u, g1p = self.contracted(u, p, args, w, -y, 1.0)
         gu = np.stack([-np.asarray(g0u), np.asarray(g1u)])
         gp = np.array([-float(g0p), float(g1p)])
         st = np.array([float(sigma), float(np.dot(w, np.asarray(Fp)))])
@@ -155,7 +155,7 @@ class BifurcationProblem:
 
 
 @functools.lru_cache(maxsize=64)
-def _functions(energy, residual, jacobian, backend):
+def problem_functions(energy, residual, jacobian, backend):
     return _Functions(energy, residual, jacobian, backend)
 
 
@@ -172,23 +172,23 @@ _STATICS = ("energy", "residual", "jacobian", "backend")
 
 
 @cached_jit(static_argnames=_STATICS)
-def _linearise_program(u, p, args, energy, residual, jacobian, backend):
-    return _functions(energy, residual, jacobian, backend)._linearise(u, p, args)
+def linearise_program(u, p, args, energy, residual, jacobian, backend):
+    return problem_functions(energy, residual, jacobian, backend).traced_linearise(u, p, args)
 
 
 @cached_jit(static_argnames=_STATICS)
 def _bilinear_gradient_program(u, p, args, a, c, t, energy, residual, jacobian, backend):
-    return _functions(energy, residual, jacobian, backend)._bilinear_gradient(u, p, args, a, c, t)
+    return problem_functions(energy, residual, jacobian, backend)._bilinear_gradient(u, p, args, a, c, t)
 
 
 @cached_jit(static_argnames=_STATICS)
 def _hvp_derivative_program(u, p, args, w, du, dp, energy, residual, jacobian, backend):
-    return _functions(energy, residual, jacobian, backend)._hvp_derivative(u, p, args, w, du, dp)
+    return problem_functions(energy, residual, jacobian, backend)._hvp_derivative(u, p, args, w, du, dp)
 
 
 @cached_jit(static_argnames=_STATICS)
 def _directional_derivatives_program(u, p, args, h, energy, residual, jacobian, backend):
-    return _functions(energy, residual, jacobian, backend)._directional_derivatives(u, p, args, h)
+    return problem_functions(energy, residual, jacobian, backend)._directional_derivatives(u, p, args, h)
 
 
 class _Functions:
@@ -205,7 +205,7 @@ class _Functions:
         # functions: ``jaxrod.aot`` can then keep it across processes (a rod's functions are
         # module-level, so they key it), where a jit of a bound method could only be traced anew
         statics = {"energy": energy, "residual": residual, "jacobian": jacobian, "backend": backend}
-        self.linearise = _in_u_p(_linearise_program, statics)
+        self.linearise = _in_u_p(linearise_program, statics)
         self.bilinear_gradient = _in_u_p(_bilinear_gradient_program, statics)
         self.hvp_derivative = _in_u_p(_hvp_derivative_program, statics)
         self.directional_derivatives = _in_u_p(_directional_derivatives_program, statics)
@@ -238,14 +238,14 @@ class _Functions:
         f2, f3 = jax.jvp(d2, (u,), (h,))
         return f2, f3
 
-    def _linearise(self, u, p, args):
+    def traced_linearise(self, u, p, args):
         """(F (n,), J (n, n), F_p (n,)) at (u, p)."""
         F, Fp = jax.jvp(lambda q: self.F(u, q, args), (p,), (jnp.ones_like(p),))
         if self.jacobian is not None:
             return F, self.jacobian(u, p, args), Fp
         return F, self.backend.jacobian(lambda x: self.F(x, p, args), u), Fp
 
-    def _singular_tests(self, u, p, args, b):
+    def traced_singular_tests(self, u, p, args, b):
         """(sigma, tau) (2,): sigma from [[J, b], [b^T, 0]] [w; sigma] = [0; 1] vanishes iff J is
         singular; tau = w^T F_p also vanishes at a branch point (F_p orthogonal to the kernel).
         ``singular_tests`` gives its Jacobian ((2, n), (2,)) by the adjoint; this form is traceable

@@ -67,7 +67,7 @@ class _Traced(NamedTuple):
 
 
 def _traced(problem):
-    return _Traced(problem.F, problem.hvp, problem._linearise, problem._singular_tests, problem.backend)
+    return _Traced(problem.F, problem.hvp, problem.traced_linearise, problem.traced_singular_tests, problem.backend)
 
 
 @functools.partial(jax.jit, static_argnames=("problem", "set_mu"))
