@@ -37,5 +37,7 @@ def test_page_python_blocks_run(page, tmp_path, monkeypatch):
     namespace = {"__name__": f"docs_{page}"}
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # a page's example runs without a warning
-        for number, block in enumerate(python_blocks((DOCS / page).read_text())):
+        blocks = python_blocks((DOCS / page).read_text())
+        for number, block in enumerate(blocks):
             exec(compile(block, f"docs/{page} python block {number}", "exec"), namespace)
+    assert blocks and len(namespace) > 2  # the page has code, and its code defined names
