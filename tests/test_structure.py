@@ -176,3 +176,31 @@ def test_the_private_name_check_sees_one():
     assert _private_uses("from jaxrod.studies.twist import _x\nimport jaxrod.aot as aot\naot._y()\n") == {
         "jaxrod.studies.twist._x", "aot._y"}
     assert _private_uses("import numpy as np\nfrom jaxrod.api import stability\nnp._x\nstability.__doc__\n") == set()
+
+
+_CHECKS = {"raises", "warns", "approx", "assert_allclose", "assert_array_equal", "assert_equal", "fail", "skip"}
+
+
+def _tests_that_check_nothing(text):
+    """Test functions in ``text`` with no assert, no pytest.raises/warns/approx/fail/skip, no
+    numpy.testing check and no call of a function of the same file that asserts."""
+    tree = ast.parse(text)
+    functions = [n for n in ast.walk(tree) if isinstance(n, ast.FunctionDef)]
+    asserting = {n.name for n in functions if any(isinstance(x, ast.Assert) for x in ast.walk(n))}
+    imported = {a.asname or a.name for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) for a in n.names}
+
+    def checks(node):
+        return any(isinstance(x, ast.Assert)
+                   or (isinstance(x, ast.Attribute) and x.attr in _CHECKS)
+                   or (isinstance(x, ast.Call) and isinstance(x.func, ast.Name)
+                       and (x.func.id in asserting or (x.func.id in imported and x.func.id.startswith("check"))))
+                   for x in ast.walk(node))
+    return [n.name for n in tree.body if isinstance(n, ast.FunctionDef) and n.name.startswith("test") and not checks(n)]
+
+
+def test_every_test_asserts_something():
+    tests = pathlib.Path(__file__).resolve().parent
+    empty = {f"{p.name}::{name}" for p in sorted(tests.glob("test_*.py"))
+             for name in _tests_that_check_nothing(p.read_text(encoding="utf-8"))}
+    assert not empty, sorted(empty)
+    assert _tests_that_check_nothing("def test_a():\n    x = 1\n\ndef test_b():\n    assert 1\n") == ["test_a"]
