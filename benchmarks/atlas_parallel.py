@@ -14,6 +14,7 @@ import os
 for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
+import math  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
@@ -32,9 +33,11 @@ def main(argv):
     from jaxrod.studies import atlas
 
     workers = int(argv[0]) if argv else 2
+    # small mode: a coarser step and bracket (13 continuation points instead of 25 a run)
+    settings = pick(None, atlas.AtlasSettings(step=math.pi, tol=0.05 * math.pi))
     tmp = tempfile.mkdtemp(prefix="atlas_parallel_")
     t0 = time.perf_counter()
-    serial = atlas.run_atlas(["3_1"], RATIOS, N, out=os.path.join(tmp, "serial"), sides=SIDES)
+    serial = atlas.run_atlas(["3_1"], RATIOS, N, out=os.path.join(tmp, "serial"), sides=SIDES, settings=settings)
     t_serial = time.perf_counter() - t0
     t0 = time.perf_counter()
     with LocalCluster(n_workers=workers, threads_per_worker=1, dashboard_address=None) as cluster, \
@@ -42,11 +45,13 @@ def main(argv):
         client.wait_for_workers(workers)
         t_start = time.perf_counter() - t0
         t0 = time.perf_counter()
-        spread = atlas.run_atlas(["3_1"], RATIOS, N, out=os.path.join(tmp, "dask"), client=client, sides=SIDES)
+        spread = atlas.run_atlas(["3_1"], RATIOS, N, out=os.path.join(tmp, "dask"), client=client, sides=SIDES,
+                                settings=settings)
         t_dask = time.perf_counter() - t0
         # Again on the same workers: jax imported and the compiled code loaded already.
         t0 = time.perf_counter()
-        again = atlas.run_atlas(["3_1"], RATIOS, N, out=os.path.join(tmp, "dask_warm"), client=client, sides=SIDES)
+        again = atlas.run_atlas(["3_1"], RATIOS, N, out=os.path.join(tmp, "dask_warm"), client=client, sides=SIDES,
+                               settings=settings)
         t_warm = time.perf_counter() - t0
     same = all(a["phi_star"] == b["phi_star"] == c["phi_star"] and a["n_points"] == b["n_points"]
                for a, b, c in zip(serial, spread, again))

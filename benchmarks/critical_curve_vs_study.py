@@ -18,7 +18,9 @@ instability against a fine-step reference.
 Writes benchmarks/results/critical_curve_vs_study.json (after every step: a rerun goes on from it,
 while the runs' folders are still in the temporary directory) and critical_curve_vs_study.md.
 Run: python benchmarks/critical_curve_vs_study.py [--no-reference]   (~25 min on one core)
-Small mode (``--smoke``): one ratio (0.04) at N = 31, the opening side, three reference points.
+Small mode (``--smoke``): one ratio (0.04) at N = 31, the opening side, three reference points; the
+two commands run in this process (``jaxrod.cli.main``), so that the programs compiled for the curve
+serve the study and the reference.
 """
 import os
 
@@ -70,11 +72,28 @@ def _save(data):
     os.replace(tmp, JSON)
 
 
+def jaxrod(argv, in_process=False):
+    """The command line ``jaxrod argv``: a process of its own, or ``jaxrod.cli.main`` in this one
+    (the small mode: the programs compiled for one command serve the next and the reference).
+    -> CompletedProcess (returncode, stdout, stderr)."""
+    if not in_process:
+        return subprocess.run([EXE, *argv], capture_output=True, text=True)
+    import contextlib
+    import io
+
+    from jaxrod.cli import main as cli_main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = cli_main(argv)
+    return subprocess.CompletedProcess(["jaxrod", *argv], code, out.getvalue(), err.getvalue())
+
+
 def run_curve():
     t = time.perf_counter()
     out = os.path.join(WORK, "curve")
-    run = subprocess.run([EXE, "critical-curve", "--ratios", RATIOS, "--N", str(N), "--sides", ",".join(SIDES),
-                          "--out", out, "--fresh", "--json", "--quiet"], capture_output=True, text=True)
+    run = jaxrod(["critical-curve", "--ratios", RATIOS, "--N", str(N), "--sides", ",".join(SIDES),
+                  "--out", out, "--fresh", "--json", "--quiet"], in_process=SMOKE)
     if run.returncode != 0:
         raise RuntimeError(run.stderr)
     result = json.loads(run.stdout)
@@ -86,9 +105,9 @@ def run_curve():
 def run_study(ratio):
     t = time.perf_counter()
     out = os.path.join(WORK, f"study_{ratio:.4f}")
-    run = subprocess.run([EXE, "trefoil", "--D", repr(ratio * L), "--L", repr(L), "--N", str(N),
-                          f"--phi-min={PHI_RANGE[0]}", "--phi-max", PHI_RANGE[1], "--out", out, "--json", "--no-figures", "--quiet", "--no-extrapolation",
-                          "--fresh"], capture_output=True, text=True)
+    run = jaxrod(["trefoil", "--D", repr(ratio * L), "--L", repr(L), "--N", str(N), f"--phi-min={PHI_RANGE[0]}",
+                  "--phi-max", PHI_RANGE[1], "--out", out, "--json", "--no-figures", "--quiet", "--no-extrapolation",
+                  "--fresh"], in_process=SMOKE)
     if run.returncode != 0:
         raise RuntimeError(run.stderr)
     summary = json.loads(run.stdout)

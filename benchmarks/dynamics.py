@@ -29,6 +29,8 @@ PHI_STOP = pick(9.0 * PI, 0.05 * PI)  # small mode: a few chunks of the ramp
 # The writhe of the symmetric branch grows by < 0.04 up to its end (3.055 -> 3.09 at N = 61);
 # a state 0.15 above the start has left it.
 LEFT_BRANCH = 0.15
+# small mode: the continuation in whole turns of pi, its branch end located coarsely (None: the default)
+CONT_STEP, CONT_TOL = pick(0.5 * PI, 1.0 * PI), pick(None, 1e-2 * PI)
 
 
 def main(argv):
@@ -46,7 +48,8 @@ def main(argv):
     start = (jr.relax_to_minimum(knot, 0.0) if SMOKE else
              jr.relax(knot, 0.0, options=jr.RelaxOptions(with_stability=False)))
     t0 = time.perf_counter()
-    path = jr.follow_twist(knot, 0.0, 7.5 * PI, jr.ContinuationOptions(step=0.5 * PI, switch=False), start=start)
+    path = jr.follow_twist(knot, 0.0, 7.5 * PI, jr.ContinuationOptions(step=CONT_STEP, tol=CONT_TOL, switch=False),
+                           start=start)
     t_cont = time.perf_counter() - t0
     phi_c, err_c = path.instabilities[0].phi, path.instabilities[0].phi_error
     print(f"continuation: branch end {phi_c / PI:.4f} pi +- {err_c / PI:.1e} in {t_cont:.1f} s (compilation included)")

@@ -44,22 +44,29 @@ D, L = 8.0, 292.0
 N = pick(121, 61)  # the small mode: the fewest nodes whose start at phi = 0 is a minimum
 NU0 = 0.5
 POINTS = pick((0.0, 0.1, 0.2, 0.3, 0.4), (0.4,))
-CURVE_STEPS = pick(400, 6)  # the fold curve's steps in nu (the small mode: enough for its slope check)
+CURVE_STEPS = pick(400, 4)  # the fold curve's steps in nu (the small mode: 5 points, one inside its slope check)
 H_NU = 1e-3  # the central differences' step in nu (0.0 +- h: nu = -0.001 is a valid material)
 HERE = os.path.dirname(os.path.abspath(__file__))
 OUT = results_dir()
 ALG = PseudoArclength()
+# The stable-only engine's largest step up to a point study's start: 3 pi takes 2-3 steps to ~6 pi,
+# where 2 pi takes 6-14 (its steps refused and halved on the way). The start at NU0 keeps 2 pi: at
+# N = 61 a path in steps of 3 pi ends beside a branch point just before the fold.
+STUDY_STEP = pick(2 * PI, 3 * PI)
+# The point studies' path: the fold comes at step ~24 of 40 (ds <= 0.25); the small mode takes
+# longer steps and stops a few past the fold (it comes at step ~15), the path beyond it unused.
+PATH_STEPS, PATH_DS_MAX = pick((40, 0.25), (18, 1.0))
 
 
-def _path_options(p_max, steps=40):
-    return ContinuationOptions(ds=0.05, ds_min=1e-6, ds_max=0.25, max_steps=steps, newton_tol=1e-10, eig_rtol=1e-13,
-                               k=6, p_max=p_max)
+def _path_options(p_max, steps=PATH_STEPS):
+    return ContinuationOptions(ds=0.05, ds_min=1e-6, ds_max=PATH_DS_MAX, max_steps=steps, newton_tol=1e-10,
+                               eig_rtol=1e-13, k=6, p_max=p_max)
 
 
-def locate_opening_fold(nu, below):
+def locate_opening_fold(nu, below, step=2 * PI):
     """A point study: the opening fold of the trefoil with Poisson ratio nu, from phi = 0."""
     scene = jr.trefoil(D=D, L=L, N=N, nu=nu)
-    old = jr.follow_twist(scene, 0.0, below, jr.ContinuationOptions(step=2 * PI, max_switches=0))
+    old = jr.follow_twist(scene, 0.0, below, jr.ContinuationOptions(step=step, max_switches=0))
     e = old.points[-1].equilibrium
     rod = knot_problem(scene, np.asarray(e.q), e.phi)
     br = continuation(rod.problem, ALG, _path_options(below + 1.0 * PI), throw=False)
@@ -85,7 +92,7 @@ def main():
         near = type("Near", (), dict(u=curve.u[k], p=curve.p[k], v=curve.v[k]))
         on_curve = fold_at(rod.problem, near, set_poisson_ratio, curve.mu[k], nu, opts)
         t = time.perf_counter()
-        _, study, br = locate_opening_fold(nu, on_curve.p - 0.3 * PI)
+        _, study, br = locate_opening_fold(nu, on_curve.p - 0.3 * PI, STUDY_STEP)
         seconds = time.perf_counter() - t
         row = dict(nu=nu, curve_phi_over_pi=on_curve.p / PI, curve_dphi_dnu=on_curve.dp_dmu,
                    curve_residual=on_curve.residual, study_phi_over_pi=(study.p / PI if study else None),
@@ -94,7 +101,8 @@ def main():
                    study_seconds=seconds, michell_over_pi=2 * math.sqrt(3) * (1 + nu))
         if study is not None:
             # dphi*/dnu of the point studies: central differences of two more, at nu +- H_NU
-            ends = [locate_opening_fold(nu + sgn * H_NU, on_curve.p - 0.3 * PI)[1] for sgn in (-1.0, 1.0)]
+            ends = [locate_opening_fold(nu + sgn * H_NU, on_curve.p - 0.3 * PI, STUDY_STEP)[1]
+                    for sgn in (-1.0, 1.0)]
             if all(e is not None for e in ends):
                 central = (ends[1].p - ends[0].p) / (2 * H_NU)
                 row.update(central_dphi_dnu=central, derivative_rel_diff=abs(central - on_curve.dp_dmu) / abs(on_curve.dp_dmu))

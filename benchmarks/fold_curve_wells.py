@@ -36,7 +36,7 @@ from jaxrod.model.scenes import DEFAULT_CONTACT_STIFFNESS, PAPER_YOUNG_MODULUS, 
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from _bench import COMMITTED_RESULTS, SMOKE, markdown, pick, with_provenance  # noqa: E402
-from fold_curve_ratio import CHECKS, L, N, NU, OUT, SIDES, options  # noqa: E402
+from fold_curve_ratio import CHECKS, FOLLOW_STEP, L, N, NU, OUT, SIDES, options  # noqa: E402
 
 PI = math.pi
 SHIFTS = pick((0.25, 0.5, 0.75), (0.5,))  # edges
@@ -60,7 +60,7 @@ def shifted_trefoil(D, shift):
 
 def point_study(D, shift, below, sign):
     scene = shifted_trefoil(D, shift)
-    old = jr.follow_twist(scene, 0.0, below, jr.ContinuationOptions(step=2 * PI, max_switches=0))
+    old = jr.follow_twist(scene, 0.0, below, jr.ContinuationOptions(step=FOLLOW_STEP, max_switches=0))
     e = old.points[-1].equilibrium
     rod = knot_problem(scene, np.asarray(e.q), e.phi)
     study = event_curve(rod.problem, (rod.problem.u0, rod.problem.p0), set_diameter, D, [], options(sign, 300))

@@ -47,6 +47,8 @@ STEP_LIMITS = pick((0.5, 0.25), (0.5,))
 MAX_STEPS = pick(320, 6)
 CHUNK = pick(25, 3)  # continuation steps between the observer's looks
 PAST_END = pick(6, 1)  # points followed past the buckled branch's end
+# the stable-only engine's largest step to the buckled branch (the small mode: 15 steps to 7 pi, not 30)
+FOLLOW_STEP = pick(0.5 * PI, 3 * PI)
 # the corrector's residual: along a slide of eigenvalue ~3e-8 a residual r leaves the point uncertain
 # by r / 3e-8; at 1e-10 that is 3e-3, enough for the path to turn in phi by noise (measured)
 NEWTON_TOL = 1e-12
@@ -63,7 +65,7 @@ def symmetric_ends():
 def buckled_state(scene, side):
     stop = SIDES[side] * PI
     t = time.perf_counter()
-    path = jr.follow_twist(scene, 0.0, stop, jr.ContinuationOptions(step=0.5 * PI, max_switches=1))
+    path = jr.follow_twist(scene, 0.0, stop, jr.ContinuationOptions(step=FOLLOW_STEP, max_switches=1))
     seconds = time.perf_counter() - t
     buckled = [p for p in path.points if p.branch.startswith("buckled")]
     if not path.completed or not buckled:

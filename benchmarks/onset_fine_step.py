@@ -26,11 +26,13 @@ NEWTON = EquilibriumOptions(method="newton", gtol=1e-11, near_null_tol=1e-6)
 L, N = 292.0, pick(61, 41)
 CASES = pick(((0.020, "minus"), (0.024, "minus"), (0.028, "minus"), (0.024, "plus")), ((0.0274, "plus"),))
 SMALL_STUDY = pick([], ["--stable-only", "--no-extrapolation"])  # small mode: the study's stable branches only
+# small mode: the opening side ends at 6.83 pi, so the buckled branch after it is followed for less
+PLUS_MAX = pick("7.5pi", "7pi")
 EXE = os.path.join(os.path.dirname(sys.executable), "jaxrod")
 
 
 def _study(D, out, side):
-    span = ["--phi-min=-12pi", "--phi-max", "0.5pi"] if side == "minus" else ["--phi-min=-0.5pi", "--phi-max", "7.5pi"]
+    span = ["--phi-min=-12pi", "--phi-max", "0.5pi"] if side == "minus" else ["--phi-min=-0.5pi", "--phi-max", PLUS_MAX]
     run = subprocess.run([EXE, "trefoil", "--D", repr(D), "--L", repr(L), "--N", str(N), *span, "--out", out,
                           "--json", "--no-figures", "--quiet", *SMALL_STUDY], capture_output=True, text=True, check=True)
     return json.loads(run.stdout)

@@ -28,10 +28,10 @@ A number passes where ``|new - old| <= tol * max(1, |old|)``; timings (``seconds
 that only one version prints are listed, not failed. Writes redesign_same_answers.md and .json to
 ``benchmarks/results`` (rewritten after each case, so an interrupted run keeps what it finished).
 
-Small mode (``--smoke``): command 1 at N = 41 over -0.5pi ... 0.5pi (no end there; its cold process
-only, no timing) and the library's Michell call at N = 64; the other cases only when
-named with ``--cases`` (their small inputs: critical-curve at one ratio and N = 41, the accuracy mode
-from N = 37).
+Small mode (``--smoke``): the helix case at N = 90 (one ``--json`` command, the cheapest to compile:
+one process a version); the other cases only when named with ``--cases`` (their small inputs: command 1
+at N = 41 over -0.5pi ... 0.5pi, its cold process only, no timing; the Michell cases at N = 64;
+critical-curve at one ratio and N = 41; the accuracy mode from N = 37).
 """
 import os
 
@@ -349,10 +349,11 @@ def write_results(results, meta, out):
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--baseline", default=BASELINE, help=f"the release to compare with (default {BASELINE})")
-    # the small mode runs one case of each kind (the study; a --json case, here the library call):
-    # the others take the same path at 20-40 s a version, which the smoke test cannot spare
-    p.add_argument("--cases", default=pick(",".join(CASES), "command1,michell_api"),
-                   help="comma-separated cases (default: all; small mode: command1,michell_api)")
+    # the small mode runs one case, a --json command through json_case, compare and the tables: each
+    # case is a cold process per version (the two versions share no compiled code), 3-8 s even at
+    # the small sizes, which the smoke test cannot spare for more than one
+    p.add_argument("--cases", default=pick(",".join(CASES), "helix"),
+                   help="comma-separated cases (default: all; small mode: helix)")
     p.add_argument("--reps", type=int, default=pick(2, 0),
                    help="warm processes per version for command 1 (default 2; small mode 0: no timing)")
     p.add_argument("--timeout", type=float, default=None, help="seconds allowed to one process (default none)")

@@ -24,7 +24,9 @@ for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
 import argparse  # noqa: E402
+import contextlib  # noqa: E402
 import csv  # noqa: E402
+import io  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
 import platform  # noqa: E402
@@ -39,7 +41,7 @@ CSV = os.path.join(RESULTS, "sparse_contact.csv")
 FIELDS = ["N", "n_dof", "engine", "side", "relax_s", "first_s", "warm_s", "phi_over_pi", "phi_error_over_pi",
           "bracket_lo_over_pi", "bracket_hi_over_pi", "kind", "points", "load_1min"]
 # small mode: N = 61 (the fewest nodes whose relaxed knot is a minimum), one side, a quarter turn: both
-# engines, the child process and the report, no branch end reached
+# engines (in this process) and the report, no branch end reached
 SIDES = pick({"opening": 7.5 * math.pi, "tightening": -12.0 * math.pi}, {"opening": 0.25 * math.pi})
 
 
@@ -190,6 +192,19 @@ def report(rows):
     print("\n".join(lines))
 
 
+def child_lines(N, engines):
+    """(process, its output lines) of the child for N. The small mode's one N runs here instead
+    (process None): a child of its own would only import jaxrod a second time."""
+    if SMOKE:
+        out = io.StringIO()
+        with contextlib.redirect_stdout(out):
+            child(N, engines)
+        return None, out.getvalue().splitlines(keepends=True)
+    proc = subprocess.Popen([sys.executable, __file__, "--child", str(N), "--engines", ",".join(engines)],
+                            stdout=subprocess.PIPE, text=True)
+    return proc, proc.stdout
+
+
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--N", type=int, nargs="*", default=pick([61, 121, 241, 481, 961], [61]))
@@ -210,9 +225,8 @@ def main():
         engines = [e for e in ("sparse", "dense") if (e == "sparse" or N <= opts.dense_max) and (N, e) not in done]
         if not engines:
             continue
-        proc = subprocess.Popen([sys.executable, __file__, "--child", str(N), "--engines", ",".join(engines)],
-                                stdout=subprocess.PIPE, text=True)
-        for line in proc.stdout:
+        proc, lines = child_lines(N, engines)
+        for line in lines:
             if line.startswith("ROW "):
                 row = json.loads(line[4:])
                 new = not os.path.exists(CSV)
@@ -223,7 +237,7 @@ def main():
                     w.writerow(row)
                 print(f"N = {N} {row['engine']} {row['side']}: first {row['first_s']:.1f} s, warm {row['warm_s']:.1f} s, "
                       f"phi* = {row['phi_over_pi']:+.6f} pi ({row['kind']})", flush=True)
-        if proc.wait() != 0:
+        if proc is not None and proc.wait() != 0:
             raise SystemExit(f"child N = {N} failed")
     report(read_rows())
 
