@@ -18,7 +18,7 @@ instability against a fine-step reference.
 Writes benchmarks/results/critical_curve_vs_study.json (after every step: a rerun goes on from it,
 while the runs' folders are still in the temporary directory) and critical_curve_vs_study.md.
 Run: python benchmarks/critical_curve_vs_study.py [--no-reference]   (~25 min on one core)
-Small mode (``--smoke``): one ratio (0.04) at N = 31, the opening side, three reference points; the
+Small mode (``--smoke``): one ratio (0.04) at N = 41, the opening side, three reference points; the
 two commands run in this process (``jaxrod.cli.main``), so that the programs compiled for the curve
 serve the study and the reference.
 """
@@ -50,7 +50,7 @@ EXE = shutil.which("jaxrod") or os.path.join(os.path.dirname(sys.executable), "j
 # +7 pi), a point study over a quarter turn (no event: nothing to compare, the same code), and the
 # reference's first few arclength points
 RATIOS = pick("0.018:0.032:0.002", "0.04")
-N, L = pick(61, 31), 292.0
+N, L = pick(61, 41), 292.0  # small mode: the N of the other small trefoil runs (accuracy, atlas, batch), whose programs it shares
 SIDES = pick(("plus", "minus"), ("plus",))
 PHI_RANGE = pick(("-16pi", "16pi"), ("-0.25pi", "0.25pi"))
 REFERENCE_POINTS = pick(4000, 3)
