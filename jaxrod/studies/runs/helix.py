@@ -15,10 +15,10 @@ Units: the rod's length L = 1; m = M L/B and t = T L^2/B; angles in rad.
 from __future__ import annotations
 
 import dataclasses
-import math
 import time
 import warnings
 
+from ...continuation.natural import follow_parameter
 from .. import endloads as el
 
 
@@ -259,12 +259,10 @@ def _helix_sweep_side(case, root, side, path, say, on_state):
     for R in side:
         try:
             el.check_rotation_resolution(case.N, R)
-            # continuation in sub-steps of at most 0.25 rad (Newton alone does not follow larger ones)
-            R0 = float(prev.phi)
-            n_sub = max(1, math.ceil(abs(float(R) - R0) / 0.25))
-            for j in range(1, n_sub):
-                prev = el.solve(rod, R0 + (float(R) - R0) * j / n_sub, prev.q, el.EndLoadOptions(with_stability=False))
-            prev = el.solve(rod, float(R), prev.q, el.EndLoadOptions(k=4))
+            # sub-steps of at most 0.25 rad (Newton alone does not follow larger ones)
+            prev = follow_parameter(lambda r, s: el.solve(rod, r, s.q, el.EndLoadOptions(with_stability=False)),
+                                    prev, float(prev.phi), float(R), 0.25,
+                                    solve_last=lambda r, s: el.solve(rod, r, s.q, el.EndLoadOptions(k=4)))
             loads = el.end_loads(rod, prev.q, float(R), prev.neighbourhood)
             h = el.nearest_localized_helix(root.ref.d, float(R), case.gamma, loads.M / case.B, loads.T / case.B)
             path.append(el.helix_state(rod, prev, float(R), h, case.B, case.ea))
