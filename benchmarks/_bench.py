@@ -99,3 +99,22 @@ TINY_CLI_ARGS = ["trefoil", "--D", "8", "--L", "140", "--N", "24", "--phi-min", 
 def markdown(lines):
     """``lines`` (a title first) as the text of a Markdown results file, the provenance under the title."""
     return "\n".join([lines[0], "", provenance_line(), *lines[1:]]) + "\n"
+
+
+def run_cli(argv, in_process=False):
+    """The command line ``jaxrod argv``: a process of its own (the ``jaxrod`` next to this Python),
+    or ``jaxrod.cli.main`` in this process, where a script compares answers rather than timing a
+    process (the small mode: the programs compiled for one command then serve the next).
+    -> CompletedProcess (returncode, stdout, stderr)."""
+    if not in_process:
+        exe = os.path.join(os.path.dirname(sys.executable), "jaxrod")
+        return subprocess.run([exe, *argv], capture_output=True, text=True)
+    import contextlib
+    import io
+
+    from jaxrod.cli import main as cli_main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = cli_main(argv)
+    return subprocess.CompletedProcess(["jaxrod", *argv], code, out.getvalue(), err.getvalue())

@@ -29,8 +29,6 @@ for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import json  # noqa: E402
 import math  # noqa: E402
-import shutil  # noqa: E402
-import subprocess  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
@@ -38,14 +36,13 @@ import warnings  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from _bench import SMOKE, pick, provenance_line, results_dir, with_provenance  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, pick, provenance_line, results_dir, run_cli, with_provenance  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
 RESULTS = results_dir()
 # the runs' own folders (step files the reference starts from): scratch space, not results
 WORK = pick(os.path.join(tempfile.gettempdir(), "jaxrod_critical_curve_vs_study"), os.path.join(RESULTS, "runs"))
 JSON = os.path.join(RESULTS, "critical_curve_vs_study.json")
 MD = os.path.join(RESULTS, "critical_curve_vs_study.md")
-EXE = shutil.which("jaxrod") or os.path.join(os.path.dirname(sys.executable), "jaxrod")
 # small mode: one ratio of a tight knot at N = 31, the opening side only (its first instability near
 # +7 pi), a point study over a quarter turn (no event: nothing to compare, the same code), and the
 # reference's first few arclength points
@@ -72,27 +69,10 @@ def _save(data):
     os.replace(tmp, JSON)
 
 
-def jaxrod(argv, in_process=False):
-    """The command line ``jaxrod argv``: a process of its own, or ``jaxrod.cli.main`` in this one
-    (the small mode: the programs compiled for one command serve the next and the reference).
-    -> CompletedProcess (returncode, stdout, stderr)."""
-    if not in_process:
-        return subprocess.run([EXE, *argv], capture_output=True, text=True)
-    import contextlib
-    import io
-
-    from jaxrod.cli import main as cli_main
-
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = cli_main(argv)
-    return subprocess.CompletedProcess(["jaxrod", *argv], code, out.getvalue(), err.getvalue())
-
-
 def run_curve():
     t = time.perf_counter()
     out = os.path.join(WORK, "curve")
-    run = jaxrod(["critical-curve", "--ratios", RATIOS, "--N", str(N), "--sides", ",".join(SIDES),
+    run = run_cli(["critical-curve", "--ratios", RATIOS, "--N", str(N), "--sides", ",".join(SIDES),
                   "--out", out, "--fresh", "--json", "--quiet"], in_process=SMOKE)
     if run.returncode != 0:
         raise RuntimeError(run.stderr)
@@ -105,7 +85,7 @@ def run_curve():
 def run_study(ratio):
     t = time.perf_counter()
     out = os.path.join(WORK, f"study_{ratio:.4f}")
-    run = jaxrod(["trefoil", "--D", repr(ratio * L), "--L", repr(L), "--N", str(N), f"--phi-min={PHI_RANGE[0]}",
+    run = run_cli(["trefoil", "--D", repr(ratio * L), "--L", repr(L), "--N", str(N), f"--phi-min={PHI_RANGE[0]}",
                   "--phi-max", PHI_RANGE[1], "--out", out, "--json", "--no-figures", "--quiet", "--no-extrapolation",
                   "--fresh"], in_process=SMOKE)
     if run.returncode != 0:

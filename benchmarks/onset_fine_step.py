@@ -10,10 +10,7 @@ Run: python benchmarks/onset_fine_step.py
 """
 import json
 import math
-import os
 import pathlib
-import subprocess
-import sys
 import tempfile
 
 import numpy as np
@@ -21,20 +18,22 @@ import numpy as np
 from jaxrod.solve.equilibrium import EquilibriumOptions, solve_equilibrium
 from jaxrod.model.scenes import trefoil
 
-from _bench import SMOKE, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, pick, provenance_line, results_dir, run_cli  # noqa: E402,F401  (benchmarks/ is on the path)
 NEWTON = EquilibriumOptions(method="newton", gtol=1e-11, near_null_tol=1e-6)
 L, N = 292.0, pick(61, 41)
 CASES = pick(((0.020, "minus"), (0.024, "minus"), (0.028, "minus"), (0.024, "plus")), ((0.0274, "plus"),))
 SMALL_STUDY = pick([], ["--stable-only", "--no-extrapolation"])  # small mode: the study's stable branches only
 # small mode: the opening side ends at 6.83 pi, so the buckled branch after it is followed for less
 PLUS_MAX = pick("7.5pi", "7pi")
-EXE = os.path.join(os.path.dirname(sys.executable), "jaxrod")
 
 
 def _study(D, out, side):
     span = ["--phi-min=-12pi", "--phi-max", "0.5pi"] if side == "minus" else ["--phi-min=-0.5pi", "--phi-max", PLUS_MAX]
-    run = subprocess.run([EXE, "trefoil", "--D", repr(D), "--L", repr(L), "--N", str(N), *span, "--out", out,
-                          "--json", "--no-figures", "--quiet", *SMALL_STUDY], capture_output=True, text=True, check=True)
+    # small mode: in this process, so that the studies and the references share their programs
+    run = run_cli(["trefoil", "--D", repr(D), "--L", repr(L), "--N", str(N), *span, "--out", out,
+                   "--json", "--no-figures", "--quiet", *SMALL_STUDY], in_process=SMOKE)
+    if run.returncode != 0:
+        raise RuntimeError(run.stderr)
     return json.loads(run.stdout)
 
 
