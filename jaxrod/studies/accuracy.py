@@ -1,45 +1,25 @@
 """Accuracy asked for, not N: critical twists converged in the resolution, with an error estimate.
 
-The discrete rod's critical twists converge as phi*(N) = phi*_inf + c h^p + ..., h = L/N, with
-p = 2 (Michell's ring: ``tests/test_michell.py``; the trefoil: 6.6011 / 6.4653 / 6.4302 pi at
-N = 61 / 121 / 241, differences in the ratio 3.87, p = 1.96). At N = 121 the trefoil's branch
-ends are still 0.04 pi and 0.1 pi from their limits, hundreds of times the bracket a single
-study reports. So a converged answer needs a sequence of N and an extrapolation:
+The discrete rod's critical twists converge as phi*(N) = phi*_inf + c h^p + ..., h = L/N, p = 2,
+and at practical N are far from their limits compared with a single study's bracket. So a
+converged answer needs a sequence of N and an extrapolation:
 
     richardson(Ns, values)                  -> Extrapolation (value, error, order, ...)
     converged_critical_twists(scene, 0.01 * pi)   -> {side: SideConvergence}
 
 ``richardson`` measures the order from the three finest levels (the exact fit of
-v = v_inf + c h^p through them), extrapolates with it, and estimates the error of the
-extrapolated value a posteriori from how far the estimate moved when the finest level was added,
-treated as one more convergent sequence: ``1.25 |R_K - R_{K-1}| / (r^p - 1)``, R_{K-1} being the
-estimate made without the finest level (with three levels: Richardson on the two coarser ones with
-the theoretical order 2; with more: the same three-level fit one level coarser), r the last
-refinement ratio and 1.25 Roache's factor of safety for three or more grids. This assumes only that
-the extrapolants converge at least as fast as the values themselves (their leading error is of
-higher order). On Michell's ring (levels 16, 31, 61, 121) it gave 5.5e-3 pi and 1.0e-3 pi where
-the true errors were 2.7e-3 pi and 1.6e-4 pi. It is never zero by construction (three levels fit
-exactly, so the fit's own residual says nothing). Two levels only give an extrapolation with the
-order assumed, flagged as such, with Roache's factor 3 on the difference (the grid convergence
-index for two grids). Where the
-levels do not converge monotonically (the differences change sign) or the measured order is
-outside (0.5, 4), the sequence is not in its asymptotic range: ``asymptotic`` is False and the
-error is the last difference itself, which the refinement loop then keeps reducing.
+v = v_inf + c h^p), extrapolates with it, and estimates the error a posteriori from how far the
+estimate moved when the finest level was added: ``1.25 |R_K - R_{K-1}| / (r^p - 1)``, r the last
+refinement ratio and 1.25 Roache's factor of safety. Two levels only give an extrapolation with
+the order assumed, flagged as such, with Roache's factor 3. Where the levels do not converge
+monotonically or the measured order is outside (0.5, 4), ``asymptotic`` is False and the error is
+the last difference itself. With ``errors`` (each level's bracket), their propagation through the
+extrapolation is added (``Extrapolation.level_error``).
 
-Each level's phi* is itself known only to its bracket (``follow_twist`` locates a branch end to
-tol): with ``errors`` given, their propagation through the extrapolation, sum_i of how far the value
-moves when level i moves by +-e_i (the order measured again each time; with two levels the exact
-(1 + c) e_2 + c e_1, c = 1 / (r^p - 1)), is added to the discretisation error
-(``Extrapolation.level_error``). On the trefoil's tightening side (levels 61,
-121, 241) the discretisation part alone was 1.6e-3 pi where the extrapolation of the N = 481 and 961
-ends lay 1.9e-3 pi away; the levels' brackets add 6.9e-4 pi (2.3e-3 pi in all).
-
-``converged_critical_twists`` runs N_0, 2 N_0 - 1, 4 N_0 - 3, ... (so every node of a level is a
-node of the next, 61, 121, 241, 481 by default for the trefoil), each level started from the
-previous one's solution resampled: the state a little before the previous level's branch end
-(by the last change in phi*, at least pi/4), relaxed at the finer N, followed to its own end
-(``follow_twist``, the bracket to tol = accuracy / 20). It stops when the error estimate is below
-the accuracy asked for, or at N_max (then ``reached`` is False and the study says so).
+``converged_critical_twists`` runs N_0, 2 N_0 - 1, 4 N_0 - 3, ... (every node of a level is a node
+of the next), each level started from the previous one's state a little before its branch end,
+resampled and relaxed, and followed to its own end (bracket tol = accuracy / 20). It stops when
+the error estimate is below the accuracy asked for, or at N_max (then ``reached`` is False).
 """
 from __future__ import annotations
 
@@ -55,8 +35,7 @@ from ..validation import check_finite, check_int_at_least, check_positive
 __all__ = ["Extrapolation", "richardson", "Level", "SideConvergence", "converged_critical_twists", "refine_scene",
            "THEORETICAL_ORDER", "unconverged_reason", "level_of_side"]
 
-# The discrete elastic rod's energies are second-order accurate in the edge length (Michell's
-# ring: tests/test_michell.py measures 2.00).
+# The discrete elastic rod's energies are second-order accurate in the edge length.
 THEORETICAL_ORDER = 2.0
 # Roache's factors of safety on the grid convergence index: 3 with two grids (the order assumed),
 # 1.25 with three or more (the order measured).
@@ -67,11 +46,10 @@ ORDER_RANGE = (0.5, 4.0)
 
 @dataclass(frozen=True)
 class Extrapolation:
-    """value: the extrapolated limit N -> infinity; error: its estimated discretisation error
-    (see the module docstring); order: the order p used (measured from the three finest levels,
-    or THEORETICAL_ORDER with two); order_measured: whether p was measured; asymptotic: the
-    levels converge monotonically with a plausible order; N, values: the levels used;
-    level_error: the part of ``error`` that the levels' own errors (brackets) contribute."""
+    """value: the extrapolated limit N -> infinity; error: its estimated error (module docstring);
+    order: the order p used; order_measured: whether p was measured (else THEORETICAL_ORDER);
+    asymptotic: the levels converge monotonically with a plausible order; N, values: the levels
+    used; level_error: the part of ``error`` from the levels' own errors (brackets)."""
 
     value: float
     error: float
@@ -95,8 +73,7 @@ def _extrapolate(h_coarse, h_fine, v_coarse, v_fine, p):
 
 def _measured_order(h, v):
     """The p of v = v_inf + c h^p through three points (h decreasing), or None when the
-    differences change sign (no monotone convergence). Solved by bisection on p in
-    ORDER_RANGE widened to (0.05, 12); None when no root there."""
+    differences change sign. Bisection on p in (0.05, 12); None when no root there."""
     d1, d2 = v[0] - v[1], v[1] - v[2]
     if d1 == 0.0 or d2 == 0.0 or (d1 > 0) != (d2 > 0):
         return None
@@ -167,8 +144,7 @@ def richardson(N, values, errors=None):
             previous = values[-2]
     ratio = h[-2] / h[-1]
     error = THREE_LEVEL_SAFETY * abs(value - previous) / (ratio ** p - 1.0)
-    # each of the three finest levels moved by its error both ways, the order measured again: the
-    # value's spread (the order itself depends on the levels, so a fixed-p formula falls short)
+    # each of the three finest levels moved by its error both ways, the order measured again each time
     level = 0.0
     for i in range(1, 4):
         if errors[-i] > 0.0:
@@ -268,9 +244,8 @@ def level_of_side(scene, side, phi_start, start, span, step, tol, say, cancel):
         return None, f"{reason} ({sign * span / math.pi:+g} pi)", states
     inst = path.instabilities[0]
     if scene.has_term("contact"):
-        # The stable-only engine counts eigenvalues inside the near-zero band kept for sliding
-        # modes as zero; a shape mode negative in that band means the branch ended earlier,
-        # unseen (issue 17: the trefoil's opening side at N >= 241). Such a level is refused.
+        # a shape mode negative inside the near-zero band kept for sliding modes means the branch
+        # ended earlier, unseen by the stable-only engine: locate it by events instead
         from ..linalg.stability import CONTACT_NEGATIVE_TOL
         from ..linalg.stability import shape_modes_in_band
 
@@ -287,11 +262,9 @@ def level_of_side(scene, side, phi_start, start, span, step, tol, say, cancel):
 
 
 def _level_by_events(scene, side, path, phi_start, tol, say):
-    """The level's end located as the first event (fold or branch point) of the pseudo-arclength
-    continuation (``jaxrod.continuation.arclength``, sliding modes told apart by their shape, events located
-    on extended systems), from the last state of ``path`` with no shape mode negative inside the
-    near-zero band. Used where the stable-only engine's band hid the end (its last 'stable' state
-    already had such modes). Returns (Level or None, reason)."""
+    """The level's end as the first fold or branch point of pseudo-arclength continuation from the
+    last state of ``path`` with no shape mode negative inside the near-zero band (where that band
+    hid the end from the stable-only engine). Returns (Level or None, reason)."""
     from ..continuation import ContinuationOptions
     from ..continuation.arclength import PseudoArclength, continuation
     from ..continuation.arclength.rods import knot_problem
@@ -354,8 +327,7 @@ def _side(scene, side, accuracy, N_levels, span, step, tol, say, cancel, store):
             else:  # the previous level began past the target: from the drawing, relaxed at 0
                 phi_start, x = 0.0, scene.positions(np.asarray(scene.q_init))
             current = refine_scene(scene, x, N)
-            # the imposed twist spread evenly over the rod, not left as a jump at the joint (a
-            # jump of several turns at one vertex drives strands through each other as it relaxes)
+            # spread the twist evenly: a jump of turns at the joint would drive strands through each other
             q0 = np.array(current.q_init)
             q0[3 * N:] += phi_start * np.arange(N) / N
             try:
@@ -384,9 +356,8 @@ def _side(scene, side, accuracy, N_levels, span, step, tol, say, cancel, store):
 
 
 def unconverged_reason(N_max, ext, accuracy, levels=()):
-    """Why a side stopped at N_max without converging, in words that hold: a small last change is
-    not an error estimate when the levels are not in their asymptotic range (e.g. the branch end
-    changed kind between levels: a fold at coarse N, a branch point at fine N)."""
+    """Why a side stopped at N_max without converging (a small last change is not an error
+    estimate outside the asymptotic range, e.g. where the end changed kind between levels)."""
     why = f"N_max = {N_max} reached before the accuracy asked for"
     if ext is None:
         return f"{why} (no estimate)"
@@ -416,13 +387,11 @@ def converged_critical_twists(scene, accuracy, sides=("plus", "minus"), N_max=48
     ``trefoil(N=61, D=D, L=L)``), refined in N until its extrapolated value's error estimate is below
     ``accuracy`` (radians). Each level is followed from a state resampled from the previous one,
     its end bracketed to accuracy / 20. Returns {side: SideConvergence}. parallel: the sides in
-    two threads (the compiled code is shared). N_max: the finest level allowed (the dense
-    linear algebra grows as N^3: 481 takes minutes a side). levels: the node counts to use instead
-    (increasing, the first the scene's own, at least three; N_max is then ignored). out: a folder
-    where every finished level is kept as it is found (``levels/<side>_N<N>.npz``: phi*, its
-    bracket, the branch's states), and ``convergence.json`` at the end; a run interrupted and
-    called again with the same arguments reuses the finished levels (Ctrl-C: the sides stop at
-    their next continuation point)."""
+    two threads. N_max: the finest level allowed (cost grows as N^3). levels: the node counts to
+    use instead (increasing, the first the scene's own, at least three; N_max is then ignored).
+    out: a folder where every finished level is kept (``levels/<side>_N<N>.npz``), and
+    ``convergence.json`` at the end; a run called again with the same arguments reuses the
+    finished levels (Ctrl-C: the sides stop at their next continuation point)."""
     accuracy = check_positive("accuracy", accuracy)
     check_positive("span", span)
     check_positive("step", step)

@@ -1,13 +1,9 @@
 """Twisted-knot atlas: the critical twists phi*+ and phi*- of several knots over a range of
 slenderness D/L, the seed paper's "future work".
 
-One *case* is a knot, a slenderness D/L, a node count N and a side (phi > 0 or phi < 0). Its
-answer comes from ``knot_critical_twist``: the knot (``jaxrod.knot``, length 1, so D = D/L) is
-relaxed to a minimum at phi = 0 (``relax_to_minimum``: a symmetric drawing can relax onto a
-saddle), then its stable branch is followed (``follow_twist``, no branch switching) towards
-+-span until it ends: a bifurcation or a fold, located to ``tol``. Cases are independent, so a
-sweep runs them serially or spread over a Dask cluster (``client=``): the same function on the
-same inputs, so the same numbers.
+One *case* is a knot, a slenderness D/L, a node count N and a side; ``knot_critical_twist``
+answers it. Cases are independent, so a sweep runs them serially or over a Dask cluster
+(``client=``) with the same numbers.
 
 ``run_atlas(..., out=DIR)`` writes, as it goes:
 
@@ -95,10 +91,8 @@ def _scene(knot, D_over_L, N, settings):
 
 def atlas_cases(knots, ratios, N, settings=None, sides=SIDES):
     """The cases of a sweep, knot by knot, D/L ascending, N ascending, plus before minus; each
-    (knot, D/L, N) is checked now (``jaxrod.knot``: a known knot, L/D above its ideal
-    ropelength, enough nodes), so that a bad sweep is refused before any work. ``N``: an int or
-    a list (several N: a convergence study); sides: 'plus' (phi > 0) and/or 'minus'. Warnings
-    (nearly tight knots) are given once each."""
+    (knot, D/L, N) is built now, so that a bad sweep is refused before any work. ``N``: an int or
+    a list; sides: 'plus' (phi > 0) and/or 'minus'. Warnings are given once each."""
     settings = settings or AtlasSettings()
     sides = [sides] if isinstance(sides, str) else list(sides)
     if not sides or any(side not in SIDES for side in sides):
@@ -149,17 +143,14 @@ def _lowest_above_band(e):
 
 def tightening_sides(rows):
     """{(knot, D/L, N): 'plus', 'minus' or 'equal'}: the side whose branch packs the strands
-    together, told (as in ``twist_study``, by ``study.tightening_side``) by the segment pairs in
-    contact gained along the branch, then by the radius of gyration lost; 'equal' where the two
-    sides agree within round-off (mirror images); only where both sides ran."""
+    together (``tightening_side``); only where both sides ran."""
     from .twist import tightening_side
 
     sides = {}
     for r in rows:
         sides.setdefault((r["knot"], r["D_over_L"], r["N"]), {})[r["side"]] = (
             r["contact_count_change"], r["radius_of_gyration_change"])
-    # The rows keep the changes only, so they are judged against the larger change: mirror-image
-    # sides (an achiral knot relaxed to a mirror-symmetric shape) come out 'equal'.
+    # judged against the larger change, so mirror-image sides come out 'equal'
     return {k: tightening_side(v, scale=max(abs(v["plus"][1]), abs(v["minus"][1])))
             for k, v in sides.items() if len(v) == 2}
 
@@ -167,15 +158,10 @@ def tightening_sides(rows):
 def knot_critical_twist(case, settings=None):
     """The first branch end of ``case`` (an ``AtlasCase`` or its dict) on its side: relax to a
     minimum at phi = 0, follow the stable branch towards +-span. Returns a row (dict, ``FIELDS``):
-    phi_star in radians (NaN when the branch reaches +-span), phi_error, kind ('unstable': an
-    eigenvalue crossed zero; 'jump': the branch folded), critical_eigenvalue and dlambda_dphi
-    (the critical eigenvalue at the last stable state and its rate along the branch, the secant
-    where known: how clearly the end is an eigenvalue going to zero), lowest_eigenvalue_start
-    (the relaxed minimum's lowest eigenvalue above the near-null band of sliding modes: how deep
-    it is; dimensionless, as in ``Stability``), Wr_start, Wr and Tw at
-    the last stable state, the change along the branch of the segment pairs in contact and of the
-    radius of gyration (``tightening_sides`` compares the two sides), n_points, seconds.
-    Pure in its inputs: the same case gives the same numbers on any worker."""
+    phi_star in radians (NaN when the branch reaches +-span), phi_error, kind ('unstable' or
+    'jump'), the critical eigenvalue at the last stable state and its rate, the start's lowest
+    eigenvalue above the sliding band, writhe and twist, the change in contacts and radius of
+    gyration along the branch, n_points, seconds. Pure in its inputs."""
     from ..continuation import ContinuationOptions, follow_twist
     from ..solve.equilibrium import relax_to_minimum
 

@@ -43,17 +43,13 @@ def coarse_companion(scene, out, critical, span=16 * math.pi, step=0.5 * math.pi
     """An error estimate for a finished twist study (``jaxrod.studies.twist.twist_study`` in ``out``, of the
     closed rod ``scene`` at N nodes): each side's first branch end found again at the coarser
     N_c = (N + 1) / 2 (every coarse node a node of the study's rod), started from the study's own
-    state ``margin`` before its end, resampled; then Richardson on the two levels, the order
-    assumed (2) and Roache's factor 3 on the difference. Cheap (a few continuation steps at N_c)
-    and deliberately rough: it says how far the study's phi* may be from the converged value, not
-    that value (``converged_critical_twists`` measures the order). cancel: an optional
+    state ``margin`` before its end, resampled; then two-level Richardson (order 2 assumed,
+    Roache's factor 3). Cheap and deliberately rough: how far the study's phi* may be from the
+    converged value (``converged_critical_twists`` measures the order). cancel: an optional
     threading.Event; once set, the run stops at its next continuation point (raising
-    ``jaxrod.studies.threads.Cancelled``). It reads only the study's step files and ``critical``'s
-    instabilities (their bracketed phi), so it may run while ``jaxrod.studies.diagram`` works on the same
-    study (the CLI runs the two at once). sides: the sides to estimate (a side needs only its own
-    first end and the step files before it, so the CLI starts each once that end is found, while
-    the study goes on). Returns a ``CoarseEstimates``, {side: (Level, Extrapolation)} for the sides
-    estimated, whose ``reasons`` say why each other side asked for has none. Raises
+    ``Cancelled``). It reads only the study's step files and ``critical``'s instabilities, so it
+    may run beside the diagram. sides: the sides to estimate. Returns a ``CoarseEstimates``,
+    {side: (Level, Extrapolation)}, whose ``reasons`` say why each other side asked for has none. Raises
     ``CoarseLevelTooSmall`` when N_c is below the rod's resolution (8 nodes; a knot: 24, and L/D)."""
     import glob
     import os

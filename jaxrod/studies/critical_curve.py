@@ -1,43 +1,20 @@
 """A knot's critical twists as curves in its slenderness: phi*+-(D/L).
 
-Every row is the first instability of the branch from phi = 0 at its ratio, found as the point
-study (``jaxrod trefoil`` / ``jaxrod knot``) finds it, with the same library calls: the knot at
-that D/L relaxed to a minimum at phi = 0 (``twist_study``: the two-fold symmetry kept unless the
-symmetric state is a saddle of a shape mode, then the minimum), followed by the stable-only engine
-to its first branch end on each side asked for, and that end located on its extended system
-(``jaxrod.studies.diagram.unstable_branches``). A row's phi* is the point study's ``phi_plus`` /
-``phi_minus`` at the same N and ratio, and does not depend on the other ratios or on the order
-they are done in.
+Every row is the point study's first instability (``twist_study`` from a minimum at phi = 0,
+then ``jaxrod.studies.diagram.unstable_branches``) at its ratio, so it does not depend on the other
+ratios. Continuation in D from one event would follow that event, not the first instability, and
+a loose knot's near-null slides make it drift; it is used only for the exact slope dphi*/d(D/L)
+from the implicit function theorem (D varied at fixed L, N, E and nu: ``set_diameter``).
 
-Why a point study per ratio, not continuation in D from one located event
-(``jaxrod.continuation.arclength.event_curve``): that follows one event, not the first instability. A loose
-knot's discretised branch has many nearly equal placements of its nodes along a near-null slide,
-and where the start sits decides the event to ~3e-4 pi, so a curve carried in D from another ratio
-sits elsewhere than the branch from phi = 0 at this one (at N = 61, D/L = 0.0187 a fold 3.1e-3 pi
-from the point study's end; curves from different start ratios differed by up to 3e-4 pi at the
-same D/L), and where another event comes first it goes on with the one it follows. A stable-only
-study from phi = 0 at each ratio is the check that the event is the first instability of that
-branch, and once it is done the row is its end: the cost is a point study per ratio (at N = 61
-~5-8 s here once compiled). The continuation in D keeps the part that is exact and cheap:
-dphi*/d(D/L) at each located event from the implicit function theorem on its own extended system
-(``fold_sensitivity``, ``branch_point_sensitivity``), D varied at fixed L, N, E and nu (B, C ~ D^4,
-EA ~ D^2, contact at D: ``jaxrod.continuation.arclength.rods.set_diameter``).
-
-Along a side, where the kind of the first instability changes between neighbouring ratios (a fold
-becomes a branch point, or the number of eigenvalues crossing changes) the curve has switched to
-another event: the row is marked (``switched``, ``previous_kind``, ``previous_ratio``) and a warning
-names it. Each IFT slope is checked against the secant of its located neighbours of the same kind
-only (central where both are, one-sided where a switch or an unlocated row lies on the other side,
-none alone), never across a switch; a disagreement above SLOPE_DOUBT is warned about (a nearly
-degenerate event, or a jump to another event of the same kind). Where the point study keeps its
-bracket's estimate (its located end outside the bracket, or not its critical mode) the row does
-too (kind "bracketed", no slope) and a warning says so.
+Along a side, a change of the first instability's kind between neighbouring ratios is marked
+(``switched``, ``previous_kind``, ``previous_ratio``) and warned about. Each slope is checked
+against the secant of its located neighbours of the same kind, never across a switch, and a
+disagreement above SLOPE_DOUBT is warned about. A row whose point study keeps its bracket's
+estimate is kind "bracketed" (no slope), with a warning.
 
 With ``out`` the rows go to ``critical_curve.csv`` as they are found, then ``critical_curve.json``
-(settings, rows, failures, switches) and ``critical_curve.png``. The run is resumable: each ratio's
-result is kept (``points/ratio_<k>.json``, written atomically) and a run on the same folder with the
-same settings does only the ratios not on file (``fresh=True`` starts over; other settings are
-refused, naming the difference).
+and ``critical_curve.png``. A run on the same folder with the same settings resumes from the
+per-ratio files ``points/ratio_<k>.json`` (``fresh=True`` starts over; other settings are refused).
 """
 from __future__ import annotations
 
@@ -64,11 +41,7 @@ CSV_COLUMNS = ("side", "D_over_L", "phi_star", "phi_star_over_pi", "kind", "loca
                "previous_ratio", "phi_bracketed", "phi_located", "seconds")
 # the twist an unasked side is followed to (the study runs both sides; this one costs a step)
 UNASKED_SPAN = 0.01 * math.pi
-# The rod's length (mm) at every ratio: the point study's default (``jaxrod trefoil --L``), the
-# diameter D = ratio * LENGTH, E the scene's default. phi* does not depend on the scale, but the
-# stable-only study's bracket estimates do at roundoff (measured: 2e-7 pi at D/L = 0.026, N = 61,
-# against a knot of length 1): built as ``jaxrod trefoil --D ratio*292 --L 292`` builds it, a row is
-# that study's value to roundoff.
+# The rod's length (mm) at every ratio: the point study's default, so a row matches it to roundoff.
 LENGTH = 292.0
 
 
@@ -79,9 +52,8 @@ class CriticalCurveOptions:
     sides: "plus" (phi > 0) and/or "minus"; start_ratio: the D/L done first, then those above it
     going up, then those below going down (default: the ratio in the middle of those asked for; the
     rows do not depend on it); span: each side's first end is searched up to +-span (rad); slopes:
-    dphi*/d(D/L) at each located event (False: nan, and no slope check; saves compiling the extended
-    systems' derivatives in D, ~7 s at N = 61); nu, contact_stiffness: the rod's Poisson ratio and
-    contact penalty (units of B/D^3).
+    dphi*/d(D/L) at each located event (False: nan, and no slope check); nu, contact_stiffness:
+    the rod's Poisson ratio and contact penalty (units of B/D^3).
     """
 
     sides: tuple = ("plus", "minus")
@@ -145,15 +117,9 @@ def _check_folder(out, settings, fresh):
 def first_instabilities(knot, N, ratio, options=None, *, progress=None):
     """The point study's first instability on each side of ``options.sides`` at one D/L.
 
-    The knot ``knot`` at D/L = ``ratio`` (L = LENGTH) and N nodes is studied with the library calls
-    of a point study: ``twist_study`` (relaxed to a minimum at phi = 0, followed by the stable-only
-    engine, no branch switching: the first end does not depend on it) to each side's first end
-    within +-options.span, then ``jaxrod.studies.diagram.unstable_branches`` (each end located on its
-    extended system from the study's last stable state); phi* is the study's ``phi_plus`` /
-    ``phi_minus`` as it reports them: the located event where the study takes it as the onset, else
-    the bracket's estimate (kind "bracketed": the two methods disagree on where the branch ends; no
-    Morse index or slope). At a located event, dphi*/d(D/L) comes from the implicit function
-    theorem on its extended system.
+    ``twist_study`` (no branch switching) to each side's first end within +-options.span, then
+    ``unstable_branches``; phi* is the study's ``phi_plus`` / ``phi_minus`` (kind "bracketed" where
+    the study keeps its bracket's estimate), with dphi*/d(D/L) at a located event.
 
     Returns {side: row dict (``CSV_COLUMNS`` less switched / previous_kind / previous_ratio) or a
     str saying why there is none (no end within the span)}.
@@ -238,17 +204,14 @@ def _order(r, start):
 def critical_twist_curve(knot, N, ratios, options=None, *, out=None, progress=None, fresh=False):
     """phi*+-(D/L) of ``knot`` ("3_1", "4_1", "5_1", "5_2") at N nodes over ``ratios`` (D/L values).
 
-    Each row is the first instability at its ratio as the point study finds it
-    (``first_instabilities``; see the module docstring). Returns a dict: rows (one per side and
+    Each row is ``first_instabilities`` at its ratio. Returns a dict: rows (one per side and
     ratio where an end was located, sorted by side then D/L, the CSV's columns with CHECK_COLUMNS),
     failures (side, D_over_L, message where none was), switches (the rows where the kind changed),
     seconds (this run), resumed_points (rows taken from ``out``). progress(str): a line per row.
-    The knot at every ratio is checked first (N >= L/D, L/D above the ideal ropelength):
-    ValueError naming ratios or N. Raises NoCrossingError when a side has no located end at any
-    ratio; warns (UserWarning) where a ratio has none, where the kind switches, where a located end
-    lies outside the study's bracket and where a slope disagrees with its secant. With ``out``:
-    written as it goes and resumed from what is there (see the module docstring); ``fresh``: start
-    over.
+    The knot at every ratio is built first: ValueError naming ratios or N. Raises NoCrossingError
+    when a side has no located end at any ratio; warns where a ratio has none, where the kind
+    switches, where a row keeps the bracket's estimate and where a slope disagrees with its secant.
+    With ``out``: written as it goes and resumed (``fresh``: start over).
     """
     t0 = time.perf_counter()
     opts = options or CriticalCurveOptions()
@@ -375,10 +338,8 @@ def _event_kind(row):
 
 
 def _mark_switches(rows):
-    """rows (sorted by side, then D/L) with switched (the located event's kind differs from that of
-    the located row below it in D/L on the same side), previous_kind and previous_ratio (that row's
-    kind and D/L; '' and nan for a side's first located row and for a bracketed row, which is never
-    a switch)."""
+    """rows (sorted by side, then D/L) with switched (the kind differs from the located row below it
+    on the same side), previous_kind and previous_ratio ('' and nan where there is none)."""
     out, before = [], {}
     for q in rows:
         q = dict(q)
@@ -414,20 +375,15 @@ def _warn(rows):
         warnings.warn(message, stacklevel=4)
 
 
-# A row's dphi*/d(D/L) from the implicit function theorem is checked against the secant of its
-# neighbours of the same event kind (central where it has two): on a smooth curve sampled at 0.001
-# in D/L the two agree to a few per cent; at a nearly degenerate branch point the theorem's slope
-# holds only over a sliver of D/L (the trefoil's tightening side at N = 128, D/L = 0.039: -7570 pi).
+# The largest relative disagreement of a row's IFT slope with its secant not warned about.
 SLOPE_DOUBT = 0.5
 CHECK_COLUMNS = ("secant_slope", "slope_disagreement")
 
 
 def _slope_checks(rows):
-    """rows (sorted by side, then D/L, switches marked) with secant_slope (the secant of phi* through the
-    neighbouring rows on the same side that are located with no switch in between: central where
-    both are, one-sided where one is, nan for none or for a bracketed row) and slope_disagreement =
-    |ift - secant| / max(|ift|, |secant|) (0 where equal, up to 2 for opposite signs; nan without
-    a secant)."""
+    """rows (sorted, switches marked) with secant_slope (through the located neighbours on the same
+    side with no switch between; nan without) and slope_disagreement = |ift - secant| /
+    max(|ift|, |secant|)."""
     out = []
     for side in SIDE_SIGNS:
         mine = [dict(q) for q in rows if q["side"] == side]

@@ -22,13 +22,10 @@ def summarise_critical(critical, table=None):
         critical[key + "_error"] = first[0]["phi_error"] if first else None
         critical[key + "_dlambda_dphi"] = first[0]["dlambda_dphi"] if first else None
         critical[key + "_mode_file"] = first[0].get("mode_file") if first else None
-        # Located exactly on the extended system (``jaxrod.studies.diagram``): that value replaces the bracket's
-        # estimate, which is kept as ``<key>_bracketed``.
+        # a located end replaces the bracket's estimate (kept as ``<key>_bracketed``) only where it lies in
+        # the bracket and is the study's critical mode (files without that check count as verified)
         index = critical["instabilities"].index(first[0]) if first else None
-        # only where it lies in the study's bracket: elsewhere the two methods disagree (jaxrod.studies.diagram warns)
         ours = [ev for ev in critical.get("events", []) if ev.get("instability") == index]
-        # the located end is the onset only where it lies in the bracket and is the study's critical mode
-        # (``jaxrod.continuation.end_check``; files written before that check count as verified)
         located = [ev for ev in ours if ev.get("located") and ev.get("within_bracket") is not False
                    and ev.get("confirmed", True)]
         if first:
@@ -58,8 +55,7 @@ def summarise_critical(critical, table=None):
                                 scale=float(rg[np.argmax(at0)]))
         critical["symmetric_branch_change"] = trend
         if tight == "equal":
-            # Mirror-image sides (an achiral knot relaxed to a mirror-symmetric shape): neither
-            # side tightens more, and a label decided by round-off would mean nothing.
+            # mirror-image sides: a label decided by round-off would mean nothing
             critical["tightening_side"] = "equal"
             critical["phi_tightening"] = critical["phi_opening"] = None
             return
@@ -69,18 +65,15 @@ def summarise_critical(critical, table=None):
 
 
 # Two sides whose radius-of-gyration changes differ by less than this fraction of the radius of
-# gyration (with equal contact counts) are the same within the solver's accuracy (gtol 1e-9 in
-# scaled units moves it by ~1e-8 relative): seen 2e-8 mm on the mirror-symmetric figure-eight.
+# gyration (with equal contact counts) are the same within the solver's accuracy.
 SIDES_EQUAL_RTOL = 1e-6
 
 
 def tightening_side(changes, scale, rtol=SIDES_EQUAL_RTOL):
-    """Which side tightens: ``changes`` {'plus': (contact pairs gained, radius of gyration
-    change), 'minus': (...)} along each side's symmetric branch; ``scale`` a length to judge the
-    radius-of-gyration difference by (the radius of gyration itself). Tightening packs the strands
-    together: more segment pairs in contact, then a radius of gyration that shrinks (or grows
-    less); opening pulls them apart. Returns 'plus', 'minus', or 'equal' when the contact counts
-    agree and the radii differ by at most rtol * scale (mirror images: no side is the tighter)."""
+    """Which side tightens (packs the strands together): ``changes`` {'plus': (contact pairs gained,
+    radius of gyration change), 'minus': (...)}, judged by contacts gained, then radius of
+    gyration lost; ``scale`` the length the radius difference is judged by. Returns 'plus',
+    'minus', or 'equal' when the contact counts agree and the radii differ by at most rtol * scale."""
     (cc_plus, rg_plus), (cc_minus, rg_minus) = changes["plus"], changes["minus"]
     if cc_plus == cc_minus and abs(rg_plus - rg_minus) <= rtol * abs(scale):
         return "equal"

@@ -1,26 +1,17 @@
 """The whole bifurcation diagram of a twist study: every stable branch's end located exactly, as a
 fold or a branch point of the extended system, and the unstable branch beyond it.
 
-A twist study (``jaxrod.studies.twist.twist_study``) follows stable states only: each branch end is
-bracketed there, to the study's ``tol``, by corrector runs that fail. ``unstable_branches`` takes
-each end from the study's last stable state before it and follows the branch by pseudo-arclength
-continuation (``jaxrod.continuation.arclength``, gauge pinned, sliding modes split off by their shape) through
-the end: the end is then the root of an extended system (a fold: the minimally augmented system;
-a branch point: the Morse index changes without a fold), located by Newton to ``event_tol``, so it
-does not depend on the study's step or start. The path goes on along the unstable branch beyond
-the end for ``DiagramOptions.unstable_points`` points (past a fold, the branch turns back; past a
-branch point, the continued branch is the symmetric one, now unstable).
+A twist study only brackets each branch end to its ``tol``. ``unstable_branches`` follows each
+end from the study's last stable state by pseudo-arclength continuation through the end, locates
+it by Newton on an extended system (fold or branch point) to ``event_tol``, and goes on along the
+unstable branch for ``DiagramOptions.unstable_points`` points.
 
 With the study's folder (``study.out``), it writes there:
 
-* ``branch.csv``: the unstable branches' rows are appended after the study's rows (``branch``
-  'unstable <from branch>', ``stable`` 0, ``morse_index`` the count of negative eigenvalues of
-  the modes that change the shape, sliding modes and zero modes excluded), each with its
-  ``branch_id`` and ``arclength`` from the located end;
-* ``critical.json``: ``events``, one per branch end: its kind ('fold' or 'branch_point'), phi, the
-  critical eigenvalue and the extended system's residual (scaled units), Newton iterations, the
-  Morse index before and after, and ``state_file``, ``event_<direction>_<i>.npz`` (the located
-  state q, phi and its critical mode(s) ``mode_q``);
+* ``branch.csv``: the unstable branches' rows appended (``branch`` 'unstable <from branch>',
+  ``morse_index`` counting shape modes only), each with ``branch_id`` and ``arclength`` from the end;
+* ``critical.json``: ``events``, one per branch end (kind, phi, critical eigenvalue, residual,
+  Morse index before and after, ``state_file`` ``event_<direction>_<i>.npz`` with q, phi, ``mode_q``);
 * ``diagram.json``: how each end's path went (points, result, seconds).
 
 A resumed study drops these rows and events (``twist_study``), and they are computed again.
@@ -66,18 +57,11 @@ class DiagramOptions:
 
     unstable_points: points kept on the unstable branch beyond the located end; ds_max: largest
     pseudo-arclength step (scaled DOFs and phi in rad); newton_tol: the corrector's and the
-    locators' residual (scaled units; roundoff is ~1e-14 at N = 121). Tight, because a branch end
-    next to another singular point is ill-conditioned: on the trefoil's tightening side at N = 121
-    (a branch point 4e-6 pi from a fold) the branch-point Newton crawls, and the located phi from
-    two different starts differed by 1.0e-8 pi at 1e-11, by 5.7e-10 pi at 1e-13; event_tol: a located end must have its residual and critical eigenvalue below this;
-    max_points: points followed before the end, at most (the path starts at the study's last stable
-    state, within the study's tol of the end, so a few suffice); n_eig: eigenpairs kept per point.
-    until_restable: instead of ``unstable_points`` points, follow the unstable branch until it
-    restabilises (a fold or branch point where the Morse index comes back to 0; RESTABLE_KEEP
-    points kept past it, ``BranchEnd.restabilised``) or for at most ``max_unstable_points`` points:
-    where the unstable branch itself leads, a stated alternative to the study's relaxation along the
-    critical mode (on the trefoil at N = 121 the opening side's restabilises at a branch point at
-    5.6159 pi, below the end: ``benchmarks/restabilise_trefoil.py``).
+    locators' residual (scaled units), tight because an end next to another singular point is
+    ill-conditioned; event_tol: a located end must have its residual and critical eigenvalue below this;
+    max_points: points followed before the end, at most; n_eig: eigenpairs kept per point.
+    until_restable: instead, follow the unstable branch until its Morse index comes back to 0
+    (RESTABLE_KEEP points kept past it, ``BranchEnd.restabilised``) or for ``max_unstable_points``.
     """
 
     unstable_points: int = 8
@@ -165,11 +149,9 @@ class BranchEnd:
 
 @dataclass
 class Diagram:
-    """ends: a ``BranchEnd`` per instability of the study (in the order of critical.json's
-    ``instabilities``); rows: the unstable branches' rows (dicts, branch.csv's columns); study: the
-    study's ``StudyResult`` with them: its table holds the unstable rows too, its critical dict the
-    located ``events``, and phi_plus / phi_minus are the located ends (the bracket's estimates
-    kept as phi_plus_bracketed / phi_minus_bracketed)."""
+    """ends: a ``BranchEnd`` per instability of the study (critical.json's order); rows: the
+    unstable branches' rows (dicts, branch.csv's columns); study: the ``StudyResult`` with them,
+    its critical dict holding the located ``events`` and ends (``summarise_critical``)."""
 
     ends: list
     rows: list = field(repr=False)
@@ -182,29 +164,21 @@ class Diagram:
 RESOLVE_CROSSINGS = 1e-5
 
 # The path starts where the study's critical eigenvalue is at least START_EIGENVALUE (scaled units):
-# the study's states are converged to a gradient of 1e-9 only, and Newton from one whose critical
-# eigenvalue is ~1e-9 moves along that mode by up to gradient / eigenvalue ~ 1 edge, onto another
-# state (measured: the trefoil's buckled+ end at N = 121 with --step 0.25pi, eigenvalue 7.8e-10 at
-# the study's last state: the path started 1.7e-7 higher in the spectrum and met a fold at 7.069 pi
-# instead of the branch point at 7.041 pi). At 1e-7 that move is below 1e-2 edge.
+# study states are converged to a gradient of 1e-9 only, and Newton moves along a mode by up to
+# gradient / eigenvalue, so a smaller eigenvalue could carry the start onto another state.
 START_EIGENVALUE = 1e-7
 # ... stepping back from the study's last stable state by at most this much twist (rad).
 MAX_START_BACK = 0.05 * math.pi
 
-# The residual (scaled units) at which a path's start is taken when Newton cannot bring it down to
-# ``DiagramOptions.newton_tol`` (a roundoff floor above that tolerance): the equilibrium solver's own
-# convergence test (``RelaxOptions.gtol``), so that a state ``relax`` or ``jaxrod.equilibrium``
-# called converged is a valid start. A start that Newton does bring below newton_tol is corrected
-# to it, as before: the located ends do not change.
+# The residual (scaled units) at which a path's start is accepted when Newton's roundoff floor lies
+# above ``DiagramOptions.newton_tol``: the equilibrium solver's own test, so a converged state is a valid start.
 START_TOL = RelaxOptions.gtol
 
 
 def backed_off_start(scene, q, phi, eigenvalue, rate, sign):
-    """The state to start an end's path from: (q, phi) itself where the critical eigenvalue there
-    (``eigenvalue``, changing at ``rate`` = dlambda/dphi) is at least START_EIGENVALUE; else the
-    stable state relaxed from q at the twist where the linear model puts it at START_EIGENVALUE,
-    stepped back against ``sign`` (the direction of the end), by at most MAX_START_BACK. A state with
-    the two-fold symmetry through the joint keeps it (``jaxrod.model.symmetry``). -> (q, phi)."""
+    """(q, phi) to start an end's path from: the state itself where ``eigenvalue`` >= START_EIGENVALUE,
+    else relaxed at the twist where the linear model (``rate`` = dlambda/dphi) puts it there, stepped
+    back against ``sign`` by at most MAX_START_BACK (keeping a joint two-fold symmetry)."""
     from ..continuation.follow import _follow_engine
     from ..continuation.options import ContinuationOptions, Task
     from ..solve.equilibrium import LeftBranchError, TopologyChangeError, relax
@@ -237,13 +211,10 @@ def follow_branch_end(scene, q, phi, sign, options=None, *, p_min=-math.inf, p_m
     growing when sign > 0, falling when sign < 0) by pseudo-arclength continuation, locate the end
     (the first fold or branch point at which the Morse index grows) and follow the unstable branch
     beyond it for ``options.unstable_points`` points. capacity: the contact list's padded size
-    (``knot_problem``; default: the neighbourhood's own at (q, phi)). observer(point): called after
-    each accepted point (``jaxrod.continuation.arclength.continuation``; an exception raised there stops the
-    run). The start is corrected on phi to ``options.newton_tol``, or, where Newton's residual floor
-    lies above it, taken at a residual of at most START_TOL (a state the equilibrium solver called
-    converged). Returns a ``BranchEnd`` (direction and from_branch left empty); where the path met no end,
-    or did not locate it, ``located`` is False and ``message`` says why (its ``kind`` and ``phi``
-    then raise ``EndNotFound`` rather than answer None)."""
+    (default: the neighbourhood's own); observer(point): called after each accepted point (raising
+    stops the run). The start is corrected to ``options.newton_tol``, or to START_TOL where Newton's
+    floor lies above it. Returns a ``BranchEnd`` (direction and from_branch empty); where no end was
+    located, ``located`` is False and ``message`` says why."""
     from ..continuation import ContinuationOptions
     from ..continuation.arclength import PseudoArclength, continuation_until, \
         restabilisation
@@ -255,10 +226,7 @@ def follow_branch_end(scene, q, phi, sign, options=None, *, p_min=-math.inf, p_m
     opts = ContinuationOptions(ds=math.copysign(min(0.05, o.ds_max), sign), ds_min=1e-6, ds_max=o.ds_max,
                             max_steps=o.chunk, newton_tol=o.newton_tol, eig_rtol=1e-13, k=o.n_eig,
                             event_tol=o.event_tol, p_min=p_min, p_max=p_max,
-                            # a step across which the Morse index changes by more than 1 is retried
-                            # smaller, so that a fold and a crossing next to it are located apart: on the
-                            # trefoil at N = 961 the opening 'fold' (index 0 -> 2 in one step) is a branch
-                            # point at 6.4195886275 pi and a fold 2.4e-5 pi later
+                            # retry smaller a step whose Morse index changes by > 1, to separate close events
                             resolve_crossings=RESOLVE_CROSSINGS)
     def stop(points, events):
         end = _first_end(events)
@@ -278,8 +246,7 @@ def follow_branch_end(scene, q, phi, sign, options=None, *, p_min=-math.inf, p_m
     end = _first_end(events)
     if end is not None and not end.converged:
         if end.residual <= o.event_tol and end.critical_eigenvalue <= o.event_tol:
-            # jaxrod.continuation.arclength.locate: the fold system converged along a soft (sliding) mode, and
-            # the shape mode whose crossing changed the Morse index was not resolved in the bracket
+            # the fold system converged along a sliding mode, not the shape mode that changed the index
             message = (f"the end was detected near {end.p / math.pi:+.8f} pi but not located: the extended system "
                        "converged to a singular point along a sliding mode, not to the shape instability that "
                        "changes the Morse index there")
@@ -313,16 +280,12 @@ def locate_end(scene, inst, state, options=None, *, p_min, p_max, capacity=None,
                mode=None):
     """One branch end of a twist study, located exactly, and the unstable branch beyond it.
 
-    inst: the end's critical.json entry (``direction``, ``from_branch``, ``bracket``, ``phi``,
-    ``phi_error``, ``eigenvalue``, ``dlambda_dphi``); state: (q (n,), phi) the study's last stable
-    state before it (None: nothing to start from); p_min, p_max: the twist range of the path (the
-    study's, 0.5 pi wider); capacity: the contact list's padded size (the same for every end of a
-    study: a new size compiles every program again); progress: optional callable(str);
-    observer(point): called after each point (an exception raised there stops the run); mode: (n,)
-    the study's critical eigenvector at ``state`` (scaled DOFs; ``study.critical_mode``), which the
-    located end's null vector is checked against (``end_check.verify_end``; None: the eigenvector
-    there whose eigenvalue is nearest the study's critical one). Warns where the located end lies
-    outside the study's bracket, or is not the study's critical mode. Returns a ``BranchEnd``."""
+    inst: the end's critical.json entry; state: (q (n,), phi) the study's last stable state before it
+    (None: nothing to start from); p_min, p_max: the study's twist range (widened by 0.5 pi);
+    capacity: the contact list's padded size (one per study, to avoid recompiling); mode: (n,) the
+    study's critical eigenvector at ``state`` (scaled), checked against the located null vector
+    (None: computed there). Warns where the located end lies outside the study's bracket, or is not
+    the study's critical mode. Returns a ``BranchEnd``."""
     o = options or DiagramOptions()
     say = progress or (lambda line: None)
     if state is None:
@@ -380,14 +343,10 @@ def end_capacity(scene, states):
 def unstable_branches(scene, study, options=None, *, progress=None, parallel=True, located=None):
     """Locate each branch end of a twist study exactly and follow the unstable branch beyond it.
 
-    scene: the study's scene; study: its ``StudyResult`` (``jaxrod.studies.twist.twist_study``), whose
-    ``end_states`` hold the last stable state before each instability; options: ``DiagramOptions``;
-    progress: optional callable(str); parallel: the two directions' ends in two threads (each
-    direction's ends one after another; the results are the same). located: ends already located
-    by ``locate_end`` while the study ran (the CLI does), {(direction, index among that direction's
-    ends): BranchEnd}; only the others are computed here. With ``study.out`` writes the files
-    described in the module docstring. Returns a ``Diagram`` (``Diagram.study``: the study with the
-    diagram; ``study`` itself is left as it was).
+    study: the ``StudyResult``, whose ``end_states`` hold the last stable state before each
+    instability; parallel: the two directions in two threads (same results); located: ends already
+    located by ``locate_end``, {(direction, index within direction): BranchEnd}. With ``study.out``
+    writes the files of the module docstring. Returns a ``Diagram`` (``study`` itself is unchanged).
     """
     o = options or DiagramOptions()
     say = progress or (lambda line: None)
@@ -402,9 +361,7 @@ def unstable_branches(scene, study, options=None, *, progress=None, parallel=Tru
         if cancel.is_set():
             raise Cancelled()
 
-    # Each direction's ends one after another, the two directions in two threads (as the study
-    # runs them): the ends' work is mostly XLA and LAPACK, which release the GIL. Ctrl-C stops
-    # both at their next point (``threads.run_all``).
+    # the two directions in two threads (XLA and LAPACK release the GIL); Ctrl-C stops both
     ends = [None] * len(instabilities)
     todo, seen = {}, {"plus": 0, "minus": 0}
     for i, (inst, state) in enumerate(zip(instabilities, study.end_states)):
@@ -414,9 +371,7 @@ def unstable_branches(scene, study, options=None, *, progress=None, parallel=Tru
             ends[i] = located[key]
         else:
             todo.setdefault(inst["direction"], []).append((i, inst, state))
-    # One contact-list size for every end (the largest any end state asks for): a size is an array
-    # shape, and each new one traces and compiles every function again (measured on the trefoil at
-    # N = 61: 15 s for each of its two ends, whose default sizes differed)
+    # one contact-list size for every end: each new array shape compiles every function again
     capacity = end_capacity(scene, study.end_states) if todo else None
 
     def run_direction(items):
@@ -519,13 +474,10 @@ def _diagram_dict(diagram, options):
 
 def end_rows(scene, end, k, negative_tol):
     """The rows of a located end's unstable branch (the end itself at arclength 0, then the path
-    beyond it), in branch.csv's columns but ``branch_id``: each state's ``step_record`` (k lowest
-    eigenvalues, zero modes removed, ``negative_tol`` as the study's), with ``morse_index``,
-    ``n_negative`` and ``stable`` from the pseudo-arclength path. Kept on ``end.rows`` (the CLI
-    computes them in the end's worker, beside the study, not after the last end); returns them."""
+    beyond it), in branch.csv's columns but ``branch_id``: each state's ``step_record``, with
+    ``morse_index``, ``n_negative`` and ``stable`` from the path. Kept on ``end.rows``; returns them."""
     rod, ev = end.rod, end.event
     before = end.points[ev.step - 1]
-    # the located end first (arclength 0), then the path beyond it
     s_end = before.arclength + float(np.linalg.norm(np.append(ev.u - before.u, ev.p - before.p)))
     path = [(ev.u, float(ev.p), 0.0, ev.morse_before, 0, float(rod.full_gradient(ev.u, ev.p)))]
     path += [(pt.u, float(pt.p), pt.arclength - s_end, pt.morse_index, pt.iterations,
@@ -547,12 +499,8 @@ def end_rows(scene, end, k, negative_tol):
 
 
 def _unstable_rows(scene, study, ends):
-    """The rows of the unstable branches beyond the study's branch ends, in branch.csv's columns,
-    appended to branch.csv (with ``study.out``). Returns (rows, the table
-    with them: ``study.table`` and the rows).
-    Each row is the state's ``step_record`` (the study's eigenvalues, zero modes removed), with
-    ``morse_index``, ``n_negative`` and ``stable`` from the pseudo-arclength path (negative
-    eigenvalues of the modes that change the shape)."""
+    """The unstable branches' rows (``end_rows``), appended to branch.csv with ``study.out``.
+    Returns (rows, ``study.table`` with them)."""
     k = sum(1 for key in study.table if key.startswith("lambda_"))
     header = final_header(k)
     ids = study.table.get("branch_id")

@@ -1,23 +1,15 @@
 """An open overhand (trefoil) knot tied in a rod clamped at both ends and pulled tight.
 
-Scene: an ``EndLoadedRod`` (``jaxrod.studies.endloads.shortened_rod``) with soft self-contact, both clamps
-on one axis, the far clamp ``excess`` closer than one rod length, its frame turned by ``phi``.
-The knot is drawn from the trefoil (sin t + 2 sin 2t, cos t - 2 cos 2t, sin 3t), cut open at the tip
-of one lobe (t = pi, where the curve is furthest from the centre): the arc t in [pi + delta,
-3 pi - delta], scaled to the loop size asked, with two straight tails that run out along the
-axis, the incoming one passing under the outgoing one. The two tails and a far-away arc in
-the plane of the tip bound a disk the rest of the knot does not cross, so the rod closed by rays
-along the axis is a trefoil.
+Scene: an ``EndLoadedRod`` (``shortened_rod``) with soft self-contact, both clamps on one axis,
+the far clamp ``excess`` closer than one rod length, its frame turned by ``phi``. The knot is the
+trefoil (sin t + 2 sin 2t, cos t - 2 cos 2t, sin 3t) cut open at the tip of one lobe (t in
+[pi + delta, 3 pi - delta]), scaled to the loop size, with two straight tails along the axis, so
+the rod closed by rays along the axis is a trefoil.
 
-Pulling is displacement controlled (the robust way with contact): the far clamp is moved away
-step by step (the excess length, L minus the clamps' distance, decreases); each state is
-``jaxrod.solve.equilibrium.relax``ed (damped Newton, steps capped at D/4, contact candidates rebuilt
-when a node has moved skin/2, a writhe jump of 1 refused as strand passage), and the tension T
-is read from ``end_loads`` (dE/d(end distance), exact). The loop size is reported as the largest
-distance of the centreline from the clamp axis (``loop_height``) and as the excess length
-e = L - end distance (the knot's "excess length" of Audoly, Clauvelin, Neukirch 2007 / Jawed et
-al. 2015). The planar elastica loop of an inextensible rod under tension T (the outer solution of
-a loose knot) has e = 4 sqrt(B/T) and height 2 sqrt(B/T).
+Pulling is displacement controlled (robust with contact): the excess length e = L - end distance
+decreases step by step, each state is ``relax``ed from the last, and the tension T is read from
+``end_loads``. The planar elastica loop (a loose knot's outer solution) has e = 4 sqrt(B/T) and
+height 2 sqrt(B/T).
 """
 from __future__ import annotations
 
@@ -36,9 +28,6 @@ __all__ = ["open_overhand_knot", "OpenKnotOptions", "KnotState", "moved_to_exces
 
 TWO_PI = 2.0 * math.pi
 DEFAULT_CONTACT_STIFFNESS = 100.0
-# elastica loop (NvdHT 2002 at m = 0): excess length 4 sqrt(B/T), largest distance from the axis 2 sqrt(B/T)
-ELASTICA_EXCESS = 4.0
-ELASTICA_HEIGHT = 2.0
 
 
 def _trefoil(t):
@@ -71,12 +60,9 @@ class OpenKnotOptions:
     contact_stiffness: kappa_c of the soft self-contact.
     delta: where the trefoil is cut open, the arc t in [pi + delta, 3 pi - delta] (0.05 ... 1).
     Lk0: the rod's linking number at phi = 0, an integer; None: 3 with the sign of the drawn
-      curve's writhe, the writhe of the loose, nearly flat knot (three crossings of one sign;
-      measured 3.04 relaxed), so phi = 0 is the nearly twist-free knot.
-    contact_quadrature: Gauss points per segment of the contact integral, 3 by default: where the
-      strands cross, the contact is shorter than an edge, and with 2 points T(e) jumps by ~5 % as
-      strands slide past the nodes (measured at N = 320, D = L/150: non-monotone T with 2 points,
-      monotone within 1.5 % with 3).
+      curve's writhe (the loose knot's writhe), so phi = 0 is the nearly twist-free knot.
+    contact_quadrature: Gauss points per segment of the contact integral (with 2, T(e) jumps as
+      strands slide past the nodes).
     """
 
     B: float = 1.0
@@ -130,11 +116,8 @@ def open_overhand_knot(N, L, D, loop, phi=0.0, options=None):
     """(scene, q0): an open overhand knot of rest length L (between the clamps' points) and
     diameter D, N nodes, clamped on the z axis; ``loop``: the trefoil's unit length (its
     lobes are ~6 loop across); material, contact and linking number from ``options``
-    (``OpenKnotOptions``; None: the defaults). The far clamp sits where the drawn curve ends (its
-    excess length is the knot's), the twist is spread evenly (``phi``).
-    Lk = Lk0 + phi / 2 pi (a clamped rod's Lk0 is an integer: the far clamp's frame is the near
-    one's turned by phi); the drawn curve (ray-closed writhe 4.23: its slanted tails) starts with
-    Tw = Lk - Wr spread evenly. Refused (naming the parameter): N < 40 or edges longer than D,
+    (``OpenKnotOptions``; None: the defaults). The far clamp sits where the drawn curve ends, and
+    Tw = Lk0 + phi / 2 pi - Wr is spread evenly. Refused (naming the parameter): N < 40 or edges longer than D,
     non-positive L, D, loop, a knot too long for the rod (tails shorter than 12 loops)."""
     import jax.numpy as jnp  # noqa: PLC0415
 
@@ -174,11 +157,8 @@ def loop_height(scene, x):
 
 def loop_span(scene, x, fraction=0.3):
     """The loop's diameter: the largest distance between two nodes of x (N, 3) that lie further
-    from the clamp axis than ``fraction`` of the largest such distance (``loop_height``). The
-    threshold scales with the loop, so the measure is the same for knots of any D at equal
-    D sqrt(T/B): a threshold fixed in D counted the tails' deflection near a thin knot.
-    For the round loop of a loose knot it is the loop's diameter; ``loop_height`` depends on how
-    the loop sits across the axis."""
+    from the clamp axis than ``fraction`` of the largest such distance (``loop_height``), a
+    threshold that scales with the loop."""
     a = np.asarray(scene.axis, dtype=float)
     x = np.asarray(x, dtype=float)
     r = x - np.asarray(scene.x_clamped, dtype=float)[0][None, :]
@@ -192,10 +172,9 @@ def loop_span(scene, x, fraction=0.3):
 
 @dataclass(frozen=True)
 class KnotState:
-    """One pulled state: excess (L - end distance), T (tension), M (axial end moment), height
-    (``loop_height``), span (``loop_span``), phi, Wr, Tw, Lk, morse (negative eigenvalues of the contact Hessian, the
-    clamp-axis rotation removed), lowest (lowest eigenvalues, scaled), contacts (touching segment
-    pairs), energy, q (DOFs), x (nodes)."""
+    """One pulled state: excess (L - end distance), T, M (axial end moment), height, span, phi, Wr,
+    Tw, Lk, morse (negative eigenvalues), lowest (lowest eigenvalues, scaled), contacts (touching
+    segment pairs), energy, q (DOFs), x (nodes)."""
 
     excess: float
     T: float
@@ -306,11 +285,9 @@ def fit_prefactor(T, y, B=1.0):
 
 
 def fit_loose_limit(x, c, degree=1):
-    """The loose-knot limit of a scale-free measure: for a long rod (L much longer than the knot)
-    dimensional analysis leaves c = y sqrt(T/B) a function of x = D sqrt(T/B) alone (at given
-    nu, contact law and end moment M / sqrt(BT)), whatever D; the loose limit is c(0).
-    Fits c = c0 + c1 x (+ c2 x^2 with degree 2) by least squares. Returns (coefficients (degree+1,),
-    their standard errors, the largest residual)."""
+    """The loose-knot limit c(0) of a scale-free measure c = y sqrt(T/B), a function of
+    x = D sqrt(T/B) alone for a long rod. Fits c = c0 + c1 x (+ c2 x^2 with degree 2) by least
+    squares. Returns (coefficients (degree+1,), their standard errors, the largest residual)."""
     x, c = np.asarray(x, dtype=float), np.asarray(c, dtype=float)
     A = np.stack([x ** k for k in range(degree + 1)], axis=1)
     coef, *_ = np.linalg.lstsq(A, c, rcond=None)
@@ -327,9 +304,8 @@ def fit_loose_limit(x, c, degree=1):
 def mean_tension(excess, energy):
     """The mean tension over each step of a displacement-controlled pull: T = -dE/de between
     consecutive states, (E1 - E0) / (e0 - e1), placed at the geometric mean sqrt(e0 e1) of their
-    excess lengths (where it is exact for the loose-knot law T = c^2 B / e^2, E = E_inf + c^2 B / e).
-    Smoother than the tension at each state (``end_loads``), which ripples by a few per cent as the
-    strands slide past the nodes; the work done is the same. excess, energy: (K,) in any order.
+    excess lengths (exact for the loose-knot law T = c^2 B / e^2); smoother than ``end_loads``'s
+    tension, which ripples as strands slide past the nodes. excess, energy: (K,) in any order.
     Returns (e_mid (K-1,), T_mean (K-1,)), sorted by excess."""
     e, E = np.asarray(excess, dtype=float), np.asarray(energy, dtype=float)
     order = np.argsort(e)

@@ -21,18 +21,15 @@ _NUMBER = r"([-+]?(?:inf|nan|\d+(?:\.\d+)?(?:e[-+]?\d+)?))"
 
 
 def twist_message(branch):
-    """A pseudo-arclength path's stop reason with its twists in multiples of pi, as the results give
-    them: the engine is generic in its parameter p and gives p's values as they are (here phi in rad):
-    'p = 20.7' becomes 'phi = +6.58915549 pi', a range '[-inf, 24.3]' becomes '[-inf, +7.734930] pi'."""
+    """A pseudo-arclength path's stop reason with the engine's 'p = 20.7' written 'phi = +6.58915549 pi'
+    and a range '[-inf, 24.3]' as '[-inf, +7.734930] pi'."""
     text = re.sub(r"\bp = " + _NUMBER, _twist_text, branch.message)
     return re.sub(r"\[" + _NUMBER + ", " + _NUMBER + r"\]", _range_text, text)
 
 
 def end_message(end, branch):
     """What a path that located its end ``end`` (a converged Event) says: the stop rule's message
-    where the path stopped by it; where it failed or left its range past the end (an event beyond
-    it not located, say), that the end was located, then what went wrong past it. Twists in
-    multiples of pi."""
+    where it stopped by it, else that the end was located, then what went wrong past it."""
     from ..continuation.arclength.results import Result
 
     message = twist_message(branch)
@@ -43,9 +40,7 @@ def end_message(end, branch):
 
 def extra_crossings(ev):
     """A sentence when the located event ``ev`` changes the Morse index by more than its
-    multiplicity (a simple fold or branch point changes it by exactly that): another eigenvalue
-    crossed zero within the same step, a near-double event (measured on the trefoil at N = 961: the
-    opening 'fold' took the index 0 -> 2, three eigenvalues ~1e-9 at the point before it); else ''."""
+    multiplicity: another eigenvalue crossed zero within the same step (a near-double event); else ''."""
     jump = int(ev.morse_after) - int(ev.morse_before)
     if jump <= int(ev.multiplicity):
         return ""

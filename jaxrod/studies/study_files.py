@@ -1,9 +1,6 @@
 """The files of a twist study's folder (``jaxrod.studies.twist``), read and kept consistent:
-``branch.csv`` read back (``read_table``), its final header and the diagram's columns
-(``final_header``, ``add_branch_columns``, ``rewrite_sorted``), the rows of unstable branches
-(``UNSTABLE_PREFIX``, ``is_unstable``), an interrupted run's files made to agree with its saved
-states (``reconcile``), and what the folder keeps of each branch end (``critical_mode``,
-``end_states``)."""
+``branch.csv`` and its columns, the rows of unstable branches, an interrupted run's files made to
+agree with its saved states (``reconcile``), and what is kept of each branch end."""
 from __future__ import annotations
 
 import csv
@@ -48,11 +45,9 @@ def read_seconds(out):
 
 def reconcile(out, critical, header, say):
     """Make the files of an interrupted run agree with its saved continuation states: a direction
-    keeps the rows, step files and instabilities its state counts (written before it), and
-    drops what was written after it (a kill between a row and its state). A direction without a
-    state starts over. The bifurcation diagram's rows, events and files (``jaxrod.studies.diagram``) are
-    dropped: they are computed again from the finished study. Returns {direction:
-    PathState.from_arrays(...)} for those with a state."""
+    keeps what its state counts and drops what was written after it; one without a state starts
+    over. The diagram's rows, events and files are dropped (computed again). Returns {direction:
+    PathState} for those with a state."""
     critical.pop("events", None)
     for stale in glob.glob(os.path.join(out, "event_*.npz")) + glob.glob(os.path.join(out, "diagram.json")):
         os.remove(stale)
@@ -66,8 +61,6 @@ def reconcile(out, critical, header, say):
             keep_rows[direction] = int(arrays["n_points"])
             keep_inst[direction] = int(arrays["n_instabilities"])
             if not _files_cover(out, critical, direction, keep_rows[direction], keep_inst[direction]):
-                # The state counts rows, step files or instabilities that are not on file (removed
-                # by hand): it cannot be continued from; this direction starts over.
                 say(f"{direction}: files missing that its saved state counts: starting this direction over")
                 del stored[direction]
                 keep_rows[direction] = keep_inst[direction] = 0
@@ -165,17 +158,14 @@ def is_unstable(row):
 
 
 def _branch_key(name):
-    # the branch the study starts on (phi = 0) is one branch, followed both ways ('symmetric+'
-    # and 'symmetric-'): one id, its arclength signed (negative on the minus side)
+    # 'symmetric+' and 'symmetric-' are the branch through phi = 0 followed both ways: one id
     return name[:-1] if name.startswith("symmetric") and name[-1:] in "+-" else name
 
 
 def add_branch_columns(rows, states):
-    """Give each stable row (canonical order) its ``branch_id`` (by first appearance, the branch
-    through phi = 0 being 0), ``arclength`` (along its branch from its first state: the sum of
-    sqrt(dphi^2 + |du|^2) between consecutive states, u the scaled DOFs (node coordinates in mean
-    edge lengths, twist angles in rad); negative on the minus side of the branch through phi = 0)
-    and ``morse_index`` (the study's count of negative eigenvalues, n_negative)."""
+    """Give each stable row (canonical order) its ``branch_id`` (by first appearance), ``arclength``
+    (sum of sqrt(dphi^2 + |du|^2) along its branch, u the scaled DOFs; negative on the minus side
+    of the branch through phi = 0) and ``morse_index`` (n_negative)."""
     ids, last = {}, {}
     for row, (u, phi) in zip(rows, states):
         key = _branch_key(str(row["branch"]))

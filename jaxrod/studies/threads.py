@@ -13,18 +13,15 @@ class Cancelled(Exception):
 
 def run_all(run_direction, todo, parallel, cancel):
     """run_direction(*task) for each task, in threads when ``parallel`` and there are two; the
-    first exception raised in a thread is raised here. The main thread only waits (in short waits,
-    so that Ctrl-C and SIGTERM reach it); when it is interrupted it sets ``cancel``, waits until
-    every thread has stopped at its next saved state, and then re-raises the interrupt: no thread
-    is left inside XLA while the interpreter shuts down."""
+    first exception raised in a thread is raised here. Interrupted, the main thread sets
+    ``cancel``, waits until every thread has stopped, and re-raises: no thread is left inside XLA
+    at shutdown."""
     if not parallel or len(todo) < 2:
         for task in todo:
             run_direction(*task)
         return
     errors = []
-    # Each thread says when it has ended through an Event: the main thread waits on those, never
-    # in Thread.join, because a join interrupted by Ctrl-C marks the running thread as stopped
-    # (CPython 3.11's bpo-45274 handling), after which nothing waits for it any more.
+    # waits on Events in short waits, not Thread.join: a join interrupted by Ctrl-C marks the thread stopped
     done = [threading.Event() for _ in todo]
 
     def target(task, finished):

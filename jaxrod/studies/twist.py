@@ -15,13 +15,10 @@ recorded as it is made, resumable, with the figures of the seed paper.
   written after the rows, step files and instabilities it counts;
 * ``time.json``      the computing time over this run and the interrupted runs before it.
 
-Step files, states and JSON files are written atomically (a temporary name, then a rename);
-rows are appended (a row cut short by a kill is dropped on resume). Interrupted at any moment
-(even by ``kill -9``) and called again with the same arguments, the study drops whatever was
-written after the last saved state, goes on from that state, and ends with files identical to
-those of an uninterrupted run: finished directions are skipped, nothing computed before the
-last state is lost. ``figures(DIR)`` draws bifurcation diagram, Lk/Tw/Wr, kappa(s)/tau(s)
-profiles and 3D snapshots from the files.
+Files are written atomically and rows appended. Interrupted at any moment (even by ``kill -9``)
+and called again with the same arguments, the study goes on from the last saved state and ends
+with files identical to those of an uninterrupted run. ``figures(DIR)`` draws the bifurcation
+diagram, Lk/Tw/Wr, kappa(s)/tau(s) profiles and 3D snapshots from the files.
 """
 from __future__ import annotations
 
@@ -129,10 +126,9 @@ STUDY_DEFAULTS = {"step": 0.5 * math.pi, "tol": 2e-4 * math.pi, "k": 8, "max_swi
 
 
 def study_options(options=None):
-    """``options`` (a ``ContinuationOptions``, or None) with the study's defaults filled in where
-    None: step 0.5 pi, tol 2e-4 pi, k 8, max_switches 3 (the values run.json records). A study
-    sets the other fields itself (negative_tol from critical.json), so a value given for one of
-    them is refused (ValueError naming it): a resumed run could not check it against run.json."""
+    """``options`` (a ``ContinuationOptions``, or None) with STUDY_DEFAULTS filled in where None. A
+    study sets the other fields itself, so a value given for one of them is refused (ValueError
+    naming it): a resumed run could not check it against run.json."""
     options = checked_options(options)
     for name in ("negative_tol", "gtol", "jump_tol", "corrector_max_steps", "max_refine", "linear_algebra", "branch",
                  "switch", "perturbation", "keep_symmetry"):
@@ -144,8 +140,7 @@ def study_options(options=None):
 
 def check_study_folder(out, scene, phi_min, phi_max, options=None):
     """Raise ValueError naming ``out`` if it holds a study (run.json) with other parameters than
-    these (options: as for ``twist_study``), which a ``twist_study`` with resume=True would
-    refuse: checked before any work."""
+    these, as ``twist_study`` with resume=True would, before any work."""
     o = study_options(options)
     step, tol, k, max_switches = o.step, o.tol, o.k, o.max_switches
     run_path = os.path.join(out, "run.json")
@@ -165,22 +160,18 @@ def check_study_folder(out, scene, phi_min, phi_max, options=None):
 @holds_output_folder
 def twist_study(scene, phi_min, phi_max, options=None, *, out=None, resume=True, parallel=True, observer=None):
     """Follow the knot's stable states from phi = 0 up to phi_max and down to phi_min (relaxed at
-    phi = 0 first), switching branches at each instability (see ``follow_twist``). Records every
-    step (``step_record``); with ``out`` writes the files described in the module docstring as it
-    goes and resumes an interrupted run (see the module docstring; resume=False starts over).
-    options: a ``ContinuationOptions`` with step, tol, k, max_switches (``study_options``: a
-    study's defaults are step 0.5 pi, tol 2e-4 pi, k 8, max_switches 3). observer: an
-    ``Observer`` whose progress(str) gets progress lines and on_point(PathPoint) is called after
-    every step recorded (``PathPoint.direction``: 'plus' or 'minus'; from two threads when ``parallel``);
-    on_instability(direction, index, entry, (q, phi)), once each branch end is on file: its
-    critical.json entry (a copy), its index among that direction's ends, and the last stable state
-    before it (the CLI starts each end's exact location while the study goes on).
+    phi = 0 first), switching branches at each instability (see ``follow_twist``). With ``out``
+    writes the files of the module docstring as it goes and resumes an interrupted run
+    (resume=False starts over). options: a ``ContinuationOptions`` with step, tol, k, max_switches
+    (defaults: ``study_options``). observer: an ``Observer`` whose progress(str) gets progress
+    lines, on_point(PathPoint) is called after every step recorded (from two threads when
+    ``parallel``), and on_instability(direction, index, entry, (q, phi)) once each branch end is
+    on file, with its critical.json entry (a copy) and the last stable state before it.
     Returns a ``StudyResult``.
 
-    parallel: follow the two directions at once, in two threads (JAX releases the GIL while it
-    computes, so on two cores the study takes about as long as its longer side: README's trefoil
-    12.3 -> 9.5 s). The numbers are the same as in a serial run; rows reach branch.csv in the order
-    they are found, and the file is rewritten in canonical order (plus, then minus) at the end."""
+    parallel: follow the two directions at once, in two threads (JAX releases the GIL). The
+    numbers are the same as in a serial run; branch.csv is rewritten in canonical order (plus,
+    then minus) at the end."""
     t0 = time.perf_counter()
     phi_min = check_finite("phi_min", phi_min)
     phi_max = check_finite("phi_max", phi_max)
@@ -224,11 +215,9 @@ def _clear_folder(out):
 @dataclass
 class _StudyRun:
     """One ``twist_study`` call: its folder's files, the rows and instabilities found so far, and
-    what each direction's ``follow_twist`` hands over (points, instabilities, states), written
-    by one thread at a time (``lock``). ``cancel`` is set when the main thread is interrupted
-    (Ctrl-C, SIGTERM): each direction's thread stops at its next saved state instead of being torn
-    down inside XLA when the process exits (which aborted the process: "terminate called ...",
-    status 134)."""
+    what each direction's ``follow_twist`` hands over, written by one thread at a time (``lock``).
+    ``cancel`` is set when the main thread is interrupted: each direction's thread stops at its
+    next saved state rather than being torn down inside XLA, which aborts the process."""
 
     scene: object
     out: str | None
@@ -382,10 +371,8 @@ class _StudyRun:
 
 
 def compile_ahead(scene):
-    """A thread that runs the continuation's per-step analysis once on the drawn shape, while the
-    relaxation at phi = 0 runs: its programs (projected Hessian, branch tangent, step records) are
-    then compiled, or loaded from the compile cache, on the core the relaxation leaves idle (one
-    XLA compilation uses one core), not one after the other at the first steps. The results are
+    """A thread that runs the continuation's per-step analysis once on the drawn shape while the
+    relaxation at phi = 0 runs, so its programs compile on the idle core. The results are
     dropped; a failure only loses the head start."""
     from ..io.records import _record_arrays
     from ..linalg.stability import branch_analysis

@@ -15,10 +15,9 @@ __all__ = ["event_marks", "figures", "branch_figures", "state_figures"]
 
 
 def event_marks(critical, table):
-    """The branch ends to mark on the figures (``plotting.plot_bifurcation``'s ``critical``): each
-    located event (kind, phi, and the writhe of the unstable branch's first row, the located state)
-    where the diagram (``jaxrod.studies.diagram``) has it, else the study's bracketed estimate.
-    critical: critical.json's dict; table: branch.csv's columns."""
+    """The branch ends to mark on the figures: each located event (kind, phi, writhe) where the
+    diagram has it, else the study's bracketed estimate. critical: critical.json's dict; table:
+    branch.csv's columns."""
     located = {ev["instability"]: ev for ev in critical.get("events", []) if ev.get("located")}
     marks = []
     for i, c in enumerate(critical["instabilities"]):

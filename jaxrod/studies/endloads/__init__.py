@@ -4,25 +4,19 @@ Two ways of loading a rod clamped at both ends along one axis (the clamp at s = 
 clamp, at s = L, holds its edge along the same axis and its material frame turned by the end
 rotation ``phi``):
 
-* **Displacement control** (``shortened_rod``, module ``scene``): the far clamp sits a prescribed
-  distance from the near one, L - shortening along the axis (``EndLoadedRod``; ``with_shortening``
-  moves it, traceably, so the shortening can be a continuation parameter: ``problems``). The end
-  loads are derivatives of the energy at the equilibrium, exact by autodiff (``end_loads``, module
-  ``compiled``): the tension T = dE/d(end distance) and the axial end moment M = dE/d(phi).
-  Equilibria: ``solve`` and ``solve_from_helix`` (module ``equilibria``, options
-  ``EndLoadOptions``).
-* **Force control** (``ForceLoadedRod``, module ``force``): a dead load T pulls the far clamp
-  along the axis; its position is a degree of freedom, along the axis (``end="slide"``) or in
-  space (``end="free"``).
+* **Displacement control** (``shortened_rod``): the far clamp sits L - shortening from the near
+  one along the axis (``EndLoadedRod``; ``with_shortening`` is traceable, so the shortening can be
+  a continuation parameter). The end loads T = dE/d(end distance) and M = dE/d(phi) are exact by
+  autodiff (``end_loads``). Equilibria: ``solve`` and ``solve_from_helix`` (``EndLoadOptions``).
+* **Force control** (``ForceLoadedRod``): a dead load T pulls the far clamp along the axis
+  (``end="slide"``) or in space (``end="free"``).
 
-Both close the rod for its linking number with rays along the clamp axis, so Lk = Wr + Tw =
-Lk0 + phi / 2 pi holds along any path without strand passage.
+Both close the rod with rays along the clamp axis, so Lk = Wr + Tw = Lk0 + phi / 2 pi holds along
+any path without strand passage.
 
 Analytic references: the localized helical buckle of Neukirch, van der Heijden and Thompson 2002
-(``localized_helix``, module ``helix``, with where it applies: ``reference_check``), the buckling
-twist of a straight rod under tension and the plectoneme's torque plateau (module
-``thresholds``). A solved loop against its reference: module ``compare``; how fine a rod must be
-and Richardson's extrapolation: module ``resolution``; starting states: module ``shapes``.
+(``localized_helix``, where it applies: ``reference_check``), the buckling twist of a straight
+rod under tension and the plectoneme's torque plateau (module ``thresholds``).
 """
 from .compare import (
     HelixProfiles, choose_helix_root, envelope_error, helix_profiles, helix_root_row, helix_state, relative_error,

@@ -39,11 +39,9 @@ def envelope_error(x, m, t, L=1.0, axis=(0.0, 0.0, 1.0)):
 
 
 def choose_helix_root(candidates, n_found, root):
-    """(name, reason) of the loop taken among the solved roots ``candidates``, a non-empty list of
-    (name, t, stable) in the order solved (t = TL^2/B of the analytic loop, stable the computed
-    stability under fixed ends), of the ``n_found`` roots at the imposed ends, for the choice
-    ``root`` ("stable", "small", "large" or "both"): the one solved where only one is (or was
-    asked for), else the stable one; where none or several are stable, the larger t."""
+    """(name, reason) of the loop taken among ``candidates``, (name, t, stable) in the order solved,
+    of the ``n_found`` roots, for the choice ``root`` ("stable", "small", "large" or "both"): the
+    only one solved or asked for, else the stable one; where none or several are, the larger t."""
     if n_found == 1 or root in ("small", "large") or len(candidates) == 1:
         why = "the only root" if n_found == 1 else f"--root {root}" \
             if root in ("small", "large") else "the only root solved"
@@ -81,12 +79,10 @@ def helix_state(scene, eq, R, ref, B, ea):
 
 
 def helix_root_row(name, ref, check, state=None, attempted=False, note=None):
-    """One root's comparison with its analytic loop: the dict of its name, the analytic m, t and
-    lambda of ``ref`` (``LocalizedHelix``), whether the reference applies (``check``, a
-    ``ReferenceCheck``: reference_valid, reference_reason), and from ``state`` (``helix_state``,
-    None where not solved) the computed m, t, their relative errors (None where the reference
-    does not apply), morse, stable and converged (True; where not solved None, or False where
-    Newton was ``attempted`` and failed, with ``note``, why it was left out)."""
+    """One root's comparison with its analytic loop ``ref``: a dict of its name, the analytic m, t
+    and lambda, whether the reference applies (``check``), and from ``state`` (``helix_state``,
+    None where not solved) the computed m, t, their relative errors, morse, stable and converged
+    (None where not solved, False where Newton was ``attempted`` and failed, with ``note``)."""
     row = {"root": name, "m_analytic": ref.m, "t_analytic": ref.t, "lambda": ref.lam,
            "reference_valid": check.valid, "reference_reason": check.reason}
     if state is not None:
@@ -120,10 +116,8 @@ class HelixProfiles:
 
 
 def helix_profiles(x, ref, L=1.0):
-    """``HelixProfiles`` of the nodes x (N, 3) of a clamped rod of length L along z (edges 0 and
-    N-2 the clamps) against the localized helix ``ref`` (``LocalizedHelix``): the tangent angles
-    of the edges and the centreline, the computed loop turned about the axis (a symmetry) onto
-    the analytic one."""
+    """``HelixProfiles`` of the nodes x (N, 3) of a clamped rod of length L along z against the
+    localized helix ``ref``, the computed loop turned about the axis onto the analytic one."""
     N = len(x)
     theta = tangent_angles(x)
     h_edge = L / (theta.size - 1)

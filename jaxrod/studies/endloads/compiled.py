@@ -20,9 +20,8 @@ from .scene import with_end_offset
 class EndLoads:
     """End loads at an equilibrium: T the axial tension (> 0 pulls the clamps together), M the
     axial twisting moment at the far clamp, force (3,) dE/d(far clamp position) (its component
-    along the axis is T; lateral components are the clamp's lateral reaction), M_twist the
-    twisting moment C * (twist per length) along the rod (equal to M at an equilibrium: the
-    twist equation makes every vertex's twist per length equal)."""
+    along the axis is T), M_twist the twisting moment C * (twist per length) along the rod (equal
+    to M at an equilibrium)."""
 
     T: float
     M: float
@@ -31,11 +30,8 @@ class EndLoads:
 
 
 # ---------------------------------------------------------------------- compiled pieces
-# Python compositions of separately jitted pieces (as ``jaxrod.linalg.stability``): the structured
-# Hessian, the largest program to compile (~2-4 s per scene shape), is compiled once per shape in
-# ``rod_hessian`` and shared by Newton's steps, the stability analysis, the force-loaded rod's
-# rod block and ``straight_buckling_moment``; the gradient and the end loads are one program
-# (``rod_gradients``). One jit around each solve compiled the Hessian into each of them.
+# One compiled program per shape (``rod_all``), shared by Newton, the stability analysis, the
+# force-loaded rod and ``straight_buckling_moment``: the Hessian is the costliest to compile.
 def f64(x):
     """A float64 array (never weakly typed: one compiled program per shape, whatever the caller passes)."""
     return jnp.asarray(np.asarray(x, dtype=np.float64))
@@ -93,9 +89,8 @@ def offset_coupling(scene, u, phi, nbr):
     return jax.jacfwd(g)(scene.end_offset)
 
 
-# Eigenvalues of the scaled Hessian are known to ~ eps max|H_ii| only; a stiff rod's stretching
-# entries, EA h^2/B ~ 1e8 at EA L^2/B ~ 1e12, then lift that noise (the projected-out axial
-# rotation's eigenvalue, ~1e-8) above DEFAULT_NEGATIVE_TOL: it is not counted as negative.
+# Eigenvalues of the scaled Hessian are known to ~ eps max|H_ii| only: on a stiff rod that noise
+# exceeds DEFAULT_NEGATIVE_TOL and must not count as negative.
 EIGEN_ROUNDOFF_ULPS = 256.0
 
 
@@ -112,9 +107,8 @@ def rod_stability(scene, u, phi, nbr, k, tol=DEFAULT_NEGATIVE_TOL):
 
 def end_loads(scene, q, phi, nbr=None):
     """The ``EndLoads`` of state q (physical DOFs) at end rotation phi: exact partial derivatives of
-    the energy in the far clamp's position and in phi (at an equilibrium these are the total
-    derivatives of the equilibrium energy, by the envelope theorem). ``nbr``: the state's
-    neighbourhood (``Equilibrium.neighbourhood``; built here if None)."""
+    the energy in the far clamp's position and in phi (total ones at an equilibrium). ``nbr``: the
+    state's neighbourhood (built here if None)."""
     q = np.asarray(q, dtype=float)
     phi = check_finite("phi", phi)
     if nbr is None:

@@ -61,14 +61,10 @@ def newton(fun, hessian, y0, args, zero_modes=None, gtol=1e-9, max_step=0.5, max
     """The stationary point of ``fun(y, args)`` nearest y0 (stable or not) by Newton's method with
     the exact ``hessian(y, args)`` (it may return (H, zero modes)), each step's largest component
     capped at ``max_step`` (scaled units: an edge length), exact symmetry directions
-    ``zero_modes(y, args) -> (n, k)`` lifted out of the solve. No line search on |grad|: on a
-    stiff (nearly inextensible) rod a good Newton step often raises |grad| for one iteration (a
-    second-order stretch), which a merit test refuses, and the iteration then crawls.
-    A Python loop over jitted pieces (``hessian``, ``zero_modes`` and ``value_and_grad(y, args)
-    -> (value, grad)`` are jitted unless already jitted or marked host compositions), so that
-    the compiled Hessian is shared with the stability analysis; ``evaluate(y, args) -> (value,
-    grad, H, zero modes)``, where given, replaces all three (one program per step). Returns a
-    ``jaxrod.solve.solvers.Solution``."""
+    ``zero_modes(y, args) -> (n, k)`` lifted out of the solve. No line search: on a stiff rod a
+    good step often raises |grad| for one iteration. A Python loop over jitted pieces (jitted here
+    unless already jitted or ``host``-marked); ``evaluate(y, args) -> (value, grad, H, zero modes)``,
+    where given, replaces them. Returns a ``jaxrod.solve.solvers.Solution``."""
     from ...solve.solvers import ConvergenceError, Solution, StopReason  # noqa: PLC0415
 
     vg = None if evaluate is not None else (_jitted_value_and_grad(fun) if value_and_grad is None
@@ -132,10 +128,8 @@ def solve(scene, phi, q0, options=None, throw=True):
     """Equilibrium (``jaxrod.Equilibrium``, with its stability unless ``options.with_stability`` is
     False) of an ``EndLoadedRod`` at end rotation phi nearest q0 (physical DOFs), by ``newton`` on
     the scaled energy (the axial rotation lifted out) to max |gradient| <= ``options.gtol``
-    (``EndLoadOptions``; None: the defaults). Without contact only (the exact writhe fixes the
-    twist's branch).
-    Refused: a scene too coarse for its end rotation (more than ``MAX_TWIST_PER_EDGE`` rad of
-    imposed twist per edge: N named), non-finite phi or q0."""
+    (``EndLoadOptions``; None: the defaults). Without contact only. Refused: a scene too coarse
+    for its end rotation (more than ``MAX_TWIST_PER_EDGE`` rad per edge: N named), non-finite phi or q0."""
     from ...solve.equilibrium import equilibrium_from_solution  # noqa: PLC0415
 
     options = EndLoadOptions() if options is None else options
@@ -155,16 +149,9 @@ def solve(scene, phi, q0, options=None, throw=True):
     return e
 
 
-# A Newton step moves nodes across their edges, and the second-order stretch that causes, EA times
-# (step / h)^2, dwarfs the loads of a stiff rod: from the analytic loop (a few per cent off the
-# discrete one at the N used) Newton then wanders, or lands on the other loop of the same (d, R)
-# (measured at N = 120: EA L^2/B = 1e8 gave t = 176 for 320; 1e12 did not converge).
-# ``solve_from_helix`` solves a softer rod first, EA_0 = STIFFEN_FROM max(t, 4 pi^2) B/L^2 (never so
-# soft that compressing the rod by the shortening costs less than buckling it, 4 pi^2 B/L^2), then
-# stiffens it by at most STIFFEN_FACTOR per stage, each stage started from the last's state with
-# its strains scaled down to the new EA (``restretched``: the tension kept; started as it was, the
-# state's tension jumps by the stage's factor, and at N = 400 the loop slid off along its soft
-# modes, eigenvalues ~1e-7 in scaled units, to the other loop).
+# On a stiff rod Newton from the analytic loop wanders (a step's second-order stretch dwarfs the
+# loads), so ``solve_from_helix`` solves at EA_0 = STIFFEN_FROM max(t, 4 pi^2) B/L^2 first, then
+# stiffens by at most STIFFEN_FACTOR per stage, each started ``restretched`` from the last.
 STIFFEN_FROM = 1e3
 STIFFEN_FACTOR = 100.0
 

@@ -166,9 +166,7 @@ class ForceLoadedRod:
         if not np.all(np.isfinite(u0)):
             raise ValueError("u0 must be finite")
         if method == "newton":
-            # the neighbourhood (the writhe that fixes the twist's branch; contact candidates) is
-            # frozen during Newton's steps and rebuilt at the result, until the result is an
-            # equilibrium with its own neighbourhood
+            # the neighbourhood is frozen during Newton's steps and rebuilt at the result, until consistent
             u = u0
             for _ in range(5):
                 nbr = self.neighbourhood(u, phi)
@@ -192,8 +190,7 @@ class ForceLoadedRod:
             raise ValueError(f"method must be 'newton' or 'damped', got {method!r}")
         return self.equilibrium(sol.y, T, phi, sol=sol, k=k)
 
-    # host compositions of the rod's compiled pieces (``rod_gradients``, ``rod_hessian``,
-    # ``offset_coupling``): the force-loaded rod shares the displacement-controlled rod's programs
+    # host compositions of the displacement-controlled rod's compiled programs
     def _state(self, u):
         u = np.asarray(u, dtype=float)
         n = self.rod.n_dof

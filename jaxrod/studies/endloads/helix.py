@@ -62,9 +62,8 @@ def localized_helix(m, t, gamma):
 def localized_helix_from_shortening(d, R, gamma):
     """The (m, t) of every localized helix with end shortening d (per length) and end rotation R
     (rad) at gamma, from NvdHT eqs. 14-15: with u = d^2 t / 16 in (0, 1), m = 8 sqrt(u(1-u)) / d and
-    |R| = |m| / gamma + 4 arcsin(sqrt u), solved for u (all roots), m taking the sign of R (the
-    mirror image: (d, -R) has the loops (-m, t) of (d, R)). Returns a list of LocalizedHelix,
-    ascending in t (none for R = 0)."""
+    |R| = |m| / gamma + 4 arcsin(sqrt u), solved for u (all roots), m taking the sign of R.
+    Returns a list of LocalizedHelix, ascending in t (none for R = 0)."""
     from scipy.optimize import brentq  # noqa: PLC0415
 
     d, gamma = check_positive("d", d), check_positive("gamma", gamma)
@@ -89,23 +88,17 @@ def localized_helix_from_shortening(d, R, gamma):
 
 
 # ---------------------------------------------------------------------- where the formulas hold
-# NvdHT's eqs. 14-15 describe a loop on an infinite, inextensible rod. They are taken as the
-# reference of a clamped rod of length L while both errors are small: the finite length's (the
-# loop's tails cut at the clamps, ~ e^-lambda) and the stretch's.
+# NvdHT's loop is on an infinite, inextensible rod: the reference of a clamped rod while the
+# finite length's error (~ e^-lambda, 2e-6 at 13) and the stretch's are small.
 LOCALIZATION_MIN = 13.0
-# The largest relative shift of t that the stretch T/EA may cause (first-order estimate,
-# ``stretch_shift``) for the inextensible formulas to stand as the reference.
+# The largest relative shift of t by the stretch (``stretch_shift``) for the formulas to stand.
 STRETCH_SHIFT_MAX = 1e-4
 
 
 def localization_parameter(m, t):
     """The localization parameter lambda = sqrt(t - m^2/4) of NvdHT's loop (m = ML/B, t = TL^2/B;
-    0 where m^2 >= 4t: no loop). The loop's core is L/lambda wide: 1 - cos theta = (2 lambda^2/t)
-    sech^2(lambda s/L), so at the clamps (s = +-L/2) the infinite rod's tails have decayed to
-    ~ 8 (lambda^2/t) e^-lambda, and the clamped rod of length L differs from the infinite one by
-    O(e^-lambda). The formulas are a reference for lambda >= ``LOCALIZATION_MIN`` = 13
-    (e^-13 = 2e-6: below the discretisation error of the N used; at lambda ~ 1 the loop is no
-    loop but a buckle as long as the rod)."""
+    0 where m^2 >= 4t: no loop). The loop's core is L/lambda wide, so a clamped rod of length L
+    differs from the infinite one by O(e^-lambda)."""
     m, t = float(m), float(t)
     return math.sqrt(max(t - 0.25 * m * m, 0.0))
 
@@ -113,10 +106,9 @@ def localization_parameter(m, t):
 def stretch_shift(ref, ea):
     """First-order estimate of the relative change of t = TL^2/B that stretching causes at the
     imposed (d, R) of the localized helix ``ref``, for a rod of stretch stiffness ea = EA L^2/B
-    (None or inf: inextensible, 0). The stretch eps = T/EA = t/ea lengthens the rod to L(1 + eps):
-    the inextensible loop of that length with the same end distance L(1 - d) has the shortening
-    d' = (d + eps)/(1 + eps) of its own length and t' = T L'^2/B = t (1 + eps)^2; t' is followed
-    from ``ref`` to d' along eqs. 14-15 at fixed R (the root nearest ref)."""
+    (None or inf: inextensible, 0): the inextensible loop of the stretched length L(1 + eps),
+    eps = t/ea, at the same end distance has shortening d' = (d + eps)/(1 + eps), solved at fixed R
+    (the root nearest ref)."""
     if ea is None or math.isinf(ea):
         return 0.0
     ea = check_positive("ea", ea)
@@ -169,9 +161,8 @@ def reference_check(ref, ea=None):
 
 def localized_helix_curve(m, t, s, L=1.0):
     """The localized helix's tangent angle theta(s), azimuth psi(s) and centreline r(s) (n, 3) at
-    arc lengths s (n,) from the midpoint (ascending), for a rod of length L along z; r(0) is on the
-    z axis' tail line (r -> (0, 0, s - ...) as s -> -inf up to the common lateral offset, which is
-    removed: the tails lie on the z axis). Integrated with DOP853 (rtol 1e-12)."""
+    arc lengths s (n,) from the midpoint (ascending), for a rod of length L along z, the tails on
+    the z axis. Integrated with DOP853 (rtol 1e-12)."""
     from scipy.integrate import solve_ivp  # noqa: PLC0415
 
     localized_helix(m, t, 1.0)  # m finite, t positive, m^2 < 4 t
@@ -214,10 +205,8 @@ def localized_helix_curve(m, t, s, L=1.0):
 
 # ---------------------------------------------------------------------- the roots at imposed ends
 def named_helix_roots(found):
-    """Names of the localized helices ``found`` at one end shortening and rotation (a list of
-    ``LocalizedHelix``, ascending in t, as ``localized_helix_from_shortening`` gives them): a list
-    of (name, LocalizedHelix) in the same order, "only" for one root, else "small" and "large"
-    for the first two and "t2", "t3", ... for any further ones."""
+    """(name, LocalizedHelix) for the helices ``found`` (ascending in t): "only" for one root, else
+    "small" and "large" for the first two and "t2", "t3", ... for any further ones."""
     names = ["only"] if len(found) == 1 else ["small", "large"] + [f"t{i}" for i in range(2, len(found))]
     return list(zip(names, found))
 

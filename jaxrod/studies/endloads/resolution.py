@@ -12,14 +12,10 @@ from .helix import TWO_PI, localization_parameter
 from .scene import check_scene
 
 
-# below which ``check_helix_resolution`` refuses N: at 6 edges per core the end loads are still
-# O(h^2) (measured: t within 7 % at N = 120, lambda = 14.1).
+# below which ``check_helix_resolution`` refuses N: at 6 edges per core the end loads are still O(h^2)
 EDGES_PER_CORE = 6.0
-# The twist energy of uniform twist is exact at any angle per edge (C m^2 / 2 l, m not wrapped);
-# what coarse edges lose is the bending-twist coupling of the loop, which the core-width rule
-# covers. pi/2 per edge keeps the material frame's rotation between edges well below the half
-# turn at which a drawn stripe aliases. (0.5 rad refused the PyElastica case at N < 342, which
-# solved at N = 202 and 302 on the h^2 trend of the finer N: benchmarks/peer_pyelastica.py.)
+# Uniform twist is exact at any angle per edge; pi/2 keeps the material frame's rotation between
+# edges well below the half turn at which a drawn stripe aliases.
 MAX_TWIST_PER_EDGE = 0.5 * math.pi
 
 
@@ -47,12 +43,8 @@ def check_helix_resolution(N, m, t, R):
 
 
 
-# Newton's stopping test for a rod under end loads, in the rod's own force units: the residual
-# force on every node below BEND_RTOL * B/L^2 (the bending scale; T L^2/B of the loops solved
-# here is 1e2 ... 1e3) plus ROUNDOFF_ULPS roundoffs of the stretching and bending forces. A node's
-# stretching force EA (|e|/h - 1) is computed from coordinates of size ~L: its roundoff is
-# ~ eps (L/h) EA, which passes 1e-8 of the scaled gradient (a force of 1e-8 B/h^2) from
-# EA ~ 1e10 B/L^2 at N = 240 on; the bending forces' (B/h^2 in place of EA) matters only at large N.
+# Newton's stopping test for a rod under end loads (``gradient_tolerance``): the residual force on
+# every node below BEND_RTOL * B/L^2 plus ROUNDOFF_ULPS roundoffs of the stretching and bending forces.
 BEND_RTOL = 1e-6
 ROUNDOFF_ULPS = 4.0
 
@@ -61,9 +53,7 @@ def gradient_tolerance(scene):
     """Newton's tolerance on the max |gradient| of ``scene``'s scaled energy (``solve``'s default):
     a residual force per node of BEND_RTOL B/L^2 + ROUNDOFF_ULPS eps (L/h) (EA + B/h^2), in the
     scaled gradient's unit B/h^2 (h the edge length, L the clamps' distance): the same relative
-    accuracy at every EA, never below the roundoff of the stretching forces (a stiff rod,
-    EA L^2/B ~ 1e9 and more, reaches no fixed tolerance). The twist angles' components (moments
-    in units of B/h) are held to the same number, which is stricter for them."""
+    accuracy at every EA, never below the roundoff of the stretching forces."""
     check_scene(scene)
     B, EA = float(scene.material.B), float(scene.material.EA)
     L, h = float(scene.clamp_length), float(scene.length_scale)

@@ -1,11 +1,7 @@
 """Rods clamped at both ends along one axis, the far clamp displaced (displacement control).
 
-The clamp at s = 0 is fixed; the far clamp, at s = L, holds its edge along the same axis and its
-material frame turned by the end rotation ``phi``. It sits a prescribed distance from the near
-one, L - shortening along the axis (``EndLoadedRod``; ``with_shortening`` moves it, traceably, so
-the shortening can be a continuation parameter). The rod is closed for its linking number with
-rays along the clamp axis (``ClampedRod``'s closure): the far clamp moves but its edge stays on
-the axis direction, so Lk = Wr + Tw = Lk0 + phi / 2 pi holds along any path without strand passage.
+See ``jaxrod.studies.endloads`` for the setting: the far clamp sits L - shortening from the near
+one along the axis, its edge on the axis and its frame turned by ``phi``.
 """
 from __future__ import annotations
 
@@ -34,10 +30,8 @@ class EndLoadedRod(ClampedRod):
     contact_stiffness: float = 0.0
     contact_quadrature: int = 2
 
-    # Rotating the interior nodes rigidly about the clamp axis, twist angles unchanged, leaves the
-    # energy exactly unchanged: both clamped edges lie on the axis, the twist angles are measured
-    # from space-parallel reference frames (which turn with the rod) and the far clamp's angle
-    # (``end_angle``, the tantrix holonomy) is invariant. One exact zero mode.
+    # One exact zero mode: rotating the interior nodes rigidly about the clamp axis leaves the
+    # energy unchanged (both clamped edges lie on the axis).
     n_zero_modes = 1
 
     def zero_modes(self, q, phi):
@@ -85,11 +79,10 @@ def shortened_rod(N, length, material, shortening=0.0, axis=(0.0, 0.0, 1.0), con
                   contact_quadrature=2):
     """A rod of rest length ``length`` (between the clamps' material points, as ``clamped_rod``)
     with N nodes, clamped at both ends along ``axis``, the far clamp ``shortening`` closer than one
-    rod length (0 <= shortening < length). q_init: the interior nodes evenly spaced between the
-    clamps on the axis (uniformly compressed, straight) and no twist.
+    rod length (0 <= shortening < length). q_init: straight, uniformly compressed, no twist.
     contact_stiffness: kappa_c of soft self-contact (needs the material's D); None: no contact.
-    contact_quadrature: Gauss points per segment of the contact integral (1, 2 or 3; 3 where
-    strands cross at short contacts with edges near D, as in a knot pulled tight)."""
+    contact_quadrature: Gauss points per segment of the contact integral (1, 2 or 3; 3 for a knot
+    pulled tight)."""
     if contact_quadrature not in (1, 2, 3):
         raise ValueError(f"contact_quadrature must be 1, 2 or 3 Gauss points per segment, got {contact_quadrature!r}")
     base = clamped_rod(N=N, length=length, material=material, axis=axis)

@@ -17,11 +17,8 @@ from .scene import check_scene
 def _closed_tangents(theta, psi, span, lengths=None, sweeps=20):
     """Unit tangents (n, 3) near the polar angles theta (n,) and azimuths psi (n,) to the axis z
     such that the edges of ``lengths`` (n,; None: 1) along them sum to (0, 0, span): an open
-    polyline that meets the far clamp. Alternately, the polar angles are scaled by one factor k
-    (the axial span: k = 1 + O(e^-lambda) for a localized loop; a loop wider than the rod, whose
-    shortening lies mostly outside it, is steepened rather than compressed) and the lateral sum is
-    removed, mostly from the edges nearest the axis (a lateral shift of an axial edge stretches
-    nothing)."""
+    polyline that meets the far clamp. Alternately, the polar angles are scaled by one factor (the
+    axial span) and the lateral sum is removed, mostly from the edges nearest the axis."""
     from scipy.optimize import brentq  # noqa: PLC0415
 
     theta, psi = np.asarray(theta, dtype=float), np.asarray(psi, dtype=float)
@@ -72,8 +69,8 @@ def _interior_from_tangents(scene, theta, psi, lengths=None):
 
 def restretched(scene, q, ratio):
     """q with every free edge's strain multiplied by ``ratio``, the edges' directions kept but
-    re-closed onto the far clamp (``_interior_from_tangents``), the twist angles unchanged: the
-    predictor of a stiffening stage, EA -> EA / ratio at nearly the same tension."""
+    re-closed onto the far clamp, the twist angles unchanged: the predictor of a stiffening stage,
+    EA -> EA / ratio at nearly the same tension."""
     q = np.asarray(q, dtype=float)
     n = scene.n_nodes
     x = np.asarray(scene.nodes(jnp.asarray(q)))
@@ -103,11 +100,8 @@ def helical_start(scene, m, t, phi):
     L = float(scene.clamp_length)
     n = scene.n_nodes
     h = L / (n - 2)
-    # edges of the rest length h along the analytic tangent at their midpoints, s_i = -L/2 + i h
-    # (edge 0 and edge n - 2 the clamped ones, on the axis), closed onto the far clamp
-    # (``_closed_tangents``: the tails' slope cut at the clamps, ~ e^-lambda/2, leaves a lateral
-    # miss). Chords of the analytic curve instead are short by ~(kappa h)^2 / 24, a strain whose
-    # force EA (kappa h)^2 / 24 dwarfs the loads of a stiff rod.
+    # edges of the rest length h along the analytic tangent at their midpoints s_i = -L/2 + i h
+    # (chords of the curve would be short by ~(kappa h)^2 / 24, a strain that dwarfs a stiff rod's loads)
     s_mid = -0.5 * L + h * np.arange(1, n - 2)
     theta_a, psi_a, _ = localized_helix_curve(m, t, s_mid, L)
     xi = _interior_from_tangents(scene, theta_a, psi_a)

@@ -21,10 +21,8 @@ def tension_twist_threshold(B, T):
 
 def straight_buckling_moment(rod, T, phi_hi=None, tol=1e-10):
     """The buckling twist of the straight rod ``rod`` (an EndLoadedRod at 0 shortening) under
-    tension T (its ends held at the stretched length (1 + T/EA) L; the straight state's stability
-    is the same under force control, its end motion decoupled from the lateral modes): the phi at
-    which the straight state's lowest eigenvalue crosses zero (a double eigenvalue: the helical
-    mode and its rotation), by bisection then secant. Returns (phi_c, M_c = C phi_c / L)."""
+    tension T (ends held at the stretched length): the phi at which the straight state's lowest
+    eigenvalue crosses zero, by Brent's method. Returns (phi_c, M_c = C phi_c / L)."""
     import scipy.linalg  # noqa: PLC0415
 
     check_scene(rod)
@@ -122,8 +120,7 @@ def clamped_tension_twist_threshold(B, T, L, n_scan=400):
             res = minimize_scalar(sig, bounds=(grid[i - 1], grid[i + 1]), method="bounded",
                                   options={"xatol": 1e-10 * hi})
             if res.fun < 1e-4 * scale:
-                # polish: det(m) is analytic, ~ det'(m*) (m - m*) near the root with a complex
-                # slope; least-squares real steps (Gauss-Newton on |det|^2) converge quadratically
+                # polish: Gauss-Newton on |det|^2 (det is analytic, with a complex slope at the root)
                 det = lambda m: np.linalg.det(_clamped_twist_matrix(m, t))  # noqa: E731
                 m = res.x
                 for _ in range(20):

@@ -44,10 +44,8 @@ def accuracy_levels(options):
 
 def run_accuracy(scene, options, progress=None):
     """Both sides' first branch ends of ``scene`` (built at options.N) converged in N to
-    options.accuracy (rad), each side searched up to max(-phi_min, phi_max); with options.fresh the
-    levels on file are dropped first. progress(str) gets the progress lines. Writes
-    convergence.csv and (with figures) convergence.png into options.out. Returns an
-    ``AccuracyRun``."""
+    options.accuracy (rad); with options.fresh the levels on file are dropped first. Writes
+    convergence.csv and (with figures) convergence.png into options.out. Returns an ``AccuracyRun``."""
     from ..accuracy import converged_critical_twists
 
     o = options

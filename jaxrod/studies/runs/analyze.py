@@ -17,10 +17,10 @@ import os
 @dataclasses.dataclass(frozen=True)
 class AnalyzeOptions:
     """centreline, eccentric: file paths (eccentric None: the centreline's step file holds both);
-    closed: closed loops (else open curves); joint_twist: the twist phi (rad) imposed at the joint
-    before gluing (None: a step file's phi, for other files none); n_samples: nodes equally spaced
-    in arc length, at least 4 (None: as many as centreline points); smoothing_modes: least-squares
-    smoothing with K Fourier modes (closed) or spline intervals (open), at least 1 (None: none)."""
+    closed: closed loops (else open curves); joint_twist: the twist (rad) imposed at the joint
+    (None: a step file's phi, else none); n_samples: nodes equally spaced in arc length, >= 4
+    (None: as many as centreline points); smoothing_modes: Fourier modes (closed) or spline
+    intervals (open) of a least-squares smoothing, >= 1 (None: none)."""
 
     centreline: str
     eccentric: str | None = None

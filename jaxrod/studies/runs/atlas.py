@@ -16,10 +16,9 @@ from .. import atlas
 
 @dataclasses.dataclass(frozen=True)
 class AtlasOptions:
-    """knots ("3_1", "4_1", "5_1", "5_2"), ratios (slenderness D/L values), N (node counts, several:
-    a convergence study) and sides ("plus": phi > 0, "minus": phi < 0) span the cases; settings,
-    the ``AtlasSettings`` every case shares (span, step, tol in rad, nu, contact stiffness);
-    out, the folder (an interrupted atlas there is resumed unless fresh); figures: draw atlas.png."""
+    """knots, ratios (D/L), N (node counts) and sides ("plus", "minus") span the cases; settings,
+    the ``AtlasSettings`` every case shares; out, the folder (resumed unless fresh); figures:
+    draw atlas.png."""
 
     knots: tuple = atlas.KNOTS
     ratios: tuple = (0.01, 0.015, 0.02, 0.0274, 0.03, 0.035)

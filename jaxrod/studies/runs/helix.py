@@ -24,11 +24,10 @@ from .. import endloads as el
 
 @dataclasses.dataclass
 class HelixCase:
-    """A helix problem, checked: N nodes; the material (B, C, nu, gamma = C/B, D the slenderness
-    D/L, EA, ea = EA L^2/B with L = 1); sweep, the number of end rotations to follow; refs, the
-    analytic loops to solve as (name, LocalizedHelix), of n_found at the imposed ends; checks,
-    each one's ReferenceCheck by name; resolved, those N resolves, and refused, those it does
-    not, as (name, LocalizedHelix, why)."""
+    """A helix problem, checked: N nodes; the material (gamma = C/B, D the slenderness D/L);
+    sweep, the number of end rotations to follow; refs, the analytic loops to solve as (name,
+    LocalizedHelix), of n_found at the imposed ends; checks, each one's ReferenceCheck by name;
+    resolved, those N resolves, and refused, (name, LocalizedHelix, why) for the others."""
 
     N: int
     B: float
@@ -233,10 +232,9 @@ def helix_extrapolation(case, root, valid, say):
 
 def helix_sweep(case, root, say, on_state, done):
     """(path, stopped): the root taken followed along case.sweep end rotations from 0.8 R to 1.1 R
-    at the same shortening, each solved from its neighbour outwards from R (at fixed d the
-    analytic loop exists up to a fold in R: a side stops where Newton finds none); path, the
-    states (``endloads.helix_state``) ascending in R, and stopped, the rotations where a side
-    stopped. done: the states counted before the sweep (on_state's count goes on from it)."""
+    at the same shortening, each solved from its neighbour outwards from R; path, the states
+    ascending in R, and stopped, the rotations where a side found no equilibrium (past a fold).
+    done: the states counted before the sweep."""
     import numpy as np
 
     R = root.ref.R

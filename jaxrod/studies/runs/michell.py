@@ -14,8 +14,7 @@ import math
 import os
 import time
 
-# A ring of fewer nodes does not buckle within twice Michell's twist (N = 4 to 6 were seen to
-# scan the whole range in vain).
+# A ring of fewer nodes does not buckle within twice Michell's twist.
 MICHELL_MIN_NODES = 8
 
 

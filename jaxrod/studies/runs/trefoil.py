@@ -27,18 +27,14 @@ from .workers import Workers
 class KnotStudyOptions:
     """The knot, its rod and the study.
 
-    The knot: ``chirality`` "right" or "left", the seed paper's trefoil of that handedness; with
-    chirality None, the named ``knot`` ("3_1", "4_1", "5_1", "5_2") or the closed curve read from
-    the file ``curve`` (CSV or NPY), with ``lk0`` the linking number of the untwisted rod (None:
-    the integer nearest the curve's writhe). The rod: diameter D and length L (one unit), N nodes,
-    Young's modulus E, Poisson ratio nu, contact penalty contact_stiffness (units of B/D^3).
-    The study: twists from phi_min < 0 to phi_max > 0 (rad), the largest continuation step and the
-    accuracy tol of the critical twists (rad), the folder ``out`` (resumed unless ``fresh``);
-    ``serial`` follows the two directions one after the other (else both at once, two threads);
-    ``stable_only`` skips the exact location of the branch ends and the unstable branches;
-    ``extrapolation`` adds each side's N' = (N+1)/2 error estimate; ``figures`` and ``vtk`` what
-    is drawn. The accuracy mode (``run_accuracy``): ``accuracy`` (rad), the error to reach, and
-    N_max, the finest level."""
+    The knot: ``chirality`` "right" or "left" (the seed paper's trefoil); with chirality None,
+    the named ``knot`` or the closed curve of the file ``curve`` (CSV or NPY), with ``lk0`` the
+    untwisted rod's linking number (None: nearest the curve's writhe). The rod: D and L (one
+    unit), N nodes, E, nu, contact_stiffness (units of B/D^3). The study: twists phi_min < 0 to
+    phi_max > 0, step and tol (rad), the folder ``out`` (resumed unless ``fresh``); ``serial``:
+    one direction after the other; ``stable_only``: no exact location of the ends;
+    ``extrapolation``: the N' = (N+1)/2 error estimate; ``figures``, ``vtk``. The accuracy mode
+    (``run_accuracy``): ``accuracy`` (rad) to reach, and N_max, the finest level."""
 
     D: float = 8.0
     L: float = 292.0
@@ -100,9 +96,8 @@ def study_scene(options):
 
 
 def check_knot_memory(n_nodes):
-    """Refuse a knot whose dense Hessian cannot fit in memory now: before the scene is built (its
-    O(N^2) checks take 30 s at N = 10000) and before anything is compiled (N = 10000 died in XLA
-    after 46 s). A closed rod has 4 DOFs per node (3 coordinates, 1 twist angle)."""
+    """Refuse a knot whose dense Hessian cannot fit in memory now, before the scene is built and
+    anything compiled. A closed rod has 4 DOFs per node."""
     from types import SimpleNamespace
 
     from ...continuation import check_dense_memory
@@ -129,9 +124,8 @@ def check_resumable(scene, options):
 def run_knot_study(scene, options, progress=None, on_point=None, on_followed=None):
     """The whole study of ``scene`` (``study_scene(options)``) into ``options.out``; returns a
     ``KnotStudyRun``. progress(str) gets the progress lines; on_point(PathPoint) is called after
-    every step of the stable branches (``PathPoint.direction``: 'plus' or 'minus'; from two
-    threads unless serial);
-    on_followed() once their continuation has ended, successfully or not."""
+    every step of the stable branches (from two threads unless serial); on_followed() once their
+    continuation has ended, successfully or not."""
     run = _KnotStudy(scene, options, progress or (lambda line: None), on_point)
     try:
         result = run.follow()
@@ -144,12 +138,9 @@ def run_knot_study(scene, options, progress=None, on_point=None, on_followed=Non
 
 class _KnotStudy:
     """One run of ``run_knot_study``. Each branch end's exact location and each side's error
-    estimate are queued as soon as the study has found that end, and run by worker threads, one
-    started when a study direction reaches its end of the range (``_point``: on the core that
-    direction leaves; started beside the study's two threads they gained nothing), the second
-    once the study is done. Before, a core idled from the tightening side's end until the whole
-    study was over (~4 s on command 1). The results are those of the serial order (each job is
-    independent)."""
+    estimate are queued as soon as the study finds that end, and run by worker threads: one
+    started when a study direction finishes (on the core it leaves), the second once the study is
+    done. The results are those of the serial order (each job is independent)."""
 
     def __init__(self, scene, options, say, on_point):
         from ..twist import study_options
@@ -199,8 +190,7 @@ class _KnotStudy:
             def stop(point):
                 if cancel.is_set():
                     raise Cancelled()
-            # this end's own contact-list size: the same for every end of a loose knot (the size
-            # does not depend on the state until a segment has more than 8 candidates)
+            # this end's own contact-list size (the same for every end of a loose knot)
             o = self.options
             end = locate_end(self.scene, entry, state, p_min=o.phi_min, p_max=o.phi_max,
                              capacity=end_capacity(self.scene, [state]), progress=self.say, observer=stop,
@@ -338,16 +328,13 @@ class _KnotStudy:
 
 
 def critical_json(summary, critical=None, convergence=None):
-    """The JSON object of a trefoil or knot run, whichever the mode (printed by --json; the twist
-    study writes it to summary.json too): the critical twists first, under jaxrod.io.schema's
-    both-sides keys (phi_plus, phi_plus_over_pi, phi_plus_error, phi_plus_kind, phi_minus, ...),
-    then the mode's other keys from ``summary``. The one place where these commands name them.
+    """The JSON object of a trefoil or knot run, whichever the mode (--json, summary.json): the
+    critical twists first, under jaxrod.io.schema's both-sides keys, then the mode's other keys
+    from ``summary``.
 
-    The twist study (with or without stable_only): ``summary`` is its study_summary (phi_plus,
-    phi_plus_error, phi_plus_located, ...) and ``critical`` its critical.json; each side's kind is
-    that of its located end, else that of its first instability. The accuracy mode:
-    ``convergence`` {side: SideConvergence}; each side's details (levels, extrapolation, reached,
-    ...) under "plus" / "minus", with the one-side keys (phi_star, phi_error, kind, ...) among them."""
+    The twist study: ``summary`` is its study_summary and ``critical`` its critical.json; each
+    side's kind is that of its located end, else of its first instability. The accuracy mode:
+    ``convergence`` {side: SideConvergence}, each side's details under "plus" / "minus"."""
     from ...io import schema
 
     records, details = {}, {}

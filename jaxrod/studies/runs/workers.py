@@ -4,12 +4,10 @@ from __future__ import annotations
 
 
 class Workers:
-    """Jobs run by worker threads in the order they were submitted: ``submit(key, fn)`` queues
-    fn(cancel); ``add_worker()`` starts one more thread (one is started at once, unless
-    start=False); ``results()`` waits until every job has run (in short waits, so that Ctrl-C still reaches the main thread)
-    and returns {key: value}, or raises the first job's exception; ``stop()`` sets ``cancel`` (a
-    job stops at its next point), drops the jobs not started and waits until every thread has left
-    XLA. Used from several threads: the study's threads submit, the main thread collects."""
+    """Jobs run by worker threads in the order submitted (``submit``; one thread started at once
+    unless start=False, more by ``add_worker``); ``results()`` waits for them all (in short waits,
+    so that Ctrl-C reaches the main thread); ``stop()`` cancels. Thread-safe: the study's threads
+    submit, the main thread collects."""
 
     def __init__(self, start=True):
         import collections
