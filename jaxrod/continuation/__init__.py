@@ -1,22 +1,11 @@
 """Continuation of rod equilibria: one entry, two algorithms, one options class.
 
 ``continuation(problem, algorithm, options, *, observer)`` (``entry``): ``StableOnly()`` on a
-``TwistProblem`` follows the stable branch in the imposed twist phi (-> ``TwistPath``);
-``PseudoArclength()`` on a ``BifurcationProblem`` follows any branch through folds, locating
-folds and branch points on extended systems (-> ``arclength.Branch``; switching, fold curves and
-event curves live in ``arclength``). The stable-only algorithm's two task entries, each
-``entry(scene, phi_start, phi_stop, options, *, ...)``:
-
-* ``critical_twist(scene, phi_start, phi_stop, options, *, q0, observer)`` -> ``CriticalPoint``:
-  the first twist where the negative count changes (rings and clamped rods), refined by Newton
-  on the crossing eigenvalue;
-* ``follow_twist(scene, phi_start, phi_stop, options, *, start, observer, resume)`` ->
-  ``TwistPath``: a whole stable path, its branch ends located to tol, switching to the buckled
-  branch at each (knots).
-
-``options`` is one ``ContinuationOptions`` (every tolerance, budget and behaviour knob; None
-fields take the scene-aware defaults), ``observer`` one ``Observer`` (progress lines, points,
-instabilities, states). Read in this order:
+``TwistProblem`` follows the stable branch in the imposed twist (-> ``TwistPath``);
+``PseudoArclength()`` on a ``BifurcationProblem`` follows any branch, locating folds and branch
+points (-> ``arclength.Branch``). The stable-only task entries: ``critical_twist`` (the first
+twist where the negative count changes -> ``CriticalPoint``) and ``follow_twist`` (a whole stable
+path with branch switching -> ``TwistPath``). Read in this order:
 
 * ``entry``     continuation, TwistProblem
 * ``algorithms``  StableOnly, PseudoArclength
@@ -24,8 +13,7 @@ instabilities, states). Read in this order:
 * ``memory``    the dense path's memory estimate and its refusal before anything is compiled
 * ``kinds``     EventKind: what both engines report (fold, branch point, unstable, jump ...)
 * ``results``   CriticalPoint, PathPoint, Instability, TwistPath, PathStop
-* ``engine``    the one predictor-corrector-accept step (ContinuationEngine, _Step, StepFailure);
-  dense or block linear algebra
+* ``engine``    the one predictor-corrector-accept step (ContinuationEngine, _Step, StepFailure)
 * ``critical``  critical_twist
 * ``state``     PathState: where a follow_twist run stands (exact resume, npz storage)
 * ``ends``      where a followed branch ends: critical mode, end trials, phi*, the near-zero band

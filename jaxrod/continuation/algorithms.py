@@ -36,11 +36,8 @@ class PseudoArclength:
         may have jumped to another branch; default 0.9).
     max_correction : float, optional
         So is a step whose corrector moved the point by more than max_correction * ds from the
-        predictor (default 0.2). Measured on the trefoil at N = 121, whose opening fold sits next
-        to a nearly degenerate pair of modes: without that test, paths with ds_max = 0.25 and 1
-        landed on a nearby branch there (tangents still within min_cos) and found another fold;
-        with it, ds_max = 0.25, 0.4 and 1 from two starts give the same fold to 1e-14 pi, the
-        accepted steps next to it corrected by at most 0.18 ds.
+        predictor (it may have landed on a nearby branch with a tangent still within min_cos;
+        default 0.2).
     grow : float, optional
         The step grows by this factor after a corrector that needed at most ``fast_iterations``
         iterations (default 1.5).

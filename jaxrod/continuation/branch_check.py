@@ -1,33 +1,9 @@
 """Eigenvalues predicted across a continuation step: a zero crossed between two stable states.
 
-A stable-only continuation corrects each predicted state with a minimiser. Past a branch point of
-a loose knot, the minimiser can land on a stable state beside the branch a small distance away: the
-step converges, every eigenvalue is positive at both ends, and the path has left its branch without
-a word (the trefoil at D/L = 0.024, N = 61: a step from -11.263 pi to -11.275 pi passed the
-symmetric branch's instability at -11.2675 pi, which was then reported 0.015 pi late, where the
-state beside it folded).
-
-The test here is first-order perturbation theory of the lowest eigenpairs at the last accepted
-state: with v_j its unit eigenvectors (eigenvalues lam_j) and s_j = v_j^T (dH/dphi along the
-branch) v_j their derivatives along the branch,
-
-    lam_j(phi + dphi) = lam_j + s_j dphi + O(dphi^2).
-
-A mode predicted to cross zero inside a step (lam_j > 0, lam_j + s_j dphi < 0) is a zero to
-locate, even when both ends of the step are stable: the step is refused and the end located as
-any other; from a closer state whose prediction no longer crosses, the continuation goes on.
-
-The corrected state is also compared with the prediction (``departure``): its lowest
-eigenvalues against the last state's, predicted as a block (degenerate perturbation theory) and
-compared in ascending order. A step that fails is retried at half the length, down to an eighth of
-the largest step; one that still fails is accepted with a warning, not taken for a branch end.
-Measured on the trefoil: taken as an end, with a tolerance of the predicted change, half the
-eigenvalue and 50 times the near-zero band, it ended the N = 61 opening branch 0.9 pi early at
-step pi: the minimiser corrector lands on another placement of the nodes along the nearly null
-slides, whose soft spectrum differs by more than that, even for steps of 3e-4 pi. Matched mode by
-mode by eigenvector overlap it failed in 30 of 81 ordinary 0.5 pi steps at N = 61. It also finds
-where the corrector steps over a fold by less than D/2 (command 1's third buckled branch, next to a
-fold at 13.2218 pi): that is what the warning says.
+Past a branch point of a loose knot the minimiser can land on a stable state beside the branch. So
+the last state's lowest eigenvalues are predicted to first order, lam_j + s_j dphi with
+s_j = v_j^T (dH/dphi along the branch) v_j, and a mode predicted to cross zero inside a step is a
+zero to locate. The corrected spectrum is also checked against the prediction (``departure``).
 """
 from __future__ import annotations
 
@@ -73,9 +49,7 @@ def _gradient_phi_derivative(scene, u, phi, nbr):
 def branch_tangent(scene, e, tangent, floor, modes=CHECKED_MODES):
     """(n,) the scaled branch tangent du/dphi at the equilibrium e with its components along e's
     lowest ``modes`` eigenvectors restored: -(v . g_phi) / lam for each of them above ``floor``.
-    ``tangent`` (dq/dphi, physical DOFs) is the continuation's predictor, which leaves the tracked
-    mode's cluster out (it is built for symmetric branches, whose tangent has no component along
-    a symmetry-breaking mode); near a fold that component is the one that grows like 1/lam."""
+    ``tangent`` (dq/dphi, physical DOFs), the continuation's predictor, leaves those out."""
     u = scene.to_scaled(np.asarray(e.q, dtype=float))
     du = scene.to_scaled(np.asarray(tangent, dtype=float))
     st = e.stability
@@ -96,8 +70,7 @@ class BranchModel:
 
     prev: the equilibrium (with its stability); du: (n,) its scaled branch tangent
     (``branch_tangent``); eigenvalues: (m,); vectors: (n, m) scaled DOFs. ``slopes`` (m,) d lam / d
-    phi and ``block`` (m, m) v_i^T (dH along the branch) v_j are computed when first asked for
-    (``scene_bilinear_gradient``: m contractions for the slopes, m (m - 1) / 2 more for the block)."""
+    phi and ``block`` (m, m) v_i^T (dH along the branch) v_j are computed when first asked for."""
 
     scene: object
     prev: object
@@ -125,10 +98,8 @@ class BranchModel:
 
     def crossing(self, phi, floor, keep=None):
         """The first mode predicted to cross zero between prev.phi and phi, as a ``Crossing``, or
-        None: where lam > 0, lam + s dphi < 0 and the predicted change |s dphi| exceeds ``floor``
-        (the near-zero band of a loose knot's sliding modes, ``negative_tol``: a change inside it
-        is not resolved). keep: a function (n, k) vectors -> (k,) bools, the modes that may count
-        (a knot's slides are left out by the caller)."""
+        None: where lam > 0, lam + s dphi < 0 and |s dphi| exceeds ``floor`` (the near-zero band).
+        keep: a function (n, k) vectors -> (k,) bools, the modes that may count."""
         lam, vec = self.eigenvalues, self.vectors
         candidates = np.nonzero(lam > 0.0)[0]
         if not candidates.size:
@@ -149,14 +120,9 @@ class BranchModel:
 
     def departure(self, new, floor):
         """A ``Departure`` where the corrected equilibrium ``new``'s lowest eigenvalues are not the
-        model's predicted to its twist: the eigenvalues of diag(lam) + dphi block (degenerate
-        perturbation theory: a near-degenerate pair of a three-fold knot turns inside its plane
-        from step to step, so its members are predicted together, not one by one), compared in
-        ascending order (no eigenvector matching is needed), all but the highest (an eigenvalue may
-        come down from above it), each allowed |predicted - lam| + DEPARTURE_RELATIVE |predicted| +
-        DEPARTURE_FLOOR floor; None where they agree. The contact energy is C2, so the eigenvalues
-        are continuous along a branch: a shorter step meets the tolerance, unless the corrector
-        lands on another state."""
+        eigenvalues of diag(lam) + dphi block (predicted together: near-degenerate pairs turn),
+        compared in ascending order, all but the highest, each allowed |predicted - lam| +
+        DEPARTURE_RELATIVE |predicted| + DEPARTURE_FLOOR floor; None where they agree."""
         m = min(self.eigenvalues.size, len(new.stability.eigenvalues))
         if m < 2:
             return None
@@ -186,9 +152,7 @@ def predicted_crossing(scene, prev, tangent, phi, floor, modes=CHECKED_MODES, ke
     return branch_model(scene, prev, tangent, floor, modes).crossing(phi, floor, keep)
 
 
-# A corrected state's lowest eigenvalues may differ from their prediction by the predicted change
-# plus this fraction of the eigenvalue, and by DEPARTURE_FLOOR times the near-zero band, before the
-# state counts as another one (``departure``).
+# Tolerances of ``BranchModel.departure``.
 DEPARTURE_RELATIVE = 0.5
 DEPARTURE_FLOOR = 50.0
 
@@ -210,9 +174,3 @@ class Departure:
         return (f"eigenvalue {j} is {self.measured[j]:.3e}, predicted {self.predicted[j]:.3e} along the branch "
                 f"(more than {self.tolerance[j]:.1e} off)")
 
-
-def departure(scene, prev, tangent, new, floor, modes=CHECKED_MODES):
-    """A ``Departure`` where the corrected equilibrium ``new``'s lowest eigenvalues are not the
-    accepted equilibrium ``prev``'s predicted along the branch (``BranchModel.departure``), or
-    None."""
-    return branch_model(scene, prev, tangent, floor, modes).departure(new, floor)

@@ -1,12 +1,9 @@
 """``critical_twist``: the first twist where the negative count of the equilibrium branch changes.
 
-It follows the branch in phi (tangent predictor, Newton corrector: ``engine.ContinuationEngine``)
-and watches the count of negative Hessian eigenvalues over the *whole* spectrum (zero modes removed),
-so an unstable mode that comes down from high in the spectrum is caught. When the count changes
-between two steps, the crossing eigenvalue (the one with ascending index = the count before) is
-driven to zero by Newton's method in phi, using its derivative along the branch from forward-mode
-autodiff (``stability.branch_analysis``), safeguarded by the bracket. A handful of
-Hessian evaluations reach 1e-10 rad, where bisection would need ~30.
+It follows the branch in phi (``engine.ContinuationEngine``) and watches the negative count over
+the whole spectrum, so a mode that comes down from high up is caught. When the count changes, the
+crossing eigenvalue is driven to zero by Newton's method in phi with its derivative along the
+branch (``stability.branch_analysis``), safeguarded by the bracket.
 """
 from __future__ import annotations
 
@@ -30,23 +27,15 @@ def critical_twist(scene, phi_start=0.0, phi_stop=None, options=None, *, q0=None
     """First phi beyond ``phi_start`` (in the direction of ``phi_stop``, default 8 pi) where the
     negative count of the equilibrium branch changes.
 
-    scene: a scene (not a knot); options: a ``ContinuationOptions`` (step, tol, negative_tol, gtol,
-    k, max_refine, linear_algebra; None: the scene-aware defaults defined there); q0: initial
-    guess at phi_start (default scene.q_init, relaxed first); observer: an ``Observer`` whose
-    ``progress`` (lines) and ``on_step`` (phi, n_negative after every equilibrium of the scan and
-    the refinement) are called.
-
-    The scan steps at most ``options.step`` (default |phi_stop - phi_start|/40); it shortens the
-    step when the tracked eigenvalue, extrapolated with its derivative, is about to cross (never
-    lengthens it: a mode from higher up is still caught by the count). Near-zero modes
-    (|lambda| < negative_tol) never count. Scenes with contact get their candidate list rebuilt
-    along the way. With linear_algebra "sparse" the stability's eigenvectors are the k lowest
-    only, so the crossing mode must be among them: k grows (to the negative count or the tracked
-    index plus K_MARGIN) where needed. The dense path refuses a scene whose n x n Hessian does not
-    fit in memory (``check_dense_memory``, before anything is compiled). Returns a
-    ``CriticalPoint``; raises ``NoCrossingError`` if the count never changes before phi_stop.
-    Refuses knots (closed rods with self-contact: ``jaxrod.validation.refuse_knot`` says why and
-    what to use instead).
+    scene: a scene (not a knot); options: a ``ContinuationOptions`` (None: the defaults); q0:
+    initial guess at phi_start (default scene.q_init, relaxed first); observer: an ``Observer``
+    whose ``progress`` and ``on_step`` (phi, n_negative after every equilibrium) are called.
+    The scan steps at most ``options.step``, shorter where the tracked eigenvalue, extrapolated,
+    is about to cross. Near-zero modes (|lambda| < negative_tol) never count. On the sparse path k
+    grows where the crossing mode must be among the computed eigenpairs (``grown_engine``). The
+    dense path refuses a scene whose Hessian does not fit in memory (``check_dense_memory``).
+    Returns a ``CriticalPoint``; raises ``NoCrossingError`` if the count never changes before
+    phi_stop. Refuses knots (``jaxrod.validation.refuse_knot``).
     """
     t0 = time.perf_counter()
     phi_start = check_finite("phi_start", phi_start)
@@ -67,8 +56,7 @@ def critical_twist(scene, phi_start=0.0, phi_stop=None, options=None, *, q0=None
     before, prev, cur, scan = search.scan(start, count0, index, phi_start, phi_stop)
     bracket_ends = search.bracket_ends(before, prev, cur, count0)
     newton, s, bracket, phi_error, evals = search.refine(*bracket_ends)
-    # Report the last Newton update: its error is quadratically smaller than phi_error, which
-    # stays as a conservative bound.
+    # the last Newton update, whose error is quadratically smaller than the bound phi_error
     return CriticalPoint(
         phi=float(newton),
         eigenvalue=float(s.eigenvalue),
@@ -90,8 +78,7 @@ def _relaxed_start(scene, phi_start, q0, gtol, sparse):
     if scene.has_term("contact"):
         return relax(scene, phi_start, q0, RelaxOptions(gtol=gtol, with_stability=False))
     if sparse and scene.n_dof >= _SPARSE_MIN_DOF:
-        # Large n: no dense relaxation (O(n^3) per step); Newton from q0 (for rings and straight
-        # clamped rods the initial shape already is the equilibrium, up to the twist angles).
+        # large n: Newton from q0, no dense relaxation
         return solve_equilibrium_sparse(scene, phi_start, q0, gtol=gtol)
     return solve_equilibrium(scene, phi_start, q0, EquilibriumOptions(gtol=gtol, with_stability=False))
 
@@ -140,8 +127,7 @@ class _CrossingSearch:
     k_scan: int  # eigenvalues kept per scan entry (the engine may compute more)
 
     def tracking_start(self, relaxed):
-        """(analysed start, negative count, tracked index): the eigenvalue that crosses next is
-        the lowest one clearly above zero (near-zero modes skipped)."""
+        """(analysed start, negative count, tracked index: the lowest eigenvalue clearly above zero)."""
         start = self.engine.analysed(relaxed)
         while True:
             count0 = int(start.equilibrium.stability.n_negative)
@@ -156,9 +142,8 @@ class _CrossingSearch:
         return start, count0, index
 
     def scan(self, start, count0, index, phi_start, phi_stop):
-        """Step with a tangent predictor until the negative count changes. -> (before, prev, cur,
-        scan): the scan state before prev (a fallback stable end for the refinement, or None),
-        the last state with the count of the start, the first with another, and the scan's
+        """Step until the negative count changes. -> (before, prev, cur, scan): the state before prev
+        (or None), the last state with the start's count, the first with another, and the
         (phi, n_negative, lowest eigenvalues) entries."""
         max_step = self.engine.opts.step
         min_step, direction, k_scan = max_step / 16.0, self.direction, self.k_scan
@@ -197,8 +182,7 @@ class _CrossingSearch:
             before, prev, dq, lam_t, dlam_t = prev, cur, s.tangent, s.eigenvalue, s.dlambda_dphi
 
     def _halved(self, h, prev, phi_next):
-        """Step-size control: no equilibrium found near the predictor; the step halved. If even
-        tiny steps fail, the branch ends here (a fold: the state must jump elsewhere)."""
+        """The step halved after a failed corrector; ConvergenceError once even tiny steps fail (a fold)."""
         h *= 0.5
         if h < self.engine.opts.step / 1024.0:
             raise ConvergenceError(
@@ -209,8 +193,7 @@ class _CrossingSearch:
         return h
 
     def _grown_for(self, s, index):
-        """The accepted step s, analysed again by a grown engine where its negative count needs
-        more eigenpairs (the crossing mode must be among those computed at its state)."""
+        """s, analysed again by a grown engine where its negative count needs more eigenpairs."""
         cur = s.equilibrium
         grown = grown_engine(self.engine, int(cur.stability.n_negative))
         if grown is self.engine:
@@ -219,10 +202,8 @@ class _CrossingSearch:
         return self.engine.analysed(cur, index, guess=cur.stability.eigenvalues[0])
 
     def bracket_ends(self, before, prev, cur, count0):
-        """The bracket (lo, hi) of the crossing after the scan, each end analysed on the crossing
-        mode: at the far end, the negative eigenvalue nearest zero; followed by eigenvector overlap
-        from there on (robust to reordering and to near-zero modes). -> (lo, hi, hi's eigenvalue,
-        lo's analysis (stability, eigenvalue, derivative, mode, tangent), Hessian evaluations)."""
+        """The bracket (lo, hi) of the crossing, each end analysed on the crossing mode (followed by
+        eigenvector overlap). -> (lo, hi, hi's eigenvalue, lo's ``analyse``, Hessian evaluations)."""
         engine, negative_tol = self.engine, self.engine.opts.negative_tol
         lo, hi, evals = prev, cur, 2
         idx_hi = _crossing_index(cur, count0, negative_tol)
@@ -230,17 +211,12 @@ class _CrossingSearch:
         _, f_hi, _, v_hi, _ = engine.analyse(hi, idx_hi, ref=ref, guess=hi.stability.eigenvalues[0])
         at_lo = engine.analyse(lo, ref=v_hi, guess=lo.stability.eigenvalues[0])
         if np.sign(at_lo[1]) == np.sign(f_hi) and before is not None:
-            # The crossing eigenvalue already changed sign at lo but stayed inside the near-zero band
-            # (|lambda| < negative_tol, e.g. a soft ring of N ~ 1000, lambda ~ 1e-9): the count missed
-            # it there. Take the scan state before as the stable end, so that the bracket holds a sign
-            # change (the sign tests below rely on it).
+            # already past zero at lo, inside the near-zero band: the state before is the stable end
             lo, evals = before, 3
             at_lo = engine.analyse(lo, ref=v_hi, guess=lo.stability.eigenvalues[0])
         f_lo = at_lo[1]
         if np.sign(f_lo) == np.sign(f_hi):
-            # No sign change of the crossing eigenvalue in the bracket: a refinement would converge
-            # on a bracket end and report it as phi* (seen: 6.27 pi for 5.20 pi, N = 2000 ring with
-            # a fixed negative_tol = 1e-10 far above its eigenvalues).
+            # no sign change: a refinement would converge on a bracket end and report it as phi*
             raise ConvergenceError(
                 f"critical twist: the crossing eigenvalue has the same sign ({f_lo:.3e}, {f_hi:.3e}) at both ends "
                 f"of the bracket [{lo.phi / math.pi:+.8f}, {hi.phi / math.pi:+.8f}] pi where the negative count "
@@ -249,9 +225,8 @@ class _CrossingSearch:
         return lo, hi, f_hi, at_lo, evals
 
     def refine(self, lo, hi, f_hi, at_lo, evals):
-        """Newton on the crossing eigenvalue in phi, safeguarded by the bracket (lo, hi). ->
-        (the last Newton update, the last step, the bracket, the last update's size, Hessian
-        evaluations)."""
+        """Newton on the crossing eigenvalue in phi, safeguarded by the bracket. -> (the last Newton
+        update, the last step, the bracket, the last update's size, Hessian evaluations)."""
         engine, opts = self.engine, self.engine.opts
         _, f_lo, d_lo, v_lo, dq_lo = at_lo
         bracket = (lo.phi, hi.phi)

@@ -1,20 +1,11 @@
 """Whether a branch end located on the extended system is the study's first instability.
 
-The twist study brackets where its stable branch is lost: the eigenvalue of a mode of the Hessian
-with its zero modes projected out changes sign there (``jaxrod.continuation``). The diagram
-(``jaxrod.studies.diagram``) then follows the branch from the study's last stable state by
-pseudo-arclength continuation in a pinned gauge and locates the first fold or branch point on its
-path. Where two singular points lie close together (a branch point and a fold 1e-4 pi apart on a
-loose knot), or the pinned gauge constrains a mode that mixes with the material's slide, that path
-may meet the second one first. The located end is then not the onset, however exactly it is
-located.
-
-``verify_end`` says which eigenvalue vanishes at the located state, in the study's own gauge,
-whether every other one is still positive there (the zero is the branch's first), its overlap with
-the study's critical mode and its two-fold parity.
-``onset_events`` orders what is known of one side's first instability: the study's bracket and the
-located or detected event of the extended system, in the order the branch meets them; the first
-is the onset.
+The diagram (``jaxrod.studies.diagram``) follows the study's branch by pseudo-arclength in a
+pinned gauge and locates the first fold or branch point on its path; where two singular points lie
+close together, that path may meet the second one first. ``verify_end`` says which eigenvalue
+vanishes at the located state in the study's own gauge, whether every other one is still positive
+(the zero is the branch's first), its overlap with the study's critical mode and its parity.
+``onset_events`` orders the study's bracket and the extended system's event as the branch meets them.
 """
 from __future__ import annotations
 
@@ -26,16 +17,13 @@ from ..linalg.stability import stability
 from ..model.symmetry import SYMMETRIC_TOL, joint_two_fold, symmetrize
 
 __all__ = ["verify_end", "study_mode", "onset_events", "VANISHING_EIGENVALUE"]
-# Without a band (``verify_end``'s ``band``), an eigenvalue of the projected Hessian this close to
-# zero (scaled units) vanishes at the located state: a located end has its critical eigenvalue at
-# ~1e-14 in the pinned gauge.
+# ``verify_end``'s default band (scaled units): a located end's critical eigenvalue is ~1e-14.
 VANISHING_EIGENVALUE = 1e-10
 
 
 def study_mode(scene, q, phi, eigenvalue, k=6):
-    """(n,) the unit eigenvector (scaled DOFs) of the study's critical mode at its last stable
-    state (q, phi): of the k lowest eigenpairs there, the one whose eigenvalue is nearest the
-    critical eigenvalue the study recorded (``eigenvalue``)."""
+    """(n,) the unit eigenvector (scaled DOFs) at the study's last stable state (q, phi) whose
+    eigenvalue, of the k lowest, is nearest the recorded critical ``eigenvalue``."""
     st = stability(scene, np.asarray(q, dtype=float), float(phi), k=k)
     j = int(np.argmin(np.abs(np.asarray(st.eigenvalues) - eigenvalue)))
     return np.asarray(st.eigenvectors[:, j])
@@ -57,19 +45,12 @@ def _parity(scene, q, v):
 
 
 def verify_end(scene, q, phi, reference_mode, band=VANISHING_EIGENVALUE, k=6):
-    """What vanishes at the located state (q (n,) physical DOFs, phi), with the zero modes
-    projected out as the study does, and whether the state is otherwise stable there.
-
-    reference_mode: (n,) the study's critical eigenvector (``study_mode``), or None; band: the
-    study's near-zero band (``negative_tol``): an eigenvalue inside it vanishes (the projected and
-    the pinned gauge of the extended system agree on a zero to ~1e-8 on a loose knot, whose slides
-    mix with the gauge's rotations; the trefoil's opening fold at N = 121: -3.1e-8). Returns a dict:
+    """What vanishes at the located state (q (n,) physical DOFs, phi), zero modes projected out as
+    the study does, and whether the state is otherwise stable there. reference_mode: (n,) the study's critical eigenvector (``study_mode``), or None; band: the
+    study's near-zero band (``negative_tol``): an eigenvalue inside it vanishes. Returns a dict:
     eigenvalue_index (of the k lowest, the one nearest zero), eigenvalue, vanishes (|eigenvalue| <=
-    band), first (no other eigenvalue below -band: the branch is stable up to this zero, so it is
-    the first one; past an earlier zero a mode is negative already), overlap (of the vanishing mode
-    with the reference; None without one: a study that ended at a jump recorded the mode of the
-    fold it jumped from, not that of a branch point just before it), parity ('even', 'odd' under
-    the joint's two-fold symmetry, or None where the state has none)."""
+    band), first (no other eigenvalue below -band), overlap (of the vanishing mode with the
+    reference, or None), parity ('even', 'odd' under the joint's two-fold symmetry, or None)."""
     q = np.asarray(q, dtype=float)
     st = stability(scene, q, float(phi), k=k)
     lam, vec = np.asarray(st.eigenvalues), np.asarray(st.eigenvectors)
@@ -84,12 +65,9 @@ def verify_end(scene, q, phi, reference_mode, band=VANISHING_EIGENVALUE, k=6):
 
 def onset_events(instability, event):
     """What is known of one side's first instability, in the order the branch meets it: a list
-    of dicts (kind, phi, phi_over_pi, located, source: 'study' for the study's bracket, 'extended
-    system' for the diagram's event). The located event alone where it is the onset (located,
-    within the study's bracket, a zero of the study's Hessian with no other mode negative); else the study's bracket first and, after
-    it, the event the extended system met (located or only detected). instability: the study's
-    critical.json entry; event: the diagram's event dict for it (critical.json ``events``), or
-    None."""
+    of dicts (kind, phi, phi_over_pi, located, source: 'study' or 'extended system'). The event
+    alone where it is confirmed as the onset; else both, in branch order. instability: the study's
+    critical.json entry; event: the diagram's event dict for it, or None."""
     study = {"kind": instability.get("kind"), "phi": instability["phi"], "phi_over_pi": instability["phi"] / math.pi,
              "phi_error": instability.get("phi_error"), "located": False, "source": "study"}
     if event is None or event.get("phi") is None:

@@ -14,16 +14,13 @@ from .engine import StepFailure, _Refusal
 from .results import Instability
 
 
-# A state's eigenvector belongs to the critical modes when its projection on them has at least
-# this norm (the overlap the end locator uses to match eigenvectors between states).
+# A state's eigenvector belongs to the critical modes when its projection on them has at least this norm.
 _CRITICAL_OVERLAP = 0.5
 
 
 def warn_if_band_hides_shape_modes(scene, branch, e, opts, warned):
-    """Warn (once per branch) when a state reported stable has a negative eigenvalue inside the
-    near-zero band whose mode changes the shape instead of sliding material along the knot
-    (``stability.shape_modes_in_band``): the band, there for sliding modes, may hide a real
-    instability, and the branch may have ended before this state."""
+    """Warn (once per branch) when a state reported stable has a shape mode (not a slide) negative
+    inside the near-zero band (``stability.shape_modes_in_band``): the branch may have ended."""
     if branch in warned or not opts.negative_tol > DEFAULT_NEGATIVE_TOL:
         return
     hidden = shape_modes_in_band(scene, e, opts.negative_tol)
@@ -43,9 +40,8 @@ def _hidden_refusal(lam):
 
 
 def _hidden_shape_modes(engine, e):
-    """(lowest eigenvalue, eigenvectors (n, m)) of the equilibrium e's modes that change the
-    shape and are negative inside the near-zero band (``stability.shape_modes_in_band``), or None
-    (no such mode, no band, no state or stability, or a scene without contact)."""
+    """(lowest eigenvalue, eigenvectors (n, m)) of the equilibrium e's shape modes negative inside
+    the near-zero band, or None (none, no band, no stability, or no contact)."""
     if e is None or e.stability is None or not engine.contact or not engine.opts.negative_tol > DEFAULT_NEGATIVE_TOL:
         return None
     values, _, vectors = band_shape_modes(engine.scene, e, engine.opts.negative_tol)
@@ -55,8 +51,7 @@ def _hidden_shape_modes(engine, e):
 
 
 def negative_modes(e, negative_tol):
-    """(n, m) eigenvectors of the equilibrium e's eigenvalues below -negative_tol (the modes that
-    made it unstable), or None."""
+    """(n, m) eigenvectors of the equilibrium e's eigenvalues below -negative_tol, or None."""
     if e is None or e.stability is None:
         return None
     st = e.stability
@@ -68,16 +63,11 @@ def negative_modes(e, negative_tol):
 
 def eigenvalue_past_zero(critical_modes, e, scene=None, band=None):
     """The eigenvalue of the equilibrium e that is negative along ``critical_modes`` ((n, m), or
-    None), or None: e is then past the zero of the critical eigenvalue, though the stability test
-    (lambda < -negative_tol) passed it. The near-zero band is there for the sliding modes of a
-    loose knot (|lambda| ~ 1e-7, changing sign from step to step); the mode that made the branch
-    unstable is not one of them, and where it crosses zero is where the branch ends (e.g.
-    a critical eigenvalue of slope -1.2e-5 per rad passes -1e-6 only 0.085 rad after zero).
-    With ``scene`` (a knot with contact) and ``band`` (the near-zero band's width) the slide is
-    split off e's eigenpairs first (``stability.without_slide``): critical modes captured where the
-    buckling mode and the slide were mixed must not find the slide itself negative at the next
-    state and call it past the end (the trefoil at N = 121 with --step 0.25pi: its tightening end came out at -11.10996 pi,
-    0.074 pi before the branch point that the other steps and the extended system locate)."""
+    None), or None: e is then past the zero of the critical eigenvalue, though the near-zero band
+    (there for a loose knot's sliding modes) let it pass the stability test. With ``scene`` (a
+    knot with contact) and ``band`` the slide is split off e's eigenpairs first
+    (``stability.without_slide``), so that critical modes mixed with the slide do not find the
+    slide itself negative."""
     if critical_modes is None or e is None or e.stability is None:
         return None
     st = e.stability
@@ -95,10 +85,8 @@ def _band_detail(lam):
 
 
 def _critical_candidates(older, prev, negative_tol, candidates=5, critical_modes=None):
-    """(lambda_prev, lambda_older, eigenvector) of the lowest eigen-modes of ``prev`` above the
-    near-zero band (or inside it, when along ``critical_modes``: the mode that made the branch
-    unstable, about to cross zero), each matched in ``older`` by eigenvector overlap (no new
-    spectrum needed)."""
+    """(lambda_prev, lambda_older, eigenvector) of the lowest modes of ``prev`` above the near-zero
+    band (or inside it, along ``critical_modes``), each matched in ``older`` by eigenvector overlap."""
     st, so = prev.stability, older.stability
     if st is None or so is None:
         return []
@@ -116,20 +104,14 @@ def _critical_candidates(older, prev, negative_tol, candidates=5, critical_modes
 
 def end_trial(older, prev, phi_lost, lost_eq, direction, tol, negative_tol, failures, probe_held, successes=0,
                critical_modes=None):
-    """The next twist to try when locating where a branch ends, between the last stable state
-    ``prev`` and the nearest twist ``phi_lost`` where the branch was lost. Returns (phi, probe).
-
-    Model: near a fold the critical eigenvalue goes like sqrt(phi* - phi), so lambda^2 is linear
-    in phi; its secant through ``older`` and ``prev`` (the mode that reaches zero first) gives
-    phi*, never beyond it at a transversal crossing (where it lands short). When the lost state
-    is an equilibrium with a negative critical eigenvalue (a crossing), lambda is interpolated
-    linearly between the two ends instead, to its zero (``critical_modes``: the modes that made
-    the branch unstable, whose eigenvalue is a candidate even inside the near-zero band). The
+    """The next twist to try between the last stable state ``prev`` and the nearest lost twist
+    ``phi_lost``. Returns (phi, probe). Model: near a fold lambda^2 is linear in phi; its secant through ``older`` and ``prev`` gives
+    phi* (short of it at a transversal crossing). Where the lost state has a negative critical
+    eigenvalue (a crossing), lambda is interpolated linearly between the two ends instead. The
     trial aims 0.3 tol short of phi*, or, when the stable end is already there, probes 0.9 tol
-    beyond it (probe = True), so that a good model closes the bracket to tol in two solves. Safeguards: bisection when there is no model, after two
-    failures or two successes in a row (a model that keeps landing short converges on a point
-    that is not the end: the stable end would creep towards it), after a probe that held, or
-    when the model lands outside the inner 90% of the bracket."""
+    beyond it (probe = True). Bisection when there is no model, after two failures or two
+    successes in a row, after a probe that held, or when the model lands outside the inner 90%
+    of the bracket."""
     width = direction * (phi_lost - prev.phi)
     mid = prev.phi + 0.5 * direction * width
     if failures >= 2 or successes >= 2 or probe_held or older is None or older.phi == prev.phi:
@@ -142,8 +124,7 @@ def end_trial(older, prev, phi_lost, lost_eq, direction, tol, negative_tol, fail
             ov = np.abs(np.asarray(lost_eq.stability.eigenvectors).T @ v)
             lam_lost = float(lost_eq.stability.eigenvalues[int(np.argmax(ov))])
             if lam_lost < 0.0 and ov.max() > _CRITICAL_OVERLAP:
-                # The branch is lost where lambda passes zero: a state whose critical eigenvalue
-                # is negative, even inside the near-zero band, is past the end (``eigenvalue_past_zero``).
+                # past the end, even inside the near-zero band (``eigenvalue_past_zero``)
                 estimates.append(prev.phi + (phi_lost - prev.phi) * lam / (lam - lam_lost))
                 continue
         slope = (lam**2 - lam_old**2) / (prev.phi - older.phi)  # d(lambda^2)/dphi
@@ -166,14 +147,8 @@ def end_trial(older, prev, phi_lost, lost_eq, direction, tol, negative_tol, fail
 
 def branch_end_in_bracket(phi_stable, phi_lost, lam, dlam, direction):
     """(phi*, error) for a branch end bracketed by the last stable twist ``phi_stable`` and the
-    nearest twist ``phi_lost`` where the branch was lost: the critical eigenvalue's Newton
-    extrapolation phi_stable - lam/dlam from the stable end where it lands inside the bracket (at
-    a crossing it is exact to second order; at a fold, where lambda goes like a square root, it
-    lands short, inside), otherwise the bracket's midpoint. The end lies in the bracket, so the
-    error bound is the distance from phi* to the bracket's far end (half the bracket at the
-    midpoint). (An extrapolation behind the stable end, from a critical eigenvalue already
-    negative there, used to be taken up to 0.1 pi back: phi* came 0.085 rad before a bracket
-    of 4e-4 rad. The end locator now keeps such states out of the stable end: ``eigenvalue_past_zero``.)"""
+    nearest lost twist ``phi_lost``: the Newton extrapolation phi_stable - lam/dlam where it lands
+    inside the bracket, else the midpoint; the error is the distance to the bracket's far end."""
     a, b = sorted((phi_stable, phi_lost))
     mid = 0.5 * (a + b)
     phi = mid
@@ -186,13 +161,9 @@ def branch_end_in_bracket(phi_stable, phi_lost, lam, dlam, direction):
 
 def _critical_mode(engine, prev, older, kind, direction, candidates=5):
     """The critical eigenpair at the last stable state ``prev``: of its lowest ``candidates``
-    eigenvalues, the one that reaches zero first when extrapolated with its secant rate from the
-    state before (``older``, matched by eigenvector overlap); without ``older``, with the
-    autodiff derivative along the branch. The secant also holds at a fold, where the autodiff
-    derivative of the fixed-branch linearisation does not (dlambda/dphi diverges there).
-    Near-zero sliding modes hardly move with phi, so they lose to the mode really going soft.
-    multiplicity: how many approach zero together (within a factor 3 in reach).
-    Returns an Instability with dlambda_dphi (autodiff) and dlambda_dphi_secant."""
+    eigenvalues, the one that reaches zero first extrapolated with its secant rate from ``older``
+    (which also holds at a fold), else with the autodiff derivative. multiplicity: how many reach
+    zero within a factor 3. Returns an Instability with dlambda_dphi and dlambda_dphi_secant."""
     st = prev.stability
     ev = st.eigenvalues
     found = []

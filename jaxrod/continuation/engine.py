@@ -51,17 +51,13 @@ class _Refusal:
 
 
 # A follow_twist corrector out of steps with a gradient within this factor of gtol has stalled on
-# sliding modes (seen: N = 151 trefoil, |g| ~ 7e-9 against 1e-9, a false branch end at -8.03 pi
-# where the true one is -11.1 pi); Newton finishes it (``ContinuationEngine._finish_stalled``).
+# sliding modes: Newton finishes it (``ContinuationEngine._finish_stalled``).
 STALL_FACTOR = 100.0
 
 @dataclass(frozen=True)
 class _Step:
-    """The outcome of one predictor-corrector step (``ContinuationEngine.step``).
-
-    equilibrium: the corrected state (with its stability once analysed; None if the corrector
-    failed); tangent: dq/dphi there; eigenvalue, dlambda_dphi, mode: the tracked eigenpair and
-    its derivative along the branch; refusal: why the step was refused (None: accepted)."""
+    """The outcome of one step: equilibrium (None if the corrector failed); tangent: dq/dphi there;
+    eigenvalue, dlambda_dphi, mode: the tracked eigenpair; refusal: why refused (None: accepted)."""
 
     equilibrium: Equilibrium | None
     tangent: np.ndarray | None = field(default=None, repr=False)
@@ -69,9 +65,7 @@ class _Step:
     dlambda_dphi: float = math.nan
     mode: np.ndarray | None = field(default=None, repr=False)
     refusal: _Refusal | None = None
-    # an accepted minimiser step whose lowest eigenvalues are not those predicted along the branch
-    # (``branch_check.Departure``), or None
-    departure: object = None
+    departure: object = None  # a ``branch_check.Departure`` of an accepted minimiser step, or None
 
     @property
     def ok(self):
@@ -80,17 +74,13 @@ class _Step:
 
 @dataclass(frozen=True)
 class ContinuationEngine:
-    """The one predictor-corrector-accept step that both continuations are loops over.
-
-    Predictor: the branch tangent, q(phi) = q_prev + dq/dphi (phi - phi_prev). Corrector, by task:
-    ``critical_twist`` uses Newton (it must also converge *past* the crossing, onto the branch
-    that has just turned unstable, to bracket and refine it; the O(n) block Newton for large
-    rings and rods), ``follow_twist`` the damped-Newton minimiser of ``relax``, guided by the
-    predicted shape, which cannot wander onto an unstable branch. Analysis (shared): the
-    stability, the tracked eigenpair with its derivative along the branch, and the new tangent.
-    Acceptance: any converged state for ``critical_twist`` (it watches the negative count
-    itself); for ``follow_twist`` a state that stayed within jump_tol of the prediction, has
-    Lk = Lk0 + phi/2pi (closed rods) and no negative eigenvalue (after a soft-saddle escape)."""
+    """The one predictor-corrector-accept step that both continuations are loops over: predictor,
+    the branch tangent; corrector: Newton for ``critical_twist`` (it must also converge
+    past the crossing, onto the branch just turned unstable), the guided damped-Newton minimiser
+    of ``relax`` for ``follow_twist``. Analysis: stability, the tracked eigenpair with its
+    derivative along the branch, the new tangent. Acceptance: any converged state for
+    ``critical_twist``; for ``follow_twist`` one within jump_tol of the prediction, with
+    Lk = Lk0 + phi/2pi (closed rods) and no negative eigenvalue."""
 
     scene: object
     task: Task
@@ -128,8 +118,7 @@ class ContinuationEngine:
 
     def step(self, prev, tangent, phi, index=0, ref=None, guess=None):
         """Predict from ``prev`` (an Equilibrium) along ``tangent`` to ``phi``, correct, analyse and
-        accept or refuse. index, ref, guess: the tracked eigenpair (see ``analyse``). Returns a
-        _Step."""
+        accept or refuse (index, ref, guess: see ``analyse``). -> _Step."""
         q_pred = prev.q + tangent * (phi - prev.phi)
         if self.task is Task.CRITICAL_TWIST:
             return self._newton_step(prev, q_pred, phi, index, ref, guess)
@@ -141,9 +130,7 @@ class ContinuationEngine:
 
     @property
     def corrector_options(self):
-        """The minimiser corrector's ``RelaxOptions``: the continuation's gtol, a small budget
-        between pauses (a step that crawls is not near its branch), no stability (the engine
-        analyses the state itself), the engine's linear algebra."""
+        """The minimiser corrector's ``RelaxOptions`` (no stability: the engine analyses it)."""
         return RelaxOptions(gtol=self.opts.gtol, max_steps=self.opts.corrector_max_steps, with_stability=False,
                             linear_algebra=self.linear_algebra)
 
@@ -157,9 +144,8 @@ class ContinuationEngine:
         return solve_equilibrium(self.scene, phi, q_start, newton, nbr=nbr)
 
     def _deflated_newton(self, phi, q_start, nbr):
-        """Newton at O(n) with the near-null sliding modes deflated (the sparse counterpart of
-        ``solve_equilibrium`` with ``EquilibriumOptions(method="newton", near_null_tol=negative_tol)``),
-        within nbr (its contact list must hold at the result: checked, else ConvergenceError)."""
+        """Newton at O(n) with the near-null sliding modes deflated, within nbr (checked to hold at
+        the result, else ConvergenceError)."""
         scene = self.scene
         solver = HostDampedNewton(direction=_DeflatedDirection(self.opts.negative_tol), max_backtracks=40)
         args = (scene, jnp.asarray(phi), nbr)
@@ -204,10 +190,8 @@ class ContinuationEngine:
             return replace(s, tangent=None,
                            refusal=_Refusal(StepFailure.LINKING, f"Lk = {s.equilibrium.Lk:.8f} is not Lk0 + phi/2pi"))
         if s.equilibrium.stability.n_negative > 0 and self.contact:
-            # A soft, sliding-type mode of a loose knot may turn slightly negative: the minimiser
-            # then stalls on a saddle that differs from a stable state only by a slide of the
-            # material along the same shape. Push along the negative mode and relax: if a stable
-            # state of the *same shape* appears, the branch goes on (no false detection).
+            # A loose knot's sliding mode may turn slightly negative (a saddle of the slide): push
+            # along it and relax; a stable state of the same shape continues the branch.
             escaped = self._escape_soft_saddle(s.equilibrium, prev, x_pred)
             if escaped is not None:
                 s = escaped
@@ -219,8 +203,7 @@ class ContinuationEngine:
             return s
         crossing = model.crossing(phi, self.opts.negative_tol, self._shape_modes(prev))
         if crossing is not None:
-            # stable at both ends, but a mode is predicted to cross zero in between: locate it (a
-            # minimiser past a branch point lands on the stable state beside the branch)
+            # stable at both ends, but a mode is predicted to cross zero in between: locate it
             return replace(s, refusal=_Refusal(StepFailure.UNSTABLE, crossing.detail(), modes=crossing.mode[:, None],
                                                predicted=True))
         return replace(s, departure=model.departure(s.equilibrium, self.opts.negative_tol))
@@ -233,10 +216,8 @@ class ContinuationEngine:
         return branch_model(self.scene, prev, tangent, self.opts.negative_tol)
 
     def predicted_crossing(self, prev, tangent, phi):
-        """The first of prev's lowest shape modes predicted, by its eigenvalue's derivative along
-        the branch, to cross zero between prev.phi and phi (``branch_check.Crossing``), or None
-        (also where ``check_branch`` is off or prev has no stability). A loose knot's near-zero
-        slides are not judged: they change sign from step to step without changing the shape."""
+        """The first of prev's lowest shape modes (slides left out) predicted to cross zero between
+        prev.phi and phi (``branch_check.Crossing``), or None (also without a ``branch_model``)."""
         model = self.branch_model(prev, tangent)
         return None if model is None else model.crossing(phi, self.opts.negative_tol, self._shape_modes(prev))
 
@@ -250,14 +231,10 @@ class ContinuationEngine:
         return keep
 
     def kept_symmetric(self, reference_q, e, phi, previous=None):
-        """e, or e projected back onto the two-fold symmetry that the state ``reference_q`` it was
-        corrected from has (see ``ContinuationOptions.keep_symmetry`` and ``jaxrod.model.symmetry``) and
-        finished by the corrector, where it drifted off it by more than round-off and less than
-        jump_tol. From a symmetric state the gradient is symmetric and the Hessian commutes with the
-        map, so the finishing steps (none or one) keep the symmetry; the result is checked like any
-        corrected state. e itself where reference_q is not symmetric, the drift is round-off or a
-        departure of the shape, or the corrector fails. previous: the last Equilibrium (its writhe
-        checks the corrector), if any."""
+        """e, or e projected back onto the two-fold symmetry of ``reference_q`` and finished by the
+        corrector, where it drifted off it by more than round-off and at most jump_tol
+        (``ContinuationOptions.keep_symmetry``); e itself where the corrector fails. previous: the
+        last Equilibrium, if any."""
         if not self.opts.keep_symmetry:
             return e
         edge = float(self.scene.length) / self.scene.n_nodes
@@ -267,25 +244,19 @@ class ContinuationEngine:
         if not ROUND_OFF_ASYMMETRY * edge < sym.asymmetry <= self.opts.jump_tol:
             return e
         try:
-            # the corrector itself, from the projected state: its gradient differs from e's by the
-            # near-null slide's curvature times the drift (~1e-15), so it stops at once or after one
-            # step, and no other program is compiled for it (Newton here cost command 1 ~6 s cold)
+            # the corrector itself (it stops at once or after one step; no other program to compile)
             return relax(self.scene, phi, symmetrize(self.scene, e.q, sym), self.corrector_options,
                          previous=previous, nbr=e.neighbourhood)
         except (ConvergenceError, LeftBranchError, TopologyChangeError) as exc:
-            # not silently: once a state is off the symmetry by more than SYMMETRIC_TOL, the rest of
-            # the branch is followed without it (and may slide into another placement of the nodes)
+            # not silently: the rest of the branch may then be followed off the symmetry
             warnings.warn(f"phi = {phi / math.pi:+.5f} pi: the state drifted {sym.asymmetry:.2g} off the two-fold "
                           f"symmetry through the joint and could not be brought back ({exc}); kept as corrected",
                           stacklevel=2)
             return e
 
     def _finish_stalled(self, exc, phi, prev):
-        """A minimiser that ran out of steps within a factor STALL_FACTOR of gtol has stalled on
-        the near-null sliding modes of a contact knot (a curvature ~1e-8 makes its progress along
-        them crawl), not met a fold (there it runs away from the prediction, or stops far from
-        gtol). Finish it with Newton, which leaves the near-null directions alone; the result is
-        checked like any corrected state (distance, Lk, stability). None if that fails too."""
+        """A contact knot's minimiser out of steps within STALL_FACTOR of gtol (stalled on the
+        near-null slides, not at a fold), finished with Newton; None if that fails too."""
         sol = getattr(exc, "solution", None)
         if not self.contact or sol is None or exc.q is None or not sol.grad_norm < STALL_FACTOR * self.opts.gtol:
             return None
@@ -302,8 +273,7 @@ class ContinuationEngine:
         step = mode_step(self.scene, v, 0.25 * jump_tol)
         for sgn in (1.0, -1.0):
             try:
-                # Guided: a push along a real buckling mode runs off the predicted shape and is
-                # stopped at its first pause instead of being relaxed to the end.
+                # guided: a push along a real buckling mode is stopped at its first pause
                 e2 = relax(self.scene, e.phi, e.q + sgn * step, self.corrector_options, previous=prev,
                            nbr=e.neighbourhood, guide=(x_pred, jump_tol))
             except (ConvergenceError, TopologyChangeError):
@@ -316,22 +286,19 @@ class ContinuationEngine:
         return None
 
 
-# "auto" takes the O(n) block path from this many DOFs on (N ~ 250 nodes): below it the dense
-# path is fast enough, and compiled already for most small scenes.
+# "auto" takes the O(n) block path from this many DOFs on.
 _SPARSE_MIN_DOF = SPARSE_MIN_DOF
 
 
 def uses_sparse(scene, linear_algebra):
-    """Whether a continuation uses the O(n) path (see ``ContinuationOptions.linear_algebra``):
-    block-tridiagonal for rods without contact (``jaxrod.continuation.sparse_branch``), SciPy's sparse
-    factorisations with contact (``jaxrod.linalg.sparse_contact``)."""
+    """Whether a continuation uses the O(n) path (``ContinuationOptions.linear_algebra``)."""
     return choose_backend(scene, linear_algebra).backend.structured
 
 
 @dataclass(frozen=True)
 class _DeflatedDirection:
-    """``sparse_contact.deflated_newton_direction`` with its near-null tolerance bound (a frozen
-    dataclass: equal for equal tolerances, so jitted pieces keyed on it are shared)."""
+    """``sparse_contact.deflated_newton_direction`` with its tolerance bound (hashable: jitted pieces
+    keyed on it are shared)."""
 
     near_null_tol: float
 
@@ -343,9 +310,8 @@ K_MARGIN = EXTRA_PAIRS  # eigenpairs beyond the tracked index or the negative co
 
 
 def grown_engine(engine, needed):
-    """``engine`` itself if its k eigenpairs reach index ``needed`` + K_MARGIN - 1 (needed: the
-    tracked index or the negative count), else a copy with k = needed + K_MARGIN (sparse path
-    only: the dense one computes LOWEST_COUNT eigenpairs whatever k)."""
+    """``engine``, or on the sparse path a copy with k = needed + K_MARGIN where its k is less
+    (needed: the tracked index or the negative count)."""
     k = needed + K_MARGIN
     if not engine.sparse or k <= engine.opts.k or engine.opts.k >= engine.scene.n_dof:
         return engine

@@ -3,10 +3,8 @@
     continuation(TwistProblem(scene, 0.0, 8 * pi), StableOnly(), options)   -> TwistPath
     continuation(BifurcationProblem(energy, u0, p0), PseudoArclength(), options)  -> Branch
 
-The algorithm object picks how the branch is followed (``jaxrod.continuation.algorithms``); the
-options are one ``ContinuationOptions`` for both, each algorithm refusing the fields it never reads;
-the observer is one ``Observer``, whose ``on_point`` receives each accepted point (a ``PathPoint``
-or an arclength ``Point``).
+The options are one ``ContinuationOptions`` for both algorithms, each refusing the fields it never
+reads; the observer's ``on_point`` receives each accepted point (a ``PathPoint`` or a ``Point``).
 """
 from __future__ import annotations
 

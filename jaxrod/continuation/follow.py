@@ -1,31 +1,19 @@
-"""``follow_twist``: follow a stable branch through its instabilities, with branch switching
-(knots), as a loop of ``_Follower.advance`` over ``PathState`` (follow; locate the end; confirm
-it; at the end, switch branches or stop). Where a branch ends is worked out in ``ends``, the
-switch in ``switching``.
+"""``follow_twist``: follow a stable branch through its instabilities, with branch switching, as a
+loop of ``_Follower.advance`` over ``PathState`` (``ends``: where a branch ends; ``switching``).
 
-Predictor: the branch tangent dq/dphi (implicit function theorem, near-zero sliding modes
-left out). Corrector: the damped-Newton minimiser of ``relax`` (exact Hessian, capped steps,
-contact lists rebuilt, strand passage refused), which cannot wander onto an unstable branch.
-A step is accepted when the corrector converges, the state stays within ``jump_tol``
-(default D/2) of the predicted shape (a distance blind to material sliding along the
-centreline), the linking number is Lk0 + phi/2 pi (closed rods) and no eigenvalue is below
--negative_tol (see ``ContinuationEngine``), and none of the last state's lowest shape modes is
-predicted, by its eigenvalue's derivative along the branch, to cross zero inside the step
-(``branch_check``: a minimiser past a branch point lands on a stable state beside the branch;
-``options.check_branch``). Otherwise the step is halved; once the failing twist is
-within ``tol`` of the last accepted one, the branch has ended there (a failure that persists
-as the step goes to zero is not a step-size artefact). Near-zero modes (|lambda| <
-negative_tol: strands sliding in a loose knot, ~1e-7) never count.
+Predictor: the branch tangent dq/dphi. Corrector: the damped-Newton minimiser of ``relax``,
+which cannot wander onto an unstable branch.
+A step is accepted when the corrector converges, the state stays within ``jump_tol`` of the
+predicted shape, the linking number is Lk0 + phi/2 pi (closed rods), no eigenvalue is below
+-negative_tol (``ContinuationEngine``) and no low shape mode is predicted to cross zero inside
+the step (``branch_check``). Otherwise the step is halved; once the failing twist is within
+``tol`` of the last accepted one, the branch has ended there.
 
-Branch switching (unless options.switch is False, at most options.max_switches times): at
-the nearest twist where the branch was lost, the predicted state is pushed by
-+-``perturbation`` (default jump_tol, at the node that moves most) along the critical
-eigenvector and relaxed; the lower-energy stable state away from the old branch is the new
-branch ("buckled", then "buckled2", ...; the sign of the direction is appended).
-
-The run is deterministic, so a resumed run reports exactly the points and instabilities
-that the uninterrupted one reports after that state. Knots from
-``sparse_contact.SPARSE_MIN_DOF`` DOFs on take the O(n) path (``linear_algebra``).
+Branch switching (``switching``, at most options.max_switches times): the predicted state at the
+nearest lost twist is pushed by +-``perturbation`` along the critical eigenvector and relaxed;
+the lower-energy stable state away from the old branch is the new branch ("buckled",
+"buckled2", ...; the direction's sign appended). The run is deterministic, so a resumed run
+reports exactly what the uninterrupted one reports after that state.
 """
 from __future__ import annotations
 
@@ -50,14 +38,12 @@ from .switching import _next_branch_name, _switch_branch
 
 
 # A step whose corrected state's spectrum is not the predicted one is halved down to the largest
-# step over this (``branch_check.departure``); below, it is accepted with a warning.
+# step over this (``BranchModel.departure``); below, it is accepted with a warning.
 DEPARTURE_REFINE = 8.0
 
 
 def _follow_engine(scene, opts):
-    """follow_twist's engine: the O(n) linear algebra of ``jaxrod.linalg.sparse_contact`` for rods with
-    contact where ``opts.linear_algebra`` asks for it (or "auto" from SPARSE_MIN_DOF DOFs on);
-    dense otherwise (rods without contact: the corrector is the dense minimiser)."""
+    """follow_twist's engine: sparse where ``follows_sparse``, else dense."""
     return ContinuationEngine(scene, Task.FOLLOW_TWIST, opts, follows_sparse(scene, opts.linear_algebra))
 
 
@@ -95,10 +81,9 @@ def follow_twist(scene, phi_start=0.0, phi_stop=None, options=None, *, start=Non
     Returns
     -------
     TwistPath
-        ``points`` (a ``PathPoint`` per accepted step: its branch, ``equilibrium`` with phi in
-        rad and stability, and the tangent dq/dphi (n_dof,)), ``instabilities`` (an ``Instability`` per branch end met),
-        ``stop`` and ``reason`` (why the path stopped: phi_stop reached, or where it could not
-        go on), ``seconds``. A branch that cannot be continued ends the path; it does not raise.
+        ``points`` (a ``PathPoint`` per accepted step), ``instabilities`` (an ``Instability`` per
+        branch end met), ``stop`` and ``reason`` (why the path stopped), ``seconds``. A branch
+        that cannot be continued ends the path; it does not raise.
 
     Raises
     ------
@@ -150,13 +135,12 @@ def follow_twist(scene, phi_start=0.0, phi_stop=None, options=None, *, start=Non
 
 class _PathLog:
     """What a ``follow_twist`` run reports: its points and instabilities, passed on to the
-    observer as they come, with a warning (once per branch) where the near-zero band may hide a
-    shape mode (``warn_if_band_hides_shape_modes``)."""
+    observer as they come (``warn_if_band_hides_shape_modes`` once per branch)."""
 
     def __init__(self, scene, opts, direction, observer):
         self.scene, self.opts, self.direction, self.observer = scene, opts, direction, observer
         self.points, self.instabilities = [], []
-        self.warned = set()  # branches already warned about a shape mode inside the near-zero band
+        self.warned = set()
 
     def emit(self, state, s):
         """Report the accepted step s as the branch's next point; -> state counting it."""
@@ -182,26 +166,23 @@ class _PathLog:
 
 
 def _resumed(scene, opts, phi_stop, resume):
-    """(engine, state) of a resumed ``follow_twist``: the direction is the branch name's sign; the
-    span only sizes the default step, which the resumed run must share with the first one (pass
-    the same phi_stop)."""
+    """(engine, state) of a resumed ``follow_twist``; the span only sizes the default step, which
+    must match the first run's (same phi_stop)."""
     stored_phi = float(resume.arrays["prev_phi"]) if isinstance(resume, _StoredPathState) else resume.prev.phi
     engine = _follow_engine(scene, opts.resolved(scene, Task.FOLLOW_TWIST, abs(phi_stop - stored_phi) or 1.0))
     return engine, resume.restore(engine) if isinstance(resume, _StoredPathState) else resume
 
 
 def _stable_start(engine, start, phi_start, given):
-    """The analysed stable state a fresh ``follow_twist`` starts from: ``start`` itself when it is
-    an ``Equilibrium`` (given), else relaxed at phi_start from ``start`` (a guess of the DOFs, or
-    None: the scene's drawing). ValueError when it is unstable."""
+    """The analysed stable state a fresh ``follow_twist`` starts from: ``start`` itself if given (an
+    ``Equilibrium``), else relaxed at phi_start from it (None: the scene's drawing). ValueError
+    when unstable."""
     scene = engine.scene
     if not given:
         q_start = scene.q_init if start is None else start
         e0 = relax(scene, phi_start, q_start, replace(engine.corrector_options, max_steps=None))
-        # a start drawn with the joint's two-fold symmetry (the trefoil as drawn) stays on it: a
-        # loose knot's minimiser slides along its near-null, odd slide by round-off (the trefoil
-        # at N = 128, D/L = 0.010: 0.14 edges), and the branch's events then depend on where it
-        # stopped (3e-4 pi on the opening side)
+        # a start drawn with the joint's two-fold symmetry stays on it (a loose knot's minimiser
+        # slides along its near-null slide by round-off, and the events would depend on where)
         kept = engine.kept_symmetric(np.asarray(q_start, dtype=float), e0, phi_start)
     else:
         e0 = kept = start
@@ -209,9 +190,7 @@ def _stable_start(engine, start, phi_start, given):
             e0 = kept = replace(e0, neighbourhood=scene.neighbourhood(e0.q, e0.phi))
     s = engine.analysed(kept)
     if kept is not e0 and s.equilibrium.stability.n_negative:
-        # the symmetric state is a saddle of a shape mode, which the minimiser's drift escaped:
-        # the start is the minimum it found (the trefoil (8, 292) at N = 48, phi = 0: lowest
-        # eigenvalue -8.3e-4 on the symmetry, a stable state 0.28 edges off it)
+        # the symmetric state is a saddle of a shape mode: start from the minimum the drift found
         s = engine.analysed(e0)
     if s.equilibrium.stability.n_negative:
         st = s.equilibrium.stability
@@ -224,8 +203,7 @@ def _stable_start(engine, start, phi_start, given):
 
 @dataclass(frozen=True)
 class _Follower:
-    """``follow_twist``'s loop body: ``advance(state)`` tries one step (or, at a located end,
-    switches branches) and returns the next ``PathState``."""
+    """``follow_twist``'s loop body: ``advance(state)`` -> the next ``PathState``."""
 
     engine: ContinuationEngine
     phi_stop: float
@@ -236,7 +214,7 @@ class _Follower:
 
     @property
     def _knot(self):
-        """The scene, where its modes' sliding is judged (``eigenvalue_past_zero``): a rod with contact."""
+        """The scene if it has contact (for ``eigenvalue_past_zero``), else None."""
         return self.engine.scene if self.engine.contact else None
 
     def advance(self, state):
@@ -251,8 +229,7 @@ class _Follower:
         prev, step, direction = state.prev, self.engine.opts.step, self.direction
         if direction * (self.phi_stop - prev.phi) <= 1e-12:
             return replace(state, phase=Phase.DONE, stop=PathStop.PHI_STOP, reason="phi_stop")
-        # Steps land on the grid of multiples of ``step`` (so whole turns are visited, where the
-        # ribbon closes and the Gauss linking number can be compared) unless shortened.
+        # Steps land on multiples of ``step`` (so whole turns, where the linking number is checked, are visited).
         grid = step * (math.floor(prev.phi / step + 1e-9) + 1 if direction > 0 else math.ceil(prev.phi / step - 1e-9) - 1)
         phi_next = prev.phi + direction * min(state.h, abs(self.phi_stop - prev.phi), abs(grid - prev.phi))
         s = self.engine.step(prev, state.tangent, phi_next)
@@ -260,31 +237,23 @@ class _Follower:
         if s.ok and hidden is None:
             gone = s.departure
             if gone is not None and abs(phi_next - prev.phi) > step / DEPARTURE_REFINE:
-                # the corrected state's spectrum is not the one predicted along the branch: shorter
                 self.say(f"[{state.branch}] phi = {phi_next / math.pi:+.5f} pi not as predicted ({gone.detail()}): "
                          "step halved")
                 return replace(state, h=0.5 * abs(phi_next - prev.phi))
             self._warn_if_departed(state, s)
             return self._accept(state, s, h=min(step, 2.0 * state.h))
         if hidden is not None:
-            # Converged, every eigenvalue above -negative_tol, but a mode that changes the shape
-            # (not material sliding) is negative inside the near-zero band kept for the sliding
-            # modes: the branch has ended (issue 17: at N = 241 and 481 the trefoil's opening side
-            # was called stable 0.09 pi and 1.09 pi past its end). Refused as unstable, with that
-            # mode as the critical one, so the locator below tracks its eigenvalue's sign.
+            # Converged, but a shape mode is negative inside the near-zero band: the branch has ended.
+            # Refused as unstable with that mode as the critical one, whose sign the locator tracks.
             s = replace(s, refusal=_hidden_refusal(hidden[0]))
-        # The branch was lost at phi_next: shrink the bracket between the last stable state and
-        # there to tol, aiming each trial with a model of the critical eigenvalue (a few solves
-        # where bisection needs ~log2(step/tol) ~ 11).
+        # Lost at phi_next: shrink the bracket to tol, aiming trials with a model of the critical eigenvalue.
         self.say(f"[{state.branch}] lost at phi = {phi_next / math.pi:+.5f} pi ({s.refusal}); locating the end")
         critical = hidden[1] if hidden is not None else self._critical_modes(s, None)
         band = self.engine.opts.negative_tol
         lam = eigenvalue_past_zero(critical, prev, self._knot, band)
         if lam is not None and state.older is not None and \
                 eigenvalue_past_zero(critical, state.older, self._knot, band) is None:
-            # The last accepted state already has the critical eigenvalue below zero (inside the
-            # near-zero band, so the stability test let it pass): the end lies between the state
-            # before it and it. Locate it there, from the state before.
+            # The last accepted state is already past zero (inside the band): locate from the one before.
             self.say(f"[{state.branch}] phi = {prev.phi / math.pi:+.5f} pi is past the end already (critical "
                      f"eigenvalue {lam:.3e}); locating it from phi = {state.older.phi / math.pi:+.5f} pi")
             back = self.engine.analysed(state.older)
@@ -297,8 +266,7 @@ class _Follower:
                        critical_modes=critical)
 
     def _warn_if_departed(self, state, s):
-        """Warn where the accepted step s's corrected state is not the one predicted along the
-        branch (``_Step.departure``)."""
+        """Warn where the accepted step s departed from the branch (``_Step.departure``)."""
         prev, gone = state.prev, s.departure
         if gone is None:
             return
@@ -309,9 +277,8 @@ class _Follower:
                       "another placement of the nodes; accepted", stacklevel=3)
 
     def _critical_modes(self, s, current):
-        """The critical modes for ``PathState.critical_modes`` after the refused step s: the
-        eigenvectors of its eigenvalues below -negative_tol where it converged unstable (or, none
-        being there, of its shape modes negative inside the near-zero band), else ``current``."""
+        """``PathState.critical_modes`` after the refused step s: its negative (else hidden shape)
+        modes where it converged unstable, else ``current``."""
         if s.refusal is None or s.refusal.failure is not StepFailure.UNSTABLE:
             return current
         if s.refusal.modes is not None:  # predicted to cross zero inside the step (``branch_check``)
@@ -323,9 +290,8 @@ class _Follower:
         return current if found is None else found
 
     def _unless_past_zero(self, state, s):
-        """The accepted step s, or s refused (UNSTABLE) when its critical eigenvalue is already
-        negative (see ``PathState.critical_modes``), or when a shape mode is negative inside the
-        near-zero band (``_hidden_shape_modes``)."""
+        """s, refused (UNSTABLE) if its critical eigenvalue is already negative or a shape mode
+        is negative inside the near-zero band."""
         if not s.ok:
             return s
         lam = eigenvalue_past_zero(state.critical_modes, s.equilibrium, self._knot,
@@ -340,8 +306,7 @@ class _Follower:
     def _locate(self, state):
         tol, prev = self.engine.opts.tol, state.prev
         if abs(state.lost_phi - prev.phi) <= tol:
-            # Bracketed. If the nearest failure was met from a state further back, confirm it from
-            # the last stable state, so that a predictor too far off is not taken for the end.
+            # Bracketed; a failure met from further back is confirmed from the last stable state.
             return replace(state, phase=Phase.CONFIRM if abs(state.lost_phi - state.lost_from) > tol else Phase.END)
         trial, probe = end_trial(state.older, prev, state.lost_phi, state.lost_equilibrium, self.direction, tol,
                                   self.engine.opts.negative_tol, state.failures, state.probe_held, state.successes,
@@ -349,8 +314,7 @@ class _Follower:
         s = self._unless_past_zero(state, self.engine.step(prev, state.tangent, trial))
         if s.ok and state.lost_refusal.predicted and \
                 self.engine.predicted_crossing(s.equilibrium, s.tangent, state.lost_phi) is None:
-            # the branch was refused on a predicted zero that the closer state no longer predicts:
-            # the eigenvalue turned before zero; go on from there (no bracket to shrink)
+            # the predicted zero is no longer predicted: the eigenvalue turned before zero; go on
             self.say(f"[{state.branch}] no zero predicted from phi = {trial / math.pi:+.5f} pi any more: going on")
             self._warn_if_departed(state, s)
             return self._accept(state, s, phase=Phase.FOLLOW, h=self.engine.opts.step, critical_modes=None)
@@ -368,8 +332,7 @@ class _Follower:
             return replace(state, phase=Phase.END, lost_refusal=s.refusal, lost_equilibrium=s.equilibrium)
         self._warn_if_departed(state, s)
         self.say(f"[{state.branch}] phi = {state.lost_phi / math.pi:+.5f} pi reached from closer by: going on")
-        # The step that failed was too long for the predictor, not past the end: go on with half
-        # of it (not from 2 tol, which needs ~10 doublings back to ``step``).
+        # The failed step was too long for the predictor, not past the end: go on with half of it.
         h = max(2.0 * self.engine.opts.tol, 0.5 * abs(state.lost_phi - state.lost_from))
         return self._accept(state, s, phase=Phase.FOLLOW, h=h, critical_modes=None)
 
@@ -402,6 +365,5 @@ class _Follower:
                         older=None, h=engine.opts.step, switches=state.switches + 1, lost_phi=math.nan,
                         lost_from=math.nan, lost_refusal=None, lost_equilibrium=None, failures=0, successes=0,
                         probe_held=False, critical_modes=None)
-        # The new branch's first point, after its instability (a study then has both on file).
         return self.emit(state, found)
 

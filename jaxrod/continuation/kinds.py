@@ -1,14 +1,7 @@
 """What a continuation reports where a branch changes: one ``EventKind`` for both engines.
 
-The pseudo-arclength engine (``jaxrod.continuation.arclength``) locates singular points on
-extended systems: ``FOLD``, ``BRANCH_POINT``, and on a loose knot ``SOFT_FOLD`` / ``SOFT_TURN``
-(turns along the sliding modes, crossed rather than reported as instabilities). The stable-only
-follower (``follow_twist``) brackets where a stable branch ends: ``UNSTABLE`` (the corrector stayed
-on the branch, which acquired a negative eigenvalue) or ``JUMP`` (the minimiser left the branch: a
-fold, or a subcritical bifurcation).
-
-The kinds are ``str`` values: they compare equal to, print and format as their names ("fold",
-"branch_point", ...), which is what studies write to JSON.
+The pseudo-arclength engine reports ``FOLD``, ``BRANCH_POINT``, ``SOFT_FOLD`` and ``SOFT_TURN``;
+the stable-only follower ``UNSTABLE`` and ``JUMP`` (see ``EventKind``).
 """
 from __future__ import annotations
 

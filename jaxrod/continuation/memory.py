@@ -7,13 +7,8 @@ import math
 
 
 # Memory of the dense path, in bytes: DENSE_HESSIAN_COPIES * 8 n^2 + DENSE_BYTES_PER_DOF * n for n
-# DOFs. The largest buffer is the compiled damped-Newton loop of ``relax`` (jaxrod.solve.solvers: the
-# Hessian, its symmetrised and shifted copies, an identity, the Cholesky factors of the shift
-# search), allocated by XLA in one piece: its temporary buffer (``memory_analysis``) measured
-# 6.78, 6.59, 6.48 n^2 doubles for the trefoil at N = 121, 242, 484 (n = 4N), i.e. 6.37 n^2 + 241 n
-# doubles; that fit gives 81.55e9 bytes at N = 10000, where the allocation that failed (issue 16)
-# was 81.66e9. The analysis (projected Hessian: 5 n^2 temporary + n^2 out; then LAPACK's copy)
-# needs less; ``polyline_distance`` (~10 N^2 doubles) much less.
+# DOFs, fitted to the largest buffer, the compiled damped-Newton loop of ``relax`` (the Hessian and
+# its copies, allocated by XLA in one piece).
 DENSE_HESSIAN_COPIES = 6.4
 DENSE_BYTES_PER_DOF = 8 * 256
 # The interpreter, the JAX/XLA runtime and the compiled code, besides the arrays.
@@ -64,11 +59,10 @@ def available_memory_bytes():
 
 
 def check_dense_memory(scene, available=None):
-    """Refuse (ValueError naming N, before anything is compiled) a scene whose dense Hessian does
-    not fit in memory: ``dense_memory_bytes(scene.n_dof)`` plus PROCESS_BASE_BYTES against
-    ``available`` bytes (default ``available_memory_bytes()``; nothing is checked when unknown).
-    The message names the largest N that fits. scene: a scene, or any object with ``n_dof`` and
-    ``n_nodes`` (to check before a long scene build). Returns the estimate in bytes."""
+    """Refuse (ValueError naming N and the largest N that fits) a scene whose dense Hessian does
+    not fit: ``dense_memory_bytes(scene.n_dof)`` plus PROCESS_BASE_BYTES against ``available``
+    bytes (default ``available_memory_bytes()``; unknown: no check). scene: any object with
+    ``n_dof`` and ``n_nodes``. Returns the estimate in bytes."""
     need = dense_memory_bytes(scene.n_dof)
     avail = available_memory_bytes() if available is None else float(available)
     if avail is None or need + PROCESS_BASE_BYTES <= avail:

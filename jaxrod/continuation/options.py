@@ -1,7 +1,5 @@
-"""How a continuation runs: ``ContinuationOptions`` (every tolerance, budget and behaviour knob
-of both algorithms, None meaning the default that ``resolved`` (stable-only, scene-aware) or
-``resolved_arclength`` (pseudo-arclength) fills in), ``Task`` (which stable-only entry the defaults
-are for) and ``Observer`` (the callbacks: progress lines, points, states)."""
+"""``ContinuationOptions`` (every knob of both algorithms; None: the default ``resolved`` or
+``resolved_arclength`` fills in), ``Task`` (whose defaults) and ``Observer`` (the callbacks)."""
 from __future__ import annotations
 
 import enum
@@ -12,13 +10,11 @@ from ..linalg.stability import CONTACT_NEGATIVE_TOL
 from ..linalg.tolerances import NEGATIVE_TOL_FRACTION, scaled_negative_tol  # noqa: F401  (re-exported)
 from ..validation import check_int_at_least, check_positive
 
-# Damped-Newton iterations a continuation corrector may take between two neighbourhood pauses.
-# From the tangent predictor a step converges in 2-15; one still crawling after 60 is not near
-# its branch (seen: 500 iterations, 9 s, on a trefoil past its fold) and the step is refused.
+# Damped-Newton iterations a corrector may take between two neighbourhood pauses: a step converges
+# in 2-15 from the tangent predictor; one still crawling after 60 is off its branch and is refused.
 CORRECTOR_MAX_STEPS = 60
-# The corrector's gradient tolerance with contact: the residual along the sliding modes relaxes
-# only as fast as their ~1e-8 stiffness allows, and barely couples to the crossing eigenvalue.
-# 1e-7 (forces in units of B/l^2) is ~1e-7 of the twist moments in a twisted knot.
+# The corrector's gradient tolerance with contact (units of B/l^2): the sliding modes relax only as
+# fast as their ~1e-8 stiffness allows, and barely couple to the crossing eigenvalue.
 CONTACT_GTOL = 1e-7
 # critical_twist: Newton steps on the crossing eigenvalue before the refinement gives up.
 MAX_REFINE = 30
@@ -36,10 +32,8 @@ class Task(str, enum.Enum):
 class ContinuationOptions:
     """Tolerances, budgets and behaviour of a continuation, every contact-aware default in one place.
 
-    Every field defaults to None, "the default for the scene and task": ``resolved(scene, task,
-    span)`` fills them in. A field that the chosen algorithm does not read is refused when the
-    options are resolved, so a setting is never silently ignored. ``updated(**values)`` is a copy
-    with the values that are not None replaced.
+    Every field defaults to None, "the default for the scene and task", filled in when resolved; a
+    field the chosen algorithm does not read is then refused, so a setting is never silently ignored.
 
     Parameters
     ----------
@@ -52,24 +46,20 @@ class ContinuationOptions:
     negative_tol : float
         Both twist entries: an eigenvalue counts as negative below -negative_tol (units of B/l).
         Default 1e-10 (less for long rods: ``default_negative_tol``), or CONTACT_NEGATIVE_TOL =
-        1e-6 with self-contact (strands sliding along each other sit at |lambda| ~ 1e-7 and must
-        not count).
+        1e-6 with self-contact (sliding strands sit at |lambda| ~ 1e-7 and must not count).
     gtol : float
         Both twist entries: the equilibria's max |gradient| (scaled energy). Default 1e-9;
-        critical_twist with contact CONTACT_GTOL = 1e-7 (the sliding modes relax only as fast as
-        their stiffness allows).
+        critical_twist with contact CONTACT_GTOL = 1e-7.
     k : int
         Both algorithms: eigenpairs kept per state (stable-only default 8, pseudo-arclength 4;
         pseudo-arclength keeps at least Morse index + 2).
     max_refine : int
         critical_twist: Newton steps on the crossing eigenvalue (default MAX_REFINE = 30).
     linear_algebra : {'auto', 'dense', 'sparse'}
-        critical_twist: "dense" (n x n Hessian, ``eigh``: O(n^3) per step), "sparse" (O(n) per
-        step: without contact the block-tridiagonal Newton, inertia, eigenpairs and tangent of
-        ``jaxrod.continuation.sparse_branch``; with contact SciPy's sparse LDL^T, ARPACK
-        shift-invert and the host damped Newton of ``jaxrod.linalg.sparse_contact``) or "auto"
-        (the default: sparse from n_dof >= 1000 on, else dense). follow_twist on rods without
-        contact is dense only (it refuses "sparse").
+        critical_twist: "dense" (n x n Hessian, O(n^3) per step), "sparse" (O(n) per step:
+        ``jaxrod.continuation.sparse_branch`` without contact, ``jaxrod.linalg.sparse_contact``
+        with it) or "auto" (the default: sparse from n_dof >= 1000 on). follow_twist on rods
+        without contact is dense only (it refuses "sparse").
     jump_tol : float
         follow_twist: a corrector further than this from the predicted shape has left the branch
         (length unit of the scene, e.g. mm). Default D/2 (or L/20 without a diameter).
@@ -85,23 +75,18 @@ class ContinuationOptions:
     perturbation : float
         follow_twist: push along the critical mode when switching (length; default jump_tol).
     keep_symmetry : bool
-        follow_twist: on a closed rod whose joint lies on a two-fold axis of the state followed
-        (the trefoil as drawn), keep the states on that symmetry while the branch has it: a
-        corrected state that drifted off it by less than ``jump_tol`` (material sliding along
-        nearly null modes) is projected back and finished by the corrector
+        follow_twist: on a closed rod whose joint lies on a two-fold axis of the state followed,
+        keep the states on that symmetry while the branch has it: a corrected state that drifted
+        off it by less than ``jump_tol`` is projected back and finished by the corrector
         (``jaxrod.model.symmetry``). Default True.
     check_branch : bool
         follow_twist: refuse a stable step across which one of the last state's lowest shape
-        modes is predicted, by its eigenvalue's derivative along the branch, to cross zero; the
-        end is then located as any other (``continuation.branch_check``: a minimiser past a
-        branch point lands on the stable state beside the branch, and the instability was
-        reported late); and halve, then accept with a warning, a step whose corrected state's
-        lowest eigenvalues are not those predicted along the branch (``branch_check.departure``).
-        Default True.
+        modes is predicted to cross zero (``continuation.branch_check``: a minimiser past a
+        branch point lands on the stable state beside it); and halve, then accept with a
+        warning, a step whose corrected spectrum is not the predicted one. Default True.
     ds, ds_min, ds_max : float
-        Pseudo-arclength (``PseudoArclength``; ``resolved_arclength`` fills in these defaults):
-        first arclength step (default 0.05; its sign picks the initial direction of p), then
-        adapted in [ds_min, ds_max] (defaults 1e-8, 0.2) from the corrector's convergence.
+        Pseudo-arclength: first arclength step (default 0.05; its sign picks the initial direction
+        of p), then adapted in [ds_min, ds_max] (defaults 1e-8, 0.2).
     p_min, p_max : float
         Pseudo-arclength: the run stops when p leaves [p_min, p_max] (that point is kept);
         default unbounded.
@@ -124,26 +109,21 @@ class ContinuationOptions:
     soft_folds : {'slide', 'follow'}
         Pseudo-arclength: where the path turns back in p along a soft mode (an Event
         "soft_fold", only for problems with a ``soft_modes`` hook; on a loose knot, a
-        saddle-node of the tiny sliding landscape that the discretisation adds to the slide, a
-        symmetry of the continuum rod). "slide" (default): relax at p_fold + slide_dp in the
-        direction the path was going, from the fold kicked by slide_kick downhill along its soft
+        saddle-node of the sliding landscape the discretisation adds). "slide" (default): relax
+        at p_fold + slide_dp onwards, from the fold kicked by slide_kick downhill along its soft
         mode (steps capped at 10 slide_kick), and go on from the minimum reached (a ``Slide`` in
-        ``Branch.slides``), as the physical rod would, its strands slipping by a fraction of an
-        edge; "follow": follow the path back along the sliding saddles. Needs the problem's
-        ``energy``.
+        ``Branch.slides``), as the physical rod would; "follow": follow the path back along the
+        sliding saddles. Needs the problem's ``energy``.
     slide_dp, slide_kick : float
         Pseudo-arclength, soft_folds="slide": see above (defaults 1e-3 and 1e-2).
     resolve_crossings : float
-        Pseudo-arclength: a step control that watches the spectrum (default 0: off). A step
-        across which the Morse index changes by more than 1 (several eigenvalues crossing zero
-        between two points, e.g. a fold next to a symmetry pair) is refused and retried at half
-        the step, down to this step size, so that nearly coincident events fall into separate
-        brackets; a crossing still multiple at that size is a multiple event (a symmetric double
-        branch point), located as one. A refused step counts towards max_steps.
+        Pseudo-arclength (default 0: off): a step across which the Morse index changes by more
+        than 1 is refused and retried at half the step, down to this step size, so that nearly
+        coincident events fall into separate brackets; a crossing still multiple at that size is
+        located as one multiple event. A refused step counts towards max_steps.
     report_at : tuple of float
-        Pseudo-arclength: values of the continued parameter at which a two-parameter curve
-        (``fold_curve``, ``branch_point_curve``: values of mu) also gives a point exactly,
-        corrected on the hyperplane mu = value from the chord of the step that crosses it.
+        Pseudo-arclength: values of mu at which a two-parameter curve (``fold_curve``,
+        ``branch_point_curve``) also gives a point exactly.
 
     Raises
     ------
@@ -186,7 +166,6 @@ class ContinuationOptions:
     report_at: tuple | None = None
 
     def __post_init__(self):
-        # pseudo-arclength values are checked as soon as one is given (with the defaults of the rest)
         if any(getattr(self, key) is not None for key in ARCLENGTH_FIELDS):
             _check_arclength(self._arclength_values())
 
@@ -201,8 +180,8 @@ class ContinuationOptions:
         return replace(self, **{key: v for key, v in values.items() if v is not None})
 
     def resolved(self, scene, task, span):
-        """Every None filled in for ``scene`` (with or without contact) and ``task`` (a ``Task``);
-        span: |phi_stop - phi_start|. Raises ValueError naming a value that is not allowed."""
+        """Every None filled in for ``scene`` and ``task`` (a ``Task``); span: |phi_stop - phi_start|.
+        ValueError naming a value that is not allowed."""
         task = Task(task)
         _refuse_unread(self, ARCLENGTH_FIELDS, "the stable-only continuation")
         contact = scene.has_term("contact")
@@ -251,9 +230,8 @@ class ContinuationOptions:
         return replace(self, **values)
 
     def resolved_arclength(self):
-        """Every pseudo-arclength None filled in with its default (see the class docstring), the
-        values checked (ValueError naming the one that is wrong, or a stable-only field that is
-        set). Resolving twice changes nothing."""
+        """Every pseudo-arclength None filled in and checked (ValueError naming the one that is
+        wrong, or a stable-only field that is set). Idempotent."""
         _refuse_unread(self, STABLE_ONLY_FIELDS, "pseudo-arclength continuation")
         values = self._arclength_values()
         _check_arclength(values)
@@ -298,13 +276,8 @@ def _check_arclength(v):
         raise ValueError("max_steps, newton_max_iter and k must be >= 1")
 
 
-# Without contact, an eigenvalue counts as negative below -NEGATIVE_TOL_FRACTION times the bending
-# scale (2 pi l / L)^4 of the rod (l the edge length, L the rod's length; in the scaled units the
-# softest ring modes sit at 7.2 (2 pi / N)^4: 7.0e-10 at N = 2000, ~1e-12 at N = 10000), and never
-# below DEFAULT_NEGATIVE_TOL. A fixed 1e-10 is far above those eigenvalues for N >~ 2000: the count
-# changed a whole pi after the crossing (a ring of N = 2000 reported 6.27 pi for 5.20 pi) or all k
-# eigenpairs computed were "near zero" (N >= 5800: "index 8 outside the 8 eigenpairs computed").
-# Rods of N <= 628 nodes keep 1e-10. (``tolerances.scaled_negative_tol``.)
+# Without contact, the negative threshold scales with the rod's bending scale (2 pi l / L)^4, so long
+# rods' softest modes are not all "near zero" (``tolerances.scaled_negative_tol``).
 default_negative_tol = scaled_negative_tol
 
 
@@ -327,17 +300,14 @@ class Observer:
         ``critical_twist``, after every equilibrium of the scan and the refinement (phi in rad;
         e.g. a progress bar).
     on_point : callable(PathPoint), optional
-        ``follow_twist`` and ``twist_study``, after every accepted step (e.g. to write rows as
-        they come); ``PathPoint.direction`` says which side ('plus' or 'minus'; ``twist_study``
-        calls it from two threads when it runs both sides at once).
+        ``follow_twist`` and ``twist_study``, after every accepted step; ``PathPoint.direction``
+        says which side ('plus' or 'minus'; ``twist_study`` may call it from two threads).
     on_instability : callable(Instability), optional
-        ``follow_twist``, as soon as a branch end is located (and, after a switch, before the new
-        branch's first point), so that a study can keep it on file at once; ``twist_study``
-        calls it as on_instability(direction, index, critical.json entry, (q, phi) the last
-        stable state before the end), once the end is on file.
+        ``follow_twist``, as soon as a branch end is located (before a new branch's first point);
+        ``twist_study`` calls it as on_instability(direction, index, critical.json entry, (q, phi)
+        the last stable state before the end), once the end is on file.
     on_state : callable(PathState), optional
-        ``follow_twist``, after every step tried (and after the points and instabilities that
-        step reported): what ``follow_twist(resume=...)`` goes on from.
+        ``follow_twist``, after every step tried: what ``follow_twist(resume=...)`` goes on from.
 
     Raises
     ------
@@ -361,8 +331,7 @@ class Observer:
 
 def observed(observer, what, calls):
     """``observer`` (None: an Observer that calls nothing), checked: TypeError if it is not an
-    ``Observer``, ValueError naming a field that is set but not among ``calls`` (the fields that
-    ``what`` calls)."""
+    ``Observer``, ValueError naming a set field not among ``calls`` (those ``what`` calls)."""
     if observer is None:
         return Observer()
     if not isinstance(observer, Observer):
@@ -374,8 +343,7 @@ def observed(observer, what, calls):
 
 
 def checked_options(options):
-    """``options`` (None: ``ContinuationOptions()``); TypeError if it is not a
-    ``ContinuationOptions``."""
+    """``options`` (None: ``ContinuationOptions()``); TypeError if not a ``ContinuationOptions``."""
     if options is None:
         return ContinuationOptions()
     if not isinstance(options, ContinuationOptions):
@@ -385,6 +353,5 @@ def checked_options(options):
 
 
 def arclength_options(options):
-    """``options`` (None: the defaults) resolved for pseudo-arclength continuation; TypeError if it
-    is not a ``ContinuationOptions``, ValueError naming a value that is not allowed."""
+    """``options`` (None: the defaults) resolved for pseudo-arclength (TypeError, ValueError as above)."""
     return checked_options(options).resolved_arclength()

@@ -34,8 +34,8 @@ class CriticalPoint:
 
     phi: critical twist (rad); eigenvalue: crossing eigenvalue there (~0, dimensionless);
     dlambda_dphi: its derivative along the branch; mode: (n,) critical eigenvector (scaled DOFs);
-    equilibrium: the branch state at the last evaluated twist (within phi_error of phi); multiplicity: change of the negative count (2 for a
-    degenerate pair, as in the ring); bracket: (phi_a, phi_b) where the count changed;
+    equilibrium: the branch state at the last evaluated twist (within phi_error of phi);
+    multiplicity: change of the negative count; bracket: (phi_a, phi_b) where the count changed;
     phi_error: size of the last Newton correction (an upper bound on the error once converged);
     hessian_evaluations: spectra computed in the refinement (bracket ends included);
     scan: list of (phi, n_negative, lowest eigenvalues), one entry per scan step.
@@ -73,20 +73,14 @@ class PathPoint:
 class Instability:
     """Where a followed stable branch stops being one.
 
-    phi: estimate, inside the bracket (the critical eigenvalue extrapolated from the last stable
-    state, see ``branch_end_in_bracket``); phi_error: its distance to the bracket's far end (so the whole
-    bracket lies within phi +- phi_error); bracket: (last stable twist reached, nearest twist
-    where the branch was lost, or where its critical eigenvalue was found negative); kind: an ``EventKind``,
-    UNSTABLE (the corrector still converged on the branch, which had acquired negative eigenvalues) or JUMP (the
-    minimiser left the branch: a fold, or a subcritical bifurcation whose unstable branch it
-    cannot stay on); multiplicity: how many eigenvalues go soft together (2 for a symmetric
-    pair); eigenvalue,
-    dlambda_dphi, mode: the critical eigenvalue at the last stable state, its derivative along
-    the branch and its eigenvector (scaled DOFs); equilibrium: that last stable state;
-    from_branch / to_branch: branch names (to_branch None if no switch was made); jumped_to:
-    the first state of the new branch (or None); switch: how that branch was chosen (a dict: the
-    rule, the start chosen, what each start reached; ``switching.SWITCH_RULE``), None where no
-    switch was tried.
+    phi: estimate inside the bracket (``branch_end_in_bracket``); phi_error: its distance to the
+    bracket's far end; bracket: (last stable twist reached, nearest twist where the branch was
+    lost); kind: an ``EventKind``, UNSTABLE or JUMP; multiplicity: how many eigenvalues go soft
+    together; eigenvalue, dlambda_dphi, mode: the critical eigenvalue at the last stable state,
+    its derivative along the branch and its eigenvector (scaled DOFs); equilibrium: that last
+    stable state; from_branch / to_branch: branch names (to_branch None without a switch);
+    jumped_to: the first state of the new branch (or None); switch: how that branch was chosen
+    (a dict, ``switching.SWITCH_RULE``), None where no switch was tried.
     """
 
     phi: float

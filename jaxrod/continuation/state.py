@@ -27,23 +27,15 @@ class Phase(_ValueEnum):
 class PathState:
     """Everything a ``follow_twist`` run needs to go on, between two corrector calls.
 
-    ``follow_twist(..., observer=Observer(on_state=f))`` calls f(state) after every step tried
-    (and after the points and instabilities that step reported); ``follow_twist(...,
-    resume=state)`` goes on from it exactly as the uninterrupted run would (the continuation is
-    deterministic: a resumed run reports the same points and instabilities, to the last bit).
-    ``to_arrays()`` and ``PathState.from_arrays(arrays)`` store it in an npz file (every equilibrium by
-    its scaled DOFs, solver record and neighbourhood; the stabilities are recomputed on load).
+    ``Observer.on_state`` receives it after every step tried; ``follow_twist(..., resume=state)``
+    goes on from it exactly as the uninterrupted run would, to the last bit. ``to_arrays()`` and
+    ``PathState.from_arrays(arrays)`` store it in an npz file (stabilities recomputed on load).
 
-    phase: a ``Phase``; branch: name of the branch followed ('symmetric+', ...); prev: last
-    stable state (with stability), tangent: dq/dphi there; older: the state before it (or None);
-    h: current step; switches: branch switches made; n_points / n_instabilities: reported so far
-    (a study keeps as many rows and instabilities on file); lost_*: the nearest twist where the
-    branch was lost, the refusal there and its state, and from which twist it was tried;
-    failures / successes / probe_held: the end locator's memory (see ``end_trial``);
-    stop / reason: why the run stopped (phase DONE); critical_modes: (n, m) eigenvectors (scaled
-    DOFs) of the eigenvalues below -negative_tol where the branch was lost unstable (None
-    otherwise): while the end is located, a state whose eigenvalue along them is negative, even
-    inside the near-zero band, is past the end (``eigenvalue_past_zero``).
+    phase; branch ('symmetric+', ...); prev: last stable state, tangent: dq/dphi there; older: the
+    state before (or None); h: current step; switches; n_points / n_instabilities reported;
+    lost_*: the nearest lost twist, its refusal and state, and where it was tried from; failures /
+    successes / probe_held: ``end_trial``'s memory; stop / reason (phase DONE); critical_modes:
+    (n, m) eigenvectors of the modes that made the branch unstable, or None.
     """
 
     phase: Phase
@@ -89,8 +81,8 @@ class PathState:
 
     @classmethod
     def from_arrays(cls, arrays):
-        """A state from ``to_arrays``'s dict (or an opened npz), with its equilibria still to be
-        rebuilt: ``follow_twist(resume=...)`` does that (it knows the scene and the options)."""
+        """A state from ``to_arrays``'s dict (or an opened npz); ``follow_twist(resume=...)``
+        rebuilds its equilibria."""
         return _StoredPathState(dict(arrays))
 
 

@@ -22,14 +22,8 @@ def _next_branch_name(name):
     return f"buckled{int(tail) + 1 if tail.isdigit() else 2}"
 
 
-
-# How the stable-only engine picks the branch it goes on with past an end (named in each
-# instability's ``switch`` record, critical.json): the relaxations from the three starts are
-# deterministic, and of the states they reach, those that are stable, left the old branch and keep
-# Lk, the lowest in energy is taken. Which one that is can change with the code that relaxes them
-# (the README once showed Wr 3.64, then 3.71); the record says which start won and what the others
-# reached, so the choice is stated, not a lottery. Following the unstable branch instead is
-# ``jaxrod.studies.diagram`` (the unstable branches beyond each located end).
+# How the stable-only engine picks the branch past an end, named in each instability's ``switch``
+# record (with which start won and what the others reached), so the choice is stated.
 SWITCH_RULE = ("relaxed from the predicted state pushed +-perturbation along the critical mode and from the "
                "state the corrector jumped to; of the stable states that left the old branch with Lk kept, "
                "the lowest in energy")
@@ -45,8 +39,7 @@ def _switch_branch(engine, prev, dq, phi, mode, lost_eq, say):
     x_pred = np.asarray(scene.unpack(jnp.asarray(q_pred), phi)[0])
     step = mode_step(scene, mode, float(engine.opts.perturbation))  # resolved: jump_tol unless given
     starts = [("+mode", q_pred + step), ("-mode", q_pred - step)]
-    # Where the corrector itself goes when left alone (it was stopped early while locating the
-    # end, so that state is computed here, once).
+    # where the corrector itself goes when left alone (it was stopped early while locating the end)
     starts.append(("jumped", np.asarray(lost_eq.q) if lost_eq is not None else q_pred))
     best, chosen, candidates = None, None, []
     for label, q_start in starts:

@@ -13,10 +13,9 @@
     event_curve(prob, (u, p), set_mu, mu0, mus, EventCurveOptions(opts, delta))  # the first instability
                                                         # in mu, whatever its kind (a knot's phi*(D/L))
 
-Modules: problem (F, J, F_p by JAX), results, corrector (tangent,
-bordered Newton, step control), continuation (the entry), events (detection), locate (extended
-systems), switching (reduced equations at branch points), two_parameter (fold curves), event_curve (the
-first instability followed in mu through changes of kind).
+Modules: problem, results, corrector (tangent, bordered Newton, step control), continuation (the
+entry), events, locate (extended systems), switching (reduced equations at branch points),
+two_parameter (fold curves), event_curve (the first instability in mu through changes of kind).
 """
 from .continuation import continuation, continuation_until, restabilisation, until_stable
 from ...linalg.bordered import DenseBackend

@@ -22,11 +22,8 @@ def _point(problem, opts, c, t, ds, arclength):
     u, p = c.z[:-1].copy(), float(c.z[-1])
     soft = np.zeros(vals.shape, dtype=bool)
     if problem.soft_modes is not None:
-        # The hook splits the soft direction(s) off within the span of the computed (lowest)
-        # eigenvectors: (values, vectors, soft) with the soft directions' Rayleigh quotients and
-        # the Ritz pairs of J on the rest of the span. All negative eigenvalues lie in that span
-        # (k >= Morse index + 2), so by interlacing the Morse index on the complement of the
-        # soft directions counts the negative Ritz values there.
+        # all negative eigenvalues lie in the computed span (k >= Morse index + 2), so the Morse index
+        # on the complement of the soft directions counts the negative Ritz values there
         vals, vecs, soft = (np.asarray(a) for a in problem.soft_modes(u, p, vals, vecs))
         soft = soft.astype(bool)
         # the negative band relative to max |J_ii| (<= ||J||_2: no wider than the backend's band)
@@ -38,15 +35,14 @@ def _point(problem, opts, c, t, ds, arclength):
 def continuation(problem, alg, opts, *, observer=None, start=None, throw=True, known=(), start_tol=None):
     """Follow the branch of F(u, p) = 0 through (problem.u0, problem.p0) by ``alg`` (PseudoArclength).
 
-    start: optional (u (n,), p, tangent (n+1,)): a predicted point and direction (a branch switch); the first point
-    is then corrected on the hyperplane through it orthogonal to the tangent, otherwise on p = p0, and the path
-    starts towards sign(opts.ds) in p. start_tol: the first point is taken at a residual up to this where Newton
-    stops above newton_tol. observer(point) is called after each accepted point. Folds and branch points found
-    between consecutive points are located (``Branch.events``); known: events located before on the same path
-    (earlier chunks), which a locator landing on one does not take for a new event. throw=True raises
-    ContinuationError (``.branch``) when the corrector fails or an event is not located to ``opts.event_tol``;
-    throw=False returns the branch with ``result`` and ``message`` saying so. opts: a ``ContinuationOptions`` (None:
-    the defaults); newton_tol, event_tol and eig_rtol left None follow from the problem's scale (``scales``).
+    start: optional (u (n,), p, tangent (n+1,)): a predicted point and direction (a branch switch), the first
+    point corrected on the hyperplane through it orthogonal to the tangent (else on p = p0, towards sign(opts.ds)).
+    start_tol: the first point is accepted at a residual up to this. observer(point) is called after each
+    accepted point. Folds and branch points are located (``Branch.events``); known: events located before on
+    the same path, not taken for new ones. throw=True raises ContinuationError (``.branch``) when the corrector
+    fails or an event is not located to ``opts.event_tol``; throw=False returns the branch with ``result`` and
+    ``message`` saying so. opts: a ``ContinuationOptions`` (None: the defaults); newton_tol, event_tol and
+    eig_rtol left None follow from the problem's scale (``scales``).
     """
     opts = scaled_options(problem, opts, *_start_state(problem, start))
     be = problem.backend
@@ -119,12 +115,10 @@ def continuation(problem, alg, opts, *, observer=None, start=None, throw=True, k
 
 def continuation_until(problem, alg, opts, stop, *, start=None, observer=None, start_tol=None):
     """``continuation`` in chunks of ``opts.max_steps`` steps, until ``stop(points, events)``
-    returns a message (a non-empty str; checked after each chunk) or a chunk ends otherwise
-    (boundary, corrector failure, an event not located). Each chunk starts from the last point with
-    its tangent and the step it had reached; arclengths, event steps and slides are those of the
-    whole path. start, start_tol: as for ``continuation`` (start_tol: the first chunk's first
-    point only). Returns a Branch: ``result`` is Result.STOPPED with
-    stop's message, or the last chunk's result and message. Never raises for a failed chunk."""
+    returns a non-empty message or a chunk ends otherwise; each chunk goes on from the last point,
+    tangent and step, and the Branch covers the whole path. start, start_tol: as for
+    ``continuation`` (start_tol: the first point only). ``result`` is Result.STOPPED with stop's
+    message, or the last chunk's. Never raises for a failed chunk."""
     opts = scaled_options(problem, opts, *_start_state(problem, start))
     points, events, slides = [], [], []
     while True:
@@ -159,10 +153,8 @@ def restabilisation(events, after=0):
 def until_stable(problem, alg, opts, *, start=None, max_points=400, keep=3, observer=None):
     """Follow an unstable branch until it restabilises: ``continuation_until`` stopped at the first
     fold or branch point where the Morse index returns to 0 (``restabilisation``), ``keep`` points
-    past it, or after ``max_points`` points. This is one stated answer to "where does a knot go past
-    its branch end": the unstable branch itself, followed until it becomes stable again (or meets
-    another branch, which shows as a branch point); the other, relaxation along the critical mode,
-    is ``jaxrod.continuation``'s branch switching. Returns (Branch, the restabilising Event or None)."""
+    past it, or after ``max_points`` points (the alternative to relaxing along the critical mode,
+    ``jaxrod.continuation``'s branch switching). Returns (Branch, the restabilising Event or None)."""
     def stop(points, events):
         e = restabilisation(events)
         if e is not None and len(points) - 1 - e.step >= keep - 1:
@@ -181,8 +173,6 @@ def until_stable(problem, alg, opts, *, start=None, max_points=400, keep=3, obse
 def why_not_located(event, tol):
     """Why a detected ``event`` was not located to ``tol`` (event_tol), in words."""
     if event.residual <= tol and abs(event.critical_eigenvalue) <= tol:
-        # converged, but to a singular point along a soft mode (a slide) while the Morse index
-        # changed: the shape event in the bracket, next to it, was not resolved
         return (f"{event.kind} near p = {event.p:.6g} not located: Newton converged to a sliding mode's singular "
                 f"point (residual {event.residual:.3g}), and the shape {event.kind} in the same bracket "
                 f"(Morse {event.morse_before} -> {event.morse_after}) was not resolved")
@@ -192,10 +182,8 @@ def why_not_located(event, tol):
 
 def _slide(problem, opts, fold, direction, step):
     """Relax past a soft fold: minimise E(., p1) at p1 = fold.p + direction * slide_dp from the fold
-    kicked by slide_kick downhill along its soft mode (DampedNewton with steps capped at 10
-    slide_kick, so that it follows the valley instead of jumping over wells; the problem's structured
-    Hessian if it has one; args refreshed by ``update_args`` and the relaxation repeated while they
-    change), to 1e-9, then correct it on p = p1 to newton_tol. -> (Slide, Correction), or None."""
+    kicked by slide_kick downhill along its soft mode (``problem.relax``, steps capped at 10
+    slide_kick to follow the valley), then correct on p = p1. -> (Slide, Correction), or None."""
     import jax.numpy as jnp
 
     if problem.energy is None:
@@ -227,8 +215,7 @@ def _start_state(problem, start):
 
 
 def _accepted_start(c, start_tol):
-    """The start's Correction c, taken as converged where Newton stopped above newton_tol (a
-    roundoff floor above it) at a residual of at most start_tol (None: never)."""
+    """The start's Correction c, taken as converged at a residual of at most start_tol (None: never)."""
     if not c.converged and start_tol is not None and c.residual <= start_tol:
         return replace(c, converged=True)
     return c

@@ -21,11 +21,8 @@ class Correction:
 
 
 def tangent(backend, A, a, t_prev):
-    """Unit kernel vector of [A, a] (m, m+1), oriented so that <t, t_prev> > 0.
-
-    Solves [[A, a], [t_prev^T]] y = [0; 1]: regular at folds (A singular), singular only at branch
-    points, where the kernel of [A, a] is 2-dimensional.
-    """
+    """Unit kernel vector of [A, a] (m, m+1), oriented so that <t, t_prev> > 0, from
+    [[A, a], [t_prev^T]] y = [0; 1] (regular at folds, singular only at branch points)."""
     t_prev = np.asarray(t_prev)
     m = t_prev.size - 1
     y, y_lam = backend.bordered_solve(A, a, t_prev[:-1], t_prev[-1], np.zeros(m), 1.0)
@@ -34,11 +31,8 @@ def tangent(backend, A, a, t_prev):
 
 
 def correct(backend, lin, z_pred, t, tol, max_iter):
-    """Newton on [G(z); <z - z_pred, t>] = 0 from z_pred (Keller's arclength constraint).
-
-    Each iteration solves [[A, a], [t^T]] dz = -[G; <z - z_pred, t>]. Converged when the residual
-    norm is <= tol; not converged after max_iter solves or on a non-finite residual.
-    """
+    """Newton on [G(z); <z - z_pred, t>] = 0 from z_pred (Keller's arclength constraint): converged
+    when the residual norm is <= tol, not after max_iter solves or on a non-finite residual."""
     z = np.asarray(z_pred, dtype=float)
     res, it = np.inf, 0
     for it in range(max_iter + 1):
@@ -64,11 +58,8 @@ class Step:
 
 def advance(alg, backend, lin, z, t, ds, opts):
     """One accepted step of size <= ds > 0 from (z, t), or None once a step below ds_min failed.
-
-    A step is refused when the corrector fails, when it moved the point by more than
-    alg.max_correction * ds from the predictor, or when the new tangent turns more than
-    acos(alg.min_cos) from t; it is retried with ds * alg.shrink.
-    """
+    Refused (retried at ds * alg.shrink) when the corrector fails, moves more than
+    alg.max_correction * ds, or turns the tangent by more than acos(alg.min_cos)."""
     while ds >= opts.ds_min:
         z_pred = z + ds * t
         c = correct(backend, lin, z_pred, t, opts.newton_tol, opts.newton_max_iter)

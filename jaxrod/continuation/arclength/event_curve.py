@@ -1,36 +1,10 @@
 """The first instability of a branch followed in a second parameter, through changes of its kind.
 
-``fold_curve`` and ``branch_point_curve`` continue one event on its own extended system. On a
-loose knot that is not enough to draw phi*(D/L): the knot has a sliding mode
-whose eigenvalue (~1e-9 in scaled units) is far below the fold system's conditioning, so Newton on
-(F, sigma) = 0 at a new D drifts onto the slide's singular set (measured at N = 128: after one
-step of 0.001 L in D, a "fold" with a negative shape eigenvalue -6e-6 and the slide at 2e-9), and
-over the range the first instability changes kind (a fold, then a branch point where a second
-shape mode comes down first).
-
-``event_curve`` therefore corrects along the branch itself, where the soft-aware locators of
-``continuation`` work: at each new mu it
-
-1. predicts the state a distance ``delta`` before the event from the last one, shifted in p by
-   (mu - mu_prev) dp*/dmu (the implicit function theorem on the last event's extended system), so
-   that the gap to the event is kept;
-2. corrects it at that p with the args at the new mu (a knot's neighbourhood rebuilt for the new
-   diameter), checks that it is still on the stable part of the branch (Morse index 0), and
-   backs off (4 delta, 16 delta) if an event has already passed it;
-3. runs the pseudo-arclength continuation in p from there until the first event that changes the
-   Morse index of the shape modes: a fold (F, sigma) = 0 or a branch point (F + beta v, sigma, tau)
-   = 0, each located by Newton on its own extended system (soft folds of the slide are crossed, not
-   counted);
-4. takes dp*/dmu at the located event from the implicit function theorem on that event's system
-   (``fold_sensitivity``, ``branch_point_sensitivity``).
-
-It is natural-parameter continuation in mu whose corrector is the event locator on the branch in
-p, and nothing assumes the kind stays the same: a change of kind, or a jump of the first
-instability to another event (two event curves crossing), shows in the rows (``kind``, and p*
-against the prediction). It follows the branch through its start, not the branch from p = 0 at
-each mu: where the problem has many nearly equal equilibria (a loose knot's placements of its
-nodes along the slide) the two can differ, so it does not guarantee a point study's value at each
-mu (``jaxrod.studies.critical_curve`` runs a point study per ratio for that).
+On a loose knot, Newton on one event's extended system (``fold_curve``) drifts onto the slide's
+singular set, and the first instability changes kind. ``event_curve`` instead works along the
+branch: at each new mu it starts ``delta`` before the event, shifted by (mu - mu_prev) dp*/dmu,
+continues in p to the first shape event (located on its own system) and takes dp*/dmu there. It
+follows the branch through its start, which can differ from a point study's branch at each mu.
 """
 from __future__ import annotations
 
@@ -52,17 +26,13 @@ __all__ = ["EventCurve", "EventCurveOptions", "EventCurvePoint", "event_curve", 
            "first_event"]
 
 
-
 @dataclass(frozen=True)
 class EventCurveOptions:
     """Settings of ``event_curve``.
 
-    path: the ContinuationOptions of the short runs in p (ds, whose sign is the direction in p
-    towards the event, ds_max, tolerances, p bounds); algorithm: their PseudoArclength; delta: the
-    gap in p kept between the start of each run and the event (> 0); max_jump: a start that
-    relaxes further than this (max-norm in u) from the last one has left the branch (buckled,
-    being past the event) and is refused (the start backs off); chunk / max_points: continuation
-    points per call / at most per try.
+    path: the ContinuationOptions of the runs in p (sign of ds: towards the event); algorithm:
+    their PseudoArclength; delta: the gap in p kept before the event (> 0); max_jump: a start that
+    relaxes further (max-norm in u) has left the branch; chunk / max_points: points per call / per try.
     """
 
     path: ContinuationOptions
@@ -86,16 +56,11 @@ class EventCurveOptions:
 class EventCurvePoint:
     """One point of an event curve: the first instability at mu.
 
-    kind ("fold" or "branch_point"), p (the critical p), morse_before/after across it,
-    critical_eigenvalue and residual of its extended system, dp_dmu from the implicit function
-    theorem, u (n,) the located state, predicted: the p the curve's predictor gave, seconds: wall
-    time for this point, back_offs: how often the start had to back off, points: continuation
-    points computed; anchor_u (n,), anchor_p: the stable state before the event from which the
-    next mu starts (a start for a point study next to this one); predictor: what moved the start
-    to this mu: "ift" (the last point's dp*/dmu), "secant" (the last two points' p*) or "none"
-    (the last point's anchor as it is: the first point, or the two others failed); symmetric: the
-    start was projected onto the problem's symmetric states (``BifurcationProblem.symmetrize``; False
-    where the problem has none, the last anchor was off it, or no event was located on it).
+    kind, p (the critical p), morse_before/after, critical_eigenvalue and residual of its extended
+    system, dp_dmu (implicit function theorem), u (n,) the located state, predicted: the predictor's
+    p, seconds, back_offs, points: continuation points computed; anchor_u (n,), anchor_p: where
+    the next mu starts; predictor: "ift", "secant" or "none"; symmetric: the start was projected
+    onto the problem's symmetric states.
     """
 
     mu: float
@@ -148,8 +113,7 @@ class EventCurve:
 
 def branch_point_sensitivity(problem, event, set_mu, mu0):
     """dp*/dmu at the located simple branch point ``event`` of ``problem`` (args at mu = mu0): the
-    implicit function theorem on the unfolded system (F + beta v0, sigma, tau) = 0 in (u, p, beta)
-    (see ``branch_point_curve``), one solve with its Jacobian."""
+    implicit function theorem on the unfolded system of ``branch_point_curve``."""
     v0 = np.asarray(event.v[:, 0]) / np.linalg.norm(event.v[:, 0])
     _, A, a, _ = _branch_point_system(problem, set_mu, problem.args, event.u, event.p, 0.0, mu0, v0, v0)
     dx = np.linalg.solve(np.asarray(A), -np.asarray(a))
@@ -157,8 +121,7 @@ def branch_point_sensitivity(problem, event, set_mu, mu0):
 
 
 def first_event(branch):
-    """The first located shape event (fold or branch point that changes the Morse index) of a
-    Branch, or None."""
+    """A Branch's first located fold or branch point that changes the Morse index, or None."""
     for ev in branch.events:
         if ev.kind in SHAPE_EVENTS and ev.converged and ev.morse_before != ev.morse_after:
             return ev
@@ -171,24 +134,15 @@ def _shorter(opts, factor=4.0):
 
 
 def relax_problem(problem, u, p, symmetric=False):
-    """A minimum of E(., p) with the problem's args, from u (damped Newton, the structured
-    Hessian if the problem has one; args refreshed by ``update_args`` and the relaxation repeated
-    while they change). The start at a new mu: Newton on F = 0 from the old state can fail where
-    the new diameter pushes strands into contact; the state is stable there, so a minimiser gets
-    it. Returns u as it is when the problem has no energy.
-
-    symmetric: u is on the problem's symmetric states (``_on_symmetry``); the minimiser's result
-    is then projected back onto them (the problem's ``symmetrize`` hook). A loose
-    knot's slide is odd under the symmetry and nearly null, so the minimiser drifts along it by
-    round-off (the trefoil at N = 128, D/L = 0.010: 0.042 edges), onto another placement of the
-    nodes along the same shape, where the event lies elsewhere (3e-4 pi on the opening side); the
-    projection keeps every mu's event on the one symmetric branch, as a point study finds it."""
+    """A minimum of E(., p) with the problem's args, from u (``problem.relax``; u as it is
+    without an energy): the start at a new mu, where Newton on F = 0 can fail as the new diameter
+    pushes strands into contact. symmetric: u is on the symmetric states; the result is projected
+    back onto them, so the minimiser's drift along a loose knot's odd slide does not move the event."""
     if problem.update_args is not None:
         problem.args = problem.update_args(u, p, problem.args)
     if problem.energy is None:
         return u
     sol, problem.args = problem.relax(jnp.asarray(u), p, problem.args, gtol=1e-10)
-    # not converged or not: the run's first corrector puts the start on F = 0 at p, or refuses it
     y = np.asarray(sol.y)
     if symmetric:
         projected = problem.symmetrize(y, np.inf)
@@ -197,11 +151,6 @@ def relax_problem(problem, u, p, symmetric=False):
             if problem.update_args is not None:
                 problem.args = problem.update_args(y, p, problem.args)
     return y
-
-
-def _on_symmetry(problem, u):
-    """Whether u is within SYMMETRIC_TOL of the problem's symmetric states (its ``symmetrize`` hook)."""
-    return problem.symmetrize is not None and problem.symmetrize(np.asarray(u), SYMMETRIC_TOL) is not None
 
 
 def _run_to_event(problem, alg, opts, u, p, direction, chunk, max_points):
@@ -230,13 +179,9 @@ def _run_to_event(problem, alg, opts, u, p, direction, chunk, max_points):
 
 def _tries(history, mu, mu_prev, slope, delta):
     """The starts tried at a new mu, in order: (predictor, shift in p, gap back from it, shorter
-    steps). First the implicit function theorem's shift (mu - mu_prev) dp*/dmu, that keeps the gap to
-    the event, backed off 3 delta, then with shorter steps, then 15 delta back. Where the event's
-    system is nearly singular (a branch point of a nearly degenerate pair: the slope measured -7570
-    pi on the trefoil's tightening side at D/L = 0.039, N = 128) that shift throws the start far off
-    the branch and every back-off keeps it; then the secant of the last two events, then no shift
-    at all (the last anchor, delta before the last event), each backed off 15 delta with short steps
-    if it fails as well."""
+    steps). The implicit-function shift (mu - mu_prev) dp*/dmu with growing back-offs, then (for a
+    nearly singular event system, whose slope throws the start off the branch) the secant of the
+    last two events, then no shift."""
     h = mu - mu_prev
     first = "ift" if h != 0.0 else "none"  # the first mu: its own start, nothing to predict
     tries = [(first, h * slope, 0.0, False), (first, h * slope, 3.0 * delta, False),
@@ -257,16 +202,11 @@ def event_curve(problem, start, set_mu, mu0, mus, options, *, observer=None, pro
     problem: a BifurcationProblem whose args hold mu = mu0 (e.g. ``knot_problem(...).problem``);
     its args are left at the last mu done. start: (u (n,), p) on the stable part of the branch
     at mu0, before its first event in the direction sign(options.path.ds). set_mu(args, mu) -> args,
-    as for ``fold_curve`` (absolute, e.g. ``jaxrod.continuation.arclength.rods.set_diameter``). mus: the values
-    of mu to visit, in order (each step from the previous one; start them next to mu0).
-    options: an ``EventCurveOptions``. observer(EventCurvePoint), if given, after each point;
-    progress(str), if given, a line per try that found no event (why, and what comes next).
-    To resume, give as ``start`` the ``EventCurvePoint`` list of an earlier run of the same curve
-    (its points on file, in order; at least the last, and the one before it for the secant
-    predictor): the run goes on from the last as the earlier run would have (its anchor state,
-    event and slope) over ``mus``, the values after it; mu0 is then not visited again.
-
-    Returns an EventCurve; a mu at which no event is found (or the start cannot be corrected) ends
+    as for ``fold_curve`` (e.g. ``jaxrod.continuation.arclength.rods.set_diameter``). mus: the values
+    of mu to visit, in order. options: an ``EventCurveOptions``. observer(EventCurvePoint), if
+    given, after each point; progress(str), if given, a line per try that found no event.
+    To resume, give as ``start`` the ``EventCurvePoint`` list of an earlier run (at least its last
+    two rows) and as ``mus`` the values after it. Returns an EventCurve; a mu at which no event is found (or the start cannot be corrected) ends
     the curve there, with ``result`` and ``message`` saying why.
     """
     delta, direction = options.delta, 1.0 if options.path.ds > 0 else -1.0
@@ -339,12 +279,10 @@ class _Located:
 
 def _event_at(problem, set_mu, mu, u_b, p_b, tries, options, direction, progress):
     """The first event at mu from the anchor (u_b, p_b), over the ``tries``: on the symmetry
-    first (each start projected back onto it); where no try locates an event there, all of them
-    again without the projection, as the curve was followed before it: the trefoil at N = 128
-    has brackets on the symmetric branch where the Morse index changes with no singular point of
-    J (the slide split off on one side and not on the other), and the curve from D/L = 0.0274
-    stopped at 0.030 on the tightening side with the projection alone. -> _Located."""
-    passes = (True, False) if _on_symmetry(problem, u_b) else (False,)
+    first, then, where none locates one there, without the projection (some symmetric brackets
+    change the Morse index with no singular point of J). -> _Located."""
+    on_symmetry = problem.symmetrize is not None and problem.symmetrize(np.asarray(u_b), SYMMETRIC_TOL) is not None
+    passes = (True, False) if on_symmetry else (False,)
     for keep in passes:
         found = _try_starts(problem, set_mu, mu, u_b, p_b, tries, keep, options, direction, progress)
         if found.event is not None:
@@ -355,8 +293,7 @@ def _event_at(problem, set_mu, mu, u_b, p_b, tries, options, direction, progress
 
 
 def _try_starts(problem, set_mu, mu, u_b, p_b, tries, keep, options, direction, progress):
-    """The tries at mu in order until one locates an event. -> _Located of that try, else of the
-    last one."""
+    """The tries at mu in order until one locates an event. -> _Located of that try (else the last)."""
     opts, max_jump = options.path, options.max_jump
     for back_offs, (predictor, shift, gap, shorter) in enumerate(tries):
         p_start = p_b + shift - direction * gap
@@ -367,9 +304,6 @@ def _try_starts(problem, set_mu, mu, u_b, p_b, tries, keep, options, direction, 
             found = _Located(None, [], None, f"the start relaxed {jump:.3g} away (max_jump {max_jump:g})",
                              predictor, shift, back_offs, keep)
             continue
-        # a try that found no event (not located next to a slide, or none within max_points)
-        # is repeated from a start further back, then with shorter steps: another path to the
-        # same event, through other brackets
         ev, points, morse0, message = _run_to_event(problem, options.algorithm, _shorter(opts) if shorter else opts,
                                                      u_start, p_start, direction, options.chunk, options.max_points)
         found = _Located(ev, points, morse0, message, predictor, shift, back_offs, keep)

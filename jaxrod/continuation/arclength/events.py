@@ -1,25 +1,12 @@
 """Event detection between consecutive points of a branch, handed to the locators.
 
-- fold: the p-component of the tangent changes sign (the path turns back in p); a "soft_fold" if
-  the critical mode is soft (``BifurcationProblem.soft_modes``) and the Morse index is unchanged;
-  a "soft_turn" if no singular point is found but the path runs along soft directions at both
-  ends (over 90% of the tangent) with the Morse index unchanged: a turn to be slid across, like
-  a soft fold, with nothing located (residual nan);
-- branch point: the Morse index changes without a fold. Its size is the multiplicity (2 for the
-  double branch points that symmetry produces, where det of the bordered matrix keeps its sign,
-  so the Morse count is the test used; ``Point.bordered_sign`` gives the classic one).
-A p-turn whose F_p is orthogonal to the kernel is a branch point (a pitchfork seen from its
-non-symmetric branch), and is reported as one (see locate.locate_fold). A fold and a branch point
-inside one step are reported as the fold only.
+- fold: the p-component of the tangent changes sign (kinds "soft_fold" and "soft_turn": see
+  ``locate.locate_fold``); a fold and a branch point inside one step are reported as the fold;
+- branch point: the Morse index changes without a fold (by the multiplicity: the Morse count,
+  not the bordered determinant's sign, which symmetric double branch points keep).
 
-A fold located in the step before, with the Morse index unchanged across it, followed by a change
-of the Morse index without a turn, is that fold's crossing seen one step late: the points' Morse
-index is counted on the Ritz values left after the soft (sliding) directions are split off their
-eigenvectors, and where the fold's mode mixes with a slide that count lags the turn (the trefoil's
-tightening side at N = 121: the turn at -11.1843257630 pi with the shape Ritz value still 3e-10,
-negative one point later). The fold is reported again with the new Morse index, not a branch point
-(whose unfolded system, singular nowhere near, crawled 20-30 Newton iterations to a point 4e-6 pi
-away).
+A fold in the step before with the Morse index unchanged, then a change without a turn, is that
+fold's crossing seen late: the fold is reported again with the new Morse index.
 """
 from __future__ import annotations
 

@@ -15,11 +15,6 @@ from ...aot import cached_jit
 from ...linalg.bordered import DenseBackend
 
 
-def _jit_in_u_p(fn):
-    """jit(fn) called with u and p as float64 arrays (``_in_u_p``)."""
-    return _in_u_p(jax.jit(fn), {})
-
-
 class BifurcationProblem:
     """F(u, p, args) = 0 as pure JAX functions, with its start (u0, p0) and linear-algebra backend.
 
@@ -29,23 +24,17 @@ class BifurcationProblem:
     of smallest |lambda| (gauge modes) are excluded from the Morse index and the tracked spectrum;
     the dense corrector and locators still need J regular away from events, i.e. a pinned gauge.
 
-    Two optional hooks, for problems whose args depend on the state (a rod's contact list) or
-    whose spectrum has near-null modes that are not instabilities (a loose knot's sliding):
-    ``update_args(u, p, args) -> args`` is called after every accepted point and must return args
-    that give the same F near (u, p) (e.g. a rebuilt neighbourhood: F unchanged, the cost O(N));
+    Optional hooks: ``update_args(u, p, args) -> args``, called after every accepted point, must
+    return args that give the same F near (u, p) (e.g. a rebuilt neighbourhood);
     ``soft_modes(u, p, values (m,), vectors (n, m)) -> (values, vectors, soft (m,) bool)`` splits
-    soft directions (e.g. material sliding) off within the span of the lowest eigenvectors: they
-    are left out of the Morse index and of the event tests (``Point.soft``). ``jacobian(u, p, args) -> J
-    (n, n)``, traceable, replaces the backend's autodiff J where a structured one is cheaper (a
-    rod's Hessian assembled from its local blocks); it must equal dF/du. ``programs``, an object
-    with host-level ``linearise(u, p, args) -> (F, J, F_p)`` and ``bilinear_gradient(u, p, args, a,
-    c, t) -> (gradient in u (n,), in p)`` of a^T (J c + t F_p), replaces the problem's own jitted
-    forms of both (a knot evaluates them with the programs its stability analysis compiled:
-    ``bifurcation.rods.knot_problem``); the traced forms (``fold_curve``) still use energy/jacobian.
-    ``symmetrize(u, tol) -> u or None``: the projection of u onto the problem's symmetric states (a
-    closed rod's two-fold symmetry through its joint, ``jaxrod.model.symmetry``), or None where u is
-    further than tol (scaled units) from them or the problem has none; ``event_curve`` keeps a
-    symmetric branch symmetric with it where a minimiser would slide off along a near-null mode.
+    soft directions (e.g. material sliding) off the span of the lowest eigenvectors, left out of
+    the Morse index and the event tests (``Point.soft``); ``jacobian(u, p, args) -> J (n, n)``,
+    traceable, equal to dF/du, replaces the backend's autodiff J where a structured one is cheaper;
+    ``programs``, an object with host-level ``linearise(u, p, args) -> (F, J, F_p)`` and
+    ``bilinear_gradient(u, p, args, a, c, t)`` (the gradient in (u, p) of a^T (J c + t F_p)),
+    replaces the problem's own jitted forms of both (the traced forms still use energy/jacobian);
+    ``symmetrize(u, tol) -> u or None``: the projection of u onto the problem's symmetric states,
+    or None where u is further than tol (scaled units) from them (used by ``event_curve``).
     """
 
     def __init__(self, energy=None, u0=None, p0=0.0, args=None, *, residual=None, n_zero_modes=0, backend=None,
@@ -63,10 +52,7 @@ class BifurcationProblem:
         self.soft_modes = soft_modes
         self.symmetrize = symmetrize
         self.jacobian = jacobian
-        # The functions of (u, p, args), jitted once per (energy, residual, jacobian, backend) and
-        # shared by every problem built from them: a rod's problems at other starts (a study's
-        # branch ends, each a new ``knot_problem``) trace and load nothing again (measured on the
-        # trefoil at N = 121: 15 s of tracing and cache loads per diagram, for 4 branch ends)
+        # jitted once per (energy, residual, jacobian, backend), shared by every problem built from them
         fns = problem_functions(energy, residual, jacobian, self.backend)
         self.F, self.hvp = fns.F, fns.hvp
         self.traced_linearise, self.traced_singular_tests = fns.traced_linearise, fns.traced_singular_tests
@@ -84,9 +70,8 @@ class BifurcationProblem:
         return self.contracted(u, p, args, w, w, 0.0)
 
     def contracted(self, u, p, args, a, c, t):
-        """``bilinear_gradient`` with a and c as host arrays and t as a float64 scalar: a jitted
-        output (committed to its device) and a host array are two signatures to jit, i.e. two
-        compilations of the same program (2 s each for a knot at N = 121)."""
+        """``bilinear_gradient`` with a and c as host arrays and t as a float64 scalar (one jit
+        signature, not one per kind of input array)."""
         if self.scene_programs is not None:
             return self.scene_programs.bilinear_gradient(u, p, args, a, c, t)
         return self.bilinear_gradient(u, p, args, np.asarray(a, dtype=float), np.asarray(c, dtype=float),
@@ -94,18 +79,9 @@ class BifurcationProblem:
 
     def singular_tests(self, u, p, args, b):
         """The branch-point test functions' Jacobian in (u, p), ((2, n), (2,)), with aux (value (2,),
-        F, J, F_p, w): ``linearise`` gives (F, J, F_p), the backend's bordered solves give w and y,
-        and two ``bilinear_gradient`` calls the adjoint.
-
-        With M = [[J, b], [b^T, 0]] symmetric, M [w; sigma] = [0; 1] and M [y; eta] = [F_p; 0]:
-        d sigma = -w^T dJ w and d tau = -y^T dJ w + w^T dF_p (differentiate M [w; sigma] and use
-        w^T J = -sigma b^T, b^T dw = 0). J is symmetric at every (u, p), so y^T dJ w = w^T dJ y and
-        d tau = w^T d(J (-y) + F_p): both rows are gradients of w^T (J c + t F_p), a jvp of F
-        contracted with w (third derivatives of E, O(n) per gradient), where reverse mode through
-        the assembled J costs n passes (measured on the trefoil at N = 121, n = 719: ~3 s per
-        Newton iteration of the branch-point locator). The pieces are programs the fold locator
-        compiles anyway: one program for all of it compiled the rod's energy, Hessian and third
-        derivatives once more (~6 s of XLA at N = 121)."""
+        F, J, F_p, w). With M = [[J, b], [b^T, 0]] symmetric, M [w; sigma] = [0; 1] and M [y; eta] = [F_p; 0]:
+        d sigma = -w^T dJ w and d tau = w^T d(J (-y) + F_p), both gradients of w^T (J c + t F_p)
+        (O(n) each, where reverse mode through the assembled J costs n passes)."""
         F, J, Fp = self.linearise(u, p, args)
         n = np.shape(b)[0]
         w, sigma = self.backend.bordered_solve(J, b, b, 0.0, np.zeros(n), 1.0)
@@ -160,8 +136,8 @@ def problem_functions(energy, residual, jacobian, backend):
 
 
 def _in_u_p(program, statics):
-    """program(u, p, *rest, **statics) with u and p as float64 arrays (u (n,), p ()): a Python
-    float p would be traced weakly typed and a jnp one strongly, two programs for one function."""
+    """program(u, p, *rest, **statics) with u and p as float64 arrays (u (n,), p ()): one program,
+    whether p comes as a Python float or an array."""
     def call(u, p, *rest):
         return program(jnp.asarray(u, dtype=jnp.float64), jnp.asarray(p, dtype=jnp.float64), *rest, **statics)
 
@@ -193,17 +169,14 @@ def _directional_derivatives_program(u, p, args, h, energy, residual, jacobian, 
 
 class _Functions:
     """F = grad_u E (or the residual), J and the extended systems' derivatives as functions of
-    (u, p, args), with their jitted forms (args traced, so a new mu or a new reference state is no
-    recompile)."""
+    (u, p, args), with their jitted forms (args traced)."""
 
     def __init__(self, energy, residual, jacobian, backend):
         self.F = residual if residual is not None else jax.grad(energy, argnums=0)
         self.jacobian = jacobian
         self.backend = backend
-        self.energy_value = _jit_in_u_p(energy) if energy is not None else None
-        # Each jitted form is one module-level program whose static arguments name the problem's
-        # functions: ``jaxrod.aot`` can then keep it across processes (a rod's functions are
-        # module-level, so they key it), where a jit of a bound method could only be traced anew
+        self.energy_value = _in_u_p(jax.jit(energy), {}) if energy is not None else None
+        # module-level programs keyed on the problem's functions, so ``jaxrod.aot`` keeps them across processes
         statics = {"energy": energy, "residual": residual, "jacobian": jacobian, "backend": backend}
         self.linearise = _in_u_p(linearise_program, statics)
         self.bilinear_gradient = _in_u_p(_bilinear_gradient_program, statics)
@@ -246,12 +219,9 @@ class _Functions:
         return F, self.backend.jacobian(lambda x: self.F(x, p, args), u), Fp
 
     def traced_singular_tests(self, u, p, args, b):
-        """(sigma, tau) (2,): sigma from [[J, b], [b^T, 0]] [w; sigma] = [0; 1] vanishes iff J is
-        singular; tau = w^T F_p also vanishes at a branch point (F_p orthogonal to the kernel).
-        ``singular_tests`` gives its Jacobian ((2, n), (2,)) by the adjoint; this form is traceable
-        and differentiable in reverse mode through the bordered solve (``fold_curve`` uses it)."""
-        # J by autodiff here even where a structured ``jacobian`` is given: this function is
-        # differentiated in reverse mode, which a structured assembly (loops) may not support
+        """(sigma, tau) (2,): sigma vanishes iff J is singular, tau = w^T F_p also at a branch
+        point. The traceable form of ``singular_tests``, differentiable in reverse mode."""
+        # J by autodiff even with a structured ``jacobian``, which may not support reverse mode
         F, Fp = jax.jvp(lambda q: self.F(u, q, args), (p,), (jnp.ones_like(p),))
         J = self.backend.jacobian(lambda x: self.F(x, p, args), u)
         w, sigma = self.backend.bordered_solve(J, b, b, 0.0, jnp.zeros_like(u), 1.0)

@@ -47,12 +47,8 @@ class Point:
 
     @property
     def bordered_sign(self):
-        """sign det [[J, F_p], [t_u^T, t_p]]: the classic branch-point test function.
-
-        With J t_u + F_p t_p = 0 and |t| = 1, the Schur complement gives det = det(J) / t_p, so
-        its sign is (-1)^morse * sign(t_p) (no zero modes): it changes at a simple branch point,
-        not at a fold (det J and t_p both change) nor at a double branch point.
-        """
+        """sign det [[J, F_p], [t_u^T, t_p]] = (-1)^morse sign(t_p): the classic branch-point test
+        function (it changes at a simple branch point, not at a fold nor a double branch point)."""
         return (-1) ** self.morse_index * (1 if self.tangent[-1] >= 0 else -1)
 
 
@@ -60,12 +56,10 @@ class Point:
 class Event:
     """A located fold or branch point between points ``step - 1`` and ``step`` of its branch.
 
-    u (n,), v (n, multiplicity) orthonormal (approximate) kernel, eigenvalues (multiplicity,) the
-    critical eigenvalues at (u, p); residual: of the extended system (F, sigma[, tau]) or of the
-    corrector; iterations: Newton iterations on the extended system (fold, simple branch point) or
-    eigenvalue evaluations (Brent, several eigenvalues crossing); tangent (n+1,) of the parent
-    branch at the bracket end nearest the event; converged: residual and critical eigenvalues
-    <= options.event_tol.
+    u (n,), v (n, multiplicity) approximate orthonormal kernel, eigenvalues (multiplicity,) the
+    critical eigenvalues; residual and iterations: of the extended system (or the corrector, and
+    Brent's eigenvalue evaluations); tangent (n+1,) of the parent branch at the nearest bracket
+    end; converged: residual and critical eigenvalues <= options.event_tol.
     """
 
     kind: str
@@ -89,11 +83,9 @@ class Event:
 
 @dataclass
 class Slide:
-    """A jump across a soft fold (``ContinuationOptions.soft_folds = "slide"``): from the located
-    ``fold`` (an Event of kind "soft_fold") to the minimum ``u`` (n,) reached by relaxing at
-    p = fold.p + direction * slide_dp; distance |u - fold.u|, energy_drop E(fold.u, p) - E(u, p)
-    (>= 0), iterations of the relaxation. The branch goes on from u; ``step`` is the index of the
-    point the slide arrived at."""
+    """A jump across a soft fold (``soft_folds = "slide"``): from the located ``fold`` to the minimum
+    ``u`` (n,) reached at p; distance |u - fold.u|, energy_drop E(fold.u, p) - E(u, p) (>= 0),
+    iterations of the relaxation; ``step``: the index of the point it arrived at."""
 
     fold: Event
     p: float

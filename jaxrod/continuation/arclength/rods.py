@@ -1,34 +1,15 @@
 """Rods as bifurcation problems: the scene's scaled energy with its gauge pinned.
 
-A closed rod's Hessian is singular everywhere along its 7 symmetry generators (3 translations, 3
-rotations, the uniform shift of the twist angles), but the continuation's corrector and locators
-need J regular away from events. As on jaxrod's O(N) path (``jaxrod.linalg.sparse``), the gauge
-is fixed by pinning 7 DOFs -- 3 coordinates of node 0, 2 of node ~N/3, 1 of node ~2N/3 and the twist
-angle of edge 0, the coordinates chosen by ``gauge_pins`` -- at their values in a reference state.
-The problem's unknowns are the other (free) DOFs, in the scene's scaled units (node coordinates in
-edge lengths, energy in B/l):
+A closed rod's Hessian is singular along its 7 symmetry generators, so (as in
+``jaxrod.linalg.sparse``) 7 DOFs chosen by ``gauge_pins`` are pinned at their reference values:
+E_pinned(u_free, phi) = scene.scaled_energy(embed(u_free), phi). At an equilibrium the pinned
+Hessian is congruent to the projected one (same Morse index and zero crossings), and every
+solution is an equilibrium of the rod (``full_gradient`` checks it, and measures the force that
+``extra_pins`` hold).
 
-    E_pinned(u_free, phi) = scene.scaled_energy(embed(u_free), phi),
-
-so that F = grad E_pinned is the full gradient with the pinned rows dropped. At an equilibrium the
-pinned Hessian is congruent to the Hessian projected off the symmetries (see the module docstring
-of ``jaxrod.linalg.sparse``): same inertia, hence the same Morse index, and its eigenvalues cross
-zero at the same parameters (not with the same values away from zero: the metric differs).
-
-Those 7 pins remove exact symmetries, so every solution of the pinned problem is an equilibrium of
-the rod (the gradient along each generator vanishes identically, and the pinned DOFs move the rod
-along the generators): ``full_gradient`` checks it. ``extra_pins`` fixes further DOFs the same way;
-that is a gauge only for a further (exact or numerically exact) symmetry -- e.g. the material
-sliding along a buckled ring, see ``benchmarks/bifurcation_michell.py`` -- and ``full_gradient``
-then measures how exact it is (the force the extra pin holds).
-
-The exact energy (the writhe that fixes the holonomy's branch, contact over all pairs) is O(N^2)
-and ``pinned_problem`` assembles J densely (``DenseBackend``): meant for N up to ~100.
-``knot_problem`` evaluates through a neighbourhood (O(N)) and, from ``SPARSE_MIN_DOF`` DOFs on,
-takes ``SparseBackend`` (SciPy's sparse factorisations on the host): the fold of the trefoil at
-N = 481 is located in ~40 s (``benchmarks/sparse_fold.py``). From N ~ 250 on the knot's material
-slide is a numerically exact symmetry (pinned eigenvalue ~1e-12 at N = 481): pin one more DOF
-along it (``pins=``), or Newton's corrector steps by edge lengths along it and stalls.
+``pinned_problem`` uses the exact O(N^2) energy and a dense J (N up to ~100); ``knot_problem``
+evaluates through a neighbourhood (O(N)) and takes ``SparseBackend`` from ``SPARSE_MIN_DOF`` DOFs
+on. From N ~ 250 on a knot's material slide is numerically exact and must be pinned too.
 """
 from __future__ import annotations
 
@@ -64,12 +45,8 @@ __all__ = ["PinnedRod", "RodArgs", "pinned_problem", "knot_problem", "split_slid
 class RodArgs(NamedTuple):
     """The args pytree of a pinned rod's problem: scene; u_ref (n,) the scaled reference state
     whose pinned entries are held; free (n - k,) int, the free DOFs' indices; nbr, the knot's
-    ``Neighbourhood`` (None without contact).
-
-    The reference and the indices travel as arguments, not as constants of the energy's closure:
-    two problems of the same shape (another start, another reference state) then lower to the
-    same program, which the compilation cache reuses instead of compiling again (measured: 4 s
-    per function at N = 121). Vary a material parameter with ``args._replace(scene=...)``.
+    ``Neighbourhood`` (None without contact). Arguments, not closure constants, so that problems
+    of the same shape share compiled programs.
     """
 
     scene: Any
@@ -79,8 +56,7 @@ class RodArgs(NamedTuple):
 
 
 def _with_material(args, B, C, EA, D):
-    # jax.tree_util rebuilds the material without __init__ (its leaves may be tracers), and a
-    # shallow copy of the frozen scene takes it: nothing else in a scene derives from the material
+    # rebuilt without __init__ (its leaves may be tracers); nothing else in a scene derives from it
     material = jax.tree_util.tree_unflatten(jax.tree_util.tree_structure(args.scene.material), [B, C, EA, D])
     scene = copy.copy(args.scene)
     object.__setattr__(scene, "material", material)
@@ -96,9 +72,8 @@ def set_poisson_ratio(args, nu):
 
 def set_diameter(args, D):
     """RodArgs with the rod's diameter D at fixed Young's modulus, Poisson ratio and length (mu = D):
-    B and C scale as D^4, EA as D^2, and the contact distance is D. Traceable (see
-    ``set_poisson_ratio``). The neighbourhood (contact candidates) is the one in args: valid for
-    a D near the one it was built with."""
+    B and C scale as D^4, EA as D^2. Traceable; the neighbourhood in args is kept (valid near the
+    D it was built with)."""
     m = args.scene.material
     r = D / m.D
     return _with_material(args, m.B * r ** 4, m.C * r ** 4, m.EA * r ** 2, D)
@@ -121,8 +96,7 @@ def _pinned_structured_hessian(u_free, phi, args):
 
 
 def _pinned_parts(u_free, phi, args):
-    """The pinned Hessian's parts (``sparse_contact.hessian_parts`` of the embedded state), for
-    ``SparseBackend``: traceable, O(N)."""
+    """``sparse_contact.hessian_parts`` of the embedded state, for ``SparseBackend``."""
     return hessian_parts(args.scene, _embedded(u_free, args), phi, args.nbr)
 
 
@@ -134,13 +108,9 @@ def assemble_pinned_hessian(parts, args):
 
 
 class _ScenePrograms:
-    """A pinned rod's (F, J, F_p) and contracted third derivatives (``BifurcationProblem``'s
-    ``programs`` hook) from the whole scene's programs (``stability.scene_linearisation`` and
-    ``stability.scene_bilinear_gradient``), restricted to the free DOFs: E_pinned(u_free) =
-    E(embed(u_free)), so F, F_p and the gradients are the scene's free rows and J its free rows and
-    columns, exactly. A study compiled those programs for its stability analysis already (same
-    scene, same shapes): its diagram then compiles none of its own for them (command 1, cold:
-    ~4.5 s of XLA at N = 121)."""
+    """``BifurcationProblem``'s ``programs`` hook: (F, J, F_p) and contracted third derivatives from
+    the whole scene's programs (``stability.scene_linearisation``, ``scene_bilinear_gradient``)
+    restricted to the free DOFs, exactly; a study has compiled those already."""
 
     @staticmethod
     def _full(vector, args, fill):
@@ -161,13 +131,8 @@ class _ScenePrograms:
 
 @dataclass(frozen=True, eq=False)
 class PinnedRod:
-    """A rod scene as a ``BifurcationProblem`` in its free DOFs.
-
-    problem: the BifurcationProblem (u = free scaled DOFs, p = phi, args = a ``RodArgs``, a pytree,
-    so ``fold_curve`` can vary a material parameter through ``set_mu``); scene; pins (k,) and free
-    (n - k,) indices into the scene's DOFs q; u_ref (n,) the scaled reference state whose pinned
-    values are held.
-    """
+    """A rod scene as a ``BifurcationProblem`` (u = free scaled DOFs, p = phi, args = a ``RodArgs``);
+    pins (k,) and free (n - k,) index the scene's DOFs q; u_ref (n,) holds the pinned values."""
 
     problem: BifurcationProblem
     scene: object
@@ -185,8 +150,7 @@ class PinnedRod:
         return np.asarray(u)[self.free]
 
     def _host_embed(self, u_free):
-        """``embed`` on the host (numpy): as eager JAX operations it would be a handful more
-        executables for every process to load."""
+        """``embed`` on the host (numpy): eager JAX would load more executables."""
         full = np.array(self.u_ref, dtype=float)
         full[np.asarray(self.free)] = np.asarray(u_free, dtype=float)
         return full
@@ -200,8 +164,7 @@ class PinnedRod:
         return np.asarray(self.scene.positions(self.q(u_free)))
 
     def full_gradient(self, u_free, phi):
-        """Max-norm of the gradient of the scaled energy over ALL DOFs, pinned ones included:
-        ~ roundoff at an equilibrium of the rod (scaled units)."""
+        """Max-norm of the scaled gradient over ALL DOFs, pinned ones included (~roundoff at an equilibrium)."""
         g = _scaled_gradient(self.scene, jnp.asarray(self._host_embed(u_free)), jnp.asarray(phi, dtype=jnp.float64))
         return float(np.max(np.abs(np.asarray(g))))
 
@@ -210,8 +173,8 @@ class PinnedRod:
         return float(_writhe(jnp.asarray(self.nodes(u_free))))
 
     def min_distance(self, u_free, exclude=2):
-        """Closest approach between segments more than ``exclude`` apart along the rod (physical
-        units, ``jaxrod.model.geometry.closest_approach``); self-contact when it reaches the diameter D."""
+        """Closest approach between segments more than ``exclude`` apart (physical units,
+        ``jaxrod.model.geometry.closest_approach``)."""
         return closest_approach(self.nodes(u_free), closed=True, exclude=exclude)
 
 
@@ -226,12 +189,9 @@ def _scaled_gradient(scene, u, phi):
 def pinned_problem(scene, q_ref, phi0, *, pins=None, extra_pins=(), backend=None):
     """The rod ``scene`` as a BifurcationProblem with its gauge pinned at the state ``q_ref``.
 
-    scene: a closed rod without contact (e.g. ``jaxrod.michell_ring``); q_ref (n,): physical DOFs of
-    the reference state (an equilibrium at phi0, or a guess the first corrector converges from);
-    pins: q indices to pin (default ``gauge_pins(scene, u_ref, phi0)``: the 7 gauge DOFs chosen for
-    the best-conditioned gauge at that state); extra_pins: further q indices (see the module
-    docstring); backend: default ``DenseBackend()``. The problem starts at (restrict(u_ref), phi0)
-    with n_zero_modes = 0 (nothing singular is left in the pinned Hessian). Returns a PinnedRod.
+    scene: a closed rod without contact; q_ref (n,): physical DOFs of the reference state; pins: q
+    indices to pin (default ``gauge_pins``); extra_pins: further q indices; backend: default
+    ``DenseBackend()``. Starts at (restrict(u_ref), phi0), n_zero_modes = 0. Returns a PinnedRod.
     """
     u_ref = np.asarray(scene.to_scaled(np.asarray(q_ref, dtype=float)), dtype=float)
     if pins is None:
@@ -249,9 +209,8 @@ def _build(scene, u_ref, phi0, pins, backend):
 
 
 def _with_symmetry(rod):
-    """rod, its problem given the ``symmetrize`` hook where the scene has the joint's two-fold
-    symmetry (``jaxrod.model.symmetry``) and exactly the 7 gauge DOFs are pinned (a pin along a slide or
-    an extra pin is no gauge of the symmetric states: no hook then)."""
+    """rod, given the ``symmetrize`` hook where the scene has the joint's two-fold symmetry and
+    exactly the 7 gauge DOFs are pinned (other pins are no gauge of the symmetric states)."""
     if not has_joint_symmetry(rod.scene) or rod.pins.size != 7:
         return rod
     edge = float(np.mean(np.asarray(rod.scene.rest_lengths)))
@@ -270,11 +229,8 @@ def _with_symmetry(rod):
     return rod
 
 
-# A soft mode of the pinned Hessian that slides (``split_sliding``) with |lambda| at most this, in
-# scaled units, is a numerically exact symmetry of the discrete knot: the trefoil (8, 292) has
-# ~1e-7 at N = 121 and -2.3e-12 at N = 481. Along such a mode Newton's corrector steps by edge
-# lengths and stalls at a residual of ~6e-8, above newton_tol (measured with either backend at
-# N = 481 and 961; benchmarks/sparse_fold.py); ``knot_problem`` then pins it like a gauge.
+# A sliding soft mode with |lambda| at most this (scaled units) is a numerically exact symmetry,
+# along which Newton's corrector stalls: ``knot_problem`` pins it like a gauge.
 EXACT_SLIDE_TOL = 1e-9
 
 
@@ -282,32 +238,13 @@ def knot_problem(scene, q_ref, phi0, *, pins=None, capacity=None, sliding=CLEAN_
                  slide_tol=EXACT_SLIDE_TOL):
     """A knot (a closed rod with soft self-contact) as a BifurcationProblem, at O(N) per energy.
 
-    As ``pinned_problem`` (7 gauge DOFs pinned at the state q_ref (n,), physical DOFs, at phi0),
-    but the energy is evaluated through a ``Neighbourhood`` (contact candidates and the writhe
-    that fixes the holonomy's branch, ``jaxrod.model.neighbourhood``) carried in the problem's args
-    (``RodArgs.nbr``): the same value as the exact energy while the state stays inside it, O(N) instead
-    of O(N^2). After every accepted point the neighbourhood is rebuilt if it went stale (the
-    problem's ``update_args``; its capacity, padded to ``capacity`` pairs, is kept so that
-    nothing recompiles).
-
-    Soft modes: a loose knot has near-null modes that move material along its own centreline
-    (strands slipping; ~1e-11 to 1e-7 in scaled units, of either sign, depending on N). They are
-    told apart by their shape, not by a band of eigenvalues: a mode whose ``sliding_fraction``
-    (what is left of it once the best sliding field plus a rigid motion is taken out) is below
-    ``sliding`` (default ``jaxrod.linalg.stability.CLEAN_SLIDE_FRACTION``, 5e-3) is a soft mode, left out
-    of the Morse index and of the event tests. A buckling mode changes the shape: its fraction is
-    O(1). The slides split off in the tests and in command 1 leave at most 1.2e-4; the looser 0.05
-    let the least sliding mix of the span pass for a slide (0.04 on the trefoil at N = 241, mostly
-    a stiff mode with some of the nearly degenerate buckling pair), and splitting it off made the
-    states past the tightening fold look stable (``tests/test_bifurcation_knots.py``).
-    backend: default ``SparseBackend`` (SciPy's sparse factorisations on the host, O(N)) from
-    ``linalg.backend.SPARSE_MIN_DOF`` DOFs on, else ``DenseBackend``.
-    Exact slides: with ``pins`` None, if the softest sliding mode of the gauge-pinned Hessian at
-    q_ref has |lambda| <= ``slide_tol`` (default ``EXACT_SLIDE_TOL``; 0 never pins), it is a
-    numerically exact symmetry (large N), which stalls the corrector; it is then fixed like the
-    gauge by one more pin, the free node coordinate that moves most along it (``PinnedRod.slide_pin``;
-    check ``full_gradient`` at the results: the force that pin holds, ~roundoff when the symmetry
-    is exact).
+    As ``pinned_problem``, but the energy is evaluated at O(N) through a ``Neighbourhood`` in
+    ``RodArgs.nbr``, rebuilt after an accepted point where stale (``update_args``; padded to
+    ``capacity`` pairs). A mode whose ``sliding_fraction`` is below ``sliding`` (a slide) is left
+    out of the Morse index and the event tests. backend: default ``SparseBackend`` from
+    ``SPARSE_MIN_DOF`` DOFs on, else ``DenseBackend``. Exact slides: with ``pins`` None, if the softest sliding mode at q_ref has |lambda| <=
+    ``slide_tol`` (default ``EXACT_SLIDE_TOL``; 0 never pins), the free node coordinate that moves
+    most along it is pinned too (``PinnedRod.slide_pin``; ``full_gradient`` shows the force it holds).
     Returns a PinnedRod (its problem's args are a ``RodArgs`` with the neighbourhood).
     """
     q_ref = np.asarray(q_ref, dtype=float)
@@ -325,9 +262,7 @@ def knot_problem(scene, q_ref, phi0, *, pins=None, capacity=None, sliding=CLEAN_
     pins = np.unique(np.asarray(pins, dtype=np.int64).ravel())
     free = np.setdiff1d(np.arange(u_ref.size), pins)
     nbr0 = scene.neighbourhood(q_ref, float(phi0), capacity=capacity)
-    # the diameter each neighbourhood was built for: its candidates are the pairs closer than
-    # D_built + skin, valid for a diameter D while no node moved more than (skin - (D - D_built)) / 2
-    # (a fold curve in D: ``set_diameter``)
+    # the diameter each neighbourhood was built for (a fold curve in D grows it: ``set_diameter``)
     built_for = weakref.WeakKeyDictionary({nbr0: float(scene.material.D)})
     holder = {}
 
@@ -336,7 +271,7 @@ def knot_problem(scene, q_ref, phi0, *, pins=None, capacity=None, sliding=CLEAN_
         q = holder["rod"].q(u_free)
         D = float(sc.material.D)
         upd = nbr.update(sc, q, float(phi), grown=max(0.0, D - built_for.get(nbr, D)))
-        if not upd.outdated:  # still exact here: keep it (the same args, nothing to re-trace)
+        if not upd.outdated:  # still exact: the same args, nothing to re-trace
             return args
         built_for[upd.nbr] = D
         return args._replace(nbr=upd.nbr)
@@ -374,13 +309,9 @@ def _exact_slide_pin(rod, q_ref, sliding, slide_tol):
 
 
 def split_sliding(scene, q, free, n_full, values, vectors, threshold=CLEAN_SLIDE_FRACTION):
-    """Split the material-sliding direction off the span of the lowest eigenvectors of a pinned
-    knot (``jaxrod.linalg.stability.split_slide`` on the vectors embedded in all n_full DOFs).
-
-    values (m,), vectors (n_free, m): the lowest eigenpairs of the pinned Hessian; q: the state.
-    Returns (values, vectors, soft): the slide, if its fraction is below ``threshold``, as one
-    soft direction with its Rayleigh quotient, and the rest of the span as Ritz pairs (ascending).
-    """
+    """``jaxrod.linalg.stability.split_slide`` on a pinned knot's lowest eigenpairs (values (m,),
+    vectors (n_free, m)) embedded in all n_full DOFs, at the state q. -> (values, vectors, soft):
+    the slide as one soft direction (if below ``threshold``), the rest as ascending Ritz pairs."""
     V = np.asarray(vectors, dtype=float)
     full = np.zeros((n_full, V.shape[1]))
     full[np.asarray(free)] = V
@@ -390,32 +321,20 @@ def split_sliding(scene, q, free, n_full, values, vectors, threshold=CLEAN_SLIDE
     return vals, V @ coef, soft
 
 
-# Eigenvalues within this of zero (scaled units; round-off is ~1e-14 at N = 121) count as neither sign
-# when a split is checked against the inertia.
+# Eigenvalues within this of zero (scaled units, ~round-off) count as neither sign in the check below.
 SPLIT_SIGN_TOL = 1e-14
-# A negative direction of J that the split hides counts as a shape instability above this sliding
-# fraction. Measured where the split hid one: 0.20-0.28 at crossings (the trefoil's buckled+ branch
-# at N = 121, its tightening curve at N = 128 and D/L = 0.021); slide-dominated mixes that are saddles
-# of the sliding landscape: 0.05-0.06 (the tightening curve at D/L = 0.020, where counting them lost
-# the branch point's location). SLIDING_FRACTION (0.05) separates a clean mode from a slide.
+# A negative direction of J that the split hides is a shape instability above this sliding fraction
+# (hidden crossings seen at 0.20 and more; slide-dominated saddles at 0.05-0.06).
 HIDDEN_SHAPE_FRACTION = 0.15
 
 
 def _split_hides_a_shape_instability(scene, q, values, full, split_values, soft):
-    """Whether splitting the slide off hides a negative direction of J that changes the shape.
-
-    The split counts the Morse index on the Ritz values of the complement of the slide direction s.
-    Where the slide couples strongly to a shape mode near zero, J can have a negative direction that
-    neither s's Rayleigh quotient nor the complement's Ritz values show (Haynsworth: n_neg(J) =
-    [s^T J s < 0] + n_neg(Schur complement), and the complement's count can fall below the Schur
-    complement's). So J's negative eigenvectors are counted too, those that change the shape
-    (sliding fraction above HIDDEN_SHAPE_FRACTION = 0.15: a slide leaves < 1e-3, the hidden
-    crossings seen 0.20 and more); if they outnumber the complement's negative Ritz values, the
-    split is not made (J's eigenpairs stay as they are, none soft). Measured on the trefoil at
-    N = 121 (--step 0.25pi): on its buckled+ branch the slide sat at 2.1e-7, the shape Ritz value
-    at 1.7e-7 and J's lowest eigenvalue at -1.3e-9 (7.0411 pi, fraction 0.20), and the split hid
-    the branch point at 7.041 pi (the path ended at a fold at 7.069 pi); at the opening fold J's
-    negative direction -1.4e-8 is the slide (fraction 3e-4), and the split stands."""
+    """Whether splitting the slide off hides a negative direction of J that changes the shape: where
+    the slide couples strongly to a shape mode near zero, J can have a negative direction
+    that neither the slide's Rayleigh quotient nor the complement's Ritz values show (Haynsworth).
+    So J's negative eigenvectors that change the shape (sliding fraction above
+    HIDDEN_SHAPE_FRACTION) are counted too; if they outnumber the complement's negative Ritz
+    values, the split is not made."""
     tol = SPLIT_SIGN_TOL
     negative = np.flatnonzero(values < -tol)
     counted = int(np.sum(split_values[~soft] < -tol))
@@ -427,25 +346,12 @@ def _split_hides_a_shape_instability(scene, q, values, full, split_values, soft)
 def sliding_slice(rod, event, *, candidates=None):
     """Pick one member of the circle of buckled branches at a ring's double branch point.
 
-    At the O(2)-symmetric double branch point of a ring (``event``: multiplicity 2, kernel V
-    (n, 2), on the trivial branch of ``rod``) the emanating solutions form a circle family: the
-    buckled shape slid along its own centreline (material relabelling), which for a uniform rod is
-    a symmetry -- exact in the continuum; of the discrete ring's D_N symmetry, the lowest invariant
-    of the mode-2 amplitude z that is not O(2)-invariant is Re z^(N/2) (N even), so the slide is
-    broken only at that order, i.e. to roundoff for N >= 24. Each buckled solution carries a
-    (numerically) zero eigenvalue, which the pinned Hessian keeps: the corrector's tangent drifts
-    along it and the path stalls. Like the rigid motions it is a gauge, fixed by one more pin: the
-    coordinate k of a free node (default candidates: all free node coordinates) whose row of V is
-    largest, held at its value on the trivial branch (constant there: the circle does not move with
-    phi). The buckled branch kept is the one along V eta with eta orthogonal to V[k] (u_k = u_ref[k]
-    on it to first order).
-
-    Returns (rod8, event8): the PinnedRod with the extra pin and the event as a simple branch point
-    of it (u, v (n-1, 1) = the restricted V eta, normalised, tangent restricted, Morse index after
-    = before + 1: one of the crossing pair is left, by interlacing), so that ``switch_branches`` or
-    a ``continuation`` started at u + r v follows that buckled branch with the slide pinned.
-    Check ``rod8.full_gradient`` along it: the force the extra pin holds, ~roundoff when the
-    sliding symmetry is exact.
+    At a ring's O(2)-symmetric double branch point (``event``, kernel V (n, 2)) the emanating
+    solutions form a circle (the buckled shape slid along its centreline), whose zero eigenvalue
+    stalls the corrector. It is fixed like a gauge by one more pin: the free node coordinate k
+    (among ``candidates``, default all) whose row of V is largest; the branch kept is along V eta,
+    eta orthogonal to V[k]. Returns (rod8, event8): the PinnedRod with the extra pin and the event
+    as a simple branch point of it, for ``switch_branches`` or ``continuation``.
     """
     V = np.asarray(event.v)
     if V.shape[1] != 2:

@@ -1,21 +1,16 @@
 """Branch switching at a located branch point, from the reduced (Lyapunov-Schmidt) equations.
 
-At (u*, p*) with kernel V (n, d) (d = 1 simple, 2 double), write u = u* + dp * s + V xi + w with
-s = du/dp of the parent branch and w in range(J). For a gradient system the reduced equations are
-the gradient of a reduced energy g(xi, dp) = dp/2 xi^T B xi + T(xi) + ..., where
+At (u*, p*) with kernel V (n, d) (d = 1 or 2), u = u* + dp s + V xi + w (s = du/dp of the parent,
+w in range(J)); the reduced energy is g(xi, dp) = dp/2 xi^T B xi + T(xi) + ..., with
     B = V^T (dJ/dp along the parent) V          (jvp of the Hessian-vector product),
     T = T3(xi) = E'''[h, h, h]/6,  h = V xi     (if not negligible: transcritical-like), else
     T = T4(xi) = E''''[h]^4/24 - b^T J^+ b/8,   b = P E'''[h, h, .]  (the range correction),
-all by nested jvps of F. T is homogeneous of degree m = order + 1 (order k = 2 or 3: the degree
-of the reduced equations). A branch xi = r eta (|eta| = 1) needs grad T(eta) = kappa B eta, i.e.
-det[B eta, grad T(eta)] = 0, then kappa = m T(eta) / eta^T B eta and dp = -kappa r^(k-1)
-(d = 1: pitchfork dp = -kappa r^2 or transcritical dp = -kappa r). For d = 2 the coefficients of T
-are fitted from 5 samples (exact for a quartic) and the directions are the roots in the angle of
-eta, bracketed on a grid and refined by Brent: for the D4-symmetric quartic, the axes and the
-diagonals. If every direction solves it (an O(2) circle of solutions, with a zero mode along it)
-the kernel basis vectors are returned, marked ``isolated=False``. d > 2 is not done.
-The Morse index of each emanating branch is predicted from the reduced Hessian
-r^(k-1) (Hess T(eta) - kappa B) plus the negative eigenvalues outside the kernel.
+T homogeneous of degree m = k + 1 (k = 2 or 3). A branch xi = r eta (|eta| = 1) needs
+det[B eta, grad T(eta)] = 0, then kappa = m T(eta) / eta^T B eta and dp = -kappa r^(k-1). For
+d = 2, T is fitted from 5 samples and the directions are the roots in the angle of eta (Brent);
+if every direction solves it (an O(2) circle) the kernel basis is returned, ``isolated=False``.
+The Morse index of each branch is predicted from r^(k-1) (Hess T(eta) - kappa B) plus the
+negative eigenvalues outside the kernel.
 """
 from __future__ import annotations
 
@@ -34,10 +29,8 @@ from .scales import scaled_options
 class Emanating:
     """A branch out of a branch point: u ~ u* + r vector + r^2 curvature + dp parent_slope,
     p = p* + dp, dp = -kappa r^(order-1), for r > 0 and r < 0. eta (d,) unit kernel coordinates;
-    vector = V eta, curvature = -J^+ P E'''[vector, vector, .]/2 (n,) (without it the predictor
-    can sit where the transverse stiffness vanishes, and Newton jumps to another branch);
-    predicted_morse = (for r > 0, for r < 0), without the zero mode along the circle when
-    isolated is False."""
+    vector = V eta, curvature = -J^+ P E'''[vector, vector, .]/2 (n,) (keeps Newton on this branch);
+    predicted_morse = (for r > 0, for r < 0), without the circle's zero mode when not isolated."""
 
     eta: np.ndarray
     vector: np.ndarray
@@ -65,9 +58,8 @@ def emanating_directions(problem, event, *, cubic_tol=1e-8, circle_tol=1e-8):
 
     cubic_tol: the cubic term is dropped (a pitchfork) below cubic_tol of its natural size;
     circle_tol: d = 2, every direction solves (a circle family) when det[B eta, grad T(eta)] stays
-    below circle_tol of its scale |B| |T| m. The quartic of a stiff problem can be a small
-    difference of large terms (a pinned rod ring: E''''/24 and the range correction cancel to
-    1e-5), so its relative precision is ~1e-10, not roundoff.
+    below circle_tol of its scale |B| |T| m (not roundoff: a stiff problem's quartic can be a
+    small difference of large terms).
     """
     V = np.asarray(event.v)
     n, d = V.shape
@@ -82,9 +74,7 @@ def emanating_directions(problem, event, *, cubic_tol=1e-8, circle_tol=1e-8):
         samples = np.stack([np.cos(th), np.sin(th)], axis=1)
     sampled = [reduced.terms(xi) for xi in samples]
     T = np.array([t[:2] for t in sampled])  # (samples, 2)
-    # the cubic term counts unless it is below cubic_tol of the quartic one and of its own natural
-    # size |h| |E'''[h, h, .]| (a cancellation to roundoff: E'''[h, h, .] orthogonal to the kernel,
-    # as symmetry makes it; the quartic itself may be a small difference, e.g. for a stiff rod)
+    # the cubic term counts unless below cubic_tol of the quartic one and of its natural size
     scale3 = max(float(np.max(np.abs(T))), max(t[3] for t in sampled))
     k = 2 if np.max(np.abs(T[:, 0])) > cubic_tol * scale3 else 3
     m = k + 1
@@ -122,8 +112,7 @@ class _ReducedEquations:
         self.u, self.p = jnp.asarray(event.u), jnp.asarray(event.p)
         F, self.J, Fp = problem.linearise(self.u, self.p, args)
         self.Zd = np.zeros((d, d))
-        # parent slope du/dp: -J^+ F_p on range(J) (regular bordered solve) plus the kernel part of the
-        # parent tangent at the bracket (zero by symmetry when the parent is the symmetric branch)
+        # parent slope du/dp: -J^+ F_p on range(J) plus the kernel part of the parent tangent
         y, _ = problem.backend.bordered_solve(self.J, V, V, self.Zd, -Fp, np.zeros(d))
         t = np.asarray(event.tangent)
         self.slope = np.asarray(y) + V @ (V.T @ t[:-1]) / t[-1]

@@ -1,11 +1,9 @@
 """Two-parameter continuation: a located fold followed in a second parameter mu.
 
 The fold curve is the solution set of the minimally augmented system G(u, p, mu) = (F, sigma) = 0
-(see locate.py), n+1 equations in (u, p, mu); it is followed by the same pseudo-arclength core
-with x = (u, p) and lam = mu. At each point the implicit function theorem gives
-dp*/dmu from one bordered solve  [[J, F_p], [sigma_u^T, sigma_p]] [du; dp] = -[F_mu; sigma_mu],
-with sigma_mu = -w^T J_mu w (exact, by JAX). The fold-curve corrector assembles its (n+1) Jacobian
-densely (a structured backend would need a doubly bordered solve there).
+(see locate.py), followed by the same pseudo-arclength core with x = (u, p) and lam = mu; its
+Jacobian is assembled densely. At each point the implicit function theorem gives dp*/dmu from one
+bordered solve  [[J, F_p], [sigma_u^T, sigma_p]] [du; dp] = -[F_mu; sigma_mu].
 """
 from __future__ import annotations
 
@@ -53,11 +51,8 @@ class FoldPoint(NamedTuple):
 
 class _Traced(NamedTuple):
     """What the extended systems' jitted blocks use of a problem: its functions of (u, p, args),
-    which ``BifurcationProblem`` shares between every problem built from the same energy, jacobian
-    and backend. Keyed on these, not on the problem object, the blocks compile once per rod and
-    shape: a knot's problems at other diameters or starts (one per ratio of a critical curve, each a
-    new ``knot_problem``) reuse the program (measured on the trefoil at N = 61: 19-40 s of
-    compilation per ratio for the branch-point slope when keyed on the problem)."""
+    shared by every problem of the same energy, jacobian and backend, so that the blocks compile
+    once per rod and shape, not once per problem."""
 
     F: object
     hvp: object
@@ -83,11 +78,9 @@ def _fold_blocks_jit(problem, set_mu, args0, u, p, mu, b):
 
 
 def _fold_blocks(problem, set_mu, base=None):
-    """(u, p, mu, b) -> (F, J, F_p, F_mu, sigma, sigma_u, sigma_p, sigma_mu, w): the minimally
-    augmented fold system (locate.py) and its derivatives, with args = set_mu(args0, mu), args0 the
-    problem's args, or base[0] at call time when base (a one-element list) is given (args rebased
-    along a fold curve: a rebuilt neighbourhood). Compiled once per (problem, set_mu): args0 is
-    traced, so rebased args of the same shapes reuse the program."""
+    """(u, p, mu, b) -> (F, J, F_p, F_mu, sigma, sigma_u, sigma_p, sigma_mu, w): the fold system
+    (locate.py) and its derivatives, with args = set_mu(args0, mu), args0 the problem's args or
+    base[0] at call time (base: a one-element list, rebased along a fold curve)."""
     base = [problem.args] if base is None else base
     f64 = functools.partial(jnp.asarray, dtype=jnp.float64)
     traced = _traced(problem)
@@ -116,15 +109,9 @@ def _ift_slope(problem, blocks, u, p, mu, b):
 def fold_at(problem, fold, set_mu, mu0, mu, opts, *, predict=True):
     """The fold ``fold`` (an Event, or a FoldPoint) of ``problem``, located at mu0, moved to mu.
 
-    A point study of the fold at mu: Newton on the fold system (F, sigma) = 0 in (u, p) at fixed
-    mu, as the fold locator runs it (one step more once below opts.newton_tol, so that the root is
-    at roundoff whatever the start), from the first-order prediction (u, p) + (mu - mu0) d(u, p)/dmu
-    of the implicit function theorem (``predict=False``: from the fold's own (u, p), for a point
-    study that owes nothing to the derivative it checks). The prediction matters near a second near-singular mode (the
-    trefoil's tightening fold at N = 121, a shape eigenvalue ~1e-7 next to the critical one): from
-    the unmoved fold, the O(mu - mu0) residual divided by that eigenvalue throws the first step
-    far off; from the prediction the residual is O((mu - mu0)^2). set_mu(args, mu) -> args,
-    traceable, with problem.args at mu0. Returns a FoldPoint with dp*/dmu at mu.
+    Newton on the fold system in (u, p) at fixed mu from the implicit function theorem's prediction
+    (``predict=False``: from the fold's own (u, p)). set_mu(args, mu) -> args, traceable, with
+    problem.args at mu0. Returns a FoldPoint with dp*/dmu at mu.
     """
     opts = scaled_options(problem, opts, fold.u, fold.p)
     v = np.asarray(fold.v[:, 0] if isinstance(fold, Event) else fold.v)
@@ -144,10 +131,8 @@ def fold_at(problem, fold, set_mu, mu0, mu, opts, *, predict=True):
 def fold_sensitivity(problem, fold, set_mu, mu0):
     """dp*/dmu at the located fold ``fold`` (an Event of ``problem``, whose args hold mu = mu0).
 
-    The fold moves with mu along the solution curve of the fold system G(u, p, mu) = (F, sigma) = 0;
-    the implicit function theorem gives its slope from one bordered solve with the fold system's
-    Jacobian (regular at a quadratic fold): the derivative of the located critical twist, not of
-    an eigenvalue on a fixed branch (which is wrong at a fold, where the branch itself turns).
+    The implicit function theorem on the fold system G(u, p, mu) = (F, sigma) = 0, one bordered
+    solve: the derivative of the located critical twist, not of an eigenvalue on a fixed branch.
     set_mu(args, mu) -> args must be traceable (e.g. ``jaxrod.continuation.arclength.rods.set_poisson_ratio``).
     """
     blocks = _fold_blocks(problem, set_mu)
@@ -158,20 +143,16 @@ def fold_sensitivity(problem, fold, set_mu, mu0):
 def fold_curve(problem, fold, set_mu, mu0, alg, opts, *, throw=True, observer=None):
     """Continue the fold Event ``fold`` of ``problem`` (whose args hold mu = mu0) in mu.
 
-    set_mu(args, mu) -> args must be traceable, and set mu absolutely (not add to it): the args are
-    rebased along the curve. opts.ds (signed) is the first step in mu, [opts.p_min, opts.p_max]
-    bounds mu, max_steps and the tolerances apply as for continuation. After each accepted point
-    the problem's ``update_args`` hook (if any) is called with the args at that point's mu (a
-    knot's neighbourhood rebuilt when it went stale, or when the diameter grew past its skin),
-    and the curve goes on from those args. observer(i, mu, p, residual), if given, is called
-    after each point (progress). opts.report_at: values of mu at which the curve also gives a
-    point exactly (corrected on the hyperplane mu = value from the chord of the step that crosses it).
+    set_mu(args, mu) -> args must be traceable and set mu absolutely. opts.ds (signed) is the first
+    step in mu, [opts.p_min, opts.p_max] bounds mu, the rest as for continuation (report_at: values
+    of mu). ``update_args`` (if any) is applied after each point; observer(i, mu, p, residual), if
+    given, is called after each point.
     """
     opts = scaled_options(problem, opts, fold.u, fold.p)
     be, n = problem.backend, problem.n
     base = [problem.args]
     blocks = _fold_blocks(problem, set_mu, base)
-    border = [np.asarray(fold.v[:, 0])]  # refreshed with w at each point: the root does not depend on it
+    border = [np.asarray(fold.v[:, 0])]  # refreshed with w at each point
 
     lin = _fold_system(problem, blocks, border)
     rows = []
@@ -216,14 +197,9 @@ def branch_point_curve(problem, event, set_mu, mu0, alg, opts, *, throw=True, ob
 
     The branch point is the root of the unfolded system (locate.py, Moore 1980)
         F(u, p, mu) + beta v0 = 0,  sigma(u, p, mu) = 0,  tau(u, p, mu) = w^T F_p = 0
-    in x = (u, p, beta), v0 the event's critical vector: n+2 equations, regular at a transversal
-    simple branch point (beta = 0 there), so with mu free its solutions form a curve, followed by
-    the pseudo-arclength core as ``fold_curve`` does (x = (u, p, beta), lam = mu; the Jacobian
-    assembled densely, derivatives of sigma and tau by reverse mode through the bordered solve).
-    A symmetric double branch point (a ring's O(2) pair) must first be made simple by a gauge pin
-    (``jaxrod.continuation.arclength.rods.sliding_slice``). At each point dp*/dmu comes from the implicit
-    function theorem (one solve with the system's Jacobian). Returns a FoldCurve (v: the unit
-    kernel vector w; beta, ~roundoff on the curve, is not kept). Arguments as ``fold_curve``.
+    in x = (u, p, beta), regular at a transversal simple branch point (make a double one simple
+    first: ``jaxrod.continuation.arclength.rods.sliding_slice``). Returns a FoldCurve (v: the unit
+    kernel vector w). Arguments as ``fold_curve``.
     """
     opts = scaled_options(problem, opts, event.u, event.p)
     be, n = problem.backend, problem.n
