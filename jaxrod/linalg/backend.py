@@ -1,30 +1,14 @@
 """One interface to the linear algebra of a rod's Hessian, with dense, banded and sparse backends.
 
-A backend factorises the Hessian of ``scene.scaled_energy`` at a state (scaled DOFs u, twist phi,
-neighbourhood nbr) into a ``Factorisation``, which answers:
-
-* ``inertia(shift)``: how many eigenvalues of the projected Hessian lie below ``shift``, how many
-  symmetry (zero) modes were removed, how many lie at or above ``shift``;
-* ``solve(rhs)``: x on Z-perp with P H P x = P rhs;
-* ``lowest_eigenpairs(k)``: the k lowest eigenpairs of the projected Hessian, ascending, each
-  eigenvector with its largest-magnitude entry positive;
-* ``bordered_solve(b, c, d, f, g)``: [[A, b], [c^T, d]] [x; y] = [f; g] with A the projected
-  Hessian (b, c, f projected on Z-perp first).
-
+A backend factorises the Hessian of ``scene.scaled_energy`` at a state (u, phi, nbr) into a
+``Factorisation``: ``inertia(shift)`` (counts below/at or above ``shift`` and the zero modes
+removed), ``solve(rhs)`` (x on Z-perp with P H P x = P rhs), ``lowest_eigenpairs(k)`` and
+``bordered_solve(b, c, d, f, g)`` ([[A, b], [c^T, d]] [x; y] = [f; g], A the projected Hessian).
 "Projected Hessian" is the same for every backend: P H P on the orthogonal complement of the
-symmetry generators Z (``jaxrod.linalg.zero_modes.zero_mode_basis``), of dimension n - z. The zero
-modes are never among the returned eigenpairs and never counted as negative or positive.
-
-The backends wrap the existing numerics:
-
-* ``Dense``: the n x n projected Hessian (``jaxrod.linalg.stability``), LAPACK; O(n^3).
-* ``Banded``: the block-tridiagonal + rank-one Hessian (``jaxrod.linalg.sparse``, block LDL^T of
-  ``jaxrod.linalg.banded``); O(N); rods WITHOUT contact.
-* ``Sparse``: the sparse + rank-one Hessian (``jaxrod.linalg.sparse_contact``, QDLDL and ARPACK
-  on the host); O(N); any rod, with or without contact.
-
-``choose_backend(scene, options)`` picks one for a scene and says why.
-"""
+symmetry generators Z, of dimension n - z; the zero modes are never returned nor counted. Backends:
+``Dense`` (n x n, LAPACK, O(n^3)), ``Banded`` (block LDL^T of ``jaxrod.linalg.sparse``, O(N), no
+contact) and ``Sparse`` (``jaxrod.linalg.sparse_contact``, O(N), any rod); ``choose_backend(scene,
+options)`` picks one for a scene and says why."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -198,8 +182,7 @@ class _BandedFactorisation(_Projected):
 
         from .sparse import _pinned_solve
 
-        # The pinned solve equals the projected one for a right-hand side orthogonal to Z (and
-        # H Z = 0): project it first.
+        # The pinned solve equals the projected one for a rhs orthogonal to Z: project it first.
         rhs = jnp.asarray(self.project(rhs))
         return np.asarray(_pinned_solve(self.lay, *self.parts, self.pins, self.Q, rhs))
 
@@ -288,10 +271,8 @@ class BackendChoice(NamedTuple):
 def choose_backend(scene, options=None, offered=("dense", "banded", "sparse")):
     """The backend for ``scene`` under ``options`` (a ``LinalgOptions``, or just a backend name;
     None: the defaults), and why: a ``BackendChoice`` (backend, reason), which unpacks as a pair.
-
     offered: the backends the caller implements; where the preferred one is not among them the
-    choice falls back to dense and the reason says so. ``backend.structured`` tells whether the
-    choice is an O(n) one."""
+    choice falls back to dense and the reason says so. ``backend.structured``: an O(n) choice."""
     if options is None:
         options = LinalgOptions()
     elif isinstance(options, str):

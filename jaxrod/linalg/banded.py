@@ -1,9 +1,7 @@
 """O(N) linear algebra for block-tridiagonal (optionally cyclic) plus low-rank symmetric matrices.
 
-Rod Hessians couple each node only to its neighbours, so they are block-tridiagonal (cyclic for
-closed rods) plus a few dense rank-one terms (constraints, global coupling).  For N ~ 1000 nodes a
-dense factorisation costs seconds; everything here costs O(K b^3 + n r^2) and never builds an
-n x n array.
+Rod Hessians are block-tridiagonal (cyclic for closed rods) plus a few dense rank-one terms;
+everything here costs O(K b^3 + n r^2) and never builds an n x n array.
 
 The matrix is ::
 
@@ -17,21 +15,12 @@ The matrix is ::
 * ``U`` (n, r), ``c`` (r,): the low-rank term; ``c`` of either sign, r may be 0 (or pass None).
 
 Public functions (all pure and jittable; ``cyclic``, ``k``, ``iterations``, ``block`` are static):
+:func:`factor`, :func:`inertia`, :func:`solve`, :func:`matvec`, :func:`lowest_eigenpairs`.
 
-* :func:`factor`  -- block LDL^T of T (eigen-decomposed pivot blocks).
-* :func:`inertia` -- (n_negative, n_positive) of M from the pivots (Sylvester / Haynsworth).
-* :func:`solve`   -- M^{-1} rhs (Woodbury for the low-rank term).
-* :func:`matvec`  -- M v without forming M.
-* :func:`lowest_eigenpairs` -- shift-invert subspace iteration for the lowest eigenpairs of
-  P M P on the complement of given orthonormal columns Z.
-
-Caveat (stability): there is no pivoting *across* blocks.  Each Schur-complement pivot block D_k is
-symmetric-eigendecomposed, so inverting it is as accurate as the block allows, but a nearly
-singular D_k (possible for indefinite T even when T is well conditioned) causes element growth in
-later pivots and loses accuracy, and an exactly singular one gives inf/nan.  Likewise Woodbury and
-the bordered solves go through T^{-1}: if T (or T - sigma I) is much worse conditioned than M,
-accuracy follows T's condition number.  Nothing here checks for either situation: look at the
-residual (:func:`matvec`) if in doubt.
+Caveat (stability): there is no pivoting *across* blocks, so a nearly singular pivot block D_k
+(possible for indefinite T) loses accuracy and an exactly singular one gives inf/nan; Woodbury and
+the bordered solves go through T^{-1}, so accuracy follows T's (or T - sigma I's) condition number.
+Nothing here checks: look at the residual (:func:`matvec`) if in doubt.
 """
 from __future__ import annotations
 
@@ -49,30 +38,21 @@ __all__ = ["BlockFactor", "factor", "inertia", "solve", "matvec", "lowest_eigenp
 class BlockFactor(NamedTuple):
     """Block LDL^T factorisation of a block-tridiagonal T (see :func:`factor`).
 
-    The *chain* is the sequence of blocks eliminated in order: all K blocks when not cyclic
-    (Kc = K), blocks 1..K-1 when cyclic (Kc = K-1; block 0 is the border, eliminated last).
-    Chain index j therefore means block j (not cyclic) or block j+1 (cyclic).
+    The *chain* is the blocks eliminated in order: all K (Kc = K) when not cyclic, else blocks
+    1..K-1 (Kc = K-1; block 0 is the border, eliminated last, chain index j = block j+1).
 
-    In chain-then-border ordering
-
-        T = F diag(D_0, ..., D_{Kc-1}, S) F^T,   F = [[L, 0], [G^T, I]],
-
-    with L unit block-lower-bidiagonal (sub-diagonal blocks L_j), D_j the Schur-complement pivot
-    blocks, and (cyclic only) G = D^{-1} L^{-1} E for the border columns E = T[chain, block 0]
-    and S = T[0, 0] - E^T T_chain^{-1} E the b x b Schur complement of the border block.
+    In chain-then-border ordering T = F diag(D_0, ..., D_{Kc-1}, S) F^T, F = [[L, 0], [G^T, I]],
+    with L unit block-lower-bidiagonal, D_j the Schur-complement pivot blocks and (cyclic only)
+    G = D^{-1} L^{-1} E for the border columns E = T[chain, block 0], S = T[0, 0] - E^T T_chain^{-1} E.
 
     Fields:
         evals (Kc, b):   eigenvalues w_j of the pivot blocks D_j (their signs give the inertia).
         evecs (Kc, b, b): orthonormal eigenvectors Q_j, D_j = Q_j diag(w_j) Q_j^T.
         lower (Kc, b, b): L_j = T[j, j-1] D_{j-1}^{-1} (chain indices); lower[0] = 0.
         spike (Kc, b, b) or None: G_j (cyclic only).
-        border_evals (b,) or None, border_evecs (b, b) or None: eigen-decomposition of S
-            (cyclic only).
+        border_evals (b,), border_evecs (b, b) or None: eigen-decomposition of S (cyclic only).
 
-    D^{-1} is always applied as Q (Q^T x / w), never as an explicitly formed inverse: with an
-    ill-conditioned pivot block the explicit inverse loses backward stability (tried: on the
-    random indefinite test matrices the backward error of solve rose from < 1e-13 to 3e-13, for
-    about 10% speed).
+    D^{-1} is always applied as Q (Q^T x / w), never as an explicit inverse (less backward stable).
     """
 
     evals: jax.Array
@@ -99,21 +79,13 @@ class BlockFactor(NamedTuple):
         return self.num_blocks * self.block_size
 
 
-# --------------------------------------------------------------------------------------------
-# small helpers
-
-
 def _sym(a):
     return 0.5 * (a + jnp.swapaxes(a, -1, -2))
 
 
 def _apply_inv(w, q, x):
-    """D^{-1} x for D = q diag(w) q^T; w (b,), q (b, b), x (b, m).
-
-    eigh of the pivot block is backward stable for indefinite blocks (Cholesky would need
-    definiteness) and gives the block's inertia for free; it dominates the factorisation time
-    (~15 us per 8 x 8 block on CPU, vs ~4 us for an LU that would not give the inertia).
-    """
+    """D^{-1} x for D = q diag(w) q^T; w (b,), q (b, b), x (b, m). eigh of the pivot block is
+    backward stable for indefinite blocks and gives its inertia for free."""
     return q @ ((q.T @ x) / w[:, None])
 
 
@@ -130,10 +102,6 @@ def _lowrank(U, c, n, dtype):
     c = jnp.asarray(c, dtype)
     s = jnp.where(c < 0, -1.0, 1.0).astype(dtype)
     return U * jnp.sqrt(jnp.abs(c))[None, :], s
-
-
-# --------------------------------------------------------------------------------------------
-# factorisation
 
 
 def _chain_scan(A, Bsub, E=None):
@@ -200,24 +168,16 @@ def factor(diag, off, cyclic: bool = False) -> BlockFactor:
         cyclic: static; closed chain with a corner coupling.
 
     Returns:
-        :class:`BlockFactor`.  Not cyclic: plain forward elimination of blocks 0..K-1.  Cyclic:
-        blocks 1..K-1 are eliminated as a chain with block 0 as a border whose (n-b, b) columns
-        are carried along as a dense spike, then the b x b Schur complement of block 0 is
-        decomposed.  Cost O(K b^3), one ``lax.scan`` over blocks.  No pivoting across blocks
-        (see module docstring).
+        :class:`BlockFactor`.  Cyclic: blocks 1..K-1 are eliminated as a chain with block 0 as a
+        border carried along as a dense spike, then block 0's b x b Schur complement is
+        decomposed.  O(K b^3), one ``lax.scan``; no pivoting across blocks.
     """
     return _factor(diag, off, cyclic)
 
 
-# --------------------------------------------------------------------------------------------
-# solves with T
-
-
 def _forward(fac: BlockFactor, R):
-    """Y = F^{-1} R (the unit-triangular half of T = F diag(D, S) F^T); R, Y (K, b, m).
-
-    Layout is the natural block order (for cyclic, Y[0] is the border block).  One scan.
-    """
+    """Y = F^{-1} R (the unit-triangular half of T = F diag(D, S) F^T); R, Y (K, b, m). Layout is
+    the natural block order (for cyclic, Y[0] is the border block).  One scan."""
     L = fac.lower
     m = R.shape[-1]
     if fac.cyclic:
@@ -268,10 +228,8 @@ def _backward(fac: BlockFactor, Y):
 
 def _dquad(fac: BlockFactor, Y1, Y2):
     """Y1^T diag(D, S)^{-1} Y2 for Y1 (K, b, m1), Y2 (K, b, m2) from :func:`_forward`; (m1, m2).
-
-    With Y = F^{-1} V this is V1^T T^{-1} V2 from the forward sweep alone, as a sum of small
-    block products (batched, no scan) -- and exactly symmetric in structure when V1 = V2.
-    """
+    With Y = F^{-1} V this is V1^T T^{-1} V2 from the forward sweep alone, as a sum of small block
+    products (batched, no scan) -- and exactly symmetric in structure when V1 = V2."""
     w, q = fac.evals, fac.evecs
     if fac.cyclic:
         w = jnp.concatenate([fac.border_evals[None], w], axis=0)
@@ -311,21 +269,15 @@ def _bordered_setup(fac, V, E):
 
 
 def _bordered_solve(bd: _Bordered, X):
-    """x for [[T, V], [V^T, E]] [x; q] = [X; 0], X (n, m).
-
-    q = cap^{-1} V^T T^{-1} X and x = T^{-1}(X - V q); since F^{-1} is linear, x is one backward
-    sweep of F^{-1}X - (F^{-1}V) q, so each solve costs one forward and one backward sweep.
-    """
+    """x for [[T, V], [V^T, E]] [x; q] = [X; 0], X (n, m). q = cap^{-1} V^T T^{-1} X and x =
+    T^{-1}(X - V q); since F^{-1} is linear, x is one backward sweep of F^{-1}X - (F^{-1}V) q, so
+    each solve costs one forward and one backward sweep."""
     YX, back = _as_blocks(bd.fac.block_size, X)
     YX = _forward(bd.fac, YX)
     if bd.YV.shape[-1] > 0:
         q = jsl.lu_solve(bd.cap_lu, _dquad(bd.fac, bd.YV, YX))
         YX = YX - jnp.einsum("kip,pm->kim", bd.YV, q)
     return back(_backward(bd.fac, YX))
-
-
-# --------------------------------------------------------------------------------------------
-# public: inertia, solve, matvec
 
 
 def _tinertia_neg(fac: BlockFactor):
@@ -348,10 +300,8 @@ def inertia(fac: BlockFactor, U=None, c=None):
 
     In(T) is the sum of the pivot blocks' inertias (Sylvester).  For the low-rank term, with
     U~ = U sqrt|c| and s = sign(c), the Haynsworth identity on [[T, U~], [U~^T, -diag(s)]] gives
-    neg(M) = neg(T) + #{eig(diag(s) + U~^T T^{-1} U~) > 0} - #{s > 0}.
-    An eigenvalue of M (or a pivot) that is exactly zero is counted as positive; eigenvalues
-    within round-off of zero may land on either side.  Costs one forward sweep with r columns
-    (O(n r b + n r^2)).
+    neg(M) = neg(T) + #{eig(diag(s) + U~^T T^{-1} U~) > 0} - #{s > 0}. An exactly zero eigenvalue
+    counts as positive. Costs one forward sweep with r columns.
     """
     n = fac.size
     dtype = fac.evals.dtype
@@ -387,10 +337,8 @@ def solve(fac: BlockFactor, rhs, U=None, c=None):
     m, r = R.shape[-1], Ut.shape[1]
     if r == 0:
         return back(_backward(fac, _forward(fac, R)))
-    # Woodbury, i.e. the bordered system [[T, U~], [U~^T, -diag(s)]] (1/s = s for s = +-1).
-    # rhs and U~ share one forward sweep; F^{-1} is linear, so the correction is applied before
-    # the single backward sweep:  x = F^{-T} Dg^{-1} (Y_R - Y_U cap^{-1} Y_U^T Dg^{-1} Y_R),
-    # Dg = diag(D, S).
+    # Woodbury as the bordered system [[T, U~], [U~^T, -diag(s)]]: rhs and U~ share one forward
+    # sweep, and the correction is applied before the single backward sweep (F^{-1} is linear).
     Y = _forward(fac, jnp.concatenate([R, _as_blocks(fac.block_size, Ut)[0]], axis=-1))
     YR, YU = Y[..., :m], Y[..., m:]
     cap = _sym(jnp.diag(s) + _dquad(fac, YU, YU))
@@ -437,16 +385,10 @@ def matvec(diag, off, cyclic: bool, v, U=None, c=None):
     return out
 
 
-# --------------------------------------------------------------------------------------------
-# eigenpairs
-
-
 def _norm_bound(diag, off, cyclic, Ut):
     """Cheap upper bound on ||M||_2: max block-row sum of block Frobenius norms + sum ||u~_i||^2.
-
-    For symmetric block matrices ||T||_2 <= max_i sum_j ||T_ij||_2 (Schur test on block norms).
-    Used only to make the residual tolerance relative.
-    """
+    For symmetric block matrices ||T||_2 <= max_i sum_j ||T_ij||_2 (Schur test on block norms). Used
+    only to make the residual tolerance relative."""
     K = diag.shape[0]
     if not cyclic:
         off = off.at[K - 1].set(0.0)
@@ -478,9 +420,8 @@ def _shift_invert(diag, off, cyclic, sigma, Ut, s, Z):
 
 
 def _start_block(n, p, dtype, X0):
-    """(n, p) starting block: a fixed pseudo-random one (a sine hash rather than jax.random:
-    threefry alone took ~1 s to compile here, and nothing needs statistical quality -- only no
-    accidental orthogonality), its first columns replaced by X0 if given."""
+    """(n, p) fixed pseudo-random starting block (a sine hash: cheaper to compile than jax.random),
+    its first columns replaced by X0 if given."""
     i = jnp.arange(n, dtype=dtype)[:, None]
     j = jnp.arange(p, dtype=dtype)[None, :]
     h = jnp.sin(12.9898 * i + 78.233 * j + 1.0) * 43758.5453
@@ -496,23 +437,17 @@ def lowest_eigenpairs(diag, off, cyclic: bool, U, c, Z, k: int, sigma, iteration
                       X0=None, tol=1e-12, block: Optional[int] = None):
     """The k eigenpairs of A = P M P on range(P) = Z-perp closest to (and above) the shift sigma.
 
-    Shift-invert subspace (block inverse) iteration with Rayleigh-Ritz.  Each inverse step solves
-    [[M - sigma I, Z], [Z^T, 0]] [x; y] = [v; 0], which, for v orthogonal to Z, gives x orthogonal
-    to Z with (P M P - sigma) x = v, through the block factorisation of T - sigma I with the
-    low-rank term and Z together as one (r + z)-column border (capacitance factorised once).
+    Shift-invert subspace iteration with Rayleigh-Ritz: each step solves [[M - sigma I, Z],
+    [Z^T, 0]] [x; y] = [v; 0] by the block factorisation of T - sigma I with [U~, Z] as one border.
 
     Args:
         diag, off, cyclic: T (see module docstring); cyclic static.
         U: (n, r) or None; c: (r,) or None.
         Z: (n, z) orthonormal columns (z may be 0) or None.
         k: static, number of eigenpairs wanted.
-        sigma: scalar shift, below the lowest eigenvalue of interest (e.g. lowest guess - margin).
-            The iteration converges to the k eigenvalues nearest sigma; passing sigma below them
-            makes these the lowest ones.  sigma must not be an eigenvalue of T (T - sigma I is
-            factorised without pivoting) or of A.  Pair i converges by the factor
-            |lam_i - sigma| / |lam_{block+1} - sigma| per step, so a sigma close below the wanted
-            eigenvalues (margin small compared with their spread) converges much faster than a
-            distant one (measured: n = 4096, margin 0.07 vs 4.6 -> 0.2 s vs 200 steps, 1.7 s).
+        sigma: scalar shift below the wanted eigenvalues (it converges to the k nearest sigma);
+            not an eigenvalue of T or A. Pair i converges by |lam_i - sigma| / |lam_{block+1} -
+            sigma| per step, so a close sigma converges faster.
         iterations: static, maximum number of inverse steps.
         X0: optional (n, k') starting block (k' <= block); padded with fixed pseudo-random columns.
         tol: stop once every wanted residual ||A x - theta x|| <= tol * ||M|| (cheap bound).
@@ -520,8 +455,7 @@ def lowest_eigenpairs(diag, off, cyclic: bool, U, c, Z, k: int, sigma, iteration
 
     Returns:
         (eigenvalues (k,) ascending, eigenvectors (n, k) orthonormal and orthogonal to Z,
-        residual norms (k,) ||A x - theta x||).  Multiple eigenvalues come out as an orthonormal
-        basis of their eigenspace.  Unconverged results are returned as they are.
+        residual norms (k,) ||A x - theta x||); unconverged results are returned as they are.
     """
     diag, off, Z, dtype = _eig_inputs(diag, off, Z)
     K, b, _ = diag.shape

@@ -1,8 +1,7 @@
-"""The node-interleaved block order of a rod's DOFs, in which its local Hessian is
-block-tridiagonal (cyclic for closed rods): what ``jaxrod.linalg.sparse`` hands to the block LDL^T
-of ``jaxrod.linalg.banded``. Static (numpy), cached per scene kind and number of nodes; built from
-the scene's ``jaxrod.model.layout.DofLayout`` and checked against its Hessian pattern.
-"""
+"""The node-interleaved block order of a rod's DOFs, in which its local Hessian is block-tridiagonal
+(cyclic for closed rods): what ``jaxrod.linalg.sparse`` hands to the block LDL^T of
+``jaxrod.linalg.banded``. Static (numpy), cached per scene kind and number of nodes; built from the
+scene's ``jaxrod.model.layout.DofLayout`` and checked against its Hessian pattern."""
 from __future__ import annotations
 
 import functools
@@ -21,18 +20,16 @@ __all__ = ["BlockLayout", "block_layout", "to_blocks", "from_blocks"]
 class BlockLayout:
     """Static (numpy) description of the block order of one scene layout (kind, N).
 
-    n: number of real DOFs; block_size b; num_blocks K; n_pad = K b >= n (the excess are dummy
-    DOFs: identity on the diagonal, zero elsewhere); cyclic: closed rods (corner block couples the
-    last block to the first).
-    perm: (n_pad,) q index of each block-order slot, -1 for a dummy; position: (n,) block-order
-    slot of each q index (perm[position] = arange(n)); dummy: (n_pad,) bool.
+    n: number of real DOFs; block_size b; num_blocks K; n_pad = K b >= n (the excess are dummy DOFs:
+    identity on the diagonal, zero elsewhere); cyclic: closed rods (corner block couples the last
+    block to the first). perm: (n_pad,) q index of each block-order slot, -1 for a dummy; position:
+    (n,) block-order slot of each q index (perm[position] = arange(n)); dummy: (n_pad,) bool.
     diag_src, off_src: (2, K, b, b) flat indices, into the (n_colours, n) array of coloured
     Hessian-vector products, of H[r, c] and H[c, r] for the entry (r, c) that lands at diag[k, i, j]
     (r = perm[k b + i], c = perm[k b + j]) resp. off[k, i, j] (c = perm[((k+1) mod K) b + j]);
     diag_ok, off_ok: (K, b, b) bool, the entries that are structurally non-zero (and, for off,
-    stored there: a non-cyclic corner and, for K = 2 cyclic, off[1] stay zero).
-    pin_candidates: (m, 7) q indices of the candidate gauge pins ((0, 0) without zero modes).
-    """
+    stored there: a non-cyclic corner and, for K = 2 cyclic, off[1] stay zero). pin_candidates: (m,
+    7) q indices of the candidate gauge pins ((0, 0) without zero modes)."""
 
     kind: str
     n_nodes: int
@@ -67,10 +64,8 @@ def _layout(kind, N):
         K = -(-len(seq) // b)
         perm = np.array(seq + [-1] * (K * b - len(seq)))
     else:
-        # Odd closed rod: no placement of dummies makes 2-node blocks of 8 block-tridiagonal round
-        # the cycle (a block with a dummy must be exactly x_i, theta_i, x_{i+1}, which shifts the
-        # block boundaries by one DOF; four of them never close the cycle). Blocks of 3 nodes
-        # (b = 12), the last 3K - N of them holding 2 nodes and 4 dummies.
+        # Odd closed rod: no placement of dummies makes 2-node blocks of 8 close the cycle. Blocks
+        # of 3 nodes (b = 12), the last 3K - N of them holding 2 nodes and 4 dummies.
         b = 12
         K = -(-N // 3)
         short = 3 * K - N
@@ -117,15 +112,11 @@ def _layout(kind, N):
 
 
 def block_layout(scene):
-    """The :class:`BlockLayout` of a scene (numpy, cached per kind and N).
-
-    DOFs are interleaved node by node (3 coordinates and one twist angle per node, the
-    ``node_groups`` of the scene's ``jaxrod.model.layout.DofLayout``) and grouped 2 nodes per
-    block (b = 8), so that the local Hessian is block-tridiagonal, with a corner block for closed rods. Padded with dummy DOFs to a multiple
-    of b. Exception: a closed rod with an odd number of nodes uses 3-node blocks (b = 12), since
-    2-node blocks cannot close the cycle (see ``_layout``). The layout is checked against the
-    Hessian's sparsity pattern when built.
-    """
+    """The :class:`BlockLayout` of a scene (numpy, cached per kind and N). DOFs are interleaved node
+    by node (the ``node_groups`` of the scene's ``DofLayout``) and grouped 2 nodes per block (b =
+    8), so that the local Hessian is block-tridiagonal (a corner block for closed rods), padded with
+    dummy DOFs to a multiple of b; a closed rod with an odd number of nodes uses 3-node blocks (b =
+    12, see ``_layout``). Checked against the Hessian's sparsity pattern when built."""
     dofs = dof_layout(scene)
     return _layout(dofs.kind, dofs.n_nodes)
 

@@ -1,10 +1,9 @@
 """Linear-algebra backends: everything the continuation does with the Jacobian goes through one.
 
 A backend is chosen once, on the problem. ``DenseBackend`` assembles J (n, n) with ``jax.jacfwd``
-and uses ``jnp.linalg``; ``SparseBackend`` works on the host with SciPy's sparse factorisations
-(a knot's pinned Hessian at O(n), ``bifurcation.rods.knot_problem`` for large N). Both provide the
-same three methods.
-"""
+and uses ``jnp.linalg``; ``SparseBackend`` works on the host with SciPy's sparse factorisations (a
+knot's pinned Hessian at O(n), ``bifurcation.rods.knot_problem`` for large N). Both provide the same
+three methods."""
 from __future__ import annotations
 
 import functools
@@ -32,13 +31,10 @@ class DenseBackend:
         return jax.jacfwd(f)(u)
 
     def bordered_solve(self, A, b, c, d, f, g):
-        """Solve [[A, b], [c^T, d]] [x; y] = [f; g].
-
-        A (m, m); b, c (m,) with d, g scalars (y scalar), or b, c (m, k) with d (k, k), g (k,)
-        (y (k,)). Traceable. The bordered matrix is regular at a fold, where A alone is singular.
-        """
-        # On the host the borders are shaped with numpy (no eager JAX programs, each one more
-        # executable for every process to load); inside a trace with jax.numpy
+        """Solve [[A, b], [c^T, d]] [x; y] = [f; g]. A (m, m); b, c (m,) with d, g scalars (y
+        scalar), or b, c (m, k) with d (k, k), g (k,) (y (k,)). Traceable. The bordered matrix is
+        regular at a fold, where A alone is singular."""
+        # On the host the borders are shaped with numpy (no eager JAX programs), in a trace with jnp.
         host = not any(isinstance(v, jax.core.Tracer) for v in (A, b, c, d, f, g))
         xp = np if host else jnp
         if jnp.ndim(b) == 1:
@@ -48,13 +44,9 @@ class DenseBackend:
         return _bordered(A, b, c, xp.asarray(d), f, xp.asarray(g))
 
     def spectrum(self, J, n_keep, n_zero, rtol):
-        """(values (n_keep,), vectors (n, n_keep), Morse index) of the symmetric J.
-
-        The n_zero eigenvalues of smallest |lambda| (gauge zero modes) are removed first. The Morse
-        index counts lambda < -rtol * ||J||_2 over the whole spectrum: the band scales with J, so it
-        does not hide real instabilities of a stiff problem (a structured backend would count the
-        inertia of an LDL^T factorisation instead).
-        """
+        """(values (n_keep,), vectors (n, n_keep), Morse index) of the symmetric J. The n_zero
+        eigenvalues of smallest |lambda| (gauge zero modes) are removed first. The Morse index
+        counts lambda < -rtol * ||J||_2 over the whole spectrum (the band scales with J)."""
         partial = lowest_pairs_spectrum(J, n_keep, n_zero, rtol)
         if partial is not None:
             return partial
@@ -67,19 +59,16 @@ class DenseBackend:
 
 
 # From this size on, ``DenseBackend.spectrum`` computes only the lowest eigenpairs (LAPACK dsyevr
-# on an index range, ~3x faster than the full decomposition at n = 480: 8.8 ms against 25 ms);
-# smaller problems (the analytic test systems) keep the full one.
+# on an index range); smaller problems (the analytic test systems) keep the full one.
 PARTIAL_MIN_SIZE = 200
 
 
 def lowest_pairs_spectrum(J, n_keep, n_zero, rtol):
-    """``DenseBackend.spectrum`` from the m = n_keep + n_zero lowest eigenpairs only, with the
-    same result as the full decomposition; None where that cannot be told from them (a small or
-    many times unstable J, or gauge modes not among the lowest): the caller then decomposes J whole.
-
-    The Morse index counts the kept eigenvalues below -rtol ||J||_2; ||J||_2 lies between
-    max(|lambda_min|, max |J_ii|) and ||J||_F, and only when an eigenvalue falls between the two
-    bands is lambda_max computed (one more index-range call)."""
+    """``DenseBackend.spectrum`` from the m = n_keep + n_zero lowest eigenpairs only, with the same
+    result as the full decomposition; None where that cannot be told from them (a small or many
+    times unstable J, or gauge modes not among the lowest): the caller then decomposes J whole. The
+    Morse index counts the kept eigenvalues below -rtol ||J||_2, bracketed by max(|lambda_min|, max
+    |J_ii|) and ||J||_F; lambda_max is computed only when they disagree."""
     import scipy.linalg
 
     J = np.asarray(J, dtype=float)
@@ -136,9 +125,8 @@ class HostMatrix:
 
 
 class _Singular:
-    """Stands for the factorisation of a singular or non-finite matrix (a diverging Newton iterate):
-    its solves are NaN, as LAPACK's are for the dense backend, so the caller's non-finite-residual
-    test ends that run instead of an exception."""
+    """The factorisation of a singular or non-finite matrix: its solves are NaN (as LAPACK's are),
+    so the caller's non-finite-residual test ends that run."""
 
     def solve(self, b):
         return np.full(np.shape(b), np.nan)
@@ -182,12 +170,10 @@ def _border_solve(lu, J, b, c, d, f, g):
 @dataclass(frozen=True)
 class SparseBackend:
     """The same three methods on the host, at O(n) per call, for a structured ``jacobian`` that
-    returns a pytree of parts (traceable) which ``assemble(parts, args) -> HostMatrix`` turns into
-    a sparse matrix plus a rank-one term (a knot's pinned Hessian: ``bifurcation.rods``). Solves
-    by SciPy's sparse LU with the borders through the Schur complement; the Morse index by the
-    inertia of a symmetric-mode LDL^T (``sparse_contact.negative_count``); the lowest eigenpairs by
-    ARPACK's shift-invert Lanczos at a shift that the count puts below the spectrum. Frozen and
-    hashable (``assemble`` a module-level function), so a problem's jitted functions are shared."""
+    returns parts which ``assemble(parts, args) -> HostMatrix`` turns into sparse + rank one (a
+    knot's pinned Hessian). Solves by sparse LU with Schur-complement borders; the Morse index by
+    the inertia of an LDL^T (``sparse_contact.negative_count``); eigenpairs by ARPACK shift-invert
+    below the spectrum. Frozen and hashable, so a problem's jitted functions are shared."""
 
     assemble: object
     host = True

@@ -1,20 +1,12 @@
 """The dense path's host LAPACK calls, made without holding Python's GIL.
 
-SciPy's wrappers of LAPACK (``scipy.linalg.eigh``, ``cho_factor``: f2py) keep the GIL while
-LAPACK runs. A study follows its two directions in two threads, and the CLI locates branch ends
-in worker threads beside them; the few lowest eigenpairs of each state (LAPACK's dsyevr with an
-index range, ~9 ms at n = 484) then stopped every other thread's Python: measured with py-spy
-(``--gil``) on command 1, 2.6 s of the 10 s the GIL was held went to ``scipy.linalg.eigh``; two
-threads making 20 such calls each took 0.37 s against 0.19 s for one (a Cholesky: 0.081 against
-0.047 s).
-
-Here the same LAPACK routine is called through SciPy's own C-level LAPACK table
-(``scipy.linalg.cython_lapack``, the functions SciPy links against, as numba calls them): its
-function pointer wrapped by ``ctypes.CFUNCTYPE``, whose calls release the GIL. The arguments are
-those SciPy's ``eigh(..., subset_by_index=..., driver="evr")`` passes (lower triangle, abstol 0,
-the optimal workspace), so the results are the same to the last bit (tested). Where the table is
-missing or not the 32-bit-integer LAPACK this module expects, SciPy's wrapper is used instead.
-"""
+SciPy's LAPACK wrappers (f2py) keep the GIL while LAPACK runs, which stopped the other threads of a
+study (its two directions, the CLI's branch-end workers) during every partial eigensolve. Here the
+same routine is called through SciPy's C-level table (``scipy.linalg.cython_lapack``), its function
+pointer wrapped by ``ctypes.CFUNCTYPE``, whose calls release the GIL. The arguments are those
+SciPy's ``eigh(..., subset_by_index=..., driver="evr")`` passes, so the results are the same to the
+last bit (tested). Where the table is missing or not 32-bit-integer LAPACK, SciPy's wrapper is used
+instead."""
 from __future__ import annotations
 
 import ctypes
@@ -27,9 +19,8 @@ __all__ = ["lowest_eigenpairs", "cholesky_solve", "lapack_routine", "LAPACK_LOCK
 
 _c_int = ctypes.c_int
 
-# One host LAPACK call at a time in this process: with ``twist_study``'s two threads, a
-# multi-threaded OpenBLAS (numpy imported before jaxrod, so its thread count stayed at the core
-# count) must not be entered twice at once. Every caller of the dense path's LAPACK takes it.
+# One host LAPACK call at a time in this process (a multi-threaded OpenBLAS must not be entered
+# twice at once from ``twist_study``'s two threads). Every caller of the dense path's LAPACK takes it.
 LAPACK_LOCK = threading.Lock()
 
 
@@ -79,10 +70,9 @@ def _call_syevr(f, a, n, m, w, z, isuppz, work, lwork, iwork, liwork):
 
 
 def lowest_eigenpairs(h, m):
-    """(lam (m,), vec (n, m)): the m lowest eigenpairs of the symmetric h (n, n) (its lower
-    triangle is read), ascending; LAPACK's dsyevr with an index range, as
-    ``scipy.linalg.eigh(h, subset_by_index=[0, m - 1], driver="evr")`` gives them, but with the
-    GIL released while LAPACK runs."""
+    """(lam (m,), vec (n, m)): the m lowest eigenpairs of the symmetric h (n, n) (lower triangle
+    read), ascending, as ``scipy.linalg.eigh(h, subset_by_index=[0, m - 1], driver="evr")`` gives
+    them, with the GIL released."""
     h = np.asarray(h, dtype=np.float64)
     n = h.shape[0]
     f = lapack_routine("dsyevr", 21)
@@ -101,10 +91,9 @@ def lowest_eigenpairs(h, m):
 
 
 def cholesky_solve(h, b):
-    """x (n,) with h x = b, for the symmetric positive definite h (n, n) (its lower triangle is
-    read), by LAPACK's dpotrf and dpotrs as ``scipy.linalg.cho_solve(scipy.linalg.cho_factor(h,
-    lower=True), b)`` computes it, but with the GIL released; ``numpy.linalg.LinAlgError`` where
-    h is not positive definite (as SciPy raises)."""
+    """x (n,) with h x = b, for the symmetric positive definite h (n, n) (lower triangle read), by
+    dpotrf and dpotrs as ``scipy.linalg.cho_solve(cho_factor(h, lower=True), b)``, with the GIL
+    released; ``numpy.linalg.LinAlgError`` where h is not positive definite (as SciPy raises)."""
     h = np.asarray(h, dtype=np.float64)
     b = np.asarray(b, dtype=np.float64)
     n = h.shape[0]
@@ -112,8 +101,7 @@ def cholesky_solve(h, b):
     if potrf is None or potrs is None or b.shape != (n,):
         import scipy.linalg
 
-        return scipy.linalg.cho_solve(scipy.linalg.cho_factor(h, lower=True, check_finite=False), b,
-                                      check_finite=False)
+        return scipy.linalg.cho_solve(scipy.linalg.cho_factor(h, lower=True, check_finite=False), b, check_finite=False)
     ref = ctypes.byref
     ptr = lambda x: ctypes.c_void_p(x.ctypes.data)  # noqa: E731
     a, x = np.array(h, order="F"), np.array(b)

@@ -1,12 +1,10 @@
 """A sparse symmetric LDL^T with diagonal pivots only, whose pivots give the inertia (Sylvester).
 
-QDLDL (``qdldl``: AMD ordering, then P A P^T = L D L^T without pivoting) first, its symbolic
-factorisation reused per sparsity pattern (``_SymbolicPool``); where it meets a zero pivot,
-``scipy.sparse.linalg.splu`` (SuperLU) in symmetric mode with a diagonal pivot threshold of 0; a
-run that pivoted off the diagonal is refused (``FactorisationError``), never counted. Why QDLDL:
-a true LDL^T, half SuperLU's work; CHOLMOD (scikit-sparse) needs a compiled SuiteSparse that pip
-cannot always provide, and a Cholesky alone gives definiteness, not the count.
-"""
+QDLDL (AMD ordering, then P A P^T = L D L^T without pivoting) first, its symbolic factorisation
+reused per sparsity pattern (``_SymbolicPool``); at a zero pivot, SuperLU (``splu``) in symmetric
+mode with a diagonal pivot threshold of 0; a run that pivoted off the diagonal is refused
+(``FactorisationError``). Why QDLDL: a true LDL^T at half SuperLU's work; a Cholesky gives
+definiteness, not the count."""
 from __future__ import annotations
 
 import collections
@@ -31,13 +29,10 @@ class FactorisationError(np.linalg.LinAlgError):
 
 class _SymbolicPool:
     """Idle QDLDL solvers by sparsity pattern, so that a matrix whose pattern was factorised before
-    (the same Hessian at another shift or with another border; the next Newton iterate with the
-    same contact pairs) skips the AMD ordering and the elimination tree: ``Solver.update`` redoes
-    only the numbers (2.5 / 6.3 ms against 4.9 / 9.3 ms for a new solver at the trefoil's N = 481),
-    with the same ordering, hence the same factor bit for bit. A solver is lent to one ``QDLDLFactor``
-    at a time and comes back when that is freed, so a factorisation still in use is never
-    overwritten; a few patterns are kept, the least recently used dropped. Thread-safe (the CLI
-    runs the two twist directions in two threads)."""
+    skips the AMD ordering and elimination tree (``Solver.update`` redoes only the numbers, with
+    the same ordering, hence the same factor bit for bit). A solver is lent to one ``QDLDLFactor``
+    at a time and comes back when that is freed; a few patterns are kept, least recently used
+    dropped. Thread-safe."""
 
     def __init__(self, patterns=8, per_pattern=3):
         self._idle = collections.OrderedDict()
@@ -93,15 +88,11 @@ class QDLDLFactor:
 
 def ldlt(A):
     """(factorisation with ``.solve``, pivots (m,)) of the symmetric sparse A with diagonal pivots
-    only, i.e. an LDL^T whose pivots' signs give A's inertia (Sylvester). Raises
-    FactorisationError where A has no such factorisation (exactly singular, a pivot off the
-    diagonal, a zero or non-finite pivot).
-
-    QDLDL first: a true LDL^T (half SuperLU's work: at the trefoil's N = 481, 4.8 / 8.3 ms against
-    SuperLU's 6.1 / 13.8 ms for the matrices at phi = 0 and at the tightening end, pivots
-    included; solves 0.13 / 0.22 ms against 0.19 / 0.37 ms). Where it refuses (a zero pivot, a diagonal entry
-    missing from the pattern) SuperLU in symmetric mode decides, as before: it may still find
-    the diagonal-pivot factorisation, or says why there is none."""
+    only, i.e. an LDL^T whose pivots' signs give A's inertia (Sylvester). Raises FactorisationError
+    where A has no such factorisation (exactly singular, a pivot off the diagonal, a zero or
+    non-finite pivot). QDLDL first (a true LDL^T, half SuperLU's work); where it refuses (a zero
+    pivot, a diagonal entry missing from the pattern) SuperLU in symmetric mode decides: it may
+    still find the diagonal-pivot factorisation, or says why there is none."""
     A = sp.csc_matrix(A)
     if _qdldl is not None:
         A.sort_indices()

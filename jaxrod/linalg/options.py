@@ -1,8 +1,6 @@
 """Options for the linear algebra of a rod's Hessian, and which backend they pick for a scene.
 
-Kept apart from the backends themselves (``jaxrod.linalg.backend``), so that every module of the
-linear-algebra layer can ask for the choice without importing the implementations.
-"""
+Kept apart from the backends (``jaxrod.linalg.backend``) so every linear-algebra module can ask."""
 from __future__ import annotations
 
 import math

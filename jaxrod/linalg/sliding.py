@@ -12,10 +12,9 @@ __all__ = ["SLIDING_FRACTION", "CLEAN_SLIDE_FRACTION", "sliding_fields", "slidin
            "without_slide", "band_shape_modes", "shape_modes_in_band"]
 
 
-# A mode counts as material sliding when less than this fraction of it (squared norm, scaled
-# DOFs) is left once tangential node motions and a rigid motion are fitted to it: measured on the
-# trefoil at N = 61 (0 ... 3 pi), the near-null sliding mode leaves < 1e-3, every shape mode >= 0.37
-# and twist-only modes ~1.
+# A mode counts as material sliding when less than this fraction of it (squared norm, scaled DOFs)
+# is left once tangential node motions and a rigid motion are fitted to it (sliding modes leave
+# < 1e-3, shape modes >= ~0.4, twist-only modes ~1).
 SLIDING_FRACTION = 0.05
 
 
@@ -43,16 +42,12 @@ def sliding_fields(scene, q):
 
 
 def sliding_fraction(scene, q, vectors):
-    """How far each mode is from material sliding along the centreline: (m,) fractions in [0, 1]
-    for the modes ``vectors`` (n, m) in scaled DOFs at the state ``q`` (physical DOFs) of a rod.
-
-    A loose knot's near-null modes move material along its own centreline (strands slipping):
-    node i moves by alpha_i t_i (t_i its tangent), plus a rigid motion a + w x x_i (projected out of
-    the modes, but a slide along a torus knot is mostly a rotation about its axis). The fraction is
-    what is left of the mode once the best such field is subtracted from its node motions,
-    counting its twist-angle part as left over too: ~0 for sliding, O(1) for a mode that changes
-    the shape (a buckling mode) or only the twist. Rods whose nodes are all free (closed and free
-    rods: tangents by central differences, one-sided at open ends); a clamped rod cannot slide."""
+    """How far each mode is from material sliding along the centreline: (m,) fractions in [0, 1] for
+    the modes ``vectors`` (n, m) in scaled DOFs at the state ``q`` (physical DOFs) of a rod. A loose
+    knot's near-null modes move material along its own centreline: node i moves by alpha_i t_i plus
+    a rigid motion a + w x x_i. The fraction is what is left of the mode once the best such field is
+    subtracted from its node motions, its twist-angle part counted as left over too: ~0 for sliding,
+    O(1) for a shape or twist mode. Rods whose nodes are all free only."""
     vec = np.asarray(vectors, dtype=float)
     if vec.ndim == 1:
         vec = vec[:, None]
@@ -71,29 +66,20 @@ def sliding_fraction(scene, q, vectors):
 
 
 # The stable-only engine splits a slide off its computed eigenpairs only when the span holds one
-# this clean (a pure slide leaves < 1e-3, see SLIDING_FRACTION) and near-null (inside the band kept
-# for the sliding modes): on the trefoil's buckled+ branch at N = 121 the direction of least
-# sliding in the span mixed the slide with a mode at 2.3e-6 and with the buckling mode crossing
-# zero at +7.041 pi, and splitting it off took the crossing with it.
+# this clean (a pure slide leaves < 1e-3) and near-null: a less clean one can carry a crossing
+# shape mode with it.
 CLEAN_SLIDE_FRACTION = 5e-3
 
 
 def split_slide(scene, q, values, vectors, threshold=SLIDING_FRACTION, max_value=None):
-    """Split the material-sliding direction off the span of a knot's lowest eigenvectors.
-
-    values (m,), vectors (n, m) orthonormal, in the rod's scaled DOFs (all of them; a pinned
-    problem embeds its free DOFs first: ``jaxrod.continuation.arclength.rods.split_sliding``); q: the state.
-    The sliding fraction (``sliding_fraction``: 0 for a pure slide of the material along the
-    centreline, O(1) for a change of shape) is a quadratic form; its minimiser within the span is
-    the slide, whatever the mixing of nearly degenerate eigenvectors (next to a crossing or a fold
-    the critical mode and the slide are both near zero and their eigenvectors mix: on the trefoil
-    at N = 121, 0.004 pi before its tightening branch point, the lowest eigenvector was half slide,
-    half buckling mode). If its fraction is below ``threshold`` it is one soft direction, with its
-    Rayleigh quotient, and the rest of the span are Ritz pairs (ascending with it).
-    max_value: a slide is near-null; a direction whose Rayleigh quotient exceeds this in modulus is
-    not split off (None: no bound).
-    Returns (values (m,), coefficients C (m, m): the new vectors are ``vectors @ C``, soft (m,)
-    bool: the slide); the input unchanged (C = I, no soft direction) when nothing slides."""
+    """Split the material-sliding direction off the span of a knot's lowest eigenvectors. values
+    (m,), vectors (n, m) orthonormal, in the rod's scaled DOFs (a pinned problem embeds its free
+    DOFs first: ``jaxrod.continuation.arclength.rods.split_sliding``); q: the state. The sliding
+    fraction is a quadratic form whose minimiser within the span is the slide, however nearly
+    degenerate eigenvectors mix. If its fraction is below ``threshold`` (and its Rayleigh quotient
+    within +-``max_value``, None: no bound) it is one soft direction and the rest of the span Ritz
+    pairs. Returns (values (m,) ascending, coefficients C (m, m): the new vectors are ``vectors @
+    C``, soft (m,) bool); the input unchanged (C = I, none soft) when nothing slides."""
     V = np.asarray(vectors, dtype=float)
     lam = np.asarray(values, dtype=float)
     m = lam.size
@@ -135,11 +121,10 @@ def without_slide(scene, q, values, vectors, band):
 
 def band_shape_modes(scene, e, negative_tol, strict_tol=None):
     """(values (k,), fractions (k,), vectors (n, k)) of the equilibrium e's modes that change the
-    shape and lie in the near-zero band [-negative_tol, -strict_tol) kept for the sliding modes of
-    loose knots: its computed eigenpairs with the slide split off their span first
-    (``split_slide``), so that a buckling mode mixed with the slide next to its crossing is judged
-    by its own eigenvalue, then each remaining direction whose sliding fraction is above
-    SLIDING_FRACTION (see ``shape_modes_in_band``). Empty arrays without a band."""
+    shape and lie in the near-zero band [-negative_tol, -strict_tol) kept for loose knots' sliding
+    modes: the slide is split off the computed span first (``split_slide``), so a buckling mode
+    mixed with it is judged by its own eigenvalue, then each remaining direction whose sliding
+    fraction is above SLIDING_FRACTION is kept. Empty arrays without a band."""
     if strict_tol is None:
         strict_tol = scaled_negative_tol(scene)
     lam = np.asarray(e.stability.eigenvalues)
@@ -158,12 +143,9 @@ def band_shape_modes(scene, e, negative_tol, strict_tol=None):
 
 def shape_modes_in_band(scene, e, negative_tol, strict_tol=None):
     """[(eigenvalue, sliding fraction)] of the equilibrium e's computed modes whose eigenvalue lies
-    in the near-zero band [-negative_tol, -strict_tol) kept for the sliding modes of loose knots,
-    but which do not slide (``sliding_fraction`` above SLIDING_FRACTION): negative eigenvalues of
-    shape-changing modes that the band counts as zero (on the trefoil at N = 481 a pair crossing zero
-    at -11.09 pi stayed inside the band down to -12.18 pi). Empty without a band. strict_tol:
-    default ``tolerances.scaled_negative_tol(scene)``, 1e-10 up to N ~ 600 and falling as N^-4
-    beyond, with the shape modes themselves (the trefoil's sit at ~3e-9 at N = 961, where a fixed
-    1e-10 would let a shape mode crossing zero at ~3e-9 per rad pass unseen for ~0.01 pi)."""
+    in the near-zero band [-negative_tol, -strict_tol) kept for loose knots' sliding modes but
+    which do not slide (``band_shape_modes``): negative eigenvalues of shape-changing modes that
+    the band counts as zero. Empty without a band. strict_tol: default
+    ``tolerances.scaled_negative_tol(scene)``."""
     values, fractions, _ = band_shape_modes(scene, e, negative_tol, strict_tol)
     return [(float(v), float(f)) for v, f in zip(values, fractions)]

@@ -1,57 +1,27 @@
 """O(N) stability, Newton steps, eigenpairs and branch tangents from the rod's block structure.
 
-The dense path (``jaxrod.linalg.stability``) assembles the n x n Hessian and calls ``eigh``: O(n^3).
-This module never forms an n x n array. It reorders the DOFs node by node, so that the local part
-of the Hessian (``jaxrod.model.hessian``: everything except the rank-one holonomy term and contact)
-becomes block-tridiagonal (cyclic for closed rods), and hands it, with the rank-one term
-``w a a^T``, to the block LDL^T of ``jaxrod.linalg.banded``: O(N) per factorisation.
+Unlike the dense path (``jaxrod.linalg.stability``, O(n^3)), no n x n array is formed: the DOFs are
+reordered node by node so that the local Hessian (``jaxrod.model.hessian``) is block-tridiagonal
+(cyclic for closed rods), and it goes with the rank-one term ``w a a^T`` to the block LDL^T of
+``jaxrod.linalg.banded``: O(N) per factorisation. Scope: scenes WITHOUT contact (pair blocks
+couple distant nodes). The public functions (pure; the scene a pytree argument) are plain,
+traceable compositions of separately jitted pieces, each compiled once per scene shape.
 
-Scope: scenes WITHOUT the "contact" term (contact pair blocks couple distant nodes), of kind
-``ClosedRod``, ``ClampedRod`` (and ``FreeRod``).
-
-Public functions (all pure; the scene is a pytree argument, vectors are JAX arrays):
-
-* :func:`block_layout` (numpy, cached): the node-interleaved block order of the DOFs.
-* :func:`block_hessian`: (diag, off, a, w), the Hessian of the scaled energy in that order.
-* :func:`gauge_pins`: the 7 DOFs pinned to fix the symmetries of a closed (or free) rod.
-* :func:`inertia_at_equilibrium`: number of eigenvalues of the projected Hessian below -tol.
-* :func:`projected_count_below`: the same count without gauge pinning (bordered inertia), exact
-  at any state but less well conditioned for shifts very close to 0.
-* :func:`newton_direction`: the Newton step with the gauge pinned.
-* :func:`lowest_eigenpairs_projected`: the k lowest eigenpairs of the projected Hessian.
-* :func:`tangent`: the branch tangent du/dphi.
-* :func:`gradient_and_phi_derivative`: the gradient of the scaled energy and its phi derivative.
-
-Compilation: the energy-heavy pieces (``block_hessian``, ``gradient_and_phi_derivative``) and the
-block linear algebra are separately jitted, so each is compiled once per scene shape and shared by
-all the public functions; the public functions are plain compositions of them (still pure, and
-traceable inside a user's ``jax.jit``).
-
-Variables: everything is in the scaled DOFs u = q / scene.dof_scale and the scaled energy
-``scene.scaled_energy`` (as ``jaxrod.linalg.stability``), vectors in q's layout unless said otherwise.
-"Projected Hessian" means P H P on the orthogonal complement Z-perp of the symmetry generators
-Z = ``scene.scaled_zero_modes`` (what ``jaxrod.linalg.stability.spectrum`` diagonalises; for a clamped
-rod Z is empty and it is H itself).
+Variables: scaled DOFs u = q / scene.dof_scale and ``scene.scaled_energy``, vectors in q's layout
+unless said otherwise. "Projected Hessian" means P H P on Z-perp, Z = ``scene.scaled_zero_modes``
+(what ``jaxrod.linalg.stability.spectrum`` diagonalises; H itself for a clamped rod).
 
 Gauge pinning (closed and free rods)
 ------------------------------------
-H is singular along the 7 symmetry generators Z (3 translations, 3 rotations, the uniform twist
-shift): at an equilibrium H Z = 0 exactly for translations and the twist shift, and H z = Omega g
-(the rotated gradient, O(|g|)) for a rotation. Instead of projecting (a dense rank-7 term) we fix
-the gauge: 7 DOFs P (3 coordinates of node 0, 2 of node ~N/3, 1 of node ~2N/3, the twist angle
-of edge 0) are pinned, i.e. their rows and columns are replaced by the identity and the rank-one
-vector a is zeroed there. Write F for the other DOFs and V_F = {v : v_P = 0}. With Q an
-orthonormal basis of span(Z), V_F + span(Z) = R^n exactly when the 7 x 7 matrix Q_P (rows P of Q)
-is invertible; the coordinate components are chosen (from the current geometry) to maximise its
-smallest singular value s. Then J v = v - Q Q_P^{-1} v_P maps Z-perp one-to-one onto V_F, and
-if H Z = 0, v^T H v = (Jv)^T H (Jv): H_FF is congruent to the projected Hessian, so it has the
-same inertia (Sylvester), and solving with H_FF is solving with H modulo the symmetries.
-The metric of the two is not the same: for v in Z-perp, |v|^2 <= |Jv|^2 <= kappa |v|^2 with
-kappa = 1 + 1/s^2 (the *metric distortion* of the gauge). The translations are spread evenly over
-the N nodes, so s <= ~1/sqrt(N) whatever 7 DOFs are pinned (s = 1/sqrt(N) for a ring): kappa ~ N
-in the worst case. For a given direction v the factor is 1 + |Q_P^{-1} v_P|^2 / |v|^2, which is
-O(1) for modes spread over the rod (|v_P| ~ sqrt(7/n) |v|); only a mode concentrated on the pinned
-DOFs sees the full kappa.
+H is singular along the 7 symmetry generators Z (translations, rotations, uniform twist shift).
+Instead of projecting (a dense rank-7 term) we pin 7 DOFs P (3 coordinates of node 0, 2 of node
+~N/3, 1 of node ~2N/3, the twist angle of edge 0): their rows and columns become the identity and
+a is zeroed there. With Q an orthonormal basis of span(Z), the pins fix the gauge when Q_P (rows P
+of Q) is invertible; the coordinates are chosen to maximise its smallest singular value s. Then
+J v = v - Q Q_P^{-1} v_P maps Z-perp onto V_F = {v : v_P = 0} and, if H Z = 0, H_FF is congruent to
+the projected Hessian (same inertia, Sylvester). The metric is distorted by up to
+kappa = 1 + 1/s^2 (~N at worst), per direction 1 + |Q_P^{-1} v_P|^2 / |v|^2, O(1) for modes spread
+over the rod.
 """
 from __future__ import annotations
 
@@ -71,23 +41,9 @@ from .block_layout import BlockLayout, block_layout, from_blocks, to_blocks  # n
 from .zero_modes import orthonormal_columns
 from .tolerances import DEFAULT_NEGATIVE_TOL
 
-__all__ = [
-    "BlockLayout",
-    "block_layout",
-    "block_hessian",
-    "gauge_pins",
-    "inertia_at_equilibrium",
-    "newton_direction",
-    "lowest_eigenpairs_projected",
-    "ProjectedEigenpairs",
-    "tangent",
-    "gradient_and_phi_derivative",
-    "projected_count_below",
-]
-
-
-# ------------------------------------------------------------------------------------------------
-# Hessian in blocks (the block order: ``jaxrod.linalg.block_layout``)
+__all__ = ["BlockLayout", "block_layout", "block_hessian", "gauge_pins", "inertia_at_equilibrium", "newton_direction",
+           "lowest_eigenpairs_projected", "ProjectedEigenpairs", "tangent", "gradient_and_phi_derivative",
+           "projected_count_below"]
 
 
 def _check_scene(scene):
@@ -115,21 +71,12 @@ def _block_hessian(scene, u, phi, nbr):
 @jax.jit
 def block_hessian(scene, u, phi, nbr):
     """The exact Hessian of ``scene.scaled_energy(u, phi, nbr)`` in block order, as
-    block-tridiagonal + rank one:  H[perm, perm] = T + w a a^T  (dummies: identity in T).
-
-    The local part comes straight from the coloured Hessian-vector products of
-    ``jaxrod.model.hessian`` (about 36 of them whatever N), each entry gathered into its block
-    (symmetrised: (H[r, c] + H[c, r]) / 2, like ``scaled_hessian``); no n x n array is formed.
-
-    Args: scene (no contact term), u (n,) scaled DOFs, phi, nbr (``scene.neighbourhood``).
-    Returns: diag (K, b, b), off (K, b, b) (``jaxrod.linalg.banded`` conventions, cyclic for closed rods),
-    a (n_pad,) the rank-one vector in block order (zero on dummies), w scalar.
-    """
+    block-tridiagonal + rank one:  H[perm, perm] = T + w a a^T  (dummies: identity in T). The local
+    part is gathered from the coloured products of ``jaxrod.model.hessian`` (symmetrised like
+    ``scaled_hessian``). Args: scene (no contact term), u (n,) scaled DOFs, phi, nbr. Returns: diag
+    (K, b, b), off (K, b, b) (``banded`` conventions), a (n_pad,) the rank-one vector in block order
+    (zero on dummies), w scalar."""
     return _block_hessian(scene, u, phi, nbr)
-
-
-# ------------------------------------------------------------------------------------------------
-# gauge
 
 
 @cached_jit
@@ -146,15 +93,11 @@ def _gauge(scene, u, phi):
 
 
 def gauge_pins(scene, u, phi):
-    """The 7 DOFs pinned to fix the gauge of a closed (or free) rod at state u.
-
-    Candidates: x, y, z of node 0, two coordinates of node N//3, one of node 2N//3, and the
-    twist angle of edge 0; among the 9 choices of coordinates, the one whose 7 x 7 restriction
-    Q_P of the orthonormalised generators has the largest smallest singular value s.
-    Returns (pins (7,) q indices, s); (0,) and 1.0 for a clamped rod. The metric distortion of
-    the gauge (module docstring) is kappa = 1 + 1/s^2; s = 0 means the pins do not fix the gauge
-    (degenerate geometry, e.g. generators of lower rank).
-    """
+    """The 7 DOFs pinned to fix the gauge of a closed (or free) rod at state u. Candidates: x, y, z
+    of node 0, two coordinates of node N//3, one of node 2N//3, the twist angle of edge 0; of the 9
+    choices, the one whose 7 x 7 restriction Q_P of the generators has the largest smallest singular
+    value s. Returns (pins (7,) q indices, s); (0,) and 1.0 for a clamped rod. The gauge's metric
+    distortion is kappa = 1 + 1/s^2; s = 0: the pins do not fix the gauge."""
     _, pins, s = _gauge(scene, u, phi)
     return pins, s
 
@@ -177,37 +120,22 @@ def _pin(lay, diag, off, a, w, pins, shift):
     return diag, off, a[:, None], jnp.reshape(w, (1,)), keep
 
 
-# ------------------------------------------------------------------------------------------------
-# inertia, Newton, tangent
-
-
 def inertia_at_equilibrium(scene, u, phi, nbr, tol=DEFAULT_NEGATIVE_TOL):
     """Number of eigenvalues of the projected Hessian below -tol at an equilibrium u: the dense
     ``stability(...).n_negative``, in O(N).
 
-    Computed as the number of negative eigenvalues of H_FF + tol I (the gauge-pinned Hessian,
-    shifted; pins and dummies are identity rows, so they add only positive eigenvalues), from one
-    block LDL^T of T + tol I and the Haynsworth correction for w a a^T (``banded.inertia``).
-
-    Why this is the projected count: with J as in the module docstring, (H_FF + tol I) restricted
-    to V_F is congruent (through J) to  A + tol J^T J  on Z-perp, A the projected Hessian, and
-    I <= J^T J <= kappa I (kappa = 1 + 1/s^2, s from ``gauge_pins``). Since the negative count
-    can only drop when the matrix grows,
+    Counts the negative eigenvalues of H_FF + tol I (the gauge-pinned Hessian, shifted; pins and
+    dummies add only positive eigenvalues) from one block LDL^T and the Haynsworth correction for
+    w a a^T. Through J (module docstring), I <= J^T J <= kappa I, so
 
         #{lambda(A) < -kappa tol}  <=  returned count  <=  #{lambda(A) < -tol},
 
-    so it equals the projected count #{lambda(A) < -tol} unless an eigenvalue of A lies in
-    [-kappa tol, -tol): within a factor ~kappa (the metric distortion) of -tol (per eigenvector
-    the relevant factor is 1 + |Q_P^{-1} v_P|^2/|v|^2, O(1) for modes spread over the rod even
-    though kappa ~ N; ``projected_count_below`` gives the count without distortion). Without the
-    shift (tol = 0) the counts agree exactly (Sylvester). Off equilibrium the rotations are
-    null vectors only up to H z = Omega g, which moves the pinned eigenvalues by O(|g| / s):
-    eigenvalues within that of -tol may also be counted differently. For a clamped rod nothing
-    is pinned and the count is exactly #{lambda(H) < -tol} (up to round-off).
+    A the projected Hessian: exact unless an eigenvalue lies within ~kappa of -tol
+    (``projected_count_below`` has no distortion), and exact for tol = 0 or a clamped rod. Off
+    equilibrium, eigenvalues within O(|g| / s) of -tol may be counted differently.
 
-    Args: scene (no contact), u (n,), phi, nbr, tol. Returns: int32 scalar (a JAX array).
-    Caveat (``jaxrod.linalg.banded``): T + tol I is factorised without pivoting across blocks; a pivot
-    block that is singular to round-off (an isolated accident of the state) spoils the count.
+    Args: scene (no contact), u (n,), phi, nbr, tol. Returns: int32 scalar (a JAX array). No
+    pivoting across blocks: a pivot block singular to round-off spoils the count.
     """
     lay = block_layout(scene)
     diag, off, a, w = block_hessian(scene, u, phi, nbr)
@@ -223,9 +151,8 @@ def _rhs_to_blocks(lay, rhs, keep):
 
 @functools.partial(jax.jit, static_argnames=("lay",))
 def _solution_from_blocks(lay, x, Q, keep=None):
-    """Block order -> q order (zeroed where keep is 0: the pinned entries come out of the block
-    solve at round-off level, ~1e-13, not exactly 0), then (if Q is not None) projected on
-    Q-perp."""
+    """Block order -> q order (zeroed where keep is 0: pinned entries come out at round-off level),
+    then (if Q is not None) projected on Q-perp."""
     if keep is not None:
         x = x * (keep if x.ndim == 1 else keep[:, None])
     x = from_blocks(lay, x)
@@ -236,8 +163,7 @@ def _solution_from_blocks(lay, x, Q, keep=None):
 
 def _pinned_solve(lay, diag, off, a, w, pins, Q, rhs):
     """x (n,) in q order with x_P = 0 and H_FF x_F = rhs_F; then, if Q is not None, x projected
-    on Q-perp. (Composed of separately jitted pieces, so that ``banded.factor`` and
-    ``banded.solve`` are compiled once per shape for every caller.)"""
+    on Q-perp. (Separately jitted pieces: ``banded`` is compiled once per shape for every caller.)"""
     diag, off, U, c, keep = _pin(lay, diag, off, a, w, pins, jnp.asarray(0.0, diag.dtype))
     fac = banded.factor(diag, off, cyclic=lay.cyclic)
     x = banded.solve(fac, _rhs_to_blocks(lay, rhs, keep), U, c)
@@ -245,26 +171,13 @@ def _pinned_solve(lay, diag, off, a, w, pins, Q, rhs):
 
 
 def newton_direction(scene, u, phi, nbr, g):
-    """The Newton step d (n,) (scaled DOFs, q order) for the gradient g (n,) of the scaled
-    energy at u:  H_FF d_F = -g_F,  d_P = 0 on the gauge pins (nothing pinned for a clamped rod).
-
-    Why the pinned system is the right one: the energy is exactly invariant under the symmetries,
-    so g . z = 0 for every generator z (the derivative of the energy along a symmetry). At an
-    equilibrium-like state (H Z = 0) g is then in range(H) and the solutions of H d = -g are
-    d0 + Z c for all c; exactly one of them vanishes on the pins (Q_P invertible), and it is the
-    pinned solution: the usual Newton step up to a symmetry motion. Away from equilibrium it is
-    the Newton step of the energy restricted to the slice {u_P fixed}, which meets every orbit
-    of the symmetry group near u once; a zero of the restricted gradient is a zero of the full
-    one (g_F = 0 and Z^T g = 0 give Q_P^T g_P = 0, so g_P = 0). Iterating u <- u + d therefore
-    converges to an equilibrium, quadratically once close; the pinned DOFs stay where they are
-    as long as the same pins are chosen (they are re-chosen from the geometry at every call).
-    The step has large symmetry components (it moves the state along the orbit so that the pins
-    stay fixed); they are harmless. Measured: from a random 3e-3 perturbation of a Michell ring
-    (N = 24, stiff stretching, EA l^2/B ~ 1e4) about 8 undamped steps to |g| < 1e-11, like the
-    dense undamped Newton; no line search here -- add one (e.g. on |g|) far from equilibrium.
-    Costs one block factorisation and one solve, O(N). (g: e.g. from
-    ``gradient_and_phi_derivative``.)
-    """
+    """The Newton step d (n,) (scaled DOFs, q order) for the gradient g (n,) of the scaled energy at
+    u:  H_FF d_F = -g_F,  d_P = 0 on the gauge pins (nothing pinned for a clamped rod). The energy
+    is invariant under the symmetries, so g is orthogonal to Z; at an equilibrium-like state the
+    solutions of H d = -g are d0 + Z c, and the pinned one is the usual Newton step up to a symmetry
+    motion. Away from equilibrium it is the Newton step restricted to the slice {u_P fixed}, whose
+    critical points are equilibria, so u <- u + d converges (quadratically once close). No line
+    search here. Costs one block factorisation and one solve, O(N)."""
     lay = block_layout(scene)
     diag, off, a, w = block_hessian(scene, u, phi, nbr)
     _, pins, _ = _gauge(scene, u, phi)
@@ -281,27 +194,14 @@ def gradient_and_phi_derivative(scene, u, phi, nbr):
 
 
 def tangent(scene, u, phi, nbr):
-    """The branch tangent du/dphi (n,) (scaled DOFs, q order) at an equilibrium u, on Z-perp:
-
-        du/dphi = -H^+ d(grad)/dphi,
-
-    d(grad)/dphi by a forward-mode jvp of the gradient in phi. Computed as the pinned solve
-    (``newton_direction`` with g = d(grad)/dphi) followed by the projection on Z-perp: since
-    g(u, phi) . z(u) = 0 for every phi, d(grad)/dphi is orthogonal to Z as well, so the pinned
-    solution is a solution of H x = -d(grad)/dphi, and its projection on Z-perp = range(H) is the
-    minimum-norm one, -H^+ d(grad)/dphi (exact when H Z = 0; to O(|g|) for the rotations).
-    (``jaxrod.linalg.stability.branch_analysis`` returns the same in physical DOFs from the dense
-    eigen-decomposition, except that it also leaves out the tracked mode's cluster.)
-    """
+    """The branch tangent du/dphi = -H^+ d(grad)/dphi (n,) (scaled DOFs, q order) at an equilibrium
+    u, on Z-perp: the pinned solve (``newton_direction`` with g = d(grad)/dphi, by a jvp) projected
+    on Z-perp = range(H), the minimum-norm solution (exact when H Z = 0; to O(|g|) for rotations)."""
     lay = block_layout(scene)
     diag, off, a, w = block_hessian(scene, u, phi, nbr)
     Q, pins, _ = _gauge(scene, u, phi)
     _, dg = gradient_and_phi_derivative(scene, u, phi, nbr)
     return _pinned_solve(lay, diag, off, a, w, pins, Q, -dg)
-
-
-# ------------------------------------------------------------------------------------------------
-# eigenpairs
 
 
 class ProjectedEigenpairs(NamedTuple):
@@ -351,10 +251,8 @@ def _border_count(neg, Zr, Y):
 
 
 def _projected_count(diag, off, cyclic, U, c, Zr, s):
-    """#{eigenvalues of P M P on Zr-perp below s}, M = T + U diag(c) U^T: from the bordered
-    matrix B = [[M - s, Zr], [Zr^T, 0]], In(B) = In(P(M - s)P on Zr-perp) + (z, z), and
-    Haynsworth In(B) = In(M - s) + In(-Zr^T (M - s)^{-1} Zr). One factorisation of T - s I, one
-    solve with z columns."""
+    """#{eigenvalues of P M P on Zr-perp below s}, M = T + U diag(c) U^T, by Haynsworth on
+    [[M - s, Zr], [Zr^T, 0]]: In(M - s) + In(-Zr^T (M - s)^{-1} Zr). One factorisation, one solve."""
     fac = banded.factor(_shifted(diag, s), off, cyclic=cyclic)
     neg = banded.inertia(fac, U, c)[0]
     if Zr.shape[1] == 0:
@@ -367,16 +265,11 @@ _SIGMA_RANGE = 12.5  # decades: s(t) spans about [-3 bound, 3 bound]
 
 
 def _auto_sigma(diag, off, cyclic, U, c, Zr, bound):
-    """A shift just below the lowest projected eigenvalue lambda_1, by Sylvester counts.
-
-    Bisection on t for the count at s(t) = 2 delta sinh(t ln 10), delta = 1e-12 ||M|| (bound):
-    s is ~ -+delta 10^|t| away from 0 (so the bracket is relative, on either side of 0) and
-    linear across [-delta, delta]. 9 counts bracket lambda_1 in [s_lo, s_hi) with s_hi/s_lo
-    within a factor 10^(25/512) ~ 1.12 (or |s_hi - s_lo| ~ delta near 0); the shift
-    sigma = s_lo - (s_hi - s_lo) lies below lambda_1 by 1 to 2 bracket widths: close enough for
-    fast shift-invert convergence, far enough for T - sigma I and A - sigma to be regular.
-    (A fixed number of steps and jnp.where: no value leaves the device, traceable under jit.)
-    """
+    """A shift just below the lowest projected eigenvalue lambda_1, by Sylvester counts. Bisection
+    on t for the count at s(t) = 2 delta sinh(t ln 10), delta = 1e-12 ||M|| (bound): a relative
+    bracket on either side of 0, linear across [-delta, delta]. 9 counts bracket lambda_1 within a
+    factor ~1.12; sigma = s_lo - (s_hi - s_lo) lies 1 to 2 bracket widths below it. (A fixed number
+    of steps and jnp.where: traceable under jit.)"""
     delta = 1e-12 * bound
     s_of = lambda t: 2.0 * delta * jnp.sinh(t * jnp.log(10.0))  # noqa: E731
     lo = jnp.asarray(-_SIGMA_RANGE, diag.dtype)
@@ -403,9 +296,8 @@ def _sigma_below(diag, off, cyclic, U, c, Zr, bound, guess):
     return _auto_sigma(diag, off, cyclic, U, c, Zr, bound)
 
 
-# ``lowest_eigenpairs_projected``: residuals are driven below this fraction of the wanted
-# eigenvalues' distance from the shift (max lambda - sigma), not only below tol ||M||; but not
-# below _EIG_TOL_FLOOR ||M||, about where round-off stops them (measured ~3e-16 ||M||).
+# ``lowest_eigenpairs_projected`` drives residuals below this fraction of (max lambda - sigma), but
+# not below _EIG_TOL_FLOOR ||M||, about where round-off stops them.
 _EIG_SPREAD_RTOL = 1e-2
 _EIG_TOL_FLOOR = 2e-15
 
@@ -414,27 +306,14 @@ def lowest_eigenpairs_projected(scene, u, phi, nbr, k, sigma=None, iterations=20
                                 guess=None):
     """The k lowest eigenpairs of the projected Hessian (the first k of the dense
     ``jaxrod.linalg.stability.spectrum``, whose lifted zero modes sit at the top), in O(N) per step.
-
-    ``banded.lowest_eigenpairs`` (shift-invert subspace iteration, Rayleigh-Ritz) on the block
-    Hessian T + w a a^T (unpinned), with Z = the orthonormalised symmetry generators in block order
-    plus one unit column per dummy DOF (so the dummies' eigenvalue never enters). Dummies sit at
-    1 + 4 ||M|| on T's diagonal, so that no shift used here makes them singular.
-
-    sigma: the shift (below the wanted eigenvalues); None chooses it automatically just below the
-    lowest eigenvalue from 9 Sylvester counts of the projected matrix (see ``_auto_sigma``; 9
-    extra block factorisations), or, given ``guess`` (an estimate of the lowest eigenvalue, e.g.
-    the previous continuation step's), from one count below the guess (``_sigma_below``).
-    Convergence of pair i goes as |lambda_i - sigma| / |lambda_{block+1} - sigma| per step: with the automatic shift, slow only when the wanted
-    eigenvalues are far apart compared with the gap above them (e.g. one strongly negative
-    eigenvalue and a dense cluster near zero); check ``residuals``.
-    k, iterations, block: static; iterations, tol, block as ``banded.lowest_eigenpairs`` (tol
-    relative to a bound on ||M||; outside a trace the iteration goes on, from the vectors found,
-    until the residuals are also below 1e-2 (max lambda - sigma), down to 2e-15 ||M||: the
-    eigenvalues of a long rod are tiny against ||M||).
-
-    Returns a :class:`ProjectedEigenpairs`. Needs the generators to have full rank (7 for closed
-    and free rods), and T - sigma I regular (``jaxrod.linalg.banded`` caveat).
-    """
+    ``banded.lowest_eigenpairs`` on the unpinned block Hessian T + w a a^T, Z the orthonormalised
+    generators in block order plus a unit column per dummy DOF (dummies sit at 1 + 4 ||M|| on T's
+    diagonal, so no shift makes them singular). sigma: the shift; None chooses it by Sylvester
+    counts (``_auto_sigma``), or from one count below ``guess`` (``_sigma_below``). k, iterations,
+    block static; iterations, tol, block as ``banded.lowest_eigenpairs``; outside a trace the
+    iteration goes on until the residuals are also below 1e-2 (max lambda - sigma), down to 2e-15
+    ||M||. Returns a :class:`ProjectedEigenpairs`; needs full-rank generators and T - sigma I
+    regular."""
     _check_scene(scene)
     lay = block_layout(scene)
     diag, off, a, w = block_hessian(scene, u, phi, nbr)
@@ -448,11 +327,8 @@ def lowest_eigenpairs_projected(scene, u, phi, nbr, k, sigma=None, iterations=20
     lam, X, res = banded.lowest_eigenpairs(diag, off, lay.cyclic, U, c, Z, k, sigma, iterations=iterations,
                                            tol=tol, block=block)
     if not isinstance(res, jax.core.Tracer):
-        # tol is relative to ||M||; the wanted eigenvalues of a long rod are tiny against it (a
-        # ring of N = 10000: ~1e-12 ||M||), and residuals of 1e-12 ||M|| then leave Ritz values
-        # far off (measured there: a degenerate pair split by 10%, one partner missed, the
-        # lowest 4e-14 above its value at a crossing, phi* 3% off). Go on, from the vectors
-        # found, until the residuals are small against the wanted eigenvalues' spread.
+        # tol is relative to ||M||, against which a long rod's wanted eigenvalues are tiny: go on,
+        # from the vectors found, until the residuals are small against their spread.
         want = _EIG_SPREAD_RTOL * float(jnp.max(lam) - sigma)
         if want > 0.0 and float(jnp.max(res)) > want:
             n = X.shape[0]
@@ -466,27 +342,17 @@ def lowest_eigenpairs_projected(scene, u, phi, nbr, k, sigma=None, iterations=20
 
 def projected_count_below(scene, u, phi, nbr, s):
     """Number of eigenvalues of the projected Hessian below s (any state, no gauge pinning).
-
-    Sylvester on the bordered matrix [[M - s, Z], [Z^T, 0]] (M = T + w a a^T the block Hessian,
-    Z the orthonormalised generators): its inertia is that of the projected M - s plus (z, z),
-    and by Haynsworth it is In(M - s) + In(-Z^T (M - s)^{-1} Z) -- one factorisation of the
-    unpinned T - s I and one solve with z columns. Exact: no metric distortion (unlike the pinned
-    count of ``inertia_at_equilibrium``) and no equilibrium needed; ``projected_count_below(...,
-    -tol)`` is the dense ``n_negative``. Conditioning: T has exact null vectors (translations,
-    twist shift), so for |s| tiny compared with ||M|| the pivots along them are ~|s| and carry a
-    relative error ~1e-16 ||M|| / |s| (fine for s = -1e-10 and ||M|| up to ~1e4, not far beyond);
-    the pinned count has no such limit. Returns an int32 scalar.
-    """
+    Sylvester and Haynsworth on [[M - s, Z], [Z^T, 0]] (as ``_projected_count``): one factorisation
+    of the unpinned T - s I and one solve. Exact, with no metric distortion and no equilibrium
+    needed; ``projected_count_below(..., -tol)`` is the dense ``n_negative``. T's exact null vectors
+    make the pivots ~|s|, with relative error ~1e-16 ||M|| / |s|, so |s| must not be tiny against
+    ||M||. Returns an int32 scalar."""
     _check_scene(scene)
     lay = block_layout(scene)
     diag, off, a, w = block_hessian(scene, u, phi, nbr)
     Q, _, _ = _gauge(scene, u, phi)
     diag, U, c, Zr, _, _ = _eig_setup(lay, diag, off, a, w, Q)
     return _projected_count(diag, off, lay.cyclic, U, c, Zr, jnp.asarray(s, diag.dtype))
-
-
-# ------------------------------------------------------------------------------------------------
-# the tracked eigenvalue along a branch
 
 
 @jax.jit

@@ -4,35 +4,20 @@ The scaled Hessian of a knot is H = S + w a a^T: S sparse (the local part, ~20 e
 plus one 12 x 12 block per contact pair in reach, ``jaxrod.model.hessian``) and the holonomy's dense
 rank-one term, kept as the vector a. Nothing of size n x n is formed:
 
-* **Factorisation with inertia.** QDLDL (``qdldl``: AMD ordering, then P A P^T = L D L^T
-  without pivoting): the signs of D give the inertia of A (Sylvester's law). Where it meets a zero
-  pivot, ``scipy.sparse.linalg.splu`` (SuperLU) with a symmetric fill-reducing ordering (minimum
-  degree on A + A^T), ``SymmetricMode`` and a diagonal pivot threshold of 0 tries the same
-  diagonal-pivot factorisation (U = D L^T); a run that pivoted off the diagonal (perm_r !=
-  perm_c) is refused, never counted. Why QDLDL: a true LDL^T, half SuperLU's work (see
-  ``jaxrod.linalg.ldlt``); CHOLMOD (scikit-sparse) needs a compiled SuiteSparse that pip cannot always
-  provide, and a Cholesky alone gives definiteness, not the count.
-* **The dense columns as a border.** The 7 pinned DOFs (``sparse_stability.gauge_pins``: the
-  gauge of the rigid motions and of the material twist), the rank-one vector a and, where needed,
-  the zero modes Z and deflated eigenvectors are columns of a bordered matrix
-  [[A, E], [E^T, D]] solved by the Schur complement (one factorisation of the sparse block A,
-  r solves with E). Haynsworth: In(bordered) = In(A) + In(D - E^T A^-1 E).
-* **Counts below a shift.** With the border [pins, a, Z] the bordered matrix of H - s I has the
-  inertia of H - s I projected on Z-perp plus (7, 7) from the Z border and one negative from the
-  rank-one border (-1/w): so the number of eigenvalues of the projected Hessian below s is exact,
-  for any s, at O(N).
-* **Lowest eigenpairs.** ARPACK (``scipy.sparse.linalg.eigsh``) in shift-invert mode, the
-  inverse applied by the same bordered solve (constrained to Z-perp), at a shift proven below the
-  spectrum by the count; eigenvalues are then the Rayleigh quotients of the returned vectors.
-* **Newton steps and the branch tangent** are pinned solves (the pinned Hessian at an equilibrium
-  has the inertia of the projected one; a pinned solution differs from the minimum-norm one by a
-  zero mode, removed afterwards), the near-null sliding modes of a loose knot deflated as
-  border columns.
+* **Factorisation with inertia.** ``jaxrod.linalg.ldlt`` (QDLDL, SuperLU in symmetric mode as a
+  fallback): the signs of the pivots give the inertia (Sylvester).
+* **The dense columns as a border.** The 7 gauge pins (``sparse.gauge_pins``), the rank-one vector
+  a and, where needed, the zero modes Z and deflated eigenvectors are the border of
+  [[A, E], [E^T, D]], solved by the Schur complement. Haynsworth: In = In(A) + In(D - E^T A^-1 E).
+* **Counts below a shift.** With the border [pins, a, Z], the bordered H - s I has the inertia of
+  the projected H - s I plus (7, 7) and one negative (-1/w): an exact count, for any s, at O(N).
+* **Lowest eigenpairs.** ARPACK shift-invert (``eigsh``) through the same bordered solve, at a
+  shift proven below the spectrum by the count; then Rayleigh-Ritz on the returned vectors.
+* **Newton steps and the branch tangent** are pinned solves (zero-mode part removed afterwards),
+  with the near-null sliding modes of a loose knot deflated as border columns.
 
-Entry points: ``sparse_hessian`` (the parts, host CSC), ``count_below``, ``lowest_eigenpairs``,
-``contact_spectrum``, ``contact_branch_analysis`` (wrapped by ``stability.stability`` and
-``sparse_branch.sparse_branch_analysis``)
-and ``damped_newton_direction`` (the direction of ``solvers.HostDampedNewton``).
+Entry points: ``sparse_hessian``, ``count_below``, ``lowest_eigenpairs``, ``contact_spectrum``,
+``contact_branch_analysis`` and ``damped_newton_direction`` (for ``solvers.HostDampedNewton``).
 """
 from __future__ import annotations
 
@@ -127,14 +112,8 @@ def hessian_parts(scene, u, phi, nbr):
 
 def assemble(scene, parts):
     """(S (n, n) CSC, w, a (n,)) on the host from ``hessian_parts``: (H + H^T)/2 of the local
-    entries and the contact blocks in reach, exactly symmetric (as the inertia needs).
-
-    The contact blocks (P, 12, 12) overlap heavily (neighbouring pairs share nodes): they are
-    first summed per unordered pair of nodes, 3 x 3 each, over 16 P keys, so that scipy's COO ->
-    CSC conversion sorts ~ 20 n + 18 U entries (U node pairs) instead of 2 (20 n + 144 P): at the
-    trefoil's N = 481 the conversion took 28 ms of each Hessian, 3.5 s of its 15.7 s tightening
-    side. Every entry of S is then the sum of at most two terms (local, contact), each of them
-    exactly symmetric, so S is too."""
+    entries and the contact blocks in reach (first summed per node pair, ``node_pair_entries``),
+    exactly symmetric (as the inertia needs)."""
     values, w, a, blocks, dofs, count = (np.asarray(x) for x in parts)
     pat = hessian_pattern(scene)
     n = pat.n
@@ -150,14 +129,9 @@ def assemble(scene, parts):
 def node_pair_entries(blocks, dofs, n):
     """COO entries (rows, cols, values) of the contact blocks blocks (P, 12, 12) on dofs (P, 12)
     (DOF n: a clamped node), summed per unordered pair of nodes: each pair {a, b} appears once as
-    (a, b) and once as (b, a), each diagonal node block once (symmetrised).
-
-    The blocks are exactly symmetric (``contact.contact_pair_hessian``), so only the node blocks
-    (k, l) of a pair with node k <= node l are summed (half the work); the lower triangle is their
-    mirror image, which makes the result exactly symmetric. Node pairs are numbered through a
-    table indexed by (a, b) (a node's id: its first DOF // 3), where there are few enough nodes
-    for it (a sort, ``np.unique``, otherwise): at the trefoil's N = 481, 4.2 ms against 8.9 ms for
-    sorting both orientations."""
+    (a, b) and once as (b, a), each diagonal node block once (symmetrised). Only node blocks
+    (k, l) with node k <= node l are summed (the blocks are exactly symmetric); node pairs are
+    numbered through an (a, b) table up to ``NODE_TABLE_MAX`` nodes, else by ``np.unique``."""
     P = blocks.shape[0]
     if P == 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
@@ -304,11 +278,9 @@ def _start_vector(hs):
 
 def lowest_eigenpairs(hs, m, guess=None, tol=1e-6, start=None):
     """(values (m,) ascending, vectors (n, m) on Z-perp, shift): the m lowest eigenpairs of the
-    projected Hessian. The shift s is pushed down until ``count_below(s) == 0`` (so the pairs
-    nearest it are the lowest); ARPACK's shift-invert mode then converges in a few dozen solves.
-    guess: an estimate of the lowest eigenvalue (the previous step's), to start the shift there;
-    start: (s, factorisation, free) of ``_projected_border`` already known to count 0 below s
-    (``count_below``'s own, reused: one factorisation fewer)."""
+    projected Hessian, by ARPACK shift-invert at a shift s pushed down until ``count_below(s) ==
+    0``. guess: an estimate of the lowest eigenvalue, to start the shift there; start: (s,
+    factorisation, free) of ``_projected_border`` already known to count 0 below s (reused)."""
     m = int(min(m, hs.n - hs.Z.shape[1] - 1))
     scale = float(np.max(np.abs(hs.diagonal()))) + 1.0
     if start is None:
@@ -384,8 +356,7 @@ def contact_branch_analysis(scene, q, phi, index, k=8, tol=1e-6, cluster_rtol=1e
     (n_negative, eigenvalues (m,), eigenvectors (n, m), lam, dlam_dphi, v (n,) scaled DOFs,
     dq_dphi (n,) physical DOFs), m >= k. The tracked mode is number ``index`` of the lowest
     pairs, or with ``ref`` the one overlapping it most; the tangent leaves out the tracked mode's
-    cluster and the near-null modes |lambda| <= pinv_tol, as the dense analysis does.
-    (``sparse_branch.sparse_branch_analysis`` wraps it into the dense analysis' tuple.)"""
+    cluster and the near-null modes |lambda| <= pinv_tol, as the dense analysis does."""
     u, nbr, index = tracked_mode_inputs(scene, q, phi, nbr, index)
     hs = sparse_hessian(scene, u, phi, nbr)
     n_neg, start = _count_and_start(hs, tol)
@@ -403,10 +374,6 @@ def contact_branch_analysis(scene, q, phi, index, k=8, tol=1e-6, cluster_rtol=1e
     dlam = float(eigenvalue_branch_derivative(scene, jnp.asarray(u), jnp.asarray(phi, jnp.float64), jnp.asarray(v),
                                               jnp.asarray(du), nbr))
     return n_neg, lam, vec, float(lam_i), dlam, v, np.asarray(scene.from_scaled(du))
-
-
-# ------------------------------------------------------------------------------------------------
-# damped Newton
 
 
 # The shift schedule of ``solvers._damped_newton_loop`` (same constants, same meaning).
@@ -437,11 +404,8 @@ def damped_newton_direction(y, args, g, mu_prev):
     scene, phi, nbr = args
     hs = sparse_hessian(scene, y, phi, nbr)
     scale = float(np.max(np.abs(hs.diagonal()))) + 1.0
-    # Unlike the dense loop, the shift keeps falling by _SHIFT_DOWN per iteration while the
-    # factorisation succeeds, with no floor at 1e-6: a factorisation costs milliseconds here, and
-    # a floor above the sliding modes' curvature (~1e-8 at N = 121) makes the last iterations
-    # crawl along them (|g| shrinking by mu / (lambda + mu) ~ 0.95 per step; measured: 60 steps
-    # against 7).
+    # Unlike the dense loop, the shift keeps falling by _SHIFT_DOWN per iteration with no floor
+    # at 1e-6: a floor above the sliding modes' curvature makes the last iterations crawl along them.
     mu0, mu1 = 1e-10 * scale, 1e-6 + 1e-10 * scale
     mu_a = mu0 if mu_prev <= 0.0 else max(mu0, _SHIFT_DOWN * mu_prev)
     got = _pinned_definite(hs, mu_a)
@@ -467,20 +431,17 @@ def damped_newton_direction(y, args, g, mu_prev):
     x_f, _ = fac.solve(-np.asarray(g)[f])
     dy = np.zeros(hs.n)
     dy[f] = x_f
-    # Without its rigid-motion (and gauge) part: the pinned step moves the whole rod relative to
-    # the pins, which changes nothing in the energy (g is orthogonal to Z, so the slope g . dy is
-    # the same) but moves every node, and pauses the run for neighbourhood rebuilds 3x as often.
+    # Without its rigid-motion (and gauge) part: same energy slope (g is orthogonal to Z), but
+    # fewer neighbourhood rebuilds.
     dy = dy - hs.Z @ (hs.Z.T @ dy)
     mu_used = 0.0 if (mu == mu_a and mu_a <= mu0) else mu
     return dy, mu_used
 
 
 def deflated_newton_direction(y, args, g, mu_prev, near_null_tol=1e-6):
-    """A Newton step that leaves the near-null modes alone (``Newton(near_null_tol=...)`` of the
-    dense solvers): dy = -H_def^+ g with the eigen-directions |lambda| <= near_null_tol (strands
-    of a loose knot sliding) deflated; the gradient along them stays as it is. Used where a
-    minimiser stalled on those modes next to an equilibrium (positive definite elsewhere).
-    Returns (dy, 0.0)."""
+    """A Newton step that leaves the near-null modes alone (as ``Newton(near_null_tol=...)``):
+    dy = -H_def^+ g with the eigen-directions |lambda| <= near_null_tol (a loose knot's sliding
+    strands) deflated, for a minimiser stalled on them next to an equilibrium. Returns (dy, 0.0)."""
     scene, phi, nbr = args
     hs = sparse_hessian(scene, y, phi, nbr)
     lam, vec, _ = lowest_eigenpairs(hs, 8, tol=near_null_tol)

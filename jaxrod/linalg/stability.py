@@ -1,14 +1,9 @@
 """Stability by autodiff: Hessian, zero modes removed, lowest eigenpairs, negative count.
 
-Everything works on ``scene.scaled_energy`` (node displacements in units of the edge length,
-angles in radians, energy in units of B / edge length), so eigenvalues are dimensionless and the
-x and theta blocks are comparable. The count of negative eigenvalues does not depend on this
-choice of variables (Sylvester's law of inertia); the eigenvalues' sizes do.
-
-Zero modes (3 translations, 3 rotations, the uniform shift of the twist angles on closed and free
-rods) are removed by projecting the Hessian on their orthogonal complement and lifting them to
-the top of the spectrum, so none of them can be mistaken for a soft or unstable mode.
-"""
+Everything works on ``scene.scaled_energy`` (``Scene.scaled_energy``), so eigenvalues are
+dimensionless; the negative count does not depend on the variables (Sylvester). Zero modes
+(translations, rotations, the uniform twist shift) are projected out and lifted to the top of the
+spectrum, so none can be mistaken for a soft or unstable mode."""
 from __future__ import annotations
 
 import functools
@@ -27,35 +22,18 @@ from .tolerances import CONTACT_NEGATIVE_TOL, DEFAULT_NEGATIVE_TOL, scaled_negat
 from .sliding import (CLEAN_SLIDE_FRACTION, SLIDING_FRACTION, band_shape_modes, shape_modes_in_band,  # noqa: F401
                       sliding_fields, sliding_fraction, split_slide, without_slide)
 
-__all__ = [
-    "Stability",
-    "scaled_hessian",
-    "spectrum",
-    "stability",
-    "eigenvalue_phi_derivative",
-    "branch_analysis",
-    "critical_twist_derivative",
-    "DEFAULT_NEGATIVE_TOL",
-    "sliding_fraction",
-    "sliding_fields",
-    "shape_modes_in_band",
-    "band_shape_modes",
-    "split_slide",
-    "without_slide",
-    "SLIDING_FRACTION",
-]
-
+__all__ = ["Stability", "scaled_hessian", "spectrum", "stability", "eigenvalue_phi_derivative", "branch_analysis",
+           "critical_twist_derivative", "DEFAULT_NEGATIVE_TOL", "sliding_fraction", "sliding_fields",
+           "shape_modes_in_band", "band_shape_modes", "split_slide", "without_slide", "SLIDING_FRACTION"]
 
 
 @dataclass(frozen=True)
 class Stability:
     """Lowest eigenpairs of the Hessian with zero modes removed.
 
-    eigenvalues: (k,) ascending, dimensionless (see module docstring);
-    eigenvectors: (n, k) unit vectors in the scaled DOFs;
-    n_negative: count of eigenvalues below -tol over the whole spectrum;
-    n_zero_modes: number of symmetry directions removed; stable: n_negative == 0.
-    """
+    eigenvalues: (k,) ascending, dimensionless (see module docstring); eigenvectors: (n, k) unit
+    vectors in the scaled DOFs; n_negative: count of eigenvalues below -tol over the whole spectrum;
+    n_zero_modes: number of symmetry directions removed; stable: n_negative == 0."""
 
     eigenvalues: np.ndarray
     eigenvectors: np.ndarray
@@ -80,9 +58,8 @@ def scaled_hessian(scene, u, phi, nbr=None):
     return structured_scaled_hessian(scene, u, phi, nbr)
 
 
-# Eigenpairs computed by the continuation: the lowest LOWEST_COUNT of the projected Hessian (LAPACK
-# dsyevr on that index range: ~3x faster than the full decomposition at n = 484), enough for the
-# k <= 8 reported, the tracked mode and its degenerate partners.
+# Eigenpairs computed by the continuation: the lowest LOWEST_COUNT of the projected Hessian, enough
+# for the k <= 8 reported, the tracked mode and its degenerate partners.
 LOWEST_COUNT = 24
 
 
@@ -91,9 +68,8 @@ _LAPACK_LOCK = LAPACK_LOCK
 
 
 def _fix_signs(vec, xp=jnp):
-    """Eigenvectors (n, m) with their largest-magnitude entry positive: the sign LAPACK returns
-    depends on the routine, and the continuation's choices (which way to push along a mode
-    first) must not. xp: jax.numpy (traced) or numpy (host)."""
+    """Eigenvectors (n, m) with their largest-magnitude entry positive, whatever the LAPACK
+    routine. xp: jax.numpy (traced) or numpy (host)."""
     big = xp.take_along_axis(vec, xp.argmax(xp.abs(vec), axis=0)[None, :], axis=0)
     return vec * xp.where(big < 0.0, -1.0, 1.0)
 
@@ -105,15 +81,12 @@ def _lowest_of_small(hp, tol, m):
 
 
 def _lowest_of(hp, tol):
-    """(lam (m,), vec (n, m), count of eigenvalues below -tol) of the symmetric hp (n, n): the
-    m = LOWEST_COUNT lowest eigenpairs, ascending, each eigenvector's largest entry positive.
-
-    For m much smaller than n, LAPACK's dsyevr with an index range (scipy), on the host: JAX has
-    no partial eigensolver on CPU. Called outside jit, not through ``jax.pure_callback``: two
-    callbacks running at once (``twist_study``'s two threads) each waited for a transfer that
-    needed the other's XLA worker thread, and deadlocked. The count comes from the m lowest,
-    unless all of them are below -tol (a state many times unstable: then the whole spectrum).
-    Otherwise (2 m >= n) the full ``eigh``, jitted."""
+    """(lam (m,), vec (n, m), count of eigenvalues below -tol) of the symmetric hp (n, n): the m =
+    LOWEST_COUNT lowest eigenpairs, ascending, each eigenvector's largest entry positive. For m much
+    smaller than n, LAPACK's dsyevr with an index range on the host (JAX has no partial eigensolver
+    on CPU), called outside jit: ``jax.pure_callback`` from two threads deadlocked. The count comes
+    from the m lowest, unless all are below -tol (then the whole spectrum). Otherwise (2 m >= n) the
+    full ``eigh``, jitted."""
     n = hp.shape[0]
     m = min(LOWEST_COUNT, n)
     if 2 * m >= n:
@@ -132,13 +105,8 @@ def _lowest_of(hp, tol):
 
 
 # The analyses below are Python compositions of separately jitted pieces, so that each heavy
-# program is compiled once per scene shape and shared: ``scene_linearisation`` (gradient,
-# structured Hessian, the gradient's phi-derivative) serves ``stability``, ``spectrum``,
-# ``branch_analysis`` and a knot's bifurcation problem (``bifurcation.rods.knot_problem``), and
-# ``scene_bilinear_gradient`` (third derivatives contracted with fixed vectors) serves the branch
-# tangent and that problem's event locators; the projection and the tangent's deflated solve depend
-# on the matrix size only. One jit around each analysis compiled the energy's derivatives into
-# each of them (command 1, cold: ~2-3 s of XLA per program and shape).
+# program (``scene_linearisation``, ``scene_bilinear_gradient``) is compiled once per scene shape
+# and shared by every analysis and a knot's bifurcation problem.
 @cached_jit
 def _scene_linearisation(scene, u, phi, nbr):
     grad = jax.grad(scene.scaled_energy)
@@ -161,8 +129,7 @@ def _host_vector(v):
 def scene_linearisation(scene, u, phi, nbr=None):
     """(g (n,), H (n, n), g_phi (n,)) of ``scene.scaled_energy(u, phi, nbr)`` at the scaled DOFs u:
     its gradient, its exact structured Hessian (``jaxrod.model.hessian.scaled_hessian``) and the
-    gradient's derivative in phi. One compiled program per scene shape (u and phi are passed as a
-    host array and a Python float, so every caller shares it)."""
+    gradient's derivative in phi; one compiled program per scene shape (u, phi passed as host values)."""
     return _scene_linearisation(scene, _host_vector(u), float(phi), nbr)
 
 
@@ -170,8 +137,7 @@ def scene_bilinear_gradient(scene, u, phi, nbr, a, c, t):
     """((n,), scalar): the gradient in (u, phi) of a^T (H(u, phi) c + t g_phi(u, phi)), H and g_phi
     as in ``scene_linearisation``, a and c (n,) fixed: third derivatives of the energy contracted
     with fixed vectors, by reverse mode over a jvp of the gradient (O(n), exact)."""
-    return _scene_bilinear_gradient(scene, _host_vector(u), float(phi), nbr, _host_vector(a), _host_vector(c),
-                                    float(t))
+    return _scene_bilinear_gradient(scene, _host_vector(u), float(phi), nbr, _host_vector(a), _host_vector(c), float(t))
 
 
 @cached_jit
@@ -190,8 +156,7 @@ def _projected(scene, u, phi, nbr):
 
 
 def _projected_hessian(scene, u, phi, nbr):
-    """(H with the zero modes projected out and lifted to the top, z (n, k) their orthonormal
-    basis, n_zero)."""
+    """(H projected and lifted as in ``_projected``, z (n, k), n_zero)."""
     return _projected(scene, u, phi, nbr)[:3]
 
 
@@ -213,23 +178,18 @@ def _spectrum(scene, u, phi, nbr):
 
 
 def spectrum(scene, u, phi, nbr=None):
-    """Full spectrum with zero modes removed.
-
-    Returns (eigenvalues (n,), eigenvectors (n, n), n_zero): ascending; the n_zero symmetry
-    directions are lifted above every physical eigenvalue, so they sit at the top.
-    """
+    """Full spectrum with zero modes removed: (eigenvalues (n,), eigenvectors (n, n), n_zero),
+    ascending, the n_zero symmetry directions lifted to the top."""
     if nbr is None:
         nbr = scene.neighbourhood(scene.from_scaled(u), phi)
     return _spectrum(scene, u, phi, nbr)
 
 
 def stability(scene, q, phi, k=8, tol=DEFAULT_NEGATIVE_TOL, nbr=None, linear_algebra="auto"):
-    """Stability of the state q (physical DOFs) at imposed twist phi: a ``Stability`` (the k
-    lowest eigenpairs, zero modes removed, and the count of eigenvalues below -tol).
-
-    linear_algebra: a backend name (``jaxrod.linalg.options.backend_name``, offered "dense" and
-    "sparse"): the sparse one (rods with contact: ``jaxrod.linalg.sparse_contact``, O(n), the count
-    exact by Sylvester's law) where it is chosen, else the n x n projected Hessian."""
+    """Stability of the state q (physical DOFs) at imposed twist phi: a ``Stability`` (the k lowest
+    eigenpairs, zero modes removed, and the count of eigenvalues below -tol). linear_algebra: a
+    backend name (``jaxrod.linalg.options.backend_name``): "sparse" (O(n),
+    ``jaxrod.linalg.sparse_contact``) where chosen, else the n x n projected Hessian."""
     from . import sparse_contact
 
     phi = check_finite("phi", phi)
@@ -256,16 +216,11 @@ def _branch_sensitivities(scene, u, phi, v, lam, vec, skip, dscene, dphi, nbr):
 
 
 def _branch_motion_sensitivities(scene, u, phi, v, motion, dscene, dphi, nbr):
-    """Derivative of the eigenvalue v^T H v along the equilibrium branch u*(scene, phi), in the
-    direction (dscene, dphi) of the scene's parameters (a pytree tangent: material, rest lengths)
-    and of phi.
-
-    d lambda = v^T (dH) v with the branch's own motion du* = -H^+ d(grad), the pseudo-inverse
-    taken over the eigenvectors not flagged in ``skip`` (zero modes and the critical mode itself,
-    which the perturbation does not excite at a symmetry-breaking bifurcation). Third derivatives
-    come from nested forward-mode jvps: no third-order tensor is formed.
-    Returns (d lambda, du*).
-    """
+    """(d lambda, du*): the derivative of the eigenvalue v^T H v along the equilibrium branch
+    u*(scene, phi) in the direction (dscene, dphi) of the scene's parameters (a pytree tangent) and
+    of phi: v^T (dH) v with the branch's own motion du* = -H^+ d(grad), the pseudo-inverse over the
+    eigenvectors not flagged in ``skip`` (zero modes, the critical mode). Third derivatives by
+    nested forward-mode jvps (no third-order tensor)."""
     f = lambda uu, sc, pp: sc.scaled_energy(uu, pp, nbr)  # noqa: E731
     dg = jax.jvp(lambda sc, pp: jax.grad(f)(u, sc, pp), (scene, phi), (dscene, dphi))[1]
     du = motion(dg)
@@ -316,18 +271,16 @@ def _branch_analysis(scene, u, phi, index, ref, cluster_rtol, pinv_tol, nbr, tol
 
 def _tangent_solve(hp, z, n_zero, lam, vec, index, ref, cluster_rtol, pinv_tol, g_phi):
     """(du (n,), index, v (n,)): the tracked mode (by index, or by overlap with ref) and the
-    branch tangent du = -H^+ g_phi from the lowest eigenpairs only: the flagged low directions and
-    the zero modes z are removed from g_phi and the flagged eigenvalues moved to the top
-    (deflation), so one solve gives the full pseudo-inverse's result without dividing by a
-    near-zero eigenvalue. On the host: a Cholesky factorisation where the deflated matrix is
-    positive definite (a stable state: half an LU's work), an LU otherwise."""
+    branch tangent du = -H^+ g_phi from the lowest eigenpairs only: the flagged directions and the
+    zero modes are removed from g_phi and the flagged eigenvalues moved to the top (deflation), so
+    one solve avoids dividing by a near-zero eigenvalue. Cholesky where the deflated matrix is
+    positive definite, else LU (host)."""
     import scipy.linalg
 
     from .lapack import cholesky_solve
 
     m = lam.shape[0]
-    # Lifted zero modes (only present when the subset reaches the top of a small spectrum) are
-    # never tracked.
+    # Lifted zero modes (present when the subset reaches the top of a small spectrum) are never tracked.
     physical = np.arange(m) < hp.shape[0] - n_zero
     # With a reference vector, follow the mode by eigenvector overlap (robust to reordering).
     ref = np.asarray(ref, dtype=float)
@@ -351,10 +304,8 @@ def _tangent_solve(hp, z, n_zero, lam, vec, index, ref, cluster_rtol, pinv_tol, 
 def _branch_tangent(scene, u, phi, index, ref, cluster_rtol, pinv_tol, nbr, hp, z, n_zero, lam, vec, g_phi):
     """The tracked mode (by index, or by overlap with ref), its eigenvalue's phi-derivative along
     the branch and the branch tangent du/dphi (deflated solve), from the lowest eigenpairs and the
-    gradient's phi-derivative g_phi. -> (dlam, du (n,), index).
-
-    du = -H^+ g_phi (``_tangent_solve``), and d lambda = v^T (dH) v along (du, 1): the gradient of
-    v^T H v in (u, phi) (``scene_bilinear_gradient``) dotted with (du, 1)."""
+    gradient's phi-derivative g_phi. -> (dlam, du (n,), index). d lambda = v^T (dH) v along (du, 1),
+    from ``scene_bilinear_gradient``."""
     lam, vec = np.asarray(lam), np.asarray(vec)
     du, index, v = _tangent_solve(np.asarray(hp), np.asarray(z), int(n_zero), lam, vec, index, ref, cluster_rtol,
                                   pinv_tol, np.asarray(g_phi))
@@ -376,16 +327,12 @@ def _stability_from_lowest(lam, vec, n_zero, n_negative, k, tol):
 
 def branch_analysis(scene, q, phi, index, k=8, tol=DEFAULT_NEGATIVE_TOL, cluster_rtol=1e-4, ref=None, pinv_tol=0.0,
                     nbr=None, guess=None):
-    """One Hessian and one eigen-decomposition at an equilibrium q, giving everything a
-    continuation step needs: its ``Stability``; eigenvalue number ``index`` (ascending, zero modes
-    removed) -- or, if ``ref`` (a unit vector in the scaled DOFs) is given, the mode that overlaps
-    it most --, that eigenvalue's derivative along the branch with respect to phi, its eigenvector
-    (scaled DOFs); and the branch tangent dq/dphi (physical DOFs), with modes |lambda| <= pinv_tol
-    left out of it. guess (an estimate of the lowest eigenvalue) is accepted for signature
-    compatibility with ``sparse_branch_analysis``, whose eigensolver uses it; not needed here.
-
-    Returns (stability, lam, dlam_dphi, v, dq_dphi).
-    """
+    """One Hessian and one eigen-decomposition at an equilibrium q, giving everything a continuation
+    step needs: its ``Stability``; eigenvalue number ``index`` (ascending, zero modes removed; or,
+    given ``ref`` (scaled DOFs), the mode overlapping it most), its phi-derivative along the branch
+    and eigenvector (scaled DOFs); and the branch tangent dq/dphi (physical DOFs), modes |lambda| <=
+    pinv_tol left out. ``guess``: for signature compatibility with ``sparse_branch_analysis``.
+    Returns (stability, lam, dlam_dphi, v, dq_dphi)."""
     u = scene.to_scaled(np.asarray(q, dtype=float))
     ref = jnp.zeros_like(u) if ref is None else jnp.asarray(ref)
     if nbr is None:
@@ -401,12 +348,9 @@ def branch_analysis(scene, q, phi, index, k=8, tol=DEFAULT_NEGATIVE_TOL, cluster
 
 def eigenvalue_phi_derivative(scene, q, phi, index, cluster_rtol=1e-4, nbr=None):
     """Eigenvalue number ``index`` (ascending, zero modes removed) of the Hessian at an equilibrium
-    q, its derivative along the equilibrium branch with respect to phi (Hellmann-Feynman plus the
-    branch's own motion, by forward-mode autodiff through the Hessian), its eigenvector (scaled
-    DOFs), and the branch tangent dq/dphi (physical DOFs).
-
-    Returns (lam, dlam_dphi, v, dq_dphi).
-    """
+    q, its derivative along the branch in phi (Hellmann-Feynman plus the branch's own motion, by
+    forward-mode autodiff), its eigenvector (scaled DOFs) and the branch tangent dq/dphi (physical
+    DOFs). Returns (lam, dlam_dphi, v, dq_dphi)."""
     _, lam, dlam, v, dq = branch_analysis(scene, q, phi, index, cluster_rtol=cluster_rtol, nbr=nbr)
     return lam, dlam, v, dq
 
@@ -431,14 +375,12 @@ def _parameter_tangent(scene, parameter):
 
 
 def critical_twist_derivative(scene, critical, parameter, cluster_rtol=1e-4, pinv_tol=0.0):
-    """d phi* / d(parameter) at a critical point, by the implicit function theorem on
-    lambda(q*(phi, p), phi, p) = 0:  d phi*/dp = -(d lambda/dp) / (d lambda/d phi).
-
-    critical: a ``CriticalPoint`` of ``scene``; parameter: a name in ``scene.PARAMETERS`` ('B',
-    'C', 'EA', 'D', 'nu', 'contact_stiffness', changed as ``scene.with_params`` changes it: nu sets
-    C = B/(1+nu) at fixed B) or a callable ``scene -> tangent scene`` giving any direction in the
-    scene's parameters. Refuses knots (``jaxrod.validation.refuse_knot``).
-    """
+    """d phi* / d(parameter) at a critical point, by the implicit function theorem on lambda(q*(phi,
+    p), phi, p) = 0:  d phi*/dp = -(d lambda/dp) / (d lambda/d phi). critical: a ``CriticalPoint``
+    of ``scene``; parameter: a name in ``scene.PARAMETERS`` ('B', 'C', 'EA', 'D', 'nu',
+    'contact_stiffness', changed as ``scene.with_params`` changes it: nu sets C = B/(1+nu) at fixed
+    B) or a callable ``scene -> tangent scene`` giving any direction in the scene's parameters.
+    Refuses knots (``jaxrod.validation.refuse_knot``)."""
     refuse_knot(scene, "critical_twist_derivative")
     dscene = _parameter_tangent(scene, parameter)
     eq = critical.equilibrium

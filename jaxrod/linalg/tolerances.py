@@ -4,16 +4,12 @@ that ``stability``, ``sparse_stability`` and ``sparse_contact`` all import them 
 # An eigenvalue counts as negative below -DEFAULT_NEGATIVE_TOL (dimensionless units). Well below
 # the softest physical mode of the rods studied (>1e-7 for N <= 512 rings), above round-off.
 DEFAULT_NEGATIVE_TOL = 1e-10
-# Near-zero modes of a loose knot (strands sliding along each other) sit at |lambda| ~ 1e-7 in the
-# scaled units and change sign from step to step: with self-contact an eigenvalue counts as
-# negative, and enters the branch tangent, only beyond this.
+# Near-zero modes of a loose knot (strands sliding) sit at |lambda| ~ 1e-7 and change sign from step
+# to step: with self-contact an eigenvalue counts as negative only beyond this.
 CONTACT_NEGATIVE_TOL = 1e-6
 
-# Long rods: their softest modes go like N^-4 in the scaled units (the bending scale (2 pi l / L)^4,
-# l the edge length; a ring's sit at 7.2 (2 pi / N)^4, the trefoil (8, 292)'s shape modes at ~3e-9
-# at N = 961), so a fixed 1e-10 is no longer "well below the softest physical mode" past N ~ 600.
-# The strict tolerance is then NEGATIVE_TOL_FRACTION times that scale; rods of N <= 628 nodes keep
-# DEFAULT_NEGATIVE_TOL.
+# Long rods: their softest modes go like N^-4 in the scaled units (the bending scale (2 pi l / L)^4),
+# so past N ~ 600 the strict tolerance is NEGATIVE_TOL_FRACTION times that scale.
 NEGATIVE_TOL_FRACTION = 1e-2
 
 

@@ -1,10 +1,9 @@
 """The symmetry (zero) modes of a rod's Hessian as an orthonormal basis.
 
-A closed or free rod's energy does not change under its 3 translations, 3 rotations and the
-uniform shift of its twist angles: the Hessian is singular along them (exactly for translations
-and the twist shift, to O(|gradient|) for rotations). Every backend removes them the same way:
-it works on their orthogonal complement Z-perp, Z = ``zero_mode_basis(scene, u, phi)``.
-"""
+A closed or free rod's energy does not change under its 3 translations, 3 rotations and the uniform
+shift of its twist angles: the Hessian is singular along them (exactly for translations and the
+twist shift, to O(|gradient|) for rotations). Every backend removes them the same way: it works on
+their orthogonal complement Z-perp, Z = ``zero_mode_basis(scene, u, phi)``."""
 from __future__ import annotations
 
 import jax.numpy as jnp

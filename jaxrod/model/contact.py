@@ -7,18 +7,13 @@ Energy: a quadrature of the double integral
     phi(rho) = (1 - rho)^3 for rho < 1, 0 beyond,
 
 so two strands overlapping at full depth store kappa_c * B / D^3 per unit length of overlap per
-unit length of the other strand (kappa_c is the dimensionless stiffness, stated relative to B/D^3,
-the prefactor of the double integral).
-phi, phi' and phi'' all vanish at rho = 1: the energy is C2 everywhere (C-infinity where no pair
-is at the activation distance), unlike a clamped segment-segment distance, which is only C1 and
-makes Hessians jump. Integrating along both segments (Gauss-Legendre points) instead of using one
-closest point also keeps the energy from catching on the beads when strands slide.
+unit length of the other strand. phi, phi' and phi'' vanish at rho = 1: the energy is C2 (a
+clamped segment-segment distance is only C1 and makes Hessians jump), and integrating along both
+segments (Gauss-Legendre points) keeps the energy from catching on the beads when strands slide.
 
-Pairs of segments closer along the rod than ``exclude`` (default pi D / 2: the arc over which a
-tube of curvature radius D/2, the tightest possible, stays within D of itself) are never in contact.
-
-Candidate pairs come from a k-d tree on segment midpoints (cost ~ N log N, not N^2) with a skin:
-the list stays valid while no node moves by more than skin/2 from where it was built.
+Pairs closer along the rod than ``exclude`` (default pi D / 2: the tightest tube stays within D of
+itself over that arc) are never in contact. Candidate pairs come from a k-d tree on segment
+midpoints with a skin: the list stays valid while no node moves by more than skin/2.
 """
 from __future__ import annotations
 
@@ -80,13 +75,9 @@ def all_pairs(n_nodes, closed, rest_length, D, exclude=None):
 
 
 def candidate_pairs(x, closed, rest_length, D, skin=None, exclude=None, capacity=None):
-    """Segment pairs that may come within D of each other while no node moves more than skin/2.
-
-    x (N,3) node positions (numpy). Uses a k-d tree on midpoints: two segments of length <= l can
-    be within D + skin of each other only if their midpoints are within D + skin + l.
-    Returns a ``ContactList`` padded to ``capacity`` (default: 2x the count, so a rebuild rarely
-    changes the array shape and forces a recompilation).
-    """
+    """Segment pairs that may come within D of each other while no node moves more than skin/2:
+    a k-d tree on the midpoints of x (N,3) (numpy) with radius D + skin + the longest segment.
+    Returns a ``ContactList`` padded to ``capacity`` (default: generous, see below)."""
     from scipy.spatial import cKDTree
 
     x = np.asarray(x, dtype=float)
@@ -104,12 +95,8 @@ def candidate_pairs(x, closed, rest_length, D, skin=None, exclude=None, capacity
     gap = max(1, int(math.ceil(exclude / rest_length)))
     keep = _arc_separation(i, j, n_edges, closed) > gap
     pairs = np.stack([i[keep], j[keep]], axis=1)
-    # Default capacity: generous, so that the list seldom outgrows it when the rod deforms: a new
-    # capacity is a new array shape, which recompiles every jitted function that takes the list
-    # (~10 s at N = 121). A twisted trefoil tightening towards its instability gathers ~10
-    # candidates per segment (from ~1 when loose), so room for 24 per segment (or 3x the
-    # count), never more than all the pairs that can be candidates. Padding costs little: the
-    # gradient with 2500 rows takes 0.6 ms at N = 121, against ~3 ms for one Hessian.
+    # Default capacity: generous (24 candidates per segment or 3x the count, at most all possible
+    # pairs): a new capacity is a new array shape, which recompiles; padding costs little.
     sep = np.arange(1, n_edges)  # |i - j|, met by n_edges - sep pairs i < j
     n_possible = int(np.sum((n_edges - sep)[_arc_separation(sep, 0, n_edges, closed) > gap]))
     if capacity is None:
@@ -141,11 +128,9 @@ def _pair_quadrature(x, pairs, closed, n_gauss):
 
 
 def contact_energy(x, pairs, mask, closed, D, B, stiffness, n_gauss=2):
-    """Soft contact energy (scalar) over the candidate pairs.
-
-    x (N,3); pairs (P,2) segment indices; mask (P,) which pairs are real (padding is False);
-    D diameter; B bending stiffness; stiffness: kappa_c (dimensionless, see module docstring).
-    """
+    """Soft contact energy (scalar) over the candidate pairs. x (N,3); pairs (P,2) segment indices;
+    mask (P,) which pairs are real (padding is False); D diameter; B bending stiffness; stiffness:
+    kappa_c (dimensionless, see module docstring)."""
     r, weights = _pair_quadrature(x, jnp.asarray(pairs), closed, n_gauss)
     overlap = jnp.clip(1.0 - r / D, 0.0, None)
     density = jnp.sum(weights * overlap**3, axis=(1, 2))
@@ -163,16 +148,13 @@ def contact_pair_hessian(y, D, B, stiffness, n_gauss=2):
     """Exact Hessians of the contact energy of single segment pairs, in closed form.
 
     y: (P, 12), per pair the nodes a0, a1 (segment a) and b0, b1 (segment b) -> (P, 12, 12), each
-    the Hessian of ``contact_energy`` of that pair alone (the same quadrature). Equal to
-    ``jax.hessian`` of it (tested to roundoff) at a third of the cost (at the trefoil's N = 481,
-    3072 pairs: 3.0 ms against 9.0 ms); the knot Hessians' contact blocks (``jaxrod.model.hessian``) are
-    these.
+    the Hessian of ``contact_energy`` of that pair alone (the same quadrature); equal to
+    ``jax.hessian`` of it (tested to roundoff) at a third of the cost.
 
     How: E = k la lb F with k = stiffness B / D^3, la, lb the segment lengths and
-    F = sum_ij w_i w_j phi(r_ij) over the Gauss points p_i of a and q_j of b. Each point pair
-    contributes c c^T (x) [phi'' n n^T + phi'/r (I - n n^T)] to the Hessian of F (c: the point
-    pair's weights on the four nodes, n the unit vector from q_j to p_i), and the product rule
-    adds the lengths' gradients and Hessians ((I - t t^T)/l on a segment's two nodes)."""
+    F = sum_ij w_i w_j phi(r_ij) over the Gauss points; each point pair contributes
+    c c^T (x) [phi'' n n^T + phi'/r (I - n n^T)] (c: its weights on the four nodes, n the unit
+    vector from q_j to p_i), and the product rule adds the lengths' gradients and Hessians."""
     g, w = (jnp.asarray(v) for v in _GAUSS[n_gauss])
     P = y.shape[0]
     a0, a1, b0, b1 = y[:, 0:3], y[:, 3:6], y[:, 6:9], y[:, 9:12]

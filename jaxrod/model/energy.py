@@ -32,10 +32,8 @@ def vertex_curvature_binormals(x, closed):
 
 
 def bend_energy(x, voronoi, B, closed):
-    """Isotropic bending of a naturally straight rod: sum over vertices of B |kb|^2 / (2 l_v).
-
-    |kb| / l_v is the discrete curvature at the vertex, l_v its Voronoi (rest) length.
-    """
+    """Isotropic bending of a naturally straight rod: sum over vertices of B |kb|^2 / (2 l_v). |kb|
+    / l_v is the discrete curvature at the vertex, l_v its Voronoi (rest) length."""
     kb = vertex_curvature_binormals(x, closed)
     return 0.5 * B * jnp.sum(jnp.sum(kb * kb, axis=-1) / voronoi)
 

@@ -4,17 +4,13 @@ Conventions
 -----------
 * ``x`` has shape (N, 3): node positions. A closed curve has N edges, edge i joins node i to
   node i+1 (mod N); an open curve has N-1 edges.
-* Frames are right-handed: for an edge with unit tangent t and reference director u, the second
-  director is v = t x u, and the material director at twist angle theta is
-  d1 = cos(theta) u + sin(theta) v. A twist angle that increases along the rod is a right-handed
-  (positive) twist.
-* Reference frames are *space-parallel*: u on edge i is u on edge i-1 parallel-transported to
-  edge i. Interior reference twist is then zero and all twist lives in the angles theta plus the
-  holonomy of the transport, which the boundary conditions handle (see ``jaxrod.boundary``).
+* Frames are right-handed: reference director u, second director v = t x u, material director
+  d1 = cos(theta) u + sin(theta) v; a twist angle increasing along the rod is a positive twist.
+* Reference frames are *space-parallel* (u on edge i is u on edge i-1 transported to edge i): all
+  twist lives in the angles theta plus the holonomy of the transport.
 
-The small array functions are jitted: inside a scene's jitted energy they are inlined, and called
-eagerly (building a scene, reporting a state) each is one compiled program per shape instead of
-one per array operation (the test suite compiled ~2000 such one-operation programs).
+The small array functions are jitted, so each is one compiled program per shape when called
+eagerly (and inlined inside a jitted energy).
 """
 from __future__ import annotations
 
@@ -24,25 +20,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = [
-    "edges",
-    "safe_norm",
-    "unit",
-    "curvature_binormals",
-    "parallel_transport",
-    "transport_along",
-    "signed_angle",
-    "tantrix_holonomy",
-    "perpendicular_unit",
-    "material_directors",
-    "node_directors",
-    "voronoi_lengths",
-    "resample_closed",
-    "polyline_distance",
-    "point_polyline_distances",
-    "segment_distances",
-    "closest_approach",
-]
+__all__ = ["edges", "safe_norm", "unit", "curvature_binormals", "parallel_transport", "transport_along",
+           "signed_angle", "tantrix_holonomy", "perpendicular_unit", "material_directors", "node_directors",
+           "voronoi_lengths", "resample_closed", "polyline_distance", "point_polyline_distances", "segment_distances",
+           "closest_approach"]
 
 
 def safe_norm(v, axis=-1, keepdims=False, eps=1e-300):
@@ -69,25 +50,18 @@ def edges(x, closed):
 @jax.jit
 def curvature_binormals(e_prev, e_next):
     """Discrete curvature binormal kb = 2 e_prev x e_next / (|e_prev||e_next| + e_prev.e_next).
-
     Shapes (M,3), (M,3) -> (M,3). |kb| = 2 tan(turning angle / 2); kb / (Voronoi length) is the
-    curvature vector kappa * binormal at the vertex shared by the two edges.
-    """
+    curvature vector kappa * binormal at the vertex shared by the two edges."""
     cross = jnp.cross(e_prev, e_next)
-    denom = jnp.linalg.norm(e_prev, axis=-1) * jnp.linalg.norm(e_next, axis=-1) + jnp.sum(
-        e_prev * e_next, axis=-1
-    )
+    denom = jnp.linalg.norm(e_prev, axis=-1) * jnp.linalg.norm(e_next, axis=-1) + jnp.sum(e_prev * e_next, axis=-1)
     return 2.0 * cross / denom[..., None]
 
 
 @jax.jit
 def parallel_transport(v, t_from, t_to):
-    """Transport vector(s) v from unit tangent t_from to unit tangent t_to.
-
-    The rotation about t_from x t_to that takes t_from to t_to, written without trigonometry so
-    that it is smooth everywhere except for antiparallel tangents (a hairpin, which a rod with
-    bending stiffness never reaches). Shapes broadcast over the leading axes, last axis 3.
-    """
+    """Transport vector(s) v from unit tangent t_from to unit tangent t_to. The rotation about
+    t_from x t_to that takes t_from to t_to, without trigonometry: smooth except for antiparallel
+    tangents. Shapes broadcast over the leading axes, last axis 3."""
     c = jnp.cross(t_from, t_to)
     d = jnp.sum(t_from * t_to, axis=-1, keepdims=True)
     return v * d + jnp.cross(c, v) + c * jnp.sum(c * v, axis=-1, keepdims=True) / (1.0 + d)
@@ -95,10 +69,8 @@ def parallel_transport(v, t_from, t_to):
 
 @jax.jit
 def transport_along(u0, tangents):
-    """Space-parallel reference directors: u0 transported edge by edge along ``tangents``.
-
-    u0 (3,) unit and perpendicular to tangents[0]; tangents (M,3) unit -> (M,3).
-    """
+    """Space-parallel reference directors: u0 transported edge by edge along ``tangents``. u0 (3,)
+    unit and perpendicular to tangents[0]; tangents (M,3) unit -> (M,3)."""
 
     def step(u, pair):
         t_from, t_to = pair
@@ -119,9 +91,7 @@ def signed_angle(a, b, axis):
 _K = 32
 _z = 1.0 - (2.0 * np.arange(_K) + 1.0) / _K
 _a = np.pi * (3.0 - 5.0**0.5) * np.arange(_K)
-_POLES = np.stack(
-    [(1 - _z**2) ** 0.5 * np.cos(_a), (1 - _z**2) ** 0.5 * np.sin(_a), _z], axis=1
-)
+_POLES = np.stack([(1 - _z**2) ** 0.5 * np.cos(_a), (1 - _z**2) ** 0.5 * np.sin(_a), _z], axis=1)
 
 
 @jax.jit
@@ -129,12 +99,10 @@ def tantrix_holonomy(t):
     """Rotation angle of parallel transport once round the closed tantrix t_0 -> ... -> t_{M-1}
     -> t_0, modulo 2 pi (the value is not reduced: add any multiple of 2 pi).
 
-    t (M,3) unit tangents. By Gauss-Bonnet on the sphere, transport round a closed chain of
-    great-circle arcs rotates the frame by minus the enclosed area; the area is a sum of local
-    signed spherical triangles (pole, t_i, t_i+1) (Van Oosterom-Strackee). The sum changes by
-    multiples of 4 pi with the pole, so its value mod 2 pi and all its derivatives do not depend
-    on the pole; the pole is only chosen (piecewise constant, no gradient) as far as possible from
-    every -t_i, where single triangles are ill-conditioned. No sequential transport: O(M), vectorised.
+    t (M,3) unit tangents. By Gauss-Bonnet, transport round a closed chain of great-circle arcs
+    rotates the frame by minus the enclosed area, a sum of signed spherical triangles (pole, t_i,
+    t_i+1) (Van Oosterom-Strackee). The pole changes the sum only by multiples of 4 pi; it is
+    chosen (no gradient) as far as possible from every -t_i, where triangles are ill-conditioned.
     """
     poles = jnp.asarray(_POLES, dtype=t.dtype)
     clearance = jnp.min(1.0 + t @ poles.T, axis=0)  # (K,): how close some t_i gets to -pole
@@ -147,12 +115,9 @@ def tantrix_holonomy(t):
 
 @jax.jit
 def perpendicular_unit(t):
-    """A unit vector perpendicular to the unit vector t (3,).
-
-    Built from the coordinate axis least aligned with t. The choice jumps between axes, but
-    nothing physical depends on it: energies use only twist *differences* and the holonomy,
-    both independent of the starting director.
-    """
+    """A unit vector perpendicular to the unit vector t (3,). Built from the coordinate axis least
+    aligned with t. The choice jumps between axes, but nothing physical depends on it: energies use
+    only twist *differences* and the holonomy, both independent of the starting director."""
     axes = jnp.eye(3, dtype=t.dtype)
     k = jnp.argmin(jnp.abs(t))
     e = axes[k]
@@ -162,10 +127,8 @@ def perpendicular_unit(t):
 
 @jax.jit
 def material_directors(tangents, u_ref, theta):
-    """Material frame per edge from reference directors and twist angles.
-
-    tangents (M,3), u_ref (M,3), theta (M,) -> (d1, d2, d3) each (M,3), d3 = tangent.
-    """
+    """Material frame per edge from reference directors and twist angles. tangents (M,3), u_ref
+    (M,3), theta (M,) -> (d1, d2, d3) each (M,3), d3 = tangent."""
     v_ref = jnp.cross(tangents, u_ref)
     c, s = jnp.cos(theta)[:, None], jnp.sin(theta)[:, None]
     d1 = c * u_ref + s * v_ref
@@ -176,11 +139,9 @@ def material_directors(tangents, u_ref, theta):
 @partial(jax.jit, static_argnames="closed")
 def node_directors(x, d1_edges, closed):
     """Director d1 at the nodes: the edge directors transported to the vertex tangent and averaged,
-    then projected on the plane normal to the vertex tangent and normalised.
-
-    x (N,3), d1_edges (M,3) -> (N,3). End nodes of an open rod take their single edge's director.
-    Used to draw the eccentric line (a stripe on the rod surface).
-    """
+    then projected on the plane normal to the vertex tangent and normalised. x (N,3), d1_edges (M,3)
+    -> (N,3). End nodes of an open rod take their single edge's director. Used to draw the eccentric
+    line (a stripe on the rod surface)."""
     e = edges(x, closed)
     t = unit(e)
     if closed:
@@ -200,10 +161,8 @@ def node_directors(x, d1_edges, closed):
 @partial(jax.jit, static_argnames="closed")
 def voronoi_lengths(rest_lengths, closed):
     """Length attached to each vertex that carries bending/twist: mean of its two edges.
-
-    rest_lengths (M,) -> (N,) for a closed rod (vertex i between edges i-1 and i),
-    (M-1,) for an open rod (interior vertices 1..M-1).
-    """
+    rest_lengths (M,) -> (N,) for a closed rod (vertex i between edges i-1 and i), (M-1,) for an
+    open rod (interior vertices 1..M-1)."""
     if closed:
         return 0.5 * (jnp.roll(rest_lengths, 1) + rest_lengths)
     return 0.5 * (rest_lengths[:-1] + rest_lengths[1:])
@@ -230,20 +189,14 @@ def resample_closed(points, n):
 
 
 def polyline_distance(a, b, closed=True):
-    """Largest distance from a node of polyline ``a`` (N,3) to polyline ``b`` (M,3) (numpy).
-
-    A shape distance that ignores how the nodes are spaced along the curve: a rod whose material
-    slid along its own centreline (a near-zero mode of loose knots) is at distance ~0 from
-    where it started, a rod that jumped to another shape is not.
-    """
+    """Largest distance from a node of polyline ``a`` (N,3) to polyline ``b`` (M,3) (numpy). A shape
+    distance blind to sliding along the centreline (a near-zero mode of loose knots)."""
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
     if a.shape[0] * b.shape[0] <= 40_000:  # small rods: every node against every segment
         return float(np.max(point_polyline_distances(a, np.arange(a.shape[0]), b, None, closed)))
-    # Large rods, O(N log N) instead of O(N M) (17 ms a step at N = 481, 70 ms at 961): the segment
-    # nearest to a node has an end within d + h/2 of it, where d is the distance to the nearest node
-    # of b (at least the distance to the polyline) and h the longest segment; only the segments
-    # next to the nodes of b within that radius are measured, so the result is exact.
+    # Large rods, O(N log N): the nearest segment has an end within d + h/2 of a node (d: distance to
+    # b's nearest node, h: longest segment); only segments next to b's nodes within that are measured.
     from scipy.spatial import cKDTree
 
     tree = cKDTree(b)

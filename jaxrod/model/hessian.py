@@ -2,23 +2,16 @@
 
 The Hessian of a rod's scaled energy (``scene.scaled_energy``) has three parts:
 
-* **local**: stretch, bend and twist couple only DOFs within a window of three consecutive nodes
-  (an edge's twist angle belongs to its two nodes), and so does the holonomy's own second
-  derivative (a sum of spherical triangles on consecutive tangents). This part is recovered from
-  a few Hessian-vector products with *coloured* probe vectors (Curtis-Powell-Reid): DOFs that
-  share no row get the same colour, so one product per colour gives every entry exactly. ~36
-  products whatever N, instead of the n = 4N of ``jax.hessian``.
-* **rank one**: the vertex carrying the holonomy (the joint of a closed rod, the last vertex of a
-  clamped one) stores C m^2 / (2 l) with m depending on every tangent: its Hessian has the dense
-  term w a a^T, a = grad m, w = C / (l E_scale). It is kept as a vector and subtracted from the
-  probes before recovery.
-* **contact**: one 12 x 12 block per candidate segment pair (the two segments' four nodes), from
-  the scene's pair-coupled terms (``Term.pair_hessian``; contact's in closed form,
-  ``contact.contact_pair_hessian``, equal to ``jax.hessian`` of the pair's energy to roundoff, at a
-  third of its cost).
+* **local**: stretch, bend, twist and the holonomy's own second derivative couple only DOFs within
+  a window of three consecutive nodes. Recovered from a few Hessian-vector products with
+  *coloured* probes (Curtis-Powell-Reid): ~36 products whatever N, instead of n = 4N.
+* **rank one**: the holonomy vertex stores C m^2 / (2 l) with m depending on every tangent: the
+  dense term w a a^T, a = grad m, kept as a vector and subtracted from the probes.
+* **contact**: one 12 x 12 block per candidate segment pair, from the pair-coupled terms
+  (``Term.pair_hessian``; contact's in closed form, ``contact.contact_pair_hessian``).
 
-``scaled_hessian(scene, u, phi, nbr)`` assembles them densely (exact to round-off: tested
-against ``jax.hessian`` of the exact energy); ``dense_autodiff_hessian`` is that reference.
+``scaled_hessian(scene, u, phi, nbr)`` assembles them densely (tested against ``jax.hessian``);
+``dense_autodiff_hessian`` is that reference.
 """
 from __future__ import annotations
 
@@ -42,11 +35,10 @@ class HessianPattern:
     """Static (numpy) structure of the local Hessian of one scene layout.
 
     n: number of DOFs; colour: (n,) colour of each DOF; n_colours; mask: (n, n) bool, the local
-    sparsity pattern (symmetric); probes: (n_colours, n) 0/1 probe vectors; x_dof: (N, 3) index
-    of each node coordinate in q (-1 where the node is clamped, from the scene's ``DofLayout``);
-    rows, cols: (nnz,) the pattern's non-zero positions, row-major; transpose: (nnz,) the index,
-    in rows/cols, of each entry's transposed entry (the pattern is symmetric).
-    """
+    sparsity pattern (symmetric); probes: (n_colours, n) 0/1 probe vectors; x_dof: (N, 3) index of
+    each node coordinate in q (-1 where the node is clamped, from the scene's ``DofLayout``); rows,
+    cols: (nnz,) the pattern's non-zero positions, row-major; transpose: (nnz,) the index, in
+    rows/cols, of each entry's transposed entry (the pattern is symmetric)."""
 
     n: int
     colour: np.ndarray
@@ -126,9 +118,8 @@ def holonomy_rank_one(scene, u, phi, nbr):
 
 
 def local_products(scene, u, phi, nbr, pat):
-    """(hv, w, a): the local part's products with the coloured probes, hv (colours, n), row c
-    being H_local @ probe_c, from which every entry of the local part can be read; and the
-    rank-one term (w, a) that was subtracted from the full products to get them."""
+    """(hv, w, a): hv (colours, n), row c = H_local @ probe_c (every local entry can be read from
+    it), and the rank-one term (w, a) subtracted from the full products."""
     local = scene.local_terms
 
     def f(uu):
@@ -153,8 +144,8 @@ def local_entries(scene, u, phi, nbr, pat):
 def _local_block(scene, u, phi, nbr, pat):
     """The local part (n, n) dense, from coloured Hessian-vector products of the elastic energy."""
     hv, w, a = local_products(scene, u, phi, nbr, pat)
-    # Entry (r, c) of the local part is row r of the product with c's colour. Only the pattern's
-    # ~20 n entries are gathered and scattered (a dense n x n gather costs 5x more).
+    # Entry (r, c) of the local part is row r of the product with c's colour; only the pattern's
+    # entries are gathered and scattered.
     rows, cols = pat.rows, pat.cols
     values = hv[jnp.asarray(pat.colour[cols]), jnp.asarray(rows)]
     h_local = jnp.zeros((pat.n, pat.n), hv.dtype).at[jnp.asarray(rows), jnp.asarray(cols)].set(
@@ -168,15 +159,11 @@ def _pair_terms(scene):
 
 
 def _contact_chunks(scene, u, nbr, pat):
-    """The contact pairs within reach, as chunks of fixed size: (count, n_chunks, chunk,
-    blocks_of(k), dofs_of(k)), where blocks_of(k) (chunk, 12, 12) are the scaled Hessian blocks
-    of chunk k (the four nodes of the two segments; zero past ``count``) and dofs_of(k)
-    (chunk, 12) their DOF indices (n, out of range, where a node is clamped).
-
-    The energy is exactly zero beyond D (and C2 at D), so only pairs whose segments may be within
-    D carry a block: typically a few in ten of the candidates. They are gathered to the front of
-    the list, so a loop over ``count`` of them costs what the pairs in reach cost, not the list's
-    capacity."""
+    """The contact pairs within reach, in fixed-size chunks: (count, n_chunks, chunk, blocks_of(k),
+    dofs_of(k)): blocks_of(k) (chunk, 12, 12) the scaled Hessian blocks of chunk k (zero past
+    ``count``), dofs_of(k) (chunk, 12) their DOF indices (n where a node is clamped). Pairs that may
+    be within D (the energy is zero beyond) are gathered to the front, so a loop over ``count``
+    costs only the pairs in reach."""
     m = scene.material
     pairs = nbr.pairs
     n_nodes = scene.n_nodes
@@ -217,8 +204,7 @@ def _contact_chunks(scene, u, nbr, pat):
 
 
 def _add_contact_hessian(h, scene, u, nbr, pat):
-    """h (n, n) plus the scaled Hessian blocks of the contact pairs within reach
-    (``_contact_chunks``), chunk by chunk (a ``while_loop``), dropping clamped DOFs."""
+    """h (n, n) plus the contact pairs' scaled Hessian blocks, chunk by chunk, clamped DOFs dropped."""
     count, _, chunk, blocks_of, dofs_of = _contact_chunks(scene, u, nbr, pat)
 
     def more(c):
@@ -236,9 +222,8 @@ def _add_contact_hessian(h, scene, u, nbr, pat):
 
 
 def contact_blocks(scene, u, nbr, pat):
-    """The contact part as blocks, for sparse assembly: (blocks (P, 12, 12), dofs (P, 12), count),
-    the first ``count`` rows being the pairs within reach (P = the list's capacity rounded up to
-    whole chunks; rows past count are zero). dofs: n where a node is clamped (drop those)."""
+    """The contact part as blocks for sparse assembly: (blocks (P, 12, 12), dofs (P, 12), count),
+    the first ``count`` rows the pairs within reach, the rest zero; dofs: n where a node is clamped."""
     count, n_chunks, chunk, blocks_of, dofs_of = _contact_chunks(scene, u, nbr, pat)
     blocks = jnp.zeros((n_chunks * chunk, 12, 12), u.dtype)
     dofs = jnp.full((n_chunks * chunk, 12), pat.n, jnp.int32)
@@ -277,10 +262,8 @@ def dense_autodiff_hessian(scene, u, phi, nbr=None):
 
 def project_out(h, z, xp=jnp):
     """P h P + lift Z Z^T with P = I - Z Z^T for orthonormal columns z (n, k) (zero columns
-    allowed): the symmetry directions lifted to ``lift`` above the Gershgorin bound of h. Written
-    as one rank-2k update of h, h + [Z, HZ] [[Z^T H Z + lift I, -I], [-I, 0]] [Z, HZ]^T: O(n^2 k),
-    one matrix product (0.7 ms at n = 484 in numpy, where XLA's four products took 2.6 ms).
-    xp: jax.numpy (traced) or numpy (host)."""
+    allowed), lift above the Gershgorin bound of h: one rank-2k update of h,
+    h + [Z, HZ] [[Z^T H Z + lift I, -I], [-I, 0]] [Z, HZ]^T, O(n^2 k). xp: jax.numpy or numpy."""
     hz = h @ z  # (n, k)
     k = z.shape[1]
     lift = 2.0 * xp.max(xp.sum(xp.abs(h), axis=1)) + 1.0

@@ -16,9 +16,8 @@ IDEAL_TREFOIL_ROPELENGTH = 16.372
 
 
 def trefoil_points(n, chirality="right"):
-    """(n,3) points of the trefoil (sin t + 2 sin 2t, cos t - 2 cos 2t, -+sin 3t).
-
-    With -sin 3t this parametrisation is left-handed (writhe ~ -3.35); 'right' flips z."""
+    """(n,3) points of the trefoil (sin t + 2 sin 2t, cos t - 2 cos 2t, -+sin 3t). With -sin 3t this
+    parametrisation is left-handed (writhe ~ -3.35); 'right' flips z."""
     if chirality not in ("right", "left"):
         raise ValueError(f"chirality must be 'right' or 'left', got {chirality!r}")
     t = TWO_PI * np.arange(n) / n
@@ -26,11 +25,9 @@ def trefoil_points(n, chirality="right"):
     return np.stack([np.sin(t) + 2 * np.sin(2 * t), np.cos(t) - 2 * np.cos(2 * t), z], axis=1)
 
 
-
-# Ropelength L/D of the ideal (tightest) knots: the trefoil 16.372 (Baranska, Przybyl, Pieranski
-# 2008); the figure-eight 21.04, the cinquefoil 23.55 and the three-twist knot 24.68 (Ashton,
-# Cantarella, Piatek, Rawdon, "Knot tightening by constrained gradient descent", Experimental
-# Mathematics 20 (2011), to the digits quoted here). A shorter rod cannot be tied in that knot.
+# Ropelength L/D of the ideal (tightest) knots, below which a rod cannot be tied in that knot: the
+# trefoil (Baranska, Przybyl, Pieranski 2008); 4_1, 5_1, 5_2 (Ashton, Cantarella, Piatek, Rawdon,
+# Experimental Mathematics 20 (2011)).
 IDEAL_ROPELENGTH = {"3_1": IDEAL_TREFOIL_ROPELENGTH, "4_1": 21.04, "5_1": 23.55, "5_2": 24.68}
 KNOT_NAMES = {"3_1": "trefoil", "4_1": "figure-eight knot", "5_1": "cinquefoil", "5_2": "three-twist knot"}
 

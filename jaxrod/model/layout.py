@@ -7,9 +7,8 @@ edge by edge. Which nodes and edges are free depends on the scene's kind:
 * ``clamped``: nodes 2..N-3 and edges 1..N-3 (two nodes and one edge fixed at each clamp);
 * ``free``: every node 0..N-1 and every edge 0..N-2.
 
-Everything that depends on that order reads it here: the structured Hessian's sparsity pattern
-(``jaxrod.model.hessian``: which nodes each DOF touches), the node-interleaved block order of the
-banded path (``jaxrod.linalg.sparse``) and the contact blocks' DOF indices.
+Everything that depends on that order reads it here (the Hessian's sparsity pattern, the banded
+path's block order, the contact blocks' DOF indices).
 """
 from __future__ import annotations
 
@@ -27,15 +26,13 @@ KINDS = ("closed", "clamped", "free")
 class DofLayout:
     """Static (numpy) description of q's layout for one scene kind and number of nodes.
 
-    kind: "closed", "clamped" or "free"; n_nodes: N; n: number of DOFs; cyclic: closed rods
-    (node N-1 couples to node 0).
-    x_dof: (N, 3) index in q of each node coordinate, -1 where the node is clamped.
-    theta_dof: (M,) index in q of each edge's twist angle (M edges), -1 where it is fixed.
-    spans: (n, 2) first and last node touched by each DOF in q order (a coordinate touches its
-    node; an edge's twist angle the edge's two nodes, the last one mod N for a closed rod).
-    node_groups: the DOFs in rod order grouped by node, each node's 3 coordinates with the twist
-    angle of one edge at that node (see ``_node_groups``).
-    """
+    kind: "closed", "clamped" or "free"; n_nodes: N; n: number of DOFs; cyclic: closed rods (node
+    N-1 couples to node 0). x_dof: (N, 3) index in q of each node coordinate, -1 where the node is
+    clamped. theta_dof: (M,) index in q of each edge's twist angle (M edges), -1 where it is fixed.
+    spans: (n, 2) first and last node touched by each DOF in q order (a coordinate touches its node;
+    an edge's twist angle the edge's two nodes, the last one mod N for a closed rod). node_groups:
+    the DOFs in rod order grouped by node, each node's 3 coordinates with the twist angle of one
+    edge at that node (see ``_node_groups``)."""
 
     kind: str
     n_nodes: int
@@ -59,14 +56,10 @@ def _free_nodes_and_edges(kind, n_nodes):
 
 
 def _node_groups(kind, x_dof, theta_dof):
-    """The DOFs (q indices) in rod order, grouped by node.
-
-    closed: (x_i, theta_i) (edge i starts at node i); free: the same, x_{N-1} alone at the end;
-    clamped (free nodes 2..N-3, free edges 1..N-3): (theta_{k-1}, x_k), i.e. the edge that ENDS at
-    node k, with theta_{N-3} alone at the end -- the sequence theta_1, x_2, theta_2, ..., x_{N-3},
-    theta_{N-3}. Either way consecutive DOFs couple at most 10 places apart in this sequence, and
-    any 2 consecutive groups separate what comes before them from what comes after (the widest
-    couplings, x_i-x_{i+2}, x_i-theta_{i+1}, theta_i-x_{i+2}, stay within 3 nodes)."""
+    """The DOFs (q indices) in rod order, grouped by node. closed: (x_i, theta_i) (edge i starts at
+    node i); free: the same, x_{N-1} alone at the end; clamped: (theta_{k-1}, x_k) (the edge that
+    ENDS at node k), theta_{N-3} alone at the end. Either way any 2 consecutive groups separate what
+    comes before them from what comes after."""
     N = x_dof.shape[0]
     xs = [tuple(int(d) for d in x_dof[i]) for i in range(N)]
     th = [int(d) for d in theta_dof]

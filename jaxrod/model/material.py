@@ -6,7 +6,6 @@ import math
 import jax
 from dataclasses import dataclass
 
-# The checks live in ``jaxrod.validation``; imported here too, where they used to be defined.
 from ..validation import check_finite, check_int_at_least, check_poisson_ratio, check_positive
 
 __all__ = ["Material"]

@@ -1,18 +1,15 @@
 """What the fast energy freezes around a state: the neighbour-list pattern of JAX-MD.
 
-The exact energy of a rod (``scene.energy(q, phi)``) needs two non-local things: the writhe, which
-fixes the 2 pi branch of the holonomy (an O(N^2) double sum, ~90% of an energy evaluation at
-N = 1024), and, with self-contact, the pairs of segments that may touch (all O(N^2) pairs). Both
-change slowly with the state, so a solver computes them once around a state and passes them in:
+The exact energy (``scene.energy(q, phi)``) needs two non-local things: the writhe, which fixes the
+2 pi branch of the holonomy (an O(N^2) double sum), and, with self-contact, the segment pairs that
+may touch. Both change slowly, so a solver computes them once around a state and passes them in:
 
     nbr = scene.neighbourhood(q)            # built outside jit (k-d tree, exact writhe)
     scene.energy(q, phi, nbr)               # O(N) + O(candidate pairs), same value as the exact one
     nbr.stale(x)                            # True once a node moved more than skin/2: rebuild
 
-The energy with ``nbr`` equals the exact energy while (i) no node has moved more than skin/2 from
-where the list was built (every pair closer than D is a candidate), and (ii) the writhe has
-changed by less than 1/2 since (the holonomy lift picks the right 2 pi branch). (i) is checked
-by ``stale``; (ii) by the solvers after every solve, with one exact writhe evaluation.
+The energy with ``nbr`` is exact while (i) no node has moved more than skin/2 since the build
+(checked by ``stale``) and (ii) the writhe has changed by less than 1/2 (checked by the solvers).
 """
 from __future__ import annotations
 
@@ -40,8 +37,7 @@ class Neighbourhood:
     pairs: (P, 2) int32 candidate segment pairs (padding rows are (0, 0)); mask: (P,) bool, real
     pairs; x_built: (N, 3) nodes where the list was built; skin: the list is valid while no node
     moved more than skin/2; wr_ref: writhe of the centreline (closed rods) or of the centreline
-    extended along the clamp axis (clamped rods) at the build state.
-    """
+    extended along the clamp axis (clamped rods) at the build state."""
 
     pairs: jnp.ndarray
     mask: jnp.ndarray
@@ -58,12 +54,10 @@ class Neighbourhood:
         return int(np.sum(np.asarray(self.mask)))
 
     def stale(self, x, grown=0.0):
-        """True (a JAX bool) when some node of x (N, 3) has moved more than skin/2 from x_built:
-        a pair could then be closer than D without being a candidate. Without contact pairs the
-        list never goes stale. grown: how much the diameter has grown since the list was built
-        (a fold curve in D), which uses up that much of the skin. For a numpy x the test runs in
-        numpy (a Python bool): eager JAX operations would be a handful more executables for
-        every process to load."""
+        """True (a JAX bool) when some node of x (N, 3) has moved more than skin/2 from x_built (a
+        pair could then be closer than D unlisted); never without contact pairs. grown: how much
+        the diameter has grown since the build (uses up that much skin). A numpy x is tested in
+        numpy (a Python bool: no eager JAX programs)."""
         if self.pairs.shape[0] == 0:
             return jnp.asarray(False)
         if isinstance(x, np.ndarray):
@@ -72,13 +66,10 @@ class Neighbourhood:
         moved = jnp.max(jnp.linalg.norm(x - self.x_built, axis=1))
         return moved > 0.5 * (self.skin - grown)
 
-
     def update(self, scene, q, phi, grown=0.0):
-        """The one place a solver renews its neighbourhood after a solve: rebuilds it around the
-        new state q (n,) of ``scene`` (``scene.neighbourhood``, this list's capacity kept so that
-        compiled code is reused; it grows if the new list does not fit) and says what changed
-        since this one was built. Returns a ``NeighbourhoodUpdate``; each caller keeps its own
-        policy (repeat the solve, refuse a strand passage, keep the old pairs)."""
+        """The one place a solver renews its neighbourhood after a solve: rebuilt around the new
+        state q (n,) with this list's capacity (grown if needed), and what changed since this one
+        was built: a ``NeighbourhoodUpdate`` (each caller keeps its own policy)."""
         new = scene.neighbourhood(q, phi, capacity=self.capacity)
         x = np.asarray(scene.positions(np.asarray(q, dtype=float)))  # on the host: ``stale`` in numpy
         return NeighbourhoodUpdate(new, bool(self.stale(x, grown)), float(new.wr_ref) - float(self.wr_ref))
@@ -113,12 +104,9 @@ jax.tree_util.register_pytree_node(
 
 
 def build_neighbourhood(x, wr, closed, rest_length, D, with_contact, skin=None, capacity=None):
-    """A ``Neighbourhood`` around nodes x (N, 3) (numpy) whose writhe is wr.
-
-    with_contact: build candidate pairs (k-d tree, see ``jaxrod.model.contact.candidate_pairs``);
-    otherwise an empty list. capacity: pad the list to this many rows when it fits (so compiled
-    code is reused across rebuilds); it grows (doubling) when it does not.
-    """
+    """A ``Neighbourhood`` around nodes x (N, 3) (numpy) whose writhe is wr. with_contact: build
+    candidate pairs (``jaxrod.model.contact.candidate_pairs``), else an empty list. capacity: pad
+    the list to this many rows when it fits; it grows (doubling) when it does not."""
     x = np.asarray(x, dtype=float)
     if with_contact:
         cl = candidate_pairs(x, closed, rest_length, D, skin=skin, capacity=capacity)

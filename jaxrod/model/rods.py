@@ -1,22 +1,18 @@
 """The rod scenes: which degrees of freedom are free, how imposed twist enters, which energy
 terms are summed. ``ClosedRod`` (rings, knots), ``ClampedRod`` (both ends clamped), ``FreeRod``.
 
-A scene maps a flat vector of free degrees of freedom ``q`` and the imposed twist ``phi`` to the
-full rod state (nodes ``x`` (N,3), edge twist angles ``theta`` (M,)) and to its energy, the sum of
-its terms (``jaxrod.model.terms``). All its methods are pure JAX functions of ``(q, phi)``; the
-scene object itself only holds constants, so ``scene.energy`` can be passed to
-``jax.jit``/``jax.grad``/``jax.hessian`` directly.
+A scene maps the free DOFs ``q`` and the imposed twist ``phi`` to the rod state (nodes ``x`` (N,3),
+edge twist angles ``theta`` (M,)) and to its energy, the sum of its terms (``jaxrod.model.terms``);
+its methods are pure JAX functions of ``(q, phi)`` (the scene holds only constants).
 Imposed twist without hidden state
 ----------------------------------
 Reference frames are space-parallel (``jaxrod.model.geometry``), so the only geometric twist is the
-holonomy of parallel transport, which is known from atan2 only modulo 2 pi. Its branch is fixed
-by the Calugareanu-White relation Lk = Wr + Tw: for a closed rod the joint's reference twist
-must equal 2 pi (Lk0 - Wr(x)) up to rounding, with Wr the exact polygon writhe. The code takes the
-atan2 value plus 2 pi times the integer nearest to the difference (with the gradient stopped;
-an integer has none). The result is single-valued and smooth in (x, theta, phi) for any phi,
-as long as the rod does not pass through itself, and its derivatives stay local and cheap
-(the writhe itself is never differentiated). A clamped rod uses the writhe of the rod extended
-by two long rays along the clamp axis (the standard closure for a rod held at both ends).
+holonomy of parallel transport, known from atan2 only modulo 2 pi. Its branch is fixed by
+Calugareanu-White, Lk = Wr + Tw: the joint's reference twist is the atan2 value plus 2 pi times the
+integer nearest to (2 pi (Lk0 - Wr(x)) - atan2 value) / 2 pi (gradient stopped), with Wr the exact
+polygon writhe (never differentiated). The result is smooth in (x, theta, phi) for any phi while
+the rod does not pass through itself. A clamped rod uses the writhe of the rod extended by two
+long rays along the clamp axis.
 """
 from __future__ import annotations
 
@@ -102,9 +98,8 @@ class Scene:
         may be given by name: "stretch", "bend", "twist", "contact"), in the order summed.
     """
 
-    # Gauss points per segment in the contact integral (``contact.contact_energy``). 2 suffices
-    # where strands touch along lengths of several edges; scenes with short crossing contacts at
-    # edges near D (an open knot pulled tight) set 3 (``endloads.shortened_rod(contact_quadrature=3)``).
+    # Gauss points per segment in the contact integral (``contact.contact_energy``); scenes with
+    # short crossing contacts (an open knot pulled tight) set 3.
     contact_quadrature = 2
 
     material: Material
@@ -119,7 +114,6 @@ class Scene:
     def __post_init__(self):
         object.__setattr__(self, "terms", as_terms(self.terms))
 
-    # ------------------------------------------------------------------ terms
     @property
     def term_names(self):
         """Names of the scene's energy terms, in the order summed (the keys of ``energy_terms``)."""
@@ -149,7 +143,6 @@ class Scene:
             term.check(self)
         return replace(self, terms=self.terms + new)
 
-    # ------------------------------------------------------------------ parameters
     PARAMETERS = ("B", "C", "EA", "D", "nu", "contact_stiffness")
 
     def with_params(self, **params):
@@ -157,13 +150,10 @@ class Scene:
         ``EA`` and ``D``, the Poisson ratio ``nu`` (sets C = B/(1+nu), with the new B where given)
         and, on scenes that model contact, ``contact_stiffness``. The geometry (rest lengths,
         q_init) and the terms are kept; D is the contact diameter only (B and EA stay as they are).
-
         Concrete values are checked as the constructors check them (ValueError naming the
-        parameter); jax tracers pass unchecked, so ``jax.grad``, ``jax.jvp`` and ``jax.vmap`` over
-        a function that calls ``scene.with_params(nu=nu)`` work. With a traced D, evaluate the
-        energy without a ``Neighbourhood`` (its candidate mask is computed from D with jnp); a
-        neighbourhood is built on the host from concrete values.
-        """
+        parameter); jax tracers pass unchecked, so ``jax.grad``/``jvp``/``vmap`` through
+        ``scene.with_params(nu=nu)`` work (with a traced D, evaluate the energy without a
+        ``Neighbourhood``)."""
         unknown = sorted(set(params) - set(self.PARAMETERS))
         if unknown:
             raise ValueError(f"with_params sets {', '.join(self.PARAMETERS)}; got {', '.join(unknown)}")
@@ -184,7 +174,6 @@ class Scene:
             object.__setattr__(new, "contact_stiffness", check_positive("contact_stiffness", params["contact_stiffness"]))
         return new
 
-    # ------------------------------------------------------------------ layout
     @property
     def n_nodes(self):
         m = self.rest_lengths.shape[0]
@@ -236,12 +225,10 @@ class Scene:
         """Exact polygon writhe of the nodes x (N,3) (closed) or of the extended centreline (clamped)."""
         return writhe(x, closed=self.closed)
 
-    # ------------------------------------------------------------------ neighbourhood
     def neighbourhood(self, q, phi=0.0, skin=None, capacity=None):
-        """The ``Neighbourhood`` of state q (physical DOFs): contact candidate pairs (if the scene
-        has contact) and the exact writhe, built outside jit. ``capacity``: pad the pair list to
-        at least this many rows (reuse compiled code across rebuilds). Built from concrete values:
-        ValueError where D is a jax tracer (evaluate the energy without a neighbourhood there)."""
+        """The ``Neighbourhood`` of state q (physical DOFs): contact candidates (if any) and the
+        exact writhe, built outside jit from concrete values (ValueError for a traced D).
+        ``capacity``: pad the pair list to at least this many rows (reuse compiled code)."""
         if is_traced(self.material.D):
             raise ValueError("D must be a concrete value to build a neighbourhood (its candidate list is made on the "
                              "host); inside a function traced over D, evaluate scene.energy(q, phi) without nbr: "
@@ -261,12 +248,10 @@ class Scene:
         """Per-DOF scale (n,): free node coordinates in units of edge length, angles in radians."""
         return _scale_vector_jit(self.length_scale, 3 * self.n_free_nodes, self.n_dof)
 
-    # ------------------------------------------------------------------ energy
     def energy_terms(self, q, phi, nbr=None, terms=None):
-        """Dict name -> energy of the scene's terms at (q, phi), in the scene's order. Without
-        ``nbr`` the exact energy (writhe computed, contact over all pairs: O(N^2)); with a valid
-        ``nbr`` the same value in O(N) (see ``jaxrod.model.neighbourhood``). ``terms``: evaluate
-        only those of the scene's terms (terms or names)."""
+        """Dict name -> energy of the scene's terms at (q, phi), in the scene's order: exact
+        without ``nbr`` (O(N^2)), the same in O(N) with a valid one (``jaxrod.model.neighbourhood``).
+        ``terms``: evaluate only those of the scene's terms (terms or names)."""
         chosen = self.terms
         if terms is not None:
             wanted = {getattr(t, "name", t) for t in terms}
@@ -276,8 +261,7 @@ class Scene:
 
     def contact_candidates(self, nbr=None):
         """(pairs (P,2), mask (P,)): the neighbourhood's candidate list, or every pair further
-        apart along the rod than pi D/2 (the exact energy's list) when nbr is None. That mask is
-        computed with jnp, so that it follows a traced D (the pairs, all of them, are fixed by N)."""
+        apart along the rod than pi D/2 when nbr is None (mask computed with jnp: follows a traced D)."""
         if nbr is not None:
             return nbr.pairs, nbr.mask
         n_edges = self.rest_lengths.shape[0]
@@ -293,11 +277,8 @@ class Scene:
         return sum(self.energy_terms(q, phi, nbr).values())
 
     def scaled_energy(self, u, phi, nbr=None):
-        """Energy in units of ``energy_scale`` of scaled DOFs u = q / dof_scale.
-
-        Solvers and the stability analysis work on this function, so that their tolerances
-        and eigenvalues are dimensionless and comparable across materials and resolutions.
-        """
+        """Energy in units of ``energy_scale`` of scaled DOFs u = q / dof_scale (what solvers and
+        stability analyses use: dimensionless tolerances and eigenvalues)."""
         return self.energy(u * self.dof_scale, phi, nbr) / self.energy_scale
 
     def _host_dof_scale(self):
@@ -324,7 +305,6 @@ class Scene:
                 return u * scale
         return u * self.dof_scale
 
-    # ------------------------------------------------------------------ frames, topology
     def reference_directors(self, x):
         """Space-parallel reference directors u (M,3) of the edges."""
         raise NotImplementedError
@@ -357,7 +337,6 @@ class Scene:
         """Lk = Wr + Tw: Lk0 + phi/(2 pi) while the rod does not pass through itself."""
         return self.writhe(q, phi) + self.twist(q, phi, nbr)
 
-    # ------------------------------------------------------------------ zero modes
     def zero_modes(self, q, phi):
         """Generators (n, k) of exact symmetries (rigid motions, uniform twist shift) in the
         physical DOFs; k = 0 for clamped rods."""
@@ -391,10 +370,8 @@ class ClosedRod(Scene):
 
     Lk0 is the linking number of the ribbon at phi = 0; the rod is cut at the joint (vertex 0,
     between edge N-1 and edge 0), twisted by phi and glued, so Lk = Lk0 + phi / (2 pi).
-    contact_stiffness: kappa_c of soft self-contact (in units of B/D^3, the prefactor of the contact integral) when "contact" is a term.
-    The contact candidate list is not part of the scene: it lives in a ``Neighbourhood`` passed
-    to the energy (``scene.neighbourhood(q)``), rebuilt by the solvers when it goes stale.
-    """
+    contact_stiffness: kappa_c of soft self-contact (units of B/D^3) when "contact" is a term; the
+    candidate list lives in a ``Neighbourhood`` passed to the energy."""
 
     Lk0: float = 0.0
     contact_stiffness: float = 0.0
@@ -437,12 +414,11 @@ class ClosedRod(Scene):
 @dataclass(frozen=True, eq=False)
 class ClampedRod(Scene):
     """Open rod clamped at both ends: nodes 0, 1 and N-2, N-1 fixed (so the first and last edges,
-    and their tangents, are fixed), the first material director fixed, the last one rotated by
-    phi about the clamp axis. DOFs: q = [x[2:N-2].ravel(), theta[1:M-1]].
+    and their tangents, are fixed), the first material director fixed, the last one rotated by phi
+    about the clamp axis. DOFs: q = [x[2:N-2].ravel(), theta[1:M-1]].
 
-    The clamps are coaxial (both edges along the same axis); the end twist's 2 pi branch is fixed
-    by the writhe of the centreline extended by rays along the axis (see module docstring).
-    """
+    The clamps are coaxial (both edges along the same axis); the end twist's 2 pi branch is fixed by
+    the writhe of the centreline extended by rays along the axis (see module docstring)."""
 
     x_clamped: np.ndarray = None  # (4,3): x[0], x[1], x[N-2], x[N-1]
     director_start: np.ndarray = None  # (3,) material director of edge 0
@@ -472,11 +448,9 @@ class ClampedRod(Scene):
         return self.nodes(q)
 
     def exact_writhe(self, x):
-        """The ray-closed writhe (the centreline extended to infinity along the clamp axis at both
-        ends), exact to roundoff: its fractional part from the tantrix holonomy (the writhe of a
-        polygon is -holonomy / 2 pi modulo 1 exactly, and the rays add no tantrix), its integer
-        part from the writhe of the centreline extended by finite rays (``extended_writhe``, whose
-        truncation error, O(L / ray length), only has to stay below 1/2)."""
+        """The ray-closed writhe (centreline extended to infinity along the clamp axis), exact to
+        roundoff: its fractional part from the tantrix holonomy (-holonomy / 2 pi modulo 1; the
+        rays add no tantrix), its integer part from ``extended_writhe``."""
         fraction = -tantrix_holonomy(unit(edges(x, False))) / TWO_PI
         return fraction + jnp.round(self.extended_writhe(x) - fraction)
 
@@ -484,22 +458,18 @@ class ClampedRod(Scene):
         return self.rest_lengths.shape[0] - 2
 
     def extended_writhe(self, x):
-        """Writhe of the centreline extended at both ends by rays along the clamp axis of length
-        100 L: the ray-closed writhe to O(L / 100 L) (measured: 1e-6 on a loop of height 0.3 L),
-        used only for the integer part of ``exact_writhe``."""
+        """Writhe of the centreline extended at both ends by rays of length 100 L along the clamp
+        axis: the ray-closed writhe to O(1/100), used only for the integer part of ``exact_writhe``."""
         a = self.axis
         far = 100.0 * self.length
         ext = jnp.concatenate([(x[0] - far * a)[None], x, (x[-1] + far * a)[None]], axis=0)
         return writhe(ext, closed=False)
 
     def end_angle(self, x, nbr=None):
-        """theta_end - phi: the twist angle of the last edge, measured from its space-parallel
-        reference director, at which its material director is the clamp's director turned by phi.
-
-        Parallel transport along the rod (the tantrix starts and ends on the clamp axis, so it is
-        closed) turns the first director by alpha = -holonomy about the axis; the clamp asks for
-        d1 = R(phi) d_start = R(theta_end + alpha) d_start, so theta_end = phi + holonomy, lifted
-        to the branch 2 pi (Lk0 - Wr(x)): then Tw = Lk0 + phi / 2 pi - Wr exactly."""
+        """theta_end - phi: the last edge's twist angle (from its space-parallel reference
+        director) at which its material director is the clamp's turned by phi. Transport along
+        the (closed) tantrix turns the first director by -holonomy, so theta_end = phi + holonomy,
+        lifted to the branch 2 pi (Lk0 - Wr(x)): then Tw = Lk0 + phi / 2 pi - Wr exactly."""
         raw = tantrix_holonomy(unit(edges(x, False)))
         return _lift(raw, TWO_PI * (self.Lk0 - self._writhe_for_lift(x, nbr)))
 

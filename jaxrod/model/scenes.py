@@ -3,8 +3,7 @@
 The scene classes live in ``jaxrod.model.rods`` (``Scene``, ``ClosedRod``, ``ClampedRod``,
 ``FreeRod``), the energy terms they sum in ``jaxrod.model.terms`` and the knots' point tables in
 ``jaxrod.model.knots``; all of them are importable from here. A scene's terms are extended with
-``scene.with_terms(term, ...)``.
-"""
+``scene.with_terms(term, ...)``."""
 from __future__ import annotations
 
 import math
@@ -22,32 +21,10 @@ from .terms import Bend, Contact, Coupling, Stretch, Term, Twist
 from .topology import writhe
 from ..validation import check_finite, check_int_at_least, check_positive, is_traced, require_concrete
 
-__all__ = [
-    "Scene",
-    "ClosedRod",
-    "ClampedRod",
-    "FreeRod",
-    "Term",
-    "Coupling",
-    "Stretch",
-    "Bend",
-    "Twist",
-    "Contact",
-    "ring",
-    "michell_ring",
-    "closed_curve",
-    "clamped_rod",
-    "free_rod",
-    "michell_critical_twist",
-    "clamped_critical_twist",
-    "trefoil",
-    "knot",
-    "knot_points",
-    "IDEAL_ROPELENGTH",
-    "trefoil_points",
-    "torus_knot",
-    "IDEAL_TREFOIL_ROPELENGTH",
-]
+__all__ = ["Scene", "ClosedRod", "ClampedRod", "FreeRod", "Term", "Coupling", "Stretch", "Bend", "Twist", "Contact",
+           "ring", "michell_ring", "closed_curve", "clamped_rod", "free_rod", "michell_critical_twist",
+           "clamped_critical_twist", "trefoil", "knot", "knot_points", "IDEAL_ROPELENGTH", "trefoil_points",
+           "torus_knot", "IDEAL_TREFOIL_ROPELENGTH"]
 
 TWO_PI = 2.0 * math.pi
 
@@ -80,18 +57,14 @@ def closed_curve(points, *, material, N=None, length=None, Lk0=None, name="close
     """A closed rod along the closed polyline ``points`` (M,3) (last point not repeating the first).
 
     The curve is resampled to N nodes equally spaced in arc length (default N = M) and scaled to
-    total length ``length`` (default: its own). Every edge gets rest length L/N, so the curve
-    starts (almost) unstretched. Lk0 defaults to the integer nearest the writhe (the least-twisted
-    closed ribbon; a warning when the writhe is within 0.1 of a half-integer). That is the
-    twist-free rod only if the curve is close to its relaxed shape: ``relax_to_minimum`` at phi = 0
-    warns when the relaxed rod stores more than a quarter turn of twist; then give Lk0. The twist
-    angles start uniform, so the initial twist is spread evenly.
-    contact_stiffness: kappa_c (in units of B/D^3, the prefactor of the contact integral) of soft self-contact, which needs the material's
-    diameter D; None (default) models no contact (for curves whose strands stay far apart).
+    total length ``length`` (default: its own); every edge gets rest length L/N. Lk0 defaults to
+    the integer nearest the writhe (a warning when that is ambiguous); that is the twist-free rod
+    only if the curve is close to its relaxed shape (``relax_to_minimum`` warns otherwise). The
+    twist angles start uniform. contact_stiffness: kappa_c (units of B/D^3) of soft self-contact,
+    which needs the material's D; None (default): no contact.
 
     ``length``, ``contact_stiffness`` and the material's parameters may be jax tracers (then
-    their values are not checked); ``points``, N and Lk0 set the scene's structure and must be
-    concrete.
+    unchecked); ``points``, N and Lk0 must be concrete.
     """
     _check_material(material)
     x, perimeter, N = _resampled_closed_points(points, N)
@@ -162,8 +135,7 @@ def _linking_and_twist(x, N, Lk0, material, name):
 
 DEFAULT_CONTACT_STIFFNESS = 100.0
 # Young's modulus of the seed paper's elastomer rod, 0.474 MPa (= N/mm^2, for lengths in mm): the
-# default of every knot factory and of the CLI. It scales energies only; critical twists, shapes
-# and the dimensionless eigenvalues do not depend on it.
+# default of every knot factory and of the CLI. It scales energies only.
 PAPER_YOUNG_MODULUS = 0.474
 # Fewest nodes of a trefoil: three crossings need a few edges each to be resolved at all.
 MIN_TREFOIL_NODES = 24
@@ -173,9 +145,8 @@ NEARLY_TIGHT = 1.25
 
 def check_knot_resolution(N, D, L, minimum):
     """N as an int, or ValueError naming N: at least ``minimum`` and at least L/D, so that no edge
-    is longer than the diameter (self-contact is resolved on segments: with longer edges
-    strands fall between the quadrature points and the relaxation fails or passes them
-    through each other). With D or L a jax tracer only N itself is checked (L/D is unknown)."""
+    is longer than the diameter (else strands fall between the contact quadrature points). With D
+    or L a jax tracer only N itself is checked."""
     N = check_int_at_least("N", N, minimum)
     if is_traced(D) or is_traced(L):
         return N
@@ -186,21 +157,14 @@ def check_knot_resolution(N, D, L, minimum):
     return N
 
 
-
 def trefoil(*, N, D, L, E=PAPER_YOUNG_MODULUS, nu=0.5, chirality="right", contact_stiffness=DEFAULT_CONTACT_STIFFNESS):
-    """A closed trefoil knot of rod diameter D and length L, N nodes, material (E, nu, D); E in
-    MPa for lengths in mm (default 0.474, the seed paper's elastomer), energies then in N mm.
-
-    Refuses a knot shorter than the ideal trefoil (L/D < 16.372), which cannot exist.
-    The initial curve is the standard parametrisation scaled to length L (not yet relaxed).
-
-    D, L, E, nu and contact_stiffness may be jax tracers (``jax.grad``/``jax.jvp``/``jax.vmap``
-    over a function that builds the knot): then the checks on their values, L/D included, are
-    skipped. N and the chirality set the scene's structure and must be concrete.
-    """
+    """A closed trefoil knot of rod diameter D and length L, N nodes, material (E, nu, D); E in MPa
+    for lengths in mm (default 0.474, the seed paper's elastomer), energies then in N mm. Refuses
+    L/D below the ideal trefoil's 16.372. The initial curve is the standard parametrisation scaled
+    to length L (not yet relaxed). D, L, E, nu and contact_stiffness may be jax tracers (their
+    checks then skipped); N and the chirality must be concrete."""
     return _knot_scene("3_1", lambda n: trefoil_points(n, chirality), D, L, N, E, nu, contact_stiffness,
                        f"{chirality}-handed trefoil")
-
 
 
 def knot(name, *, N, D, L, E=PAPER_YOUNG_MODULUS, nu=0.5, contact_stiffness=DEFAULT_CONTACT_STIFFNESS, Lk0=None):
@@ -249,8 +213,7 @@ def knot(name, *, N, D, L, E=PAPER_YOUNG_MODULUS, nu=0.5, contact_stiffness=DEFA
 
 def _knot_scene(name, points, D, L, N, E, nu, contact_stiffness, title, Lk0=None):
     """The checks every knot shares, then ``closed_curve`` through ``points(n)`` ((n, 3), the
-    parametrisation sampled at n = max(4 N, 400) points, finer than the rod). The checks on L/D
-    need concrete values: they are skipped when D or L is a jax tracer."""
+    parametrisation sampled at n = max(4 N, 400) points); L/D is not checked for a traced D or L."""
     D = check_positive("D", D)
     L = check_positive("L", L)
     ideal = IDEAL_ROPELENGTH[name]

@@ -1,25 +1,18 @@
 """The two-fold symmetry of a closed rod about an axis through its joint, and the projection onto it.
 
-A closed rod whose vertex 0 (the joint, where the twist phi is imposed) lies on a two-fold axis of
-its centreline is mapped onto itself by the rotation R by pi about that axis, which sends node i to
-node -i (mod N) and reverses the direction of travel: edge j (nodes j, j+1) goes to edge N-1-j. The
-trefoil as drawn has this symmetry (node 0 on one of its three two-fold axes). With uniform rest
-lengths and a round cross-section the discrete energy is invariant under it, for any state:
+A closed rod whose joint (vertex 0) lies on a two-fold axis of its centreline (the drawn trefoil
+does) is mapped onto itself by the rotation R by pi about it, which sends node i to node -i (mod N)
+and edge j to edge N-1-j. With uniform rest lengths the discrete energy is invariant under it:
 
     x'_i = R x_{-i} + t,        theta'_j = -theta_{N-1-j} + 2 mean(theta)
 
-(vertex i's twist theta_i - theta_{i-1} goes to vertex -i's, and the joint, mapped to itself,
-keeps its holonomy, since the writhe is unchanged by a rotation and by reversing the direction).
+(the joint keeps its holonomy: the writhe is unchanged by a rotation and by reversing direction).
 
-Why a continuation needs it: a loose knot's sliding modes (material slipping along the centreline)
-are nearly null (1e-11 to 1e-7 in scaled units), so a minimiser stopped at its gradient tolerance
-leaves the material anywhere along a slide of the discretisation's tiny landscape, and a path
-drifts from one symmetric placement of the nodes to another (at N = 121 the trefoil's
-tightening end came out 7.0e-4 pi apart at two steps, one path in each placement). A slide is odd
-under the symmetry, so the projection onto the symmetric states removes it, and the symmetric
-branch is then one well-defined branch whatever the step. Every instability is still seen: the
-stability is judged on the full Hessian, so a symmetry-breaking mode going negative ends the branch
-as before (a branch point of the symmetric branch).
+Why a continuation needs it: a loose knot's sliding modes are nearly null, so a minimiser stopped
+at its gradient tolerance leaves the material anywhere along a slide and a path drifts between
+symmetric placements of the nodes. A slide is odd under the symmetry, so the projection onto the
+symmetric states removes it. Every instability is still seen: stability is judged on the full
+Hessian, so a symmetry-breaking mode going negative ends the branch (a branch point).
 """
 from __future__ import annotations
 
@@ -33,11 +26,9 @@ __all__ = ["TwoFold", "has_joint_symmetry", "joint_two_fold", "two_fold_asymmetr
            "SYMMETRIC_TOL", "ROUND_OFF_ASYMMETRY"]
 
 # A state is on a two-fold symmetry (``ContinuationOptions.keep_symmetry``) when its nodes' rms
-# distance from their images is below SYMMETRIC_TOL edge lengths: the trefoil relaxed at phi = 0 as
-# drawn has 1e-14, and a stable-only path without the projection drifted along its nearly null
-# sliding modes by 1e-8 to 1e-6 edges per step before it left for another placement of its nodes
-# (N = 121, 2026-12-04). Each corrected state further from the symmetry than ROUND_OFF_ASYMMETRY
-# edges is projected back (one or two Newton steps), so the next one starts symmetric.
+# distance from their images is below SYMMETRIC_TOL edge lengths (a drawn trefoil has ~1e-14). Each
+# corrected state further from it than ROUND_OFF_ASYMMETRY edges is projected back, so the next one
+# starts symmetric.
 SYMMETRIC_TOL = 1e-5
 ROUND_OFF_ASYMMETRY = 1e-12
 
@@ -82,8 +73,7 @@ def two_fold_asymmetry(x):
     u, _, vt = np.linalg.svd(a0.T @ b0)
     d = np.sign(np.linalg.det(u @ vt))
     r = (u @ np.diag([1.0, 1.0, d]) @ vt).T  # the rotation taking mirrored onto x
-    # A rotation by pi is 2 a a^T - I: its axis is the eigenvector of the symmetric part with
-    # eigenvalue 1 (the largest).
+    # A rotation by pi is 2 a a^T - I: its axis is the symmetric part's eigenvector of eigenvalue 1.
     w, v = np.linalg.eigh(0.5 * (r + r.T))
     axis = v[:, -1]
     sym = TwoFold(axis=axis, centre=c, asymmetry=0.0)
@@ -115,7 +105,6 @@ def symmetrize(scene, q, sym=None):
     return np.concatenate([x_sym.ravel(), theta_sym])
 
 
-
 def _rotation(omega):
     """The rotation matrix of the rotation vector omega (3,) (Rodrigues)."""
     angle = float(np.linalg.norm(omega))
@@ -127,11 +116,10 @@ def _rotation(omega):
 
 
 def symmetrize_pinned(scene, q, pins, values, sym=None, iterations=4):
-    """``symmetrize`` for a problem whose gauge is pinned (``jaxrod.continuation.arclength.rods``): q (4N,)
+    """``symmetrize`` for a gauge-pinned problem (``jaxrod.continuation.arclength.rods``): q (4N,)
     projected onto the symmetric states, then moved by the rigid motion and uniform twist shift
-    (7 parameters, which keep the symmetry: the axis moves with the rod) that puts the scaled DOFs at
-    ``pins`` (7,) back at ``values`` (7,). Newton on those 7 equations (the projection moves the
-    pinned DOFs by about the asymmetry, so a few iterations reach round-off). Returns q (4N,)."""
+    (7 parameters, which keep the symmetry) that puts the scaled DOFs at ``pins`` (7,) back at
+    ``values`` (7,), by Newton on those 7 equations. Returns q (4N,)."""
     n = scene.n_nodes
     q_sym = symmetrize(scene, q, sym)
     x, theta = q_sym[:3 * n].reshape(n, 3), q_sym[3 * n:]

@@ -3,24 +3,17 @@
 A scene (``jaxrod.model.scenes``) holds a tuple of terms and sums their energies. Each term knows
 
 * ``energy(scene, q, phi, nbr)``: its energy, a pure JAX function of the free DOFs q (n,), the
-  imposed twist phi and, where it needs one, the ``Neighbourhood`` nbr. It reads the rod's
-  geometry from the scene: ``scene.positions(q)`` (N, 3) (cheap), ``scene.unpack(q, phi, nbr)``
-  (nodes and twist angles), ``scene.vertex_twists``, ``scene.rest_lengths``, ``scene.voronoi``,
-  ``scene.material``;
-* ``coupling``: which DOFs its Hessian couples. ``Coupling.LOCAL``: only DOFs within a window of
-  three consecutive nodes (an edge's twist angle belongs to its two nodes), so the coloured
-  Hessian-vector products of ``jaxrod.model.hessian`` recover its Hessian exactly.
-  ``Coupling.PAIRS``: pairs of segments found through the neighbourhood (contact), assembled from
-  12 x 12 pair blocks;
-* ``needs_neighbourhood``: whether its energy needs the neighbourhood's candidate pair list;
-* its structured Hessian where it is not local: ``rank_one`` (the dense part w a a^T of the
-  twist at the vertex carrying the holonomy) and ``pair_hessian`` (contact's pair blocks).
+  imposed twist phi and, where needed, the ``Neighbourhood`` nbr, reading the rod's geometry from
+  the scene (``positions``, ``unpack``, ``vertex_twists``, ``rest_lengths``, ``voronoi``, ``material``);
+* ``coupling``: ``Coupling.LOCAL`` (only DOFs within a window of three consecutive nodes, recovered
+  exactly by the coloured products of ``jaxrod.model.hessian``) or ``Coupling.PAIRS`` (segment
+  pairs from the neighbourhood, assembled from 12 x 12 pair blocks);
+* ``needs_neighbourhood``: whether its energy needs the candidate pair list;
+* its structured Hessian where it is not local: ``rank_one`` and ``pair_hessian``.
 
 The built-in terms are ``Stretch``, ``Bend``, ``Twist`` and ``Contact``; each compares equal to its
-name, so ``"contact" in scene.terms`` reads as a question about the scene. A new term subclasses
-``Term`` (see docs/extending.md). Terms are static data of a scene's pytree: they must be
-hashable, and compare equal exactly when they define the same energy (a frozen dataclass of
-floats and tuples does both), so that compiled code is reused for equal terms.
+name. A new term subclasses ``Term`` (see docs/extending.md). Terms are static pytree data: they must
+be hashable and compare equal exactly when they define the same energy, so compiled code is reused.
 """
 from __future__ import annotations
 
@@ -55,16 +48,14 @@ class Term:
         raise NotImplementedError
 
     def energy_given_nodes(self, scene, x, q, phi, nbr=None):
-        """The energy, where the scene has the node positions x (N, 3) of q at hand: a scene
-        computes them once for all its terms, so that the gradient pulls the terms' node forces
-        back through one shared ``positions``. The default ignores x."""
+        """The energy, given the node positions x (N, 3) of q (computed once per scene, so the
+        gradient goes back through one shared ``positions``). The default ignores x."""
         return self.energy(scene, q, phi, nbr)
 
     def rank_one(self, scene, u, phi, nbr):
         """(w, a): a dense part w a a^T (a (n,), w scalar) of the term's Hessian in the scaled DOFs
-        u that the local window misses, or None (the default: none). The coloured products see
-        it, and it is taken out of them before the local entries are read; a scene holds at
-        most one term that has one."""
+        u that the local window misses, taken out of the coloured products; or None (the
+        default). A scene holds at most one term that has one."""
         return None
 
     def pair_hessian(self, scene, segments):
@@ -75,9 +66,8 @@ class Term:
     def check(self, scene):
         """Raise ValueError if the term cannot be added to ``scene`` (the default: it can)."""
 
-    # Two terms are equal when their classes and attributes are (a term's attributes are its
-    # parameters), and a term equals its name. Dataclass subclasses get their own __eq__ and
-    # __hash__ from their fields.
+    # Two terms are equal when their classes and attributes are, and a term equals its name
+    # (dataclass subclasses get their own __eq__ and __hash__).
     def __eq__(self, other):
         if isinstance(other, str):
             return other == self.name
@@ -152,8 +142,7 @@ class Contact(Term):
     def energy_given_nodes(self, scene, x, q, phi, nbr=None):
         m = scene.material
         pairs, mask = scene.contact_candidates(nbr)
-        return contact_energy(x, pairs, mask, scene.closed, m.D, m.B, scene.contact_stiffness,
-                              scene.contact_quadrature)
+        return contact_energy(x, pairs, mask, scene.closed, m.D, m.B, scene.contact_stiffness, scene.contact_quadrature)
 
     def pair_hessian(self, scene, segments):
         m = scene.material

@@ -1,24 +1,17 @@
 """Damped bead dynamics: the seed paper's own method, kept as a baseline to compare with.
 
-The paper found equilibria of twisted knots by following the dynamics of a bead model with linear
-viscous damping and Gaussian white noise while the twist is ramped up, and read the critical
-twist where the writhe jumps. Here the same energy as everywhere in jaxrod drives
-(in the solvers' scaled variables u: nodes in units of the mean edge l, twist angles; energy in
-units of B/l; unit mass per degree of freedom, so time is in units of sqrt(l / (B/l)) per unit
-mass)
+The paper followed the dynamics of a bead model with viscous damping and white noise while the
+twist is ramped, and read the critical twist where the writhe jumps. Here the jaxrod energy drives,
+in the solvers' scaled variables u (unit mass per DOF):
 
     du/dt = v,    dv/dt = -grad E(u, phi(t)) - gamma v + sqrt(2 gamma T) xi(t),
     phi(t) = phi_start + rate t,
 
-integrated by semi-implicit (symplectic) Euler, v += dt (-grad E - gamma v) + sqrt(2 gamma T dt) n,
-u += dt v, with n standard normal: a Langevin thermostat at temperature T (energy units) whose
-stationary distribution is Boltzmann's. The steps run in jitted ``lax.scan`` chunks with the
-neighbourhood (contact candidates, writhe branch) frozen; between chunks, outside jit, the
-exact writhe is computed, the neighbourhood rebuilt where stale, and a record kept (t, phi,
-energy, Wr, Tw). The transition is detected as the paper did, where the writhe jumps: by more
-than ``jump`` within a twist window ``window`` (a slowly ramped knot falls off its branch over
-thousands of steps, many records, but within a small twist); it is reported as the twist at
-the window's start, the last record before the jump.
+integrated by semi-implicit Euler (a Langevin thermostat at temperature T). Steps run in jitted
+``lax.scan`` chunks with the neighbourhood frozen; between chunks the writhe is computed, the
+neighbourhood rebuilt where stale, and a record kept (t, phi, energy, Wr, Tw). The transition is
+where the writhe jumps by more than ``jump`` within a twist ``window``, reported as the twist of
+the last record before the jump.
 """
 from __future__ import annotations
 
@@ -40,11 +33,10 @@ __all__ = ["damped_dynamics", "DynamicsOptions", "DynamicsResult", "stable_time_
 @dataclass(frozen=True)
 class DynamicsResult:
     """A damped-dynamics run. Records (one per chunk, the start included), each (R,): t (scaled
-    time), phi (rad), energy, Wr, Tw, Lk. transition_phi: the twist of the last record before the
-    writhe jumped by more than ``jump`` within ``window`` (NaN if it never did); transition_index: that
-    record's index (-1); stop: 'transition', 'phi_stop' or 'topology' (the writhe jumped by 1 or
-    more within one chunk: a strand passed through another; take a smaller dt); q: the final
-    state (physical DOFs); steps: time steps taken; dt; seconds: wall time."""
+    time), phi (rad), energy, Wr, Tw, Lk. transition_phi: twist of the last record before the
+    writhe transition (NaN if none); transition_index: its index (-1); stop: 'transition',
+    'phi_stop' or 'topology' (a strand passed through another: take a smaller dt); q: final state
+    (physical DOFs); steps; dt; seconds: wall time."""
 
     t: np.ndarray
     phi: np.ndarray
@@ -103,8 +95,7 @@ def _largest_curvature(scene, u, phi, nbr, probe):
 
 def stable_time_step(scene, q, phi=0.0, safety=0.3):
     """A time step for ``damped_dynamics`` at state q: safety / sqrt(largest curvature of the
-    scaled energy) (semi-implicit Euler is stable for dt < 2 / omega_max; contact stiffens as
-    strands press, hence the margin)."""
+    scaled energy) (semi-implicit Euler is stable for dt < 2 / omega_max)."""
     u = jnp.asarray(scene.to_scaled(np.asarray(q, dtype=float)))
     nbr = scene.neighbourhood(np.asarray(q, dtype=float), phi)
     probe = jax.random.normal(jax.random.PRNGKey(1), u.shape, dtype=u.dtype)
@@ -113,9 +104,8 @@ def stable_time_step(scene, q, phi=0.0, safety=0.3):
 
 
 def _writhe_jump(phi, wr, jump, window):
-    """Index of the record where the writhe's jump to the newest record starts: the earliest
-    record at most ``window`` in twist before the newest (at least the one before it) whose
-    writhe differs from the newest by more than ``jump``; -1 if there is none."""
+    """Index of the earliest record at most ``window`` in twist before the newest (at least the
+    one before it) whose writhe differs from the newest by more than ``jump``; -1 if none."""
     phi, wr = np.asarray(phi), np.asarray(wr)
     newest = len(wr) - 1
     inside = np.flatnonzero(np.abs(phi[newest] - phi[:newest]) <= window)
@@ -127,19 +117,14 @@ def _writhe_jump(phi, wr, jump, window):
 
 @dataclass(frozen=True)
 class DynamicsOptions:
-    """The knobs of ``damped_dynamics`` (checked on construction; a ValueError names the wrong
-    field).
+    """The knobs of ``damped_dynamics`` (checked on construction; a ValueError names the field).
 
-    gamma: damping rate (> 0, default 1); temperature: noise temperature T >= 0 in the scaled
-    energy units (default 0: deterministic); dt: time step (None: ``stable_time_step`` at the
-    start); chunk: steps per jitted chunk and between records (default 200); jump, window: a
-    writhe change of more than ``jump`` (default 0.3) within a twist interval ``window`` (rad,
-    default 0.1 pi; at least one record) is the transition; departure: instead, the transition is
-    the last record before the writhe first differs from its starting value by more than
-    ``departure`` (a state that has left its branch, for a knot that falls off slowly; default
-    None: the jump test); seed: of the noise (default 0); stop_at_transition: stop at the first
-    one (default True; else run to phi_stop).
-    """
+    gamma: damping rate (> 0, default 1); temperature: noise temperature T >= 0, scaled energy units
+    (default 0); dt: time step (None: ``stable_time_step``); chunk: steps per jitted chunk and
+    record (default 200); jump, window: a writhe change of more than ``jump`` (default 0.3) within
+    ``window`` of twist (rad, default 0.1 pi) is the transition; departure: instead, the last record
+    before the writhe leaves its start by more than ``departure`` (default None); seed: of the noise
+    (default 0); stop_at_transition: stop at the first one (default True)."""
 
     gamma: float = 1.0
     temperature: float = 0.0
@@ -182,13 +167,10 @@ def _transition(records, departure, jump, window, say):
 
 def damped_dynamics(scene, phi_start, phi_stop, rate, q0=None, options=None, *, progress=None):
     """Ramp the twist from phi_start to phi_stop at ``rate`` (rad per unit of scaled time) under
-    damped, optionally noisy, bead dynamics, and detect the transition as the seed paper did.
-
-    scene: any scene; q0: initial state (default scene.q_init; start from a relaxed state);
-    options: a ``DynamicsOptions`` (damping, temperature, time step, chunk, transition test,
-    seed); progress: optional callable(str), a line every 50 records.
-    Returns a ``DynamicsResult``.
-    """
+    damped, optionally noisy, bead dynamics, and detect the transition as the seed paper did. q0:
+    initial state (default scene.q_init; start from a relaxed state); options: a
+    ``DynamicsOptions``; progress: optional callable(str), a line every 50 records. Returns a
+    ``DynamicsResult``."""
     t0 = time.perf_counter()
     if options is None:
         options = DynamicsOptions()

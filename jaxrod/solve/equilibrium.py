@@ -63,8 +63,7 @@ class LeftBranchError(ConvergenceError):
 
 
 def _options(options, kind):
-    """``options`` (None: the defaults) checked to be a ``kind``: a float passed where the options
-    go (the old positional gtol, say) is refused by name, not misread."""
+    """``options`` (None: the defaults) checked to be a ``kind`` (a float there is refused)."""
     if options is None:
         return kind()
     if not isinstance(options, kind):
@@ -86,25 +85,21 @@ def _check_common(opts):
 
 @dataclass(frozen=True)
 class RelaxOptions:
-    """How ``relax`` and ``relax_to_minimum`` run (every field checked on construction; a
-    ValueError names the wrong one).
+    """How ``relax`` and ``relax_to_minimum`` run (fields checked on construction; a ValueError
+    names the wrong one).
 
     gtol: the result's max |gradient| of the scaled energy (default 1e-9).
     max_rounds: neighbourhood rebuilds allowed before giving up (default 200).
-    max_steps: damped-Newton iterations between two rebuilds (None: 500); a continuation
-      corrector starting near its branch needs a few, so a small budget stops one that crawls.
+    max_steps: damped-Newton iterations between two rebuilds (None: 500).
     max_displacement: the cap on every node's step (physical length; None: D/4 with contact, so
-      no strand can jump across another between two energy evaluations, else none).
+      no strand can jump across another, else none).
     k: eigenpairs kept in the result's stability (default 8).
     with_stability: compute the result's stability (default True).
-    negative_tol: an eigenvalue counts as negative below -negative_tol. None: 1e-10
-      (``DEFAULT_NEGATIVE_TOL``) in ``relax``; in ``relax_to_minimum``, whose saddle test must not
-      be fooled by strands sliding along each other (|lambda| ~ 1e-7), ``CONTACT_NEGATIVE_TOL`` =
-      1e-6 with self-contact.
-    linear_algebra: a backend name of ``jaxrod.linalg.backend.choose_backend``: where it
-      chooses "sparse" (rods with contact: "sparse", or "auto" from ``SPARSE_MIN_DOF`` DOFs on)
-      the O(n) factorisations of ``jaxrod.linalg.sparse_contact`` in ``HostDampedNewton``,
-      elsewhere the dense n x n Hessian (Cholesky). The stability follows the same choice.
+    negative_tol: an eigenvalue counts as negative below -negative_tol. None: 1e-10 in ``relax``;
+      in ``relax_to_minimum`` 1e-6 with self-contact (sliding modes sit at |lambda| ~ 1e-7).
+    linear_algebra: a backend name of ``jaxrod.linalg.backend.choose_backend``: "sparse" means
+      ``HostDampedNewton`` on ``jaxrod.linalg.sparse_contact``, else the dense Hessian (Cholesky);
+      the stability follows the same choice.
     """
 
     gtol: float = 1e-9
@@ -127,20 +122,16 @@ class RelaxOptions:
 
 @dataclass(frozen=True)
 class EquilibriumOptions:
-    """How ``solve_equilibrium`` runs (every field checked on construction; a ValueError names
-    the wrong one).
+    """How ``solve_equilibrium`` runs (fields checked on construction; a ValueError names one).
 
-    method: 'newton' (exact Hessian; converges to the nearest stationary point, stable or not:
-      use it as a continuation corrector), 'lbfgs' (minimiser), or 'auto' (the default: L-BFGS
-      to 1e-5, then Newton to ``gtol``: global and fast).
+    method: 'newton' (exact Hessian, nearest stationary point: a continuation corrector), 'lbfgs'
+      (minimiser), or 'auto' (the default: L-BFGS to 1e-5, then Newton to ``gtol``).
     gtol: the result's max |gradient| of the scaled energy (default 1e-9).
     max_steps: iterations allowed (None: the solver's default).
     k: eigenpairs kept in the result's stability (default 8).
     with_stability: compute the result's stability (default True).
-    negative_tol: an eigenvalue counts as negative below -negative_tol (default 1e-10,
-      ``DEFAULT_NEGATIVE_TOL``).
-    near_null_tol: Newton leaves eigen-directions with |lambda| below it alone (see ``Newton``;
-      default 0).
+    negative_tol: an eigenvalue counts as negative below -negative_tol (default 1e-10).
+    near_null_tol: Newton leaves eigen-directions with |lambda| below it alone (default 0).
     """
 
     method: str = "auto"
@@ -178,25 +169,17 @@ def _relax_solver(scene, max_displacement, linear_algebra):
 
 
 def relax(scene, phi=0.0, q0=None, options=None, *, previous=None, nbr=None, guide=None, progress=None):
-    """Minimise the energy of a scene (with or without self-contact) from q0 (default
-    scene.q_init) without letting the rod pass through itself; ``options``: a ``RelaxOptions``
-    (tolerance, budgets, step cap, stability, linear algebra).
-
-    Damped Newton (exact structured Hessian, shifted positive definite) with every node's step
-    capped at ``options.max_displacement``; the run pauses whenever a node has moved more than
-    skin/2 since the neighbourhood (contact candidates, writhe) was built, the neighbourhood is
-    rebuilt, and the run resumes. After every pause the writhe is compared with the last one: a
-    jump of 1 or more (strand passage changes it by ~2) raises ``TopologyChangeError``.
-    ``previous`` (an Equilibrium, e.g. the last continuation step) makes the first comparison
-    against its writhe, so a step that jumped a strand across another before the solve even
-    started is refused too. ``nbr``: a neighbourhood to start from (its capacity is kept).
-    ``guide``: (x_guide (N,3), distance): raise ``LeftBranchError`` as soon as, at a pause, the
-    shape is further than ``distance`` from x_guide (``polyline_distance``, blind to sliding):
-    a continuation step that is jumping off its branch is stopped early, not relaxed to the end.
-    ``progress``: optional callable(str), a line per round.
-
-    Returns the ``Equilibrium``; its ``neighbourhood`` is valid at the equilibrium.
-    """
+    """Minimise the energy of a scene (with or without self-contact) from q0 (default scene.q_init)
+    without letting the rod pass through itself; ``options``: a ``RelaxOptions`` (tolerance,
+    budgets, step cap, stability, linear algebra). Damped Newton (exact structured Hessian, shifted
+    positive definite) with every node's step capped at ``max_displacement``; the run pauses,
+    rebuilds the neighbourhood and resumes whenever a node has moved more than skin/2. A writhe jump
+    of 1 or more between pauses raises ``TopologyChangeError``; ``previous`` (an Equilibrium) makes
+    the first comparison against its writhe. ``nbr``: a neighbourhood to start from (its capacity is
+    kept). ``guide``: (x_guide (N,3), distance): raise ``LeftBranchError`` as soon as, at a pause,
+    the shape is further than ``distance`` from x_guide (``polyline_distance``). ``progress``:
+    optional callable(str). Returns the ``Equilibrium``; its ``neighbourhood`` is valid at the
+    equilibrium."""
     opts = _options(options, RelaxOptions)
     gtol, max_steps, max_displacement, linear_algebra = opts.gtol, opts.max_steps, opts.max_displacement, \
         opts.linear_algebra
@@ -207,12 +190,8 @@ def relax(scene, phi=0.0, q0=None, options=None, *, previous=None, nbr=None, gui
     solver, sparse = _relax_solver(scene, max_displacement, linear_algebra)
     if not (scene.needs_neighbourhood and nbr is not None and not nbr.stale(np.asarray(scene.positions(q)))):
         nbr = _grown(scene, q, phi, nbr)
-    # else the given neighbourhood still holds at q0 (a continuation's predictor, a small push):
-    # no node moved more than skin/2 = D/4 since it was built, so no two strands (D apart where
-    # they touch) can have passed through each other on the way, and the O(N^2) writhe at q0
-    # (12 ms at N = 481, half of those a continuation computes) is not needed. Its reference
-    # writhe serves the holonomy lift; the drift test after the round below repeats the round if
-    # the writhe moved too far from it.
+    # else the given neighbourhood still holds at q0 (no strand passage): the O(N^2) writhe at q0 is
+    # not needed; the drift test below repeats the round if the writhe moved too far.
     wr_start = float(nbr.wr_ref)
     wr_last = wr_start if previous is None else float(previous.Wr)
     if abs(wr_start - wr_last) >= 1.0:
@@ -230,9 +209,7 @@ def relax(scene, phi=0.0, q0=None, options=None, *, previous=None, nbr=None, gui
         wr = float(upd.nbr.wr_ref)
         say(f"relax round {round_}: {sol.reason}, {sol.iterations} steps, |g| = {sol.grad_norm:.2e}, Wr = {wr:.4f}")
         if abs(wr - wr_last) >= 1.0:
-            raise TopologyChangeError(
-                f"writhe jumped from {wr_last:.4f} to {wr:.4f}: the rod passed through itself"
-            )
+            raise TopologyChangeError(f"writhe jumped from {wr_last:.4f} to {wr:.4f}: the rod passed through itself")
         wr_last = wr
         if guide is not None and sol.reason is StopReason.LEFT_REGION:
             moved = polyline_distance(np.asarray(scene.positions(jnp.asarray(q))), guide[0], scene.closed)
@@ -261,17 +238,15 @@ def mode_step(scene, scaled_mode, distance):
     return amp * mode_q
 
 
-# Twist (turns) that a closed rod relaxed at phi = 0 may store before Lk0 is called into question:
-# a loose knot relaxed with the right Lk0 stores a few hundredths (the trefoil: Tw = -0.055).
+# Twist (turns) that a closed rod relaxed at phi = 0 may store before Lk0 is called into question
+# (a loose knot with the right Lk0 stores a few hundredths).
 TWIST_FREE_TOL = 0.25
 
 
 def warn_if_twisted_at_zero(scene, eq):
     """Warn when a closed rod relaxed at phi = 0 stores more than a quarter turn of twist: its Lk0
-    (by default the integer nearest the writhe of the curve it was drawn along) is then not the
-    linking number of the twist-free rod, and "phi = 0" is not the untwisted rod. A curve drawn far
-    from its relaxed shape (a 5-point polygon of writhe 0.86, Lk0 = 1, relaxing to an unknot of
-    writhe 0) is the case met. Returns True if it warned."""
+    (by default the integer nearest the drawn curve's writhe) is then not the twist-free rod's
+    linking number. Returns True if it warned."""
     Lk0 = getattr(scene, "Lk0", None)
     if Lk0 is None or not abs(float(eq.Tw)) > TWIST_FREE_TOL:
         return False
@@ -287,13 +262,11 @@ def warn_if_twisted_at_zero(scene, eq):
 
 def relax_to_minimum(scene, phi=0.0, q0=None, options=None, *, push=None, max_pushes=4, progress=None):
     """``relax`` (with ``options``, a ``RelaxOptions``), then make sure the result is a minimum:
-    a symmetric starting shape (a torus knot drawn with its p-fold symmetry, say) can relax onto a
-    saddle that the minimiser, which keeps the symmetry, never leaves. While the equilibrium has a
-    negative eigenvalue (below -options.negative_tol; default 1e-6 with contact, where sliding
-    modes sit at ~1e-7, else 1e-10), the state is pushed both ways along the most negative
-    eigenvector (by ``push``, default D/2 at the node that moves most) and relaxed again; the
-    lower-energy result with the same writhe branch is kept. Returns a stable ``Equilibrium``
-    (its stability computed whatever ``options.with_stability`` says: it is the point); raises
+    a symmetric starting shape can relax onto a saddle that the symmetry-keeping minimiser never
+    leaves. While the equilibrium has an eigenvalue below -options.negative_tol (default 1e-6 with
+    contact, else 1e-10), the state is pushed both ways along the most negative eigenvector (by
+    ``push``, default D/2 at the node that moves most) and relaxed again; the lower-energy result
+    is kept. Returns a stable ``Equilibrium`` (stability always computed); raises
     ``ConvergenceError`` if ``max_pushes`` pushes leave it unstable."""
 
     opts = _options(options, RelaxOptions)
@@ -331,13 +304,12 @@ def relax_to_minimum(scene, phi=0.0, q0=None, options=None, *, push=None, max_pu
 class Equilibrium:
     """A converged equilibrium.
 
-    q: (n,) free DOFs (physical units); x: (N,3) nodes; theta: (M,) edge twist angles;
-    phi: imposed twist; energy: total; energy_terms: dict per term; solution: the solver's
-    ``Solution`` (iterations, gradient norm, stop reason); stability: ``Stability`` (or None when
-    explicitly not computed); Wr, Tw, Lk: writhe, twist and linking number (open clamped rods:
-    of the centreline extended along the clamp axis); neighbourhood: the ``Neighbourhood``
-    (contact candidates, writhe) valid at this state, for fast evaluations around it.
-    """
+    q: (n,) free DOFs (physical units); x: (N,3) nodes; theta: (M,) edge twist angles; phi: imposed
+    twist; energy: total; energy_terms: dict per term; solution: the solver's ``Solution``
+    (iterations, gradient norm, stop reason); stability: ``Stability`` (or None when explicitly not
+    computed); Wr, Tw, Lk: writhe, twist and linking number (open clamped rods: of the centreline
+    extended along the clamp axis); neighbourhood: the ``Neighbourhood`` (contact candidates,
+    writhe) valid at this state, for fast evaluations around it."""
 
     q: np.ndarray
     x: np.ndarray
@@ -366,13 +338,11 @@ class Equilibrium:
 def solve_equilibrium(scene, phi=0.0, q0=None, options=None, *, nbr=None, throw=True):
     """Equilibrium of ``scene`` at imposed twist ``phi`` starting from ``q0`` (default
     scene.q_init); ``options``: an ``EquilibriumOptions`` (method, tolerance, budget, stability).
-
-    nbr: a ``Neighbourhood`` to reuse (its capacity is kept); it is rebuilt around q0 and, if
-    the state moved out of it (contact list stale, writhe drifted), around the result, and the
-    solve repeated. The result carries its stability (k lowest eigenvalues, negative count)
-    unless ``options.with_stability`` is False. Raises ``ConvergenceError`` if the solver fails
-    and ``throw``.
-    """
+    nbr: a ``Neighbourhood`` to reuse (its capacity is kept); it is rebuilt around q0 and, if the
+    state moved out of it (contact list stale, writhe drifted), around the result, and the solve
+    repeated. The result carries its stability (k lowest eigenvalues, negative count) unless
+    ``options.with_stability`` is False. Raises ``ConvergenceError`` if the solver fails and
+    ``throw``."""
     opts = _options(options, EquilibriumOptions)
     method, gtol, max_steps = opts.method, opts.gtol, opts.max_steps
     phi = check_finite("phi", phi)
@@ -394,9 +364,8 @@ def solve_equilibrium(scene, phi=0.0, q0=None, options=None, *, nbr=None, throw=
         elif method == "lbfgs":
             sol = minimise(scaled_energy, u0, args, LBFGS(), gtol, max_steps, throw=False)
         else:
-            # L-BFGS stops at once where |g| <= 1e-5 already (e.g. a ring's or a straight rod's
-            # initial shape): ask the Newton loop, compiled for the polish anyway, for |g| first,
-            # and compile L-BFGS for this shape only when it has work to do (~2 s per shape).
+            # L-BFGS stops at once where |g| <= 1e-5 already: ask the Newton loop (compiled for
+            # the polish anyway) for |g| first, and compile L-BFGS only when it has work to do.
             probe = minimise(scaled_energy, u0, args, newton, gtol, 0, throw=False)
             if probe.grad_norm <= max(gtol, 1e-5):
                 pre = replace(probe, iterations=0)
@@ -450,8 +419,7 @@ _SOLUTION_SCALARS = ("value", "grad_norm", "iterations", "converged", "reason", 
 def equilibrium_arrays(e, prefix):
     """What rebuilds ``e`` exactly (``equilibrium_from_arrays``), as numpy arrays named
     ``prefix + field`` for an npz file: the solver's scaled DOFs and scalars, phi and the
-    neighbourhood. The diagnostics (x, energies, Wr, Tw) are recomputed from them by the same
-    compiled function, so they come back bit for bit; the stability is not stored (recompute it)."""
+    neighbourhood; the diagnostics are recomputed bit for bit, the stability is not stored."""
     nbr = e.neighbourhood
     out = {prefix + "y": np.asarray(e.solution.y), prefix + "phi": np.asarray(float(e.phi))}
     for key in _SOLUTION_SCALARS:

@@ -2,18 +2,15 @@
 
 ``minimise(fun, y0, args, solver=...)`` minimises ``fun(y, args)`` (scalar) over y (n,):
 
-* ``LBFGS``: optax's L-BFGS with a zoom line search, the whole loop inside one jitted
-  ``lax.while_loop``. Robust far from equilibrium; slows down near a bifurcation, where the softest
-  eigenvalue goes to zero (critical slowing down).
-* ``Newton``: Newton's method on grad f = 0 with the exact autodiff Hessian, inside one jitted
-  ``lax.while_loop``. Symmetry (zero) modes are handled by adding a positive multiple of the
-  projector on them, so the Newton system stays regular; a backtracking line search on |grad f|
-  makes it converge to the nearest stationary point, stable or not (what a continuation
-  corrector needs). Quadratic convergence, also next to a bifurcation.
+* ``LBFGS``: optax's L-BFGS with a zoom line search in one jitted ``lax.while_loop``; robust far
+  from equilibrium, slow near a bifurcation (critical slowing down).
+* ``Newton``: Newton on grad f = 0 with the exact Hessian in one jitted ``lax.while_loop``; zero
+  modes get a positive multiple of their projector, and a backtracking line search on |grad f|
+  converges to the nearest stationary point, stable or not (a continuation corrector).
+* ``DampedNewton`` / ``HostDampedNewton``: shifted Newton descent (below).
 
-Every run returns a ``Solution`` saying whether it converged, after how many iterations, with what
-gradient norm (max-abs), and why it stopped. With ``throw=True`` (default) an unconverged run
-raises ``ConvergenceError`` instead of returning something that looks like an answer.
+Every run returns a ``Solution`` (converged?, iterations, max-abs gradient norm, why it stopped);
+with ``throw=True`` (default) an unconverged run raises ``ConvergenceError``.
 """
 from __future__ import annotations
 
@@ -78,9 +75,8 @@ class Newton:
     """Exact-Hessian Newton. ``zero_modes(y, args) -> (n, k)`` spans symmetry directions that the
     Hessian leaves singular (None if there are none); ``max_backtracks`` halvings per step.
     ``near_null_tol`` > 0 treats eigen-directions with |lambda| below it like the symmetry modes
-    (e.g. strands of a loose knot sliding along each other, lambda ~ 1e-7): Newton would divide
-    by them and throw the state far away; the gradient along them is left as it is (and still
-    counts in the convergence test)."""
+    (e.g. a loose knot's sliding strands), which Newton would divide by; the gradient along them
+    is left as it is (and still counts in the convergence test)."""
 
     zero_modes: object = None
     max_backtracks: int = 40
@@ -95,17 +91,12 @@ class DampedNewton:
     enough to make H + mu I positive definite (so every step descends, also across saddles and
     near bifurcations), caps max |dy| at ``max_step``, and backtracks until the energy decreases
     (Armijo). ``zero_modes`` as in ``Newton``. ``leave(y, args) -> bool`` (optional) stops the run
-    with reason 'left_region' (e.g. when a contact candidate list must be rebuilt); the caller
-    then refreshes whatever depended on the region and calls again.
+    with reason 'left_region' (e.g. a contact list to rebuild); the caller refreshes and calls again.
+    ``hessian(y, args) -> (n, n)`` (optional, both Newton solvers, static like ``fun``): an exact
+    Hessian cheaper than ``jax.hessian`` of ``fun`` (e.g. ``jaxrod.model.hessian.scaled_hessian``).
 
-    ``hessian(y, args) -> (n, n)`` (optional, both Newton solvers): an exact Hessian cheaper than
-    ``jax.hessian`` of ``fun`` (e.g. ``jaxrod.model.hessian.scaled_hessian``, assembled from the rod's
-    structure); it is a static argument, like ``fun``.
-
-    The shift is found without an eigen-decomposition, by Cholesky attempts on H + mu I: mu =
-    1e-10 times the largest diagonal entry first (it succeeds next to a stable equilibrium), or,
-    after an iteration that needed a shift, a tenth of that shift; on failure mu grows by 4 per
-    attempt until a factorisation succeeds, and the bracket is then narrowed twice."""
+    The shift is found by Cholesky attempts on H + mu I, without an eigen-decomposition (schedule:
+    ``_SHIFT_DOWN``, ``_SHIFT_UP``, ``_SHIFT_REFINE``)."""
 
     zero_modes: object = None
     max_step: float = float("inf")
@@ -120,10 +111,8 @@ class HostDampedNewton:
     ``jaxrod.linalg.sparse_contact``): ``direction(y, args, g, mu_prev) -> (dy, mu_used)`` gives the
     shifted Newton step (mu_prev: the shift the last iteration used, 0 for none) and is called
     from a Python loop; energy, gradient and ``leave`` are jitted. Same step cap, Armijo
-    backtracking, stop codes and shift schedule as ``DampedNewton``. For large sparse systems,
-    where a factorisation costs far more than the loop's dispatch; not inside ``jit``.
-    (Not ``jax.pure_callback`` inside the jitted loop: two such callbacks running at once from
-    ``twist_study``'s two threads can deadlock, see ``stability._lowest_of``.)"""
+    backtracking, stop codes and shift schedule as ``DampedNewton``. For large sparse systems;
+    not inside ``jit`` (and not ``jax.pure_callback``, which can deadlock: ``stability._lowest_of``)."""
 
     direction: object
     max_step: float = float("inf")
@@ -135,10 +124,9 @@ class HostDampedNewton:
 class Solution:
     """Outcome of a minimisation.
 
-    y: (n,) final point; value: f(y); grad_norm: max |grad f(y)|; iterations; converged;
-    reason: 'converged' | 'max_steps' | 'nonfinite' | 'stalled' | 'left_region'; solver: its name;
-    gtol used.
-    """
+    y: (n,) final point; value: f(y); grad_norm: max |grad f(y)|; iterations; converged; reason:
+    'converged' | 'max_steps' | 'nonfinite' | 'stalled' | 'left_region'; solver: its name; gtol
+    used."""
 
     y: np.ndarray
     value: float
@@ -159,10 +147,7 @@ class Solution:
 @partial(jax.jit, static_argnames=("fun", "memory", "max_ls"))
 def _lbfgs_loop(fun, y0, args, gtol, memory, max_ls, max_steps):
     f = lambda y: fun(y, args)
-    opt = optax.lbfgs(
-        memory_size=memory,
-        linesearch=optax.scale_by_zoom_linesearch(max_linesearch_steps=max_ls),
-    )
+    opt = optax.lbfgs(memory_size=memory, linesearch=optax.scale_by_zoom_linesearch(max_linesearch_steps=max_ls))
     value_and_grad = optax.value_and_grad_from_state(f)
 
     def state_grad_norm(state):
@@ -189,9 +174,7 @@ def _lbfgs_loop(fun, y0, args, gtol, memory, max_ls, max_steps):
     value, grad = jax.value_and_grad(f)(y)
     gnorm = jnp.max(jnp.abs(grad))
     finite = jnp.isfinite(value) & jnp.isfinite(gnorm)
-    code = jnp.where(
-        ~finite, 2, jnp.where(gnorm <= gtol, 0, jnp.where(moved, 1, 3))
-    )
+    code = jnp.where(~finite, 2, jnp.where(gnorm <= gtol, 0, jnp.where(moved, 1, 3)))
     return y, value, gnorm, it, code
 
 
@@ -232,15 +215,12 @@ def _newton_loop(fun, zero_modes, y0, args, gtol, max_steps, max_backtracks, nea
         return (it < max_steps) & (gnorm > gtol) & (code == 0)
 
     def body(carry):
-        # g: the gradient at y, carried from the last iteration. The gradient is written once in
-        # the loop (the line search's trial), not once per use: each copy is compiled separately,
-        # and compilation dominates short runs.
+        # g: the gradient at y, carried over; written once in the loop (each copy compiles separately).
         y, it, _, _, g = carry
         dy = newton_step(y, g)
         g2 = jnp.sum(g * g)
 
-        # Backtrack on the merit |grad f|^2: the full step first, then halved until the merit
-        # decreases (at most max_backtracks halvings).
+        # Backtrack on the merit |grad f|^2: the full step, then halved (max_backtracks times).
         def ls_cond(c):
             alpha, k, g2_new, _, first = c
             return first | ((k < max_backtracks) & ~(g2_new < (1.0 - 1e-4 * alpha) * g2))
@@ -276,10 +256,7 @@ def _newton_loop(fun, zero_modes, y0, args, gtol, max_steps, max_backtracks, nea
 # Damped-Newton shift control (see ``_damped_newton_loop``): an iteration after one that needed
 # a shift mu first tries _SHIFT_DOWN * mu; on failure the shift grows by _SHIFT_UP per attempt,
 # and the bracket found is narrowed geometrically _SHIFT_REFINE times (so the shift exceeds the
-# needed one by at most _SHIFT_UP ** (1 / 2 ** _SHIFT_REFINE) ~ 1.4). Measured: on double wells
-# with curvatures over six decades, 18-20 iterations like the exact shift from eigvalsh (no
-# refinement: 33); on the README's trefoil study (~1060 iterations) 12.5 s against 18.5 s with
-# eigvalsh, where (1/32, 10, 3) let correctors crawl into their step budget.
+# needed one by at most _SHIFT_UP ** (1 / 2 ** _SHIFT_REFINE) ~ 1.4).
 _SHIFT_DOWN, _SHIFT_UP, _SHIFT_REFINE = 0.1, 4.0, 2
 
 
@@ -296,15 +273,9 @@ def _shifted_newton_direction(hess, zero_modes, args, max_step):
             h = h + (jnp.max(jnp.abs(jnp.diag(h))) + 1.0) * (z @ z.T)
         scale = jnp.max(jnp.abs(jnp.diag(h))) + 1.0
         eye = jnp.eye(h.shape[0])
-        # Shift mu just large enough to make H + mu I positive definite, by Cholesky attempts
-        # only (an attempt fails with NaNs; an eigvalsh costs ~15 factorisations at n ~ 500, and
-        # a fifth of a trefoil study's iterations needed one). ``mu_prev``, the shift the last
-        # iteration used (0: none), says where to start, since H changes little between
-        # iterations: first mu0 = 1e-10 scale if the last iteration needed no shift (H definite:
-        # next to a stable equilibrium), else _SHIFT_DOWN * mu_prev (the lowest eigenvalue may
-        # have risen), at least mu1 = 1e-6 (soft sliding modes of a loose knot sit at ~ -1e-7);
-        # if that fails, a growing then narrowing search (``search``). A shift much larger than
-        # needed would shorten the steps: slow descent, slow escape from saddles.
+        # Shift mu just large enough to make H + mu I positive definite, by Cholesky attempts only
+        # (a failure gives NaNs): mu0 = 1e-10 scale after an unshifted iteration, else _SHIFT_DOWN *
+        # mu_prev but at least mu1 = 1e-6 (sliding modes sit at ~ -1e-7); if that fails, ``search``.
         mu0, mu1 = 1e-10 * scale, 1e-6 + 1e-10 * scale
         mu_a = jnp.where(mu_prev <= 0.0, mu0, jnp.maximum(mu1, _SHIFT_DOWN * mu_prev))
         chol_a = jnp.linalg.cholesky(h + mu_a * eye)
@@ -355,10 +326,8 @@ def _damped_newton_loop(fun, zero_modes, leave, y0, args, gtol, max_step, max_st
     direction = _shifted_newton_direction(hess, zero_modes, args, max_step)
     value_and_grad = jax.value_and_grad(f)
 
-    # The energy and its gradient are written once, in the line search's trial: each copy of them
-    # is compiled separately, and compilation is most of a short run (a study's cold start). The
-    # first pass through the loop makes no step (dy = 0, direction not computed) and only
-    # evaluates the start, accepted whatever its value.
+    # The energy and gradient are written once, in the line search's trial (each copy compiles
+    # separately). The first pass makes no step and only evaluates the start, accepted if finite.
     def cond(carry):
         y, it, gnorm, code, _, _, _, started = carry
         return ~started | ((it < max_steps) & (gnorm > gtol) & (code == 0))
@@ -366,8 +335,7 @@ def _damped_newton_loop(fun, zero_modes, leave, y0, args, gtol, max_step, max_st
     def body(carry):
         # g: the gradient at y, carried from the last iteration (one gradient per accepted step).
         y, it, _, _, fy, g, mu_prev, started = carry
-        dy, mu_next = jax.lax.cond(started, lambda: direction(y, g, mu_prev),
-                                   lambda: (jnp.zeros_like(y), mu_prev))
+        dy, mu_next = jax.lax.cond(started, lambda: direction(y, g, mu_prev), lambda: (jnp.zeros_like(y), mu_prev))
         slope = jnp.dot(g, dy)
         # fy is +inf before the start is evaluated: its trial is then accepted if finite.
         fy = jnp.where(started, fy, jnp.inf)
@@ -405,21 +373,17 @@ def _damped_newton_loop(fun, zero_modes, leave, y0, args, gtol, max_step, max_st
 
 
 def minimise(fun, y0, args=None, solver=LBFGS(), gtol=1e-9, max_steps=None, throw=True):
-    """Minimise (or, for Newton, find the stationary point nearest to y0 of) ``fun(y, args)``.
-
-    fun must be a stable callable (a module-level function or a bound method of a long-lived
-    object): it is a static argument of the jitted loop, so a fresh lambda per call recompiles.
-    gtol bounds max |grad f| at the returned point. Returns a ``Solution``; raises
-    ``ConvergenceError`` if it did not converge and ``throw`` is True.
-    """
+    """Minimise (or, for Newton, find the stationary point nearest to y0 of) ``fun(y, args)``. fun
+    must be a stable callable (a module-level function or a bound method of a long-lived object): it
+    is a static argument of the jitted loop, so a fresh lambda per call recompiles. gtol bounds max
+    |grad f| at the returned point. Returns a ``Solution``; raises ``ConvergenceError`` if it did
+    not converge and ``throw`` is True."""
     if not np.all(np.isfinite(np.asarray(y0, dtype=float))):
         raise ValueError("y0 must be finite")
     y0 = jnp.asarray(y0, dtype=jnp.float64)
     if isinstance(solver, LBFGS):
         steps = 20000 if max_steps is None else int(max_steps)
-        y, value, gnorm, it, code = _lbfgs_loop(
-            fun, y0, args, gtol, solver.memory, solver.max_linesearch_steps, steps
-        )
+        y, value, gnorm, it, code = _lbfgs_loop(fun, y0, args, gtol, solver.memory, solver.max_linesearch_steps, steps)
         name = "lbfgs"
     elif isinstance(solver, Newton):
         steps = 50 if max_steps is None else int(max_steps)
