@@ -205,3 +205,20 @@ def test_all_exported():
     for name in ("plot_bifurcation", "plot_linking", "plot_profiles", "plot_snapshot", "plot_snapshots",
                  "plot_critical_vs_ratio"):
         assert name in plotting.__all__ and callable(getattr(plotting, name))
+
+
+def test_resolution_convergence_draws_a_side_that_found_no_end(tmp_path):
+    """A side whose coarsest level found no end gets a panel saying why (it used to raise on the
+    empty array of levels, after the study itself had finished)."""
+    from jaxrod.studies.accuracy import Level, SideConvergence
+
+    found = SideConvergence("plus", (Level(24, 6.5 * math.pi, 0.01, "fold", 0.0, 0.0),
+                                     Level(47, 6.4 * math.pi, 0.01, "fold", 0.0, 0.0)), None, 0.1, False, "N_max")
+    none = SideConvergence("minus", (), None, 0.1, False, "at N = 24: no branch end before -14 pi")
+    path = tmp_path / "convergence.png"
+    plotting.plot_resolution_convergence({"plus": found, "minus": none}, str(path))
+    assert path.stat().st_size > 0
+    fig = plotting.plot_resolution_convergence({"minus": none})
+    texts = [t.get_text() for t in fig.axes[0].texts]
+    assert any("no end located" in t and "-14 pi" in t for t in texts)
+    assert fig.axes[0].get_title() == "minus (not reached)"

@@ -551,6 +551,11 @@ def plot_resolution_convergence(result, path=None, title="Critical twists conver
     fig, axes = plt.subplots(1, len(sides), figsize=(3.8 * len(sides), 3.4), squeeze=False)
     for ax, side in zip(axes[0], sides):
         r = result[side]
+        if not r.levels:  # no level found an end: the panel says why
+            ax.text(0.5, 0.5, f"no end located:\n{r.reason}", ha="center", va="center", wrap=True, fontsize=7,
+                    transform=ax.transAxes)
+            ax.set_title(f"{side} (not reached)", fontsize=9)
+            continue
         n = np.array([lv.N for lv in r.levels], dtype=float)
         phi = np.array([lv.phi_star for lv in r.levels]) / math.pi
         colour = "C0" if side == "plus" else "C3"
