@@ -33,8 +33,8 @@ def main(argv):
     from jaxrod.studies import atlas
 
     workers = int(argv[0]) if argv else 2
-    # small mode: a coarser step and bracket (13 continuation points instead of 25 a run)
-    settings = pick(None, atlas.AtlasSettings(step=math.pi, tol=0.05 * math.pi))
+    # small mode: a coarser step and bracket (fewer continuation points a run)
+    settings = pick(None, atlas.AtlasSettings(step=math.pi, tol=0.25 * math.pi))
     tmp = tempfile.mkdtemp(prefix="atlas_parallel_")
     t0 = time.perf_counter()
     serial = atlas.run_atlas(["3_1"], RATIOS, N, out=os.path.join(tmp, "serial"), sides=SIDES, settings=settings)

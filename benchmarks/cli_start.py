@@ -27,8 +27,10 @@ import time  # noqa: E402
 
 from _bench import SMOKE, TINY_CLI_ARGS, fmt, markdown, pick, provenance_line, results_dir, with_provenance  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
+# the small mode: the tiny study without its figures (~2 s of a process; cli_startup_breakdown.py's
+# small run draws them)
 ARGS = pick(["trefoil", "--D", "8", "--L", "292", "--N", "121", "--phi-min", "-12pi", "--phi-max", "14pi"],
-            TINY_CLI_ARGS)
+            TINY_CLI_ARGS + ["--no-figures"])
 SETTINGS = {"CLI flags (default)": None,
             "XLA defaults": "--xla_cpu_use_fusion_emitters=true --xla_backend_optimization_level=3"}
 if SMOKE:  # one setting, and the compile cache and XLA flags of the caller (the test suite's)

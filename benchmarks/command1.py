@@ -30,8 +30,10 @@ import time  # noqa: E402
 from _bench import SMOKE, TINY_CLI_ARGS, fmt, pick, provenance_line, results_dir, with_provenance  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
+# the small mode: the tiny study without its figures (~2 s of a process; cli_startup_breakdown.py's
+# small run draws them)
 ARGS = pick(["trefoil", "--D", "8", "--L", "292", "--N", "121", "--phi-min", "-12pi", "--phi-max", "14pi"],
-            TINY_CLI_ARGS) + ["--no-cache", "--quiet", "--json"]
+            TINY_CLI_ARGS + ["--no-figures"]) + ["--no-cache", "--quiet", "--json"]
 MARK = "@@COMMAND1 "
 # cli.main calls per process: cold, then warm; the small mode's one call stands for both
 CALLS = pick(2, 1)

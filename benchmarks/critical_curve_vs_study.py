@@ -18,7 +18,7 @@ instability against a fine-step reference.
 Writes benchmarks/results/critical_curve_vs_study.json (after every step: a rerun goes on from it,
 while the runs' folders are still in the temporary directory) and critical_curve_vs_study.md.
 Run: python benchmarks/critical_curve_vs_study.py [--no-reference]   (~25 min on one core)
-Small mode (``--smoke``): one ratio (0.04) at N = 41, the opening side, three reference points; the
+Small mode (``--smoke``): one ratio (0.0274, the D/L of accuracy_trefoil's and atlas_parallel's trefoil) at N = 41, the opening side, three reference points; the
 two commands run in this process (``jaxrod.cli.main``), so that the programs compiled for the curve
 serve the study and the reference.
 """
@@ -43,10 +43,11 @@ RESULTS = results_dir()
 WORK = pick(os.path.join(tempfile.gettempdir(), "jaxrod_critical_curve_vs_study"), os.path.join(RESULTS, "runs"))
 JSON = os.path.join(RESULTS, "critical_curve_vs_study.json")
 MD = os.path.join(RESULTS, "critical_curve_vs_study.md")
-# small mode: one ratio of a tight knot at N = 31, the opening side only (its first instability near
+# small mode: one ratio at N = 41, D/L = 0.0274 (D = 8: the trefoil of accuracy_trefoil and atlas_parallel,
+# whose compiled programs it shares; another D compiles its own), the opening side only (its first instability near
 # +7 pi), a point study over a quarter turn (no event: nothing to compare, the same code), and the
 # reference's first few arclength points
-RATIOS = pick("0.018:0.032:0.002", "0.04")
+RATIOS = pick("0.018:0.032:0.002", "0.0274")
 N, L = pick(61, 41), 292.0  # small mode: the N of the other small trefoil runs (accuracy, atlas, batch), whose programs it shares
 SIDES = pick(("plus", "minus"), ("plus",))
 PHI_RANGE = pick(("-16pi", "16pi"), ("-0.25pi", "0.25pi"))

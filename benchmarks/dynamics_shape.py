@@ -36,6 +36,10 @@ SEEDS = pick((1, 2), (1,))
 # span); the small mode runs a few chunks of each
 RELEASE_SPAN, RELEASE_RATE = pick((0.02 * PI, 2e-5), (0.002 * PI, 1e-1))
 RAMP_END, RAMP_MORE = pick((14.0 * PI, 0.5 * PI), (0.05 * PI, 0.05 * PI))
+# the continuation with its branch switch: its largest step and where it stops (the small mode: steps
+# of 2 pi, which pass the near-crossing at 5.6 pi that steps of 1 pi halve down to, and a stop just past
+# the end at 6.6 pi)
+SWITCH_STEP, SWITCH_STOP = pick(0.5, 2.0) * PI, pick(9.0, 7.0) * PI
 
 
 def main(argv):
@@ -50,8 +54,8 @@ def main(argv):
     start = jr.relax_to_minimum(knot, 0.0)
     rows, profiles = [], {}
     t0 = time.perf_counter()
-    path = jr.follow_twist(knot, 0.0, 9.0 * PI, jr.ContinuationOptions(step=pick(0.5, 1.0) * PI, switch=True, max_switches=1),
-                           start=start)
+    path = jr.follow_twist(knot, 0.0, SWITCH_STOP, jr.ContinuationOptions(step=SWITCH_STEP, switch=True,
+                                                                         max_switches=1), start=start)
     first = next(p for p in path.points if not p.branch.startswith("symmetric"))
     _, extra = step_record(knot, first.equilibrium)
     profiles["continuation"] = extra["kappa_L"]

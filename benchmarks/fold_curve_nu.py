@@ -50,16 +50,19 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 OUT = results_dir()
 ALG = PseudoArclength()
 # The stable-only engine's largest step up to a point study's start: 3 pi takes 2-3 steps to ~6 pi,
-# where 2 pi takes 6-14 (its steps refused and halved on the way). The start at NU0 keeps 2 pi: at
-# N = 61 a path in steps of 3 pi ends beside a branch point just before the fold.
+# where 2 pi takes 6-14 (its steps refused and halved on the way). The start at NU0: 2 pi; the small
+# mode's 3 pi relies on its first path step of 0.25 (PATH_DS): after one of 0.05, the path from that
+# start meets a branch point just before the fold at N = 61.
 STUDY_STEP = pick(2 * PI, 3 * PI)
+START_STEP = pick(2 * PI, 3 * PI)
 # The point studies' path: the fold comes at step ~24 of 40 (ds <= 0.25); the small mode takes
-# longer steps and stops a few past the fold (it comes at step ~15), the path beyond it unused.
-PATH_STEPS, PATH_DS_MAX = pick((40, 0.25), (18, 1.0))
+# longer steps, the first one too, and stops a few past the fold (it comes at step ~11), the path
+# beyond it unused.
+PATH_STEPS, PATH_DS, PATH_DS_MAX = pick((40, 0.05, 0.25), (14, 0.25, 1.0))
 
 
 def _path_options(p_max, steps=PATH_STEPS):
-    return ContinuationOptions(ds=0.05, ds_min=1e-6, ds_max=PATH_DS_MAX, max_steps=steps, newton_tol=1e-10,
+    return ContinuationOptions(ds=PATH_DS, ds_min=1e-6, ds_max=PATH_DS_MAX, max_steps=steps, newton_tol=1e-10,
                                eig_rtol=1e-13, k=6, p_max=p_max)
 
 
@@ -76,7 +79,7 @@ def locate_opening_fold(nu, below, step=2 * PI):
 
 def main():
     t0 = time.perf_counter()
-    rod, fold, _ = locate_opening_fold(NU0, 6.3 * PI)
+    rod, fold, _ = locate_opening_fold(NU0, 6.3 * PI, START_STEP)
     located = time.perf_counter() - t0
     print(f"fold at nu = {NU0}: {fold.p / PI:.10f} pi ({located:.0f} s)", flush=True)
     t0 = time.perf_counter()

@@ -128,6 +128,8 @@ def run_side(side, summary, save):
 
     results = {}
     for stage, grid in (("up", [g for g in GRID if g > D0 / L]), ("down", [g for g in GRID[::-1] if g < D0 / L])):
+        if SMOKE and not grid:  # the small grid lies below D0: the way up would only locate D0's event again
+            continue
         problem = rod.problem
         problem.args = set_diameter(problem.args, D0)
         t = time.perf_counter()

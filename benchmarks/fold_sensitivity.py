@@ -42,14 +42,17 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 OUT = results_dir()
 # (N, side, start of the pseudo-arclength path (from follow_twist), p bound, steps)
 CASES = pick(((61, "opening", 6.3, 7.0, 40), (121, "opening", 6.3, 7.0, 30), (121, "tightening", -11.0, -12.0, 80)),
-             ((61, "opening", 6.3, 7.0, 27),))  # the small mode: the fold comes at step 24, the path after it unused
+             ((61, "opening", 6.3, 7.0, 13),))  # the small mode: the fold comes at step 11, the path after it unused
+# the stable-only engine's largest step to the path's start, and the path's first and largest steps;
+# the small mode: 3 pi reaches 6.3 pi in 3 steps (2 pi: 5-6), and longer path steps
+FOLLOW_STEP, DS, DS_MAX = pick((2 * PI, 0.05, 0.25), (3 * PI, 0.25, 1.0))
 PARAMETERS = pick((("nu", set_poisson_ratio, 0.5, 1e-3), ("D", set_diameter, D, 8e-4)),
                   (("nu", set_poisson_ratio, 0.5, 1e-3),))
 
 
 def _options(sign, bound, steps):
     kw = dict(p_max=bound * PI) if sign > 0 else dict(p_min=bound * PI)
-    return ContinuationOptions(ds=0.05 * sign, ds_min=1e-6, ds_max=0.25, max_steps=steps, newton_tol=1e-10,
+    return ContinuationOptions(ds=DS * sign, ds_min=1e-6, ds_max=DS_MAX, max_steps=steps, newton_tol=1e-10,
                                eig_rtol=1e-13, k=6, **kw)
 
 
@@ -59,7 +62,7 @@ def main():
         sign = 1 if start > 0 else -1
         scene = jr.trefoil(D=D, L=L, N=N)
         t0 = time.perf_counter()
-        old = jr.follow_twist(scene, 0.0, start * PI, jr.ContinuationOptions(step=2 * PI * sign, max_switches=0))
+        old = jr.follow_twist(scene, 0.0, start * PI, jr.ContinuationOptions(step=FOLLOW_STEP * sign, max_switches=0))
         e = old.points[-1].equilibrium
         rod = knot_problem(scene, np.asarray(e.q), e.phi)
         opts = _options(sign, bound, steps)

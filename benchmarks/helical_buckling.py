@@ -21,7 +21,7 @@ from jaxrod.model.material import Material  # noqa: E402
 
 from _bench import SMOKE, pick, provenance_line, results_dir, with_provenance  # noqa: E402,F401  (benchmarks/ is on the path)
 SETS = pick(((20.0, 300.0, 0.5), (30.0, 400.0, 0.3), (10.0, 300.0, 0.0), (15.0, 250.0, 0.5)), ((20.0, 300.0, 0.5),))
-NS = pick((120, 240, 480), (120, 240))
+NS = pick((120, 240, 480), (91, 180))  # small mode: the N of helix_reference (180 and its coarse level 91), whose programs it shares
 D = 2e-4  # D/L: stretch T/EA = t (D/L)^2/16 < 1e-6
 HERE = os.path.dirname(os.path.abspath(__file__))
 

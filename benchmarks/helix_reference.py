@@ -22,7 +22,7 @@ from jaxrod.cli import main as cli  # noqa: E402
 
 from _bench import SMOKE, pick, provenance_line, results_dir, with_provenance  # noqa: E402,F401  (benchmarks/ is on the path)
 
-N = pick(400, 201)
+N = pick(400, 180)  # small mode: its coarse level N/2 + 1 = 91 and 180 are the N of helical_buckling and tension_twist, whose programs it shares
 # (m, t, B, C): the loop whose (d, R) is imposed; lambda = 14.1, 16.6, 13.9
 LOOPS = pick(((20.0, 300.0, 2.0, 4.0 / 3.0), (10.0, 300.0, 1.0, 1.0), (15.0, 250.0, 1.0, 0.5)), ((20.0, 300.0, 2.0, 4.0 / 3.0),))
 EAS = pick((1e3, 1e5, 1e7, 1e9), (1e5, 1e7))  # with B = 1e-3

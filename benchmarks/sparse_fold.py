@@ -19,6 +19,8 @@ import os
 for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
+import contextlib  # noqa: E402
+import io  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
 import subprocess  # noqa: E402
@@ -78,20 +80,32 @@ def child(N, backends):
         print("ROW " + json.dumps(row), flush=True)
 
 
+def child_output(N, backends):
+    """(stdout, stderr, returncode) of the child for N. The small mode's one N runs here instead: a
+    child of its own would only import jaxrod and compile N = 61's programs a second time."""
+    if SMOKE:
+        buf = io.StringIO()
+        with contextlib.redirect_stdout(buf):
+            child(N, backends)
+        return buf.getvalue(), "", 0
+    out = subprocess.run([sys.executable, __file__, "--child", str(N), ",".join(backends)], capture_output=True,
+                         text=True)
+    return out.stdout, out.stderr, out.returncode
+
+
 def main():
     if len(sys.argv) > 2 and sys.argv[1] == "--child":
         child(int(sys.argv[2]), sys.argv[3].split(","))
         return
     rows = []
     for N, backends in CASES:
-        out = subprocess.run([sys.executable, __file__, "--child", str(N), ",".join(backends)], capture_output=True,
-                             text=True)
-        for line in out.stdout.splitlines():
+        stdout, stderr, returncode = child_output(N, backends)
+        for line in stdout.splitlines():
             if line.startswith("ROW "):
                 rows.append(json.loads(line[4:]))
                 print(line, flush=True)
-        if out.returncode != 0:
-            print(out.stderr[-3000:], file=sys.stderr)
+        if returncode != 0:
+            print(stderr[-3000:], file=sys.stderr)
     os.makedirs(RESULTS, exist_ok=True)
     with open(os.path.join(RESULTS, "sparse_fold.json"), "w") as fh:
         json.dump(with_provenance(rows), fh, indent=2)

@@ -20,6 +20,8 @@ import os
 for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
+import contextlib  # noqa: E402
+import io  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
 import subprocess  # noqa: E402
@@ -71,6 +73,18 @@ def child(N):
         print("ROW " + json.dumps(row), flush=True)
 
 
+def child_output(N):
+    """(stdout, stderr, returncode) of the child for N. The small mode's one N runs here instead: a
+    child of its own would only import jaxrod and compile N = 61's programs a second time."""
+    if SMOKE:
+        buf = io.StringIO()
+        with contextlib.redirect_stdout(buf):
+            child(N)
+        return buf.getvalue(), "", 0
+    out = subprocess.run([sys.executable, __file__, "--child", str(N)], capture_output=True, text=True)
+    return out.stdout, out.stderr, out.returncode
+
+
 def main():
     if len(sys.argv) > 2 and sys.argv[1] == "--child":
         child(int(sys.argv[2]))
@@ -88,13 +102,13 @@ def main():
     else:
         rows, todo = [], CASES
     for N in todo:
-        out = subprocess.run([sys.executable, __file__, "--child", str(N)], capture_output=True, text=True)
-        for line in out.stdout.splitlines():
+        stdout, stderr, returncode = child_output(N)
+        for line in stdout.splitlines():
             if line.startswith("ROW "):
                 rows.append(json.loads(line[4:]))
                 print(line, flush=True)
-        if out.returncode != 0:
-            print(out.stderr[-3000:], file=sys.stderr)
+        if returncode != 0:
+            print(stderr[-3000:], file=sys.stderr)
     os.makedirs(RESULTS, exist_ok=True)
     for r in rows:  # runs before the 'located' field: a located event has a finite residual <= 1e-10
         r.setdefault("located", r["residual"] is not None and math.isfinite(r["residual"]) and r["residual"] <= 1e-10)
