@@ -1,7 +1,7 @@
 """Command 1 of the README (the whole trefoil study) side by side: a previous release against the
 working tree, on this machine, in one script.
 
-    python benchmarks/command1.py                     # baseline 85f98fd, 2 rounds
+    python benchmarks/command1.py                     # baseline 7b060a4 (before the layered redesign), 2 rounds
     python benchmarks/command1.py --baseline 84b372f --rounds 3
 
 Each round runs, in a fresh process per version (baseline first, then current):
@@ -85,7 +85,7 @@ def git_rev(ref="HEAD"):
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--baseline", default="85f98fd", help="the previous release to compare with (a commit)")
+    p.add_argument("--baseline", default="7b060a4", help="the previous release to compare with (a commit; default: the last one before the layered redesign)")
     p.add_argument("--rounds", type=int, default=pick(2, 1), help="rounds (each: baseline then current)")
     p.add_argument("--out", default=results_dir(), help="folder for command1.md/.json")
     args = p.parse_args(argv)
