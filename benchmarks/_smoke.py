@@ -56,6 +56,7 @@ SCRIPTS = {
     "michell.py": _entry("b", ["michell.md", "michell.png"]),
     "onset_fine_step.py": _entry("b", ["onset_fine_step.md"]),
     "open_knot.py": _entry("b", ["open_knot.csv", "open_knot.json"]),
+    "per_step.py": _entry("b", ["per_step.json", "per_step.md"]),
     "plectoneme.py": _entry("b", ["plectoneme.csv", "plectoneme.json", "plectoneme.png"]),
     "redesign_same_answers.py": _entry("a", ["redesign_same_answers.md", "redesign_same_answers.json"]),
     "restabilise_trefoil.py": _entry("a", ["restabilise_trefoil.json", "restabilise_trefoil.md"]),
