@@ -221,6 +221,20 @@ def speed_table():
     return _table(["problem", "N", "side", "first call (compilation included)", "warm", "φ*", "machine"], rows)
 
 
+def per_step_table():
+    data = _load("per_step.json")
+    if data is None:
+        return _missing("per_step.json")
+    out = []
+    for r in data["results"]:
+        for name, t in r["backends"].items():
+            out.append([r["scene"], r["N"], r["n_dof"], name, f"{t['gradient']:.2f}", f"{t['factorise']:.2f}",
+                        f"{t['solve']:.2f}", f"{t['inertia']:.2f}", f"{t['eig4']:.2f}", f"{t['newton_iteration']:.2f}",
+                        f"{t['stability']:.2f}"])
+    return _table(["scene", "N", "DOFs", "backend", "gradient", "factorise", "solve", "inertia", "lowest 4",
+                   "Newton iteration", "stability analysis"], out)
+
+
 def _csv_rows(name):
     path = RESULTS / name
     if not path.exists():
@@ -272,4 +286,4 @@ def peer_table():
 
 GENERATORS = {"cli": cli_reference, "validation": validation_table, "performance": performance_table,
               "speed": speed_table, "sparse_contact": sparse_contact_table, "dynamics": dynamics_table,
-              "peer": peer_table}
+              "peer": peer_table, "per_step": per_step_table}
