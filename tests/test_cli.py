@@ -162,6 +162,16 @@ def test_trefoil_study_json_files_and_resume(tmp_path, capsys):
     # Nothing buckles within one half-turn either way; both sides were covered.
     assert summary["phi_plus"] is None and summary["phi_minus"] is None
     assert summary["steps"] == 6
+    # the corrector's iterations per accepted point, per direction, are those of branch.csv
+    import csv
+
+    with open(out / "branch.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    for direction, count in summary["corrector_iterations"].items():
+        mine = [int(float(r["iterations"])) for r in rows if r["direction"] == direction]
+        assert count["points"] == len(mine) and count["iterations"] == sum(mine)
+        assert count["per_point"] == pytest.approx(sum(mine) / len(mine), abs=0.005)
+    assert set(summary["corrector_iterations"]) == {"plus", "minus"}
     for name in ("branch.csv", "critical.json", "run.json", "summary.json"):
         assert (out / name).stat().st_size > 0, name
     # Every figure opens as an image with something drawn on it.

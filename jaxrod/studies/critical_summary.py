@@ -91,4 +91,21 @@ def study_summary(result):
     s["seconds"] = result.seconds
     s["seconds_total"] = result.seconds_total  # this run and the interrupted ones before it
     s["steps"] = int(len(result.table.get("phi", [])))
+    s["corrector_iterations"] = corrector_iterations(result.table)
     return s
+
+
+def corrector_iterations(table):
+    """{direction: {"points", "iterations", "per_point"}}: the corrector's iterations over the
+    accepted points of each direction's stable path (branch.csv's ``iterations`` column; the
+    trials that were refused, and the unstable branches' rows, are not counted)."""
+    if "iterations" not in table or "direction" not in table:
+        return {}
+    counts = {}
+    branches = table.get("branch", [""] * len(table["direction"]))
+    for branch, direction, iterations in zip(branches, table["direction"], table["iterations"]):
+        if str(branch).startswith("unstable") or math.isnan(float(iterations)):
+            continue
+        points, total = counts.get(str(direction), (0, 0))
+        counts[str(direction)] = (points + 1, total + int(iterations))
+    return {d: {"points": p, "iterations": t, "per_point": round(t / p, 2)} for d, (p, t) in sorted(counts.items())}
