@@ -371,3 +371,22 @@ def test_accuracy_mode_with_no_end_in_range_says_so(tmp_path, capsys):
     assert "phi_plus   = no end (N = 24): NOT CONVERGED" in printed and "before the twist range's end" in printed
     sides = json.loads((out / "convergence.json").read_text())
     assert sides["plus"]["phi_star"] is None and sides["plus"]["reached"] is False
+
+
+def test_a_valueerror_raised_inside_numpy_is_not_reported_as_a_wrong_flag(monkeypatch, capsys):
+    """A ValueError from jaxrod's checks names a wrong input (exit 2); one raised inside numpy (here
+    an empty array reduced, as a figure once did) is said to come from there, exit 1."""
+    import numpy as np
+
+    from jaxrod.cli.parser import COMMANDS
+
+    def broken(args):
+        return np.min(np.array([]))
+
+    monkeypatch.setattr(COMMANDS["michell"], "run", broken)
+    assert main(["michell", "--N", "32"]) == 1
+    err = capsys.readouterr().err
+    assert "zero-size array" in err and "raised inside numpy" in err and "--" not in err.split("(")[0]
+    monkeypatch.undo()
+    assert main(["michell", "--N", "2"]) == 2  # jaxrod's own check of --N
+    assert "--N" in capsys.readouterr().err

@@ -78,6 +78,11 @@ def _main(argv):
     try:
         return _run(args)
     except ValueError as exc:
+        where = raised_in(exc)
+        if where != "jaxrod":  # numpy's, SciPy's, JAX's own: a defect of the run, or an unreadable input file
+            print(f"jaxrod: error: {exc} (raised inside {where}, not by jaxrod's checks of its inputs: if the "
+                  f"inputs are right, this is a defect of jaxrod)", file=sys.stderr)
+            return 1
         print(f"jaxrod: error: {in_flags(str(exc), flags)}", file=sys.stderr)
         return 2
     except OSError as exc:  # missing or unreadable file, unwritable --out
@@ -112,6 +117,20 @@ def _run(args):
             held.enter_context(aot.kept_in(args.programs))
         args.hold = held.enter_context  # the --out folder's lock, until the command ends
         return COMMANDS[args.command].run(args)
+
+
+def raised_in(exc):
+    """The top-level package whose code raised ``exc`` (its traceback's innermost frame): "jaxrod"
+    for jaxrod's own checks, which name the wrong input; else e.g. "numpy" or "jax" (an empty array
+    reduced, a singular matrix, an unreadable file), which the command line does not report as a
+    wrong flag."""
+    tb, last = exc.__traceback__, None
+    while tb is not None:
+        last, tb = tb, tb.tb_next
+    if last is None:
+        return "jaxrod"
+    module = last.tb_frame.f_globals.get("__name__", "") or "?"
+    return module.split(".")[0]
 
 
 def _failed(command, exc):
