@@ -97,3 +97,19 @@ def test_choose_backend_says_which_and_why():
     assert choose_backend(big, LinalgOptions(sparse_min_dof=10 ** 6)).backend.name == "dense"
     with pytest.raises(ValueError, match="backend"):
         LinalgOptions(backend="lapack")
+
+
+def test_the_dense_inertia_counts_the_eigenvalues_below_each_shift(knot):
+    """The dense backend counts the inertia from its Bunch-Kaufman factors (Sylvester's law, 2 x 2
+    pivots included where a shift inside the spectrum makes the matrix indefinite): the count below
+    each shift between the 8 lowest eigenvalues is that shift's rank among them."""
+    scene, e, phi = knot
+    fac = _factorisations(scene, e.q, phi, e.neighbourhood, [Dense()])["dense"]
+    values = fac.lowest_eigenpairs(8).values
+    for j in range(1, 8):
+        shift = 0.5 * (values[j - 1] + values[j])
+        inertia = fac.inertia(shift)
+        assert inertia.negative == j, (j, shift, inertia)
+        assert sum(inertia) == scene.n_dof and inertia.zero == int(scene.n_zero_modes)
+    x = fac.solve(np.ones(scene.n_dof))  # the solve, from the shift-0 factors, on Z-perp
+    assert np.max(np.abs(np.asarray(fac.z).T @ x)) < 1e-8 * np.max(np.abs(x))

@@ -111,19 +111,48 @@ class _Projected:
         return (x, float(y[0])) if vector else (x, y)
 
 
+def _negative_pivots(ldu, ipiv):
+    """The negative eigenvalues of D in a Bunch-Kaufman A = L D L^T (LAPACK ``dsytrf``, lower):
+    by Sylvester's law of inertia, those of A. D has 1 x 1 blocks (ipiv > 0) and 2 x 2 ones (a pair
+    of equal negative ipiv)."""
+    negative, k, n = 0, 0, ldu.shape[0]
+    while k < n:
+        if ipiv[k] > 0:
+            negative += int(ldu[k, k] < 0.0)
+            k += 1
+        else:
+            block = np.array([[ldu[k, k], ldu[k + 1, k]], [ldu[k + 1, k], ldu[k + 1, k + 1]]])
+            negative += int(np.sum(np.linalg.eigvalsh(block) < 0.0))
+            k += 2
+    return negative
+
+
 class _DenseFactorisation(_Projected):
+    """The projected Hessian (n, n) with its Bunch-Kaufman factorisation (LAPACK ``dsytrf``): solves
+    and the inertia at 0 from one factorisation, each other shift factorised once on request."""
+
     def __init__(self, scene, u, phi, nbr, options):
         from .stability import _projected
 
         hp, z, _, _ = _projected(scene, u, phi, nbr)
         self.hp, self.z, self.options = np.asarray(hp), np.asarray(z), options
-        self._eigenvalues = None
+        self._factors = {}
+
+    def _factor(self, shift):
+        from scipy.linalg import lapack
+
+        if shift not in self._factors:
+            shifted = self.hp - shift * np.eye(self.n) if shift else self.hp
+            ldu, ipiv, info = lapack.dsytrf(shifted, lower=1)
+            if info < 0:
+                raise ValueError(f"dsytrf: argument {-info} is invalid")
+            self._factors[shift] = (ldu, ipiv, info > 0)  # info > 0: an exactly zero pivot
+        return self._factors[shift]
 
     def inertia(self, shift=0.0):
-        if self._eigenvalues is None:
-            self._eigenvalues = np.linalg.eigvalsh(self.hp)
-        physical = self._eigenvalues[: self.n - self.n_zero]  # the lifted zero modes sit on top
-        return self._inertia(np.sum(physical < shift))
+        # the lifted zero modes lie above every physical eigenvalue: never counted below the shift
+        ldu, ipiv, _ = self._factor(float(shift))
+        return self._inertia(_negative_pivots(ldu, ipiv))
 
     def lowest_eigenpairs(self, k):
         from .stability import LOWEST_COUNT, _lowest_of
@@ -137,9 +166,15 @@ class _DenseFactorisation(_Projected):
         return Eigenpairs(lam[:keep], _fix_signs(vec[:, :keep]))
 
     def solve(self, rhs):
-        import scipy.linalg
+        from scipy.linalg import lapack
 
-        return self.project(scipy.linalg.solve(self.hp, self.project(rhs), assume_a="sym"))
+        ldu, ipiv, singular = self._factor(0.0)
+        if singular:
+            raise np.linalg.LinAlgError("the projected Hessian is singular")
+        x, info = lapack.dsytrs(ldu, ipiv, self.project(rhs), lower=1)
+        if info != 0:
+            raise ValueError(f"dsytrs: argument {-info} is invalid")
+        return self.project(x)
 
     def bordered_solve(self, b, c, d, f, g):
         """As ``_Projected.bordered_solve``, by one LU of the whole bordered matrix (regular at a
