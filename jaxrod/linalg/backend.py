@@ -143,7 +143,8 @@ class _DenseFactorisation(_Projected):
 
         if shift not in self._factors:
             shifted = self.hp - shift * np.eye(self.n) if shift else self.hp
-            ldu, ipiv, info = lapack.dsytrf(shifted, lower=1)
+            lwork = int(lapack.dsytrf_lwork(self.n, lower=1)[0])  # the blocked algorithm's workspace
+            ldu, ipiv, info = lapack.dsytrf(shifted, lower=1, lwork=max(lwork, self.n))
             if info < 0:
                 raise ValueError(f"dsytrf: argument {-info} is invalid")
             self._factors[shift] = (ldu, ipiv, info > 0)  # info > 0: an exactly zero pivot
