@@ -190,6 +190,24 @@ def test_follow_twist_locates_michell_like_critical_twist():
     assert all(p.equilibrium.stable for p in path.points)
 
 
+def test_a_measured_crossing_is_bracketed_to_bracket_tol_only():
+    # Where the lost state is measured unstable (the ring's saddle past phi*), bracket_tol stops
+    # the bisection early (the exact location is left to the extended system); the end is still
+    # inside its wider bracket, found with fewer steps.
+    ring = jr.michell_ring(N=24, nu=0.5)
+    analytic = jr.michell_critical_twist(0.5)
+    cp = jr.critical_twist(ring, 0.0, 1.5 * analytic, jr.ContinuationOptions(step=analytic / 4))
+    paths = [jr.follow_twist(ring, 0.0, 1.5 * analytic, jr.ContinuationOptions(
+        step=analytic / 4, tol=1e-4 * PI, bracket_tol=bracket, switch=False)) for bracket in (None, 0.05 * PI)]
+    fine, coarse = (p.instabilities[0] for p in paths)
+    assert abs(fine.bracket[1] - fine.bracket[0]) <= 1e-4 * PI
+    assert 1e-4 * PI < abs(coarse.bracket[1] - coarse.bracket[0]) <= 0.05 * PI
+    assert len(paths[1].points) < len(paths[0].points)
+    for inst in (fine, coarse):
+        _assert_inside_its_bracket(inst)
+        assert inst.kind == "unstable" and abs(inst.phi - cp.phi) <= inst.phi_error
+
+
 def test_continuation_options_hold_the_contact_aware_defaults():
     from jaxrod.continuation import CONTACT_GTOL, CONTACT_NEGATIVE_TOL, Task
 
@@ -197,6 +215,7 @@ def test_continuation_options_hold_the_contact_aware_defaults():
     o = jr.ContinuationOptions()
     k = o.resolved(knot, Task.FOLLOW_TWIST, 10.0)
     assert (k.negative_tol, k.gtol, k.jump_tol, k.step, k.tol) == (CONTACT_NEGATIVE_TOL, 1e-9, 4.0, 0.25 * PI, 2e-4 * PI)
+    assert k.bracket_tol == k.tol
     c = o.resolved(knot, Task.CRITICAL_TWIST, 10.0)
     assert (c.negative_tol, c.gtol, c.step, c.tol) == (CONTACT_NEGATIVE_TOL, CONTACT_GTOL, 0.25, 1e-6 * PI)
     r = o.resolved(ring, "critical_twist", 8.0)
@@ -209,7 +228,7 @@ def test_continuation_options_hold_the_contact_aware_defaults():
     assert mine.resolved(ring, Task.FOLLOW_TWIST, 1.0).tol == 1e-3 and mine.gtol == 1e-8 and mine.k == 4
     for bad in (dict(tol=0.0), dict(gtol=float("nan")), dict(k=0), dict(jump_tol=-1.0), dict(max_refine=0),
                 dict(max_switches=-1), dict(perturbation=0.0), dict(linear_algebra="banded"), dict(switch="no"),
-                dict(branch="")):
+                dict(branch=""), dict(bracket_tol=0.0), dict(bracket_tol=1e-9)):
         name = next(iter(bad))
         with pytest.raises(ValueError, match=name):
             jr.ContinuationOptions(**bad).resolved(ring, Task.FOLLOW_TWIST, 1.0)

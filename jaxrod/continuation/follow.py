@@ -303,8 +303,16 @@ class _Follower:
             return replace(s, refusal=_hidden_refusal(hidden[0]))
         return s
 
+    def _bracket_width(self, state):
+        """How narrow the bracket of the end being located must get: ``bracket_tol`` where the
+        nearest lost twist was measured unstable (an eigenvalue past zero: a fold or branch point,
+        located exactly afterwards on the extended system), else tol. A zero only predicted
+        inside the step is no evidence: the eigenvalue may turn before it."""
+        opts, lost = self.engine.opts, state.lost_refusal
+        return opts.bracket_tol if lost.failure is StepFailure.UNSTABLE and not lost.predicted else opts.tol
+
     def _locate(self, state):
-        tol, prev = self.engine.opts.tol, state.prev
+        tol, prev = self._bracket_width(state), state.prev
         if abs(state.lost_phi - prev.phi) <= tol:
             # Bracketed; a failure met from further back is confirmed from the last stable state.
             return replace(state, phase=Phase.CONFIRM if abs(state.lost_phi - state.lost_from) > tol else Phase.END)

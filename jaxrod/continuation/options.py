@@ -43,6 +43,12 @@ class ContinuationOptions:
     tol : float
         Both twist entries: accuracy of the located critical twist or branch end (rad).
         Default: critical_twist 1e-6 pi, follow_twist 2e-4 pi.
+    bracket_tol : float
+        follow_twist: width (rad) to which an end is bracketed where an eigenvalue is measured or
+        predicted past zero (a fold or branch point, which a locator on the extended system then
+        finds exactly: ``jaxrod.studies.diagram.locate_end``). Every other end (a jump, a corrector
+        that failed) is still bracketed to tol, since no extended system locates it. Default tol;
+        it must not be less than tol.
     negative_tol : float
         Both twist entries: an eigenvalue counts as negative below -negative_tol (units of B/l).
         Default 1e-10 (less for long rods: ``default_negative_tol``), or CONTACT_NEGATIVE_TOL =
@@ -134,6 +140,7 @@ class ContinuationOptions:
 
     step: float | None = None
     tol: float | None = None
+    bracket_tol: float | None = None
     negative_tol: float | None = None
     gtol: float | None = None
     jump_tol: float | None = None
@@ -189,6 +196,7 @@ class ContinuationOptions:
         defaults = {
             "step": span / 40.0 if critical else 0.25 * math.pi,
             "tol": 1e-6 * math.pi if critical else 2e-4 * math.pi,
+            "bracket_tol": None,  # tol, once that is known
             "negative_tol": CONTACT_NEGATIVE_TOL if contact else default_negative_tol(scene),
             "gtol": CONTACT_GTOL if (contact and critical) else 1e-9,
             "jump_tol": _jump_tolerance(scene),
@@ -209,6 +217,10 @@ class ContinuationOptions:
         for key in ("k", "corrector_max_steps", "max_refine"):
             values[key] = check_int_at_least(key, values[key], 1)
         values["max_switches"] = check_int_at_least("max_switches", values["max_switches"], 0)
+        if values["bracket_tol"] is None:
+            values["bracket_tol"] = values["tol"]
+        elif check_positive("bracket_tol", values["bracket_tol"]) < values["tol"]:
+            raise ValueError(f"bracket_tol must be at least tol = {values['tol']!r}, got {values['bracket_tol']!r}")
         values["perturbation"] = (values["jump_tol"] if values["perturbation"] is None
                                   else check_positive("perturbation", values["perturbation"]))
         if values["linear_algebra"] not in LINEAR_ALGEBRA:
@@ -246,7 +258,7 @@ ARCLENGTH_DEFAULTS = {
 }
 # The fields only one algorithm reads (k is read by both).
 ARCLENGTH_FIELDS = tuple(key for key in ARCLENGTH_DEFAULTS if key != "k")
-STABLE_ONLY_FIELDS = ("step", "tol", "negative_tol", "gtol", "jump_tol", "corrector_max_steps", "max_refine",
+STABLE_ONLY_FIELDS = ("step", "tol", "bracket_tol", "negative_tol", "gtol", "jump_tol", "corrector_max_steps", "max_refine",
                       "linear_algebra", "branch", "switch", "max_switches", "perturbation", "keep_symmetry",
                       "check_branch")
 

@@ -115,13 +115,18 @@ def _instability_dict(inst, scene, out, direction, index):
     return d
 
 
-def _study_parameters(scene, phi_min, phi_max, step, tol, k, max_switches):
-    """What a resumed study must share with the interrupted one (run.json), as JSON would read it."""
-    return json.loads(json.dumps({"scene": _scene_parameters(scene), "phi_min": phi_min, "phi_max": phi_max,
-                                  "step": step, "tol": tol, "k": k, "max_switches": max_switches}))
+def _study_parameters(scene, phi_min, phi_max, o):
+    """What a resumed study must share with the interrupted one (run.json), as JSON would read it;
+    o: its ``study_options`` (bracket_tol recorded only where it is not tol)."""
+    params = {"scene": _scene_parameters(scene), "phi_min": float(phi_min), "phi_max": float(phi_max),
+              "step": float(o.step), "tol": float(o.tol), "k": o.k, "max_switches": o.max_switches}
+    if o.bracket_tol is not None and o.bracket_tol != o.tol:
+        params["bracket_tol"] = float(o.bracket_tol)
+    return json.loads(json.dumps(params))
 
 
-# A study's own defaults (a coarser step than follow_twist's 0.25 pi); run.json records these four.
+# A study's own defaults (a coarser step than follow_twist's 0.25 pi); run.json records these four,
+# and bracket_tol (default: tol) where it is given.
 STUDY_DEFAULTS = {"step": 0.5 * math.pi, "tol": 2e-4 * math.pi, "k": 8, "max_switches": 3}
 
 
@@ -133,7 +138,7 @@ def study_options(options=None):
     for name in ("negative_tol", "gtol", "jump_tol", "corrector_max_steps", "max_refine", "linear_algebra", "branch",
                  "switch", "perturbation", "keep_symmetry"):
         if getattr(options, name) is not None:
-            raise ValueError(f"options.{name}: twist_study does not take it (it sets step, tol, k and max_switches, "
+            raise ValueError(f"options.{name}: twist_study does not take it (it sets step, tol, bracket_tol, k and max_switches, "
                              "which run.json records)")
     return replace(options, **{key: d for key, d in STUDY_DEFAULTS.items() if getattr(options, key) is None})
 
@@ -142,7 +147,6 @@ def check_study_folder(out, scene, phi_min, phi_max, options=None):
     """Raise ValueError naming ``out`` if it holds a study (run.json) with other parameters than
     these, as ``twist_study`` with resume=True would, before any work."""
     o = study_options(options)
-    step, tol, k, max_switches = o.step, o.tol, o.k, o.max_switches
     run_path = os.path.join(out, "run.json")
     if not os.path.exists(run_path):
         return
@@ -151,7 +155,7 @@ def check_study_folder(out, scene, phi_min, phi_max, options=None):
             old = json.load(f)
     except (OSError, ValueError):
         old = None
-    if old != _study_parameters(scene, float(phi_min), float(phi_max), float(step), float(tol), k, max_switches):
+    if old != _study_parameters(scene, phi_min, phi_max, o):
         raise ValueError(f"out: {out} holds a run with other parameters (see its run.json): use another "
                          "folder, or start over there (resume=False; the CLI's --fresh)")
 
@@ -247,7 +251,7 @@ class _StudyRun:
         """Prepare the folder (resume or start over) and the critical dict."""
         o = self.options
         if self.out:
-            params = _study_parameters(self.scene, phi_min, phi_max, o.step, o.tol, o.k, o.max_switches)
+            params = _study_parameters(self.scene, phi_min, phi_max, o)
             if resume:
                 check_study_folder(self.out, self.scene, phi_min, phi_max, o)
             os.makedirs(self.path("steps"), exist_ok=True)
@@ -334,8 +338,8 @@ class _StudyRun:
                 self.observer.on_point(point)
 
         o = self.options
-        opts = ContinuationOptions(step=o.step, tol=o.tol, k=o.k, negative_tol=self.critical["negative_tol"],
-                                   max_switches=o.max_switches)
+        opts = ContinuationOptions(step=o.step, tol=o.tol, bracket_tol=o.bracket_tol, k=o.k,
+                                   negative_tol=self.critical["negative_tol"], max_switches=o.max_switches)
         path = follow_twist(self.scene, 0.0, target, opts, start=start if state is None else None, resume=state,
                             observer=Observer(progress=self.say, on_point=on_point,
                                               on_instability=lambda inst: self.record_instability(direction, inst),

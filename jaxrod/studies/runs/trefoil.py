@@ -31,7 +31,9 @@ class KnotStudyOptions:
     the named ``knot`` or the closed curve of the file ``curve`` (CSV or NPY), with ``lk0`` the
     untwisted rod's linking number (None: nearest the curve's writhe). The rod: D and L (one
     unit), N nodes, E, nu, contact_stiffness (units of B/D^3). The study: twists phi_min < 0 to
-    phi_max > 0, step and tol (rad), the folder ``out`` (resumed unless ``fresh``); ``serial``:
+    phi_max > 0, step and tol (rad), ``bracket_tol`` (rad; None: LOCATED_BRACKET, or tol where
+    stable_only) the width to which an end is bracketed where an eigenvalue passes zero, before its
+    exact location, the folder ``out`` (resumed unless ``fresh``); ``serial``:
     one direction after the other; ``stable_only``: no exact location of the ends;
     ``extrapolation``: the N' = (N+1)/2 error estimate; ``figures``, ``vtk``. The accuracy mode
     (``run_accuracy``): ``accuracy`` (rad) to reach, and N_max, the finest level."""
@@ -50,6 +52,7 @@ class KnotStudyOptions:
     phi_max: float = 14.0 * math.pi
     step: float = 0.5 * math.pi
     tol: float = 2e-4 * math.pi
+    bracket_tol: float | None = None
     out: str = "results/trefoil"
     fresh: bool = False
     serial: bool = False
@@ -105,11 +108,19 @@ def check_knot_memory(n_nodes):
     check_dense_memory(SimpleNamespace(n_dof=4 * n_nodes, n_nodes=n_nodes))
 
 
+# The study's bracket of an end where an eigenvalue passes zero (rad), when the end is then located
+# exactly on the extended system: narrowing it to tol would only repeat that work, less exactly.
+LOCATED_BRACKET = 0.02 * math.pi
+
+
 def continuation_options(options):
-    """The study's ``ContinuationOptions`` (its step and tol)."""
+    """The study's ``ContinuationOptions`` (its step, tol and bracket_tol)."""
     from ...continuation import ContinuationOptions
 
-    return ContinuationOptions(step=options.step, tol=options.tol)
+    bracket = options.bracket_tol
+    if bracket is None:
+        bracket = options.tol if options.stable_only else max(options.tol, LOCATED_BRACKET)
+    return ContinuationOptions(step=options.step, tol=options.tol, bracket_tol=bracket)
 
 
 def check_resumable(scene, options):
