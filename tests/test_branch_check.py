@@ -123,6 +123,32 @@ def test_a_zero_between_two_stable_states_is_predicted():
     assert found is not None and phi < found.phi < 1.3 * phi_star
 
 
+def test_the_model_block_is_the_hessian_derivative_along_the_branch():
+    """BranchModel.block (a central difference of the exact Hessian along the branch) against the
+    exact third-derivative contractions v_i^T (dH along (du, 1)) v_j by autodiff, on a trefoil
+    with its contact pairs and its slopes near zero."""
+    from dataclasses import replace
+
+    from jaxrod import relax_to_minimum
+    from jaxrod.continuation.branch_check import branch_model
+    from jaxrod.linalg.stability import branch_analysis, scene_bilinear_gradient
+
+    scene = trefoil(D=8.0, L=292.0, N=41)
+    e = relax_to_minimum(scene, 5.0 * math.pi)
+    stab, _, _, _, dq = branch_analysis(scene, e.q, e.phi, 0, tol=1e-6, pinv_tol=1e-6, nbr=e.neighbourhood)
+    model = branch_model(scene, replace(e, stability=stab), dq, 1e-6)
+    u, m = scene.to_scaled(e.q), model.vectors.shape[1]
+    exact = np.empty((m, m))
+    for i in range(m):
+        for j in range(m):
+            gu, gp = scene_bilinear_gradient(scene, u, e.phi, e.neighbourhood, model.vectors[:, i],
+                                             model.vectors[:, j], 0.0)
+            exact[i, j] = float(np.asarray(gu) @ model.du + float(gp))
+    assert m == 4 and np.abs(exact).max() > 1e-4
+    assert np.abs(model.block - exact).max() <= 1e-6 * np.abs(exact).max()  # measured 1e-8: the difference's roundoff
+    assert np.array_equal(model.slopes, np.diag(model.block))
+
+
 def test_the_located_onset_is_verified_in_every_output(tightening):
     out, summary = tightening
     diagram = json.loads((out / "diagram.json").read_text())
