@@ -1,5 +1,6 @@
 """Where a followed stable branch ends: the critical modes and eigenvalue (``_critical_mode``),
-the next twist to try while the end is bracketed (``end_trial``), phi* in the bracket
+the next twist to try while the end is bracketed (``end_trial``, from ``end_estimate``), phi* in
+the bracket
 (``branch_end_in_bracket``), and the near-zero band of a knot's sliding modes, which must not
 hide a mode that changes the shape (``_hidden_shape_modes``, ``eigenvalue_past_zero``)."""
 from __future__ import annotations
@@ -102,20 +103,14 @@ def _critical_candidates(older, prev, negative_tol, candidates=5, critical_modes
     return out
 
 
-def end_trial(older, prev, phi_lost, lost_eq, direction, tol, negative_tol, failures, probe_held, successes=0,
-               critical_modes=None):
-    """The next twist to try between the last stable state ``prev`` and the nearest lost twist
-    ``phi_lost``. Returns (phi, probe). Model: near a fold lambda^2 is linear in phi; its secant through ``older`` and ``prev`` gives
-    phi* (short of it at a transversal crossing). Where the lost state has a negative critical
-    eigenvalue (a crossing), lambda is interpolated linearly between the two ends instead. The
-    trial aims 0.3 tol short of phi*, or, when the stable end is already there, probes 0.9 tol
-    beyond it (probe = True). Bisection when there is no model, after two failures or two
-    successes in a row, after a probe that held, or when the model lands outside the inner 90%
-    of the bracket."""
-    width = direction * (phi_lost - prev.phi)
-    mid = prev.phi + 0.5 * direction * width
-    if failures >= 2 or successes >= 2 or probe_held or older is None or older.phi == prev.phi:
-        return mid, False
+def end_estimate(older, prev, phi_lost, lost_eq, direction, negative_tol, critical_modes=None):
+    """The nearest twist at which a critical eigenvalue of the last stable state ``prev`` is
+    modelled to reach zero, or None (no model). Near a fold lambda^2 is linear in phi: its secant
+    through ``older`` and ``prev`` gives phi* (short of it at a transversal crossing). Where the
+    lost state at ``phi_lost`` has that eigenvalue negative (a crossing), lambda is interpolated
+    linearly between the two ends instead."""
+    if older is None or older.phi == prev.phi:
+        return None
     estimates = []
     for lam, lam_old, v in _critical_candidates(older, prev, negative_tol, critical_modes=critical_modes):
         if lam <= 0.0:
@@ -130,9 +125,23 @@ def end_trial(older, prev, phi_lost, lost_eq, direction, tol, negative_tol, fail
         slope = (lam**2 - lam_old**2) / (prev.phi - older.phi)  # d(lambda^2)/dphi
         if direction * slope < 0.0 and lam < lam_old:
             estimates.append(prev.phi - lam**2 / slope)
-    if not estimates:
+    return min(estimates, key=lambda p: direction * (p - prev.phi)) if estimates else None
+
+
+def end_trial(older, prev, phi_lost, lost_eq, direction, tol, negative_tol, failures, probe_held, successes=0,
+               critical_modes=None):
+    """The next twist to try between the last stable state ``prev`` and the nearest lost twist
+    ``phi_lost``. Returns (phi, probe). The trial aims 0.3 tol short of the modelled zero
+    (``end_estimate``), or, when the stable end is already there, probes 0.9 tol beyond it
+    (probe = True). Bisection when there is no model, after two failures or two successes in a
+    row, after a probe that held, or when the model lands outside the inner 90% of the bracket."""
+    width = direction * (phi_lost - prev.phi)
+    mid = prev.phi + 0.5 * direction * width
+    if failures >= 2 or successes >= 2 or probe_held:
         return mid, False
-    est = min(estimates, key=lambda p: direction * (p - prev.phi))
+    est = end_estimate(older, prev, phi_lost, lost_eq, direction, negative_tol, critical_modes)
+    if est is None:
+        return mid, False
     trial, probe = est - direction * 0.3 * tol, False
     if direction * (trial - prev.phi) < 0.5 * tol:
         trial, probe = prev.phi + direction * 0.9 * tol, True

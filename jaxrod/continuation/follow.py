@@ -28,7 +28,7 @@ from ..solve.equilibrium import Equilibrium, relax
 from ..validation import check_finite
 from .engine import StepFailure, ContinuationEngine, _Refusal, uses_sparse
 from .ends import (_band_detail, _critical_mode, _hidden_refusal, _hidden_shape_modes, branch_end_in_bracket,
-                   eigenvalue_past_zero, end_trial, negative_modes, warn_if_band_hides_shape_modes)
+                   eigenvalue_past_zero, end_estimate, end_trial, negative_modes, warn_if_band_hides_shape_modes)
 from .memory import check_dense_memory
 from .options import Task, checked_options, observed
 from .kinds import EventKind
@@ -304,12 +304,23 @@ class _Follower:
         return s
 
     def _bracket_width(self, state):
-        """How narrow the bracket of the end being located must get: ``bracket_tol`` where the
-        nearest lost twist was measured unstable (an eigenvalue past zero: a fold or branch point,
-        located exactly afterwards on the extended system), else tol. A zero only predicted
-        inside the step is no evidence: the eigenvalue may turn before it."""
+        """How narrow the bracket of the end being located must get: ``bracket_tol`` where there is
+        evidence of a fold or branch point inside it (located exactly afterwards on the extended
+        system), else tol. Evidence: the nearest lost twist was measured unstable (an eigenvalue
+        past zero), or the corrector left the branch there and the last stable state's critical
+        eigenvalue is modelled to reach zero inside the bracket (``end_estimate``: lambda^2 linear
+        in phi, a fold). A zero only predicted inside the step is none: the eigenvalue may turn
+        before it, as at a slide of the nodes' placement."""
         opts, lost = self.engine.opts, state.lost_refusal
-        return opts.bracket_tol if lost.failure is StepFailure.UNSTABLE and not lost.predicted else opts.tol
+        if opts.bracket_tol == opts.tol or lost.predicted:
+            return opts.tol
+        if lost.failure is StepFailure.UNSTABLE:
+            return opts.bracket_tol
+        est = end_estimate(state.older, state.prev, state.lost_phi, state.lost_equilibrium, self.direction,
+                           opts.negative_tol, state.critical_modes)
+        inside = est is not None and self.direction * (est - state.prev.phi) >= 0.0 and \
+            self.direction * (state.lost_phi - est) >= 0.0
+        return opts.bracket_tol if inside else opts.tol
 
     def _locate(self, state):
         tol, prev = self._bracket_width(state), state.prev

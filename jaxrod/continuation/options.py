@@ -44,11 +44,12 @@ class ContinuationOptions:
         Both twist entries: accuracy of the located critical twist or branch end (rad).
         Default: critical_twist 1e-6 pi, follow_twist 2e-4 pi.
     bracket_tol : float
-        follow_twist: width (rad) to which an end is bracketed where an eigenvalue is measured or
-        predicted past zero (a fold or branch point, which a locator on the extended system then
-        finds exactly: ``jaxrod.studies.diagram.locate_end``). Every other end (a jump, a corrector
-        that failed) is still bracketed to tol, since no extended system locates it. Default tol;
-        it must not be less than tol.
+        follow_twist: width (rad) to which an end is bracketed where the bracket holds evidence of a
+        fold or branch point, which a locator on the extended system then finds exactly
+        (``jaxrod.studies.diagram.locate_end``): the lost state measured unstable, or the last
+        stable state's critical eigenvalue modelled to reach zero inside the bracket. Every other
+        end (a jump or failed corrector with no such model, a zero only predicted) is bracketed to
+        tol. Default tol; it must not be less than tol.
     negative_tol : float
         Both twist entries: an eigenvalue counts as negative below -negative_tol (units of B/l).
         Default 1e-10 (less for long rods: ``default_negative_tol``), or CONTACT_NEGATIVE_TOL =
