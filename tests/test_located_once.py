@@ -40,7 +40,11 @@ def test_each_end_of_command_1_is_located_exactly_once(tmp_path, monkeypatch):
     study_ends = {(c["direction"], tuple(c["bracket"])) for c in critical["instabilities"]}
     assert len(study_ends) >= 3 and {d for d, _ in study_ends} == {"plus", "minus"}
     assert set(ends) == study_ends  # every end the study bracketed was handed on, once
+    # the study narrows an end's bracket only to bracket_tol where a fold or branch point is in
+    # evidence (the exact location follows): wider than tol, for a fold (a jump) too
+    widths = {c["kind"]: abs(c["bracket"][1] - c["bracket"][0]) for c in critical["instabilities"]}
+    assert widths.get("jump", 0.0) > 2e-4 * math.pi and max(widths.values()) <= 0.02 * math.pi
     for (direction, bracket), phi in ends.items():
-        # located at its own bracket (to the study's tol), and by one converged location only
+        # located inside its own bracket (to the study's tol), and by one converged location only
         assert min(bracket) - 2e-4 * math.pi <= phi <= max(bracket) + 2e-4 * math.pi, (direction, bracket, phi)
         assert sum(abs(p - phi) <= 1e-9 * abs(phi) for p in located) == 1, (phi, located)
