@@ -37,6 +37,7 @@ import os
 import threading
 
 import jax
+import numpy as np
 
 __all__ = ["cached_jit", "enable", "folder", "kept_in"]
 
@@ -145,6 +146,7 @@ def cached_jit(fn=None, *, static_argnames=()):
     jitted = jax.jit(fn, static_argnames=static or None)
     signature = inspect.signature(fn)
     programs = {}  # key -> jitted exported.call, or None: not kept
+    memo = {}  # (treedef, leaf types, statics) -> key: the text and hash once per signature
 
     @functools.wraps(fn)
     def call(*args, **kwargs):
@@ -158,7 +160,7 @@ def cached_jit(fn=None, *, static_argnames=()):
         leaves, treedef = jax.tree_util.tree_flatten([v for _, v in dynamic])
         if any(isinstance(x, jax.core.Tracer) for x in leaves):  # called inside another trace
             return jitted(*args, **kwargs)
-        key = _key(fn, treedef, leaves, statics)
+        key = _memo_key(memo, fn, treedef, leaves, statics)
         if key is None:
             return jitted(*args, **kwargs)
         program = programs.get(key, False)
@@ -175,6 +177,34 @@ def cached_jit(fn=None, *, static_argnames=()):
 
     call.jitted = jitted
     return call
+
+
+def _leaf_type(leaf):
+    """A hashable stand-in for a leaf's abstract value (shape, dtype, weak type) that is cheap to
+    take; None where it is not plain (``_key`` then takes jax.typeof)."""
+    if type(leaf) in (float, int, bool):  # Python scalars: weakly typed
+        return type(leaf).__name__
+    if isinstance(leaf, (np.ndarray, np.generic)):
+        return np.shape(leaf), leaf.dtype.str, False
+    if isinstance(leaf, jax.Array):
+        return leaf.shape, leaf.dtype.str, bool(getattr(leaf, "weak_type", False))
+    return None
+
+
+def _memo_key(memo, fn, treedef, leaves, statics):
+    """``_key``, kept in ``memo`` per signature (the treedef, the leaves' types and the statics),
+    so that a program called thousands of times hashes its signature once."""
+    types = tuple(_leaf_type(x) for x in leaves)
+    try:
+        signature = (treedef, types, tuple(sorted(statics.items())))
+        hash(signature)
+    except TypeError:  # an unhashable static: no memo
+        signature = None
+    if signature is None or None in types:
+        return _key(fn, treedef, leaves, statics)
+    if signature not in memo:
+        memo[signature] = _key(fn, treedef, leaves, statics)
+    return memo[signature]
 
 
 def _key(fn, treedef, leaves, statics):

@@ -82,3 +82,21 @@ def test_programs_of_another_code_version_are_removed(tmp_path):
     with aot.kept_in(str(where)):
         pass
     assert sorted(os.listdir(where)) == [mine.name]
+
+
+def _scaled(x, by):
+    return x * by
+
+
+def test_weak_and_strong_scalars_and_repeated_calls_key_their_own_programs(folder):
+    # A Python float is weakly typed, a NumPy float64 is not: two signatures, two programs; calling
+    # again with either (the signature's key kept in memory) adds none and gives the same values.
+    scaled = aot.cached_jit(_scaled)
+    x = np.arange(3.0)
+    first = [np.asarray(scaled(x, 2.0)), np.asarray(scaled(x, np.float64(2.0))), np.asarray(scaled(x[:2], 2.0))]
+    assert len(os.listdir(folder)) == 3
+    again = [np.asarray(scaled(x, 2.0)), np.asarray(scaled(x, np.float64(2.0))), np.asarray(scaled(x[:2], 2.0))]
+    assert len(os.listdir(folder)) == 3
+    for a, b in zip(first, again):
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(first[0], 2.0 * x)
