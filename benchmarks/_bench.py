@@ -10,7 +10,8 @@ size and a fresh temporary folder in the small mode, which never writes over
 ``benchmarks/results``.
 
 Provenance (``provenance()``): the commit (``git rev-parse --short HEAD``, "+ uncommitted changes"
-when the working tree differs from it) and the command that produced a results file.
+when the tracked files outside benchmarks/results differ from it) and the command that produced a
+results file.
 """
 import functools
 import os
@@ -60,7 +61,8 @@ def _git(*args):
 def provenance():
     """{"commit": ..., "command": ...} of this run, for a results file's header."""
     commit = _git("rev-parse", "--short", "HEAD") or "unknown"
-    if _git("status", "--porcelain", "--untracked-files=no"):
+    # results files the run itself (re)writes are not changes to the code that produced them
+    if _git("status", "--porcelain", "--untracked-files=no", "--", ".", ":(exclude)benchmarks/results"):
         commit += " + uncommitted changes"
     script = os.path.relpath(os.path.abspath(sys.argv[0]), REPO)
     command = " ".join(["python", script, *sys.argv[1:]] + (["--smoke"] if SMOKE else []))
