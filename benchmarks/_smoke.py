@@ -36,7 +36,7 @@ SCRIPTS = {
                                            "bifurcation_trefoil.md", "bifurcation_trefoil.png"]),
     "critical_curve_vs_study.py": _entry("b", ["critical_curve_vs_study.json", "critical_curve_vs_study.md"]),
     "cli_start.py": _entry("a", ["cli_start.md", "cli_start.json"]),
-    "cli_startup_breakdown.py": _entry("a", ["cli_startup_breakdown.md"]),
+    "cli_startup_breakdown.py": _entry("a", ["cli_startup_breakdown.md", "cli_startup_breakdown.json"]),
     "command1.py": _entry("a", ["command1.md", "command1.json"]),
     "command1_diagram.py": _entry("a", ["command1_diagram.md", "command1_diagram.json"]),
     "diagram_steps.py": _entry("a", ["diagram_steps.md", "diagram_steps.json"]),

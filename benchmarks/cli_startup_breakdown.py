@@ -20,7 +20,7 @@ import subprocess  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 
-from _bench import SMOKE, TINY_CLI_ARGS, markdown, pick, provenance_line, results_dir  # noqa: E402,F401  (benchmarks/ is on the path)
+from _bench import SMOKE, TINY_CLI_ARGS, markdown, pick, provenance_line, results_dir, with_provenance  # noqa: E402,F401  (benchmarks/ is on the path)
 HERE = os.path.dirname(os.path.abspath(__file__))
 ARGS = pick(["trefoil", "--D", "8", "--L", "292", "--N", "121", "--phi-min", "-12pi", "--phi-max", "14pi"],
             TINY_CLI_ARGS) + ["--quiet"]
@@ -32,16 +32,21 @@ t0 = time.perf_counter()
 import jaxrod.cli as cli
 t_import = time.perf_counter() - t0
 import jax.monitoring as mon
-sums = {}
+sums, programs = {}, {}
 def listen(event, seconds, **kw):
     sums[event] = sums.get(event, 0.0) + seconds
+    name = kw.get("fun_name")
+    if name:  # "jit(f)" for lowering and compilation, "f" for tracing: one program, f
+        name = name[4:-1] if name.startswith("jit(") and name.endswith(")") else name
+        per = programs.setdefault(name, {})
+        per[event] = per.get(event, 0.0) + seconds
 mon.register_event_duration_secs_listener(listen)
 cli.add_cli_xla_flags()
 t1 = time.perf_counter()
 code = cli.main(json.loads(sys.argv[1]))
 t_main = time.perf_counter() - t1
 assert code == 0, code
-print(MARK + json.dumps({"import_s": t_import, "main_s": t_main, "events": sums}))
+print(MARK + json.dumps({"import_s": t_import, "main_s": t_main, "events": sums, "programs": programs}))
 """.replace("MARK", repr(MARK))
 
 
@@ -76,8 +81,8 @@ def main():
              "| phase | cold | warm | warm, --no-figures |", "|---|---|---|---|"]
     lines.append(f"| import jaxrod (interpreter already up) | {cold['import_s']:.1f} | {warm['import_s']:.1f} | "
                  f"{nofig['import_s']:.1f} |")
-    # JAX's backend-compile event wraps compile_or_get_cached, i.e. the cache retrieval too (the
-    # table before 2026-12-03 counted a warm run's loads twice and its arithmetic 3 s short): the
+    # JAX's backend-compile event wraps compile_or_get_cached, i.e. the cache retrieval too
+    # (counted as compilation, a warm run's loads would count twice and its arithmetic short): the
     # compilation proper is that event minus the retrievals.
     backend, load = "/jax/core/compile/backend_compile_duration", "/jax/compilation_cache/cache_retrieval_time_sec"
     for r in (cold, warm, nofig):
@@ -91,9 +96,38 @@ def main():
                  " | ".join(f"{r['rest']:.1f}" for r in (cold, warm, nofig)) + " |")
     lines.append("| main() in all | " + " | ".join(f"{r['main_s']:.1f}" for r in (cold, warm, nofig)) + " |")
     lines += ["", f"Figures: {warm['main_s'] - nofig['main_s']:.1f} s of the warm run (warm minus --no-figures)."]
-    with open(os.path.join(results_dir(), "cli_startup_breakdown.md"), "w") as f:
+    table = program_table(cold["programs"])
+    lines += ["", f"The cold run's costliest programs ({len(cold['programs'])} compiled in all), seconds:", "",
+              "| program | tracing | lowering | XLA compilation | in all |", "|---|---|---|---|---|"]
+    lines += [f"| `{r['program']}` | {r['trace_s']:.2f} | {r['lower_s']:.2f} | {r['compile_s']:.2f} | {r['total_s']:.2f} |"
+              for r in table[:PROGRAMS_SHOWN]]
+    out = results_dir()
+    with open(os.path.join(out, "cli_startup_breakdown.md"), "w") as f:
         f.write(markdown(lines))
+    record = {"args": ARGS, "runs": {name: {"import_s": r["import_s"], "main_s": r["main_s"], "phases": {
+        names[k]: v for k, v in r["phase"].items()}, "rest_s": r["rest"]} for name, r in
+        (("cold", cold), ("warm", warm), ("warm_no_figures", nofig))}, "programs_cold": table}
+    with open(os.path.join(out, "cli_startup_breakdown.json"), "w") as f:
+        json.dump(with_provenance(record), f, indent=1)
     print("\n".join(lines))
+
+
+# Rows of the costliest-programs table in the .md (the .json keeps them all).
+PROGRAMS_SHOWN = 12
+
+
+def program_table(programs):
+    """[{program, trace_s, lower_s, compile_s, total_s}], costliest first, from the per-program
+    sums of JAX's monitoring events."""
+    keys = {"trace_s": "/jax/core/compile/jaxpr_trace_duration",
+            "lower_s": "/jax/core/compile/jaxpr_to_mlir_module_duration",
+            "compile_s": "/jax/core/compile/backend_compile_duration"}
+    rows = []
+    for name, events in programs.items():
+        row = {"program": name, **{k: events.get(e, 0.0) for k, e in keys.items()}}
+        row["total_s"] = row["trace_s"] + row["lower_s"] + row["compile_s"]
+        rows.append(row)
+    return sorted(rows, key=lambda r: -r["total_s"])
 
 
 if __name__ == "__main__":

@@ -187,6 +187,8 @@ def performance_table():
     start = _load("cli_start.json")
     if start:
         for setting, runs in start.items():  # the CLI's XLA flags against XLA's defaults
+            if setting == "provenance":
+                continue
             run = runs[0]
             rows.append([f"command 1, {setting}", "`jaxrod trefoil --D 8 --L 292 --N 121 ...`",
                          f"{run['cold_s']:.1f} s cold / {run['warm_s']:.1f} s second process", "x86_64, 2 cores",
@@ -194,6 +196,8 @@ def performance_table():
     diagram = _load("command1_diagram.json")
     if diagram:
         for name, runs in diagram.items():
+            if name == "provenance":
+                continue
             run = runs[0]
             rows.append([f"command 1, {name}", "`jaxrod trefoil --D 8 --L 292 --N 121 ...`",
                          f"{run['cold_s']:.1f} s cold / {run['warm_s']:.1f} s second process", "x86_64, 2 cores",
@@ -233,6 +237,17 @@ def per_step_table():
                         f"{t['stability']:.2f}"])
     return _table(["scene", "N", "DOFs", "backend", "gradient", "factorise", "solve", "inertia", "lowest 4",
                    "Newton iteration", "stability analysis"], out)
+
+
+def compile_table():
+    data = _load("cli_startup_breakdown.json")
+    if data is None:
+        return _missing("cli_startup_breakdown.json")
+    rows = [[f"`{r['program']}`", f"{r['trace_s']:.2f}", f"{r['lower_s']:.2f}", f"{r['compile_s']:.2f}",
+             f"{r['total_s']:.2f}"] for r in data["programs_cold"][:12]]
+    total = sum(r["total_s"] for r in data["programs_cold"])
+    rows.append([f"all {len(data['programs_cold'])} programs", "", "", "", f"{total:.1f}"])
+    return _table(["program", "tracing (s)", "lowering (s)", "XLA compilation (s)", "in all (s)"], rows)
 
 
 def _csv_rows(name):
@@ -286,4 +301,5 @@ def peer_table():
 
 GENERATORS = {"cli": cli_reference, "validation": validation_table, "performance": performance_table,
               "speed": speed_table, "sparse_contact": sparse_contact_table, "dynamics": dynamics_table,
-              "peer": peer_table, "per_step": per_step_table}
+              "peer": peer_table, "per_step": per_step_table,
+              "compile": compile_table}

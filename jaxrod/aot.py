@@ -237,6 +237,8 @@ def _load_or_export(fn, statics, names, treedef, leaves, path):
         values = jax.tree_util.tree_unflatten(treedef, list(xs))
         return fn(**dict(zip(names, values)), **statics)
 
+    flat.__name__ = flat.__qualname__ = fn.__name__  # JAX's compile logs and events name the program
+
     try:
         exported = export.export(jax.jit(flat))(*leaves)
         data = bytes(exported.serialize())  # fails for outputs that are not plain containers

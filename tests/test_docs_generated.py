@@ -40,7 +40,7 @@ def test_every_validation_row_comes_from_a_result_file(hook):
 
 def test_the_generated_tables_have_rows(hook):
     for make in (hook.performance_table, hook.speed_table, hook.sparse_contact_table, hook.dynamics_table,
-                 hook.peer_table):
+                 hook.peer_table, hook.per_step_table, hook.compile_table):
         table = make()
         assert table.startswith("|") and len(table.splitlines()) > 3, make.__name__
 
