@@ -63,7 +63,9 @@ def add_study_arguments(t, default_out, length_rule):
     t.add_argument("--phi-max", type=parse_angle, default=14.0 * math.pi, help="highest twist, > 0 (default 14pi)")
     t.add_argument("--step", type=parse_angle, default=0.5 * math.pi, help="largest continuation step (default 0.5pi)")
     t.add_argument("--tol", type=parse_angle, default=2e-4 * math.pi,
-                   help="accuracy of the critical twists (default 2e-4pi)")
+                   help="width to which the study brackets a branch end that is not then located exactly on "
+                        "its extended system (a fold or branch point is bracketed to 0.02pi and then located to "
+                        "roundoff; with --stable-only every end to this; default 2e-4pi)")
     t.add_argument("--accuracy", type=parse_angle, default=None,
                    help="instead of the twist study: both critical twists converged in N to this accuracy "
                         "(e.g. 0.01pi): N, 2N-1, 4N-3, ... each started from the previous one, extrapolated "
