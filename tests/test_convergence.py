@@ -206,3 +206,21 @@ def test_a_level_sequence_out_of_its_asymptotic_range_is_not_called_converged_no
     why = unconverged_reason(481, ext, 0.01 * math.pi, levels)
     assert "not in their asymptotic range" in why and "not an error estimate" in why
     assert "changed kind" in why and "241: unstable" in why and ">" not in why
+
+
+def test_the_summary_extrapolates_from_the_located_end_not_the_bracket():
+    # command 1's summary: where the end at N was located on its extended system, the two-level
+    # Richardson uses that value (error 0), not the study's wider bracket
+    from jaxrod.studies.accuracy import Level, richardson
+    from jaxrod.studies.runs.trefoil import extrapolated_fields
+
+    coarse = Level(N=61, phi_star=20.7369, phi_error=2e-4, kind="jump", phi_start=18.0, seconds=1.0)
+    bracketed = richardson([61, 121], [20.7369, 20.3209], [2e-4, 0.03])
+    located = {"phi_plus": 20.3100, "phi_plus_located": {"kind": "fold"}}
+    fields = extrapolated_fields({"plus": (coarse, bracketed)}, located, 121)["phi_plus_extrapolated"]
+    again = richardson([61, 121], [20.7369, 20.3100], [2e-4, 0.0])
+    assert fields["values"] == [20.7369, 20.3100] and fields["value"] == again.value and fields["error"] == again.error
+    assert fields["value"] != bracketed.value
+    # no located end: the study's own extrapolation, unchanged
+    kept = extrapolated_fields({"plus": (coarse, bracketed)}, {"phi_plus": 20.3209}, 121)["phi_plus_extrapolated"]
+    assert kept["value"] == bracketed.value and kept["values"] == [20.7369, 20.3209]

@@ -305,18 +305,14 @@ class _KnotStudy:
         o = self.options
         summary.update({"D": o.D, "L": o.L, "N": o.N, "nu": o.nu, "contact_stiffness": o.contact_stiffness,
                         "out": o.out})
-        if o.extrapolation and found is not None:
-            for side, (level, ext) in found.items():
-                summary[f"phi_{side}_extrapolated"] = {"value": ext.value, "value_over_pi": ext.value / math.pi,
-                                                       "error": ext.error, "error_over_pi": ext.error / math.pi,
-                                                       "N": list(ext.N), "values": list(ext.values),
-                                                       "order": ext.order, "order_measured": ext.order_measured}
-            summary["seconds_extrapolation"] = seconds_extrapolation
         if o.chirality is not None:
             summary["chirality"] = o.chirality
         else:
             summary.update({"knot": o.knot, "curve": o.curve})
         summary = critical_json(summary, critical=result.critical)
+        if o.extrapolation and found is not None:
+            summary.update(extrapolated_fields(found, summary, o.N))
+            summary["seconds_extrapolation"] = seconds_extrapolation
         with open(os.path.join(o.out, "summary.json"), "w") as f:
             json.dump(summary, f, indent=2)
         return summary
@@ -336,6 +332,24 @@ class _KnotStudy:
             from ...io.export import export_study_vtk
 
             self.say(f"wrote {len(export_study_vtk(o.out))} VTK files into {o.out}/vtk/")
+
+
+def extrapolated_fields(found, summary, N):
+    """summary.json's ``phi_<side>_extrapolated`` records from the coarse levels ``found`` ({side:
+    (Level, Extrapolation)}, ``coarse.coarse_companion``) for a study at N nodes. Where ``summary``
+    has the side's end located on its extended system (``phi_<side>_located``), the two-level
+    Richardson is redone with that value (exact to roundoff) in place of the study's bracket."""
+    from ..accuracy import richardson
+
+    fields = {}
+    for side, (level, ext) in found.items():
+        if summary.get(f"phi_{side}_located") is not None:
+            ext = richardson([level.N, N], [level.phi_star, summary[f"phi_{side}"]], [level.phi_error, 0.0])
+        fields[f"phi_{side}_extrapolated"] = {"value": ext.value, "value_over_pi": ext.value / math.pi,
+                                              "error": ext.error, "error_over_pi": ext.error / math.pi,
+                                              "N": list(ext.N), "values": list(ext.values), "order": ext.order,
+                                              "order_measured": ext.order_measured}
+    return fields
 
 
 def critical_json(summary, critical=None, convergence=None):
