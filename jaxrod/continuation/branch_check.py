@@ -85,7 +85,8 @@ class BranchModel:
     def block(self):
         # dH by a central difference of the exact Hessian along (du, 1): two Hessians, where the
         # block by autodiff takes m (m + 1) / 2 third-derivative contractions. Its relative error,
-        # ~(ALONG_STEP |du|)^2, lies far below the first-order model's own.
+        # ~(ALONG_STEP |du|)^2, lies far below the first-order model's own. The Hessians come from
+        # the analysis's own compiled program (no other program to compile for this).
         u = self.scene.to_scaled(np.asarray(self.prev.q, dtype=float))
         h = ALONG_STEP / max(1.0, float(np.max(np.abs(self.du))))
         ends = [np.asarray(scene_linearisation(self.scene, u + s * h * self.du, self.prev.phi + s * h,

@@ -1,8 +1,7 @@
 """Where a followed stable branch ends: the critical modes and eigenvalue (``_critical_mode``),
 the next twist to try while the end is bracketed (``end_trial``, from ``end_estimate``), phi* in
-the bracket
-(``branch_end_in_bracket``), and the near-zero band of a knot's sliding modes, which must not
-hide a mode that changes the shape (``_hidden_shape_modes``, ``eigenvalue_past_zero``)."""
+the bracket (``branch_end_in_bracket``), and the near-zero band of a knot's sliding modes, which
+must not hide a mode that changes the shape (``_hidden_shape_modes``, ``eigenvalue_past_zero``)."""
 from __future__ import annotations
 
 import math
