@@ -241,6 +241,11 @@ def test_trefoil_and_knot_study_json(monkeypatch, tmp_path, capsys):
         assert printed == json.loads((out / "summary.json").read_text())
         for key in ("tightening_side", "seconds", "steps", "N", "D", "L", "nu", "contact_stiffness", "out"):
             assert key in printed, key
+    # the text output: an end that was not located carries its bracket, and says why
+    assert cli.main(["trefoil", "--stable-only", "--N", "61", "--no-extrapolation", "--no-figures", "--quiet",
+                     "--out", str(tmp_path / "text")]) == 0
+    text = capsys.readouterr().out
+    assert f"+- {critical['phi_plus_error'] / math.pi:.1e} pi: the study's bracket" in text and "(--stable-only)" in text
     # an end located on the extended system: its kind, and no bracket
     summary = {"phi_plus": 20.3, "phi_plus_error": None, "phi_plus_located": {"kind": "fold"}, "phi_minus": None,
                "phi_minus_error": None, "steps": 3}

@@ -217,6 +217,11 @@ def _print_study(args, summary):
     for key in ("phi_plus", "phi_minus"):
         v = summary[key]
         print(f"{key:10s} = " + ("none in range" if v is None else f"{v:+.6f} rad = {v / math.pi:+.5f} pi"))
+        error = summary.get(key + "_error")
+        if v is not None and error is not None:  # not located on its extended system: the study's bracket
+            why = "--stable-only" if getattr(args, "stable_only", False) else "see the progress lines"
+            print(f"{'':10s}   +- {error / math.pi:.1e} pi: the study's bracket; this end was not located on its "
+                  f"extended system ({why})")
         ext = summary.get(key + "_extrapolated")
         if ext is not None:
             print(f"{'':10s}   at N = {args.N}, not converged in N: extrapolated {ext['value_over_pi']:+.3f} pi "
