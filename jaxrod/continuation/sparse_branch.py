@@ -13,7 +13,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..linalg import sparse as ss
-from ..linalg.sparse import EXTRA_PAIRS, eigenvalue_branch_derivative  # noqa: F401  (re-exported)
+from ..linalg.sparse import EXTRA_PAIRS
+from ..model.hessian import eigenvalue_branch_derivative  # noqa: F401  (re-exported)
 from ..solve.equilibrium import _grown, equilibrium_from_solution, scaled_energy
 from ..validation import check_finite
 from ..solve.solvers import ConvergenceError, Newton, minimise

@@ -355,21 +355,6 @@ def projected_count_below(scene, u, phi, nbr, s):
     return _projected_count(diag, off, lay.cyclic, U, c, Zr, jnp.asarray(s, diag.dtype))
 
 
-@jax.jit
-def eigenvalue_branch_derivative(scene, u, phi, v, du, nbr):
-    """d lambda/d phi = v^T (dH/du[du] + dH/dphi) v along the branch, for the eigenvector v (n,)
-    and the branch tangent du (n,) (scaled DOFs): nested forward-mode jvps of the scaled energy
-    (Hellmann-Feynman plus the branch's own motion; no Hessian or third-order tensor formed)."""
-    f = lambda uu, pp: scene.scaled_energy(uu, pp, nbr)  # noqa: E731
-
-    def vhv(uu, pp):
-        first = lambda w: jax.jvp(lambda y: f(y, pp), (w,), (v,))[1]  # noqa: E731
-        return jax.jvp(first, (uu,), (v,))[1]
-
-    phi = jnp.asarray(phi, u.dtype)
-    return jax.jvp(vhv, (u, phi), (du, jnp.ones_like(phi)))[1]
-
-
 # Eigenpairs computed beyond the tracked index or the negative count where k does not reach them
 # (room for a degenerate pair crossing and the mode above it); continuation.critical_twist too.
 EXTRA_PAIRS = 4

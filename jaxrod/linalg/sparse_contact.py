@@ -32,7 +32,8 @@ import scipy.sparse.linalg as spl
 
 from ..model.hessian import contact_blocks, hessian_pattern, local_entries
 from .ldlt import FactorisationError, ldlt, negative_count  # noqa: F401  (re-exported)
-from .sparse import EXTRA_PAIRS, _gauge, eigenvalue_branch_derivative, gradient_and_phi_derivative
+from .sparse import EXTRA_PAIRS, _gauge, gradient_and_phi_derivative
+from ..model.hessian import eigenvalue_branch_derivative
 
 __all__ = ["hessian_parts", "assemble", "node_pair_entries", "NODE_TABLE_MAX", "negative_count", "deflated_newton_direction", "SparseHessian", "sparse_hessian",
            "count_below", "lowest_eigenpairs", "contact_spectrum", "contact_branch_analysis", "damped_newton_direction",

@@ -13,7 +13,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..aot import cached_jit
-from ..model.hessian import project_out, scaled_hessian as structured_scaled_hessian
+from ..model.hessian import eigenvalue_branch_derivative, project_out, scaled_hessian as structured_scaled_hessian
 from ..validation import check_finite, refuse_knot
 from .lapack import LAPACK_LOCK
 from .options import backend_name
@@ -305,12 +305,14 @@ def _branch_tangent(scene, u, phi, index, ref, cluster_rtol, pinv_tol, nbr, hp, 
     """The tracked mode (by index, or by overlap with ref), its eigenvalue's phi-derivative along
     the branch and the branch tangent du/dphi (deflated solve), from the lowest eigenpairs and the
     gradient's phi-derivative g_phi. -> (dlam, du (n,), index). d lambda = v^T (dH) v along (du, 1),
-    from ``scene_bilinear_gradient``."""
+    by ``model.hessian.eigenvalue_branch_derivative``: forward mode only, the sparse analyses'
+    program, about half the tracing and compiling of the reverse-mode ``scene_bilinear_gradient``."""
     lam, vec = np.asarray(lam), np.asarray(vec)
     du, index, v = _tangent_solve(np.asarray(hp), np.asarray(z), int(n_zero), lam, vec, index, ref, cluster_rtol,
                                   pinv_tol, np.asarray(g_phi))
-    gu, gp = scene_bilinear_gradient(scene, u, phi, nbr, v, v, 0.0)
-    return float(np.dot(np.asarray(gu), du) + float(gp)), du, index
+    dlam = eigenvalue_branch_derivative(scene, jnp.asarray(u, jnp.float64), jnp.asarray(phi, jnp.float64),
+                                        jnp.asarray(v), jnp.asarray(du), nbr)
+    return float(dlam), du, index
 
 
 def _stability_from_lowest(lam, vec, n_zero, n_negative, k, tol):

@@ -27,7 +27,7 @@ from .layout import dof_layout, layout_of
 from .terms import Coupling
 
 __all__ = ["HessianPattern", "hessian_pattern", "pattern_of", "scaled_hessian", "dense_autodiff_hessian",
-           "holonomy_rank_one", "project_out", "contact_blocks", "local_entries"]
+           "holonomy_rank_one", "project_out", "contact_blocks", "local_entries", "eigenvalue_branch_derivative"]
 
 
 @dataclass(frozen=True)
@@ -272,3 +272,18 @@ def project_out(h, z, xp=jnp):
     zb = xp.concatenate([z, hz], axis=1)
     hp = h + (zb @ core) @ zb.T
     return 0.5 * (hp + hp.T)
+
+
+@jax.jit  # one program per scene shape, shared by the dense and the sparse analyses
+def eigenvalue_branch_derivative(scene, u, phi, v, du, nbr):
+    """d lambda/d phi = v^T (dH/du[du] + dH/dphi) v along the branch, for the eigenvector v (n,)
+    and the branch tangent du (n,) (scaled DOFs): nested forward-mode jvps of the scaled energy
+    (Hellmann-Feynman plus the branch's own motion; no Hessian or third-order tensor formed)."""
+    f = lambda uu, pp: scene.scaled_energy(uu, pp, nbr)  # noqa: E731
+
+    def vhv(uu, pp):
+        first = lambda w: jax.jvp(lambda y: f(y, pp), (w,), (v,))[1]  # noqa: E731
+        return jax.jvp(first, (uu,), (v,))[1]
+
+    phi = jnp.asarray(phi, u.dtype)
+    return jax.jvp(vhv, (u, phi), (du, jnp.ones_like(phi)))[1]
