@@ -18,7 +18,7 @@ import jaxrod as jr
 from jaxrod.studies.twist import twist_study
 
 PI = math.pi
-RANGE = (-0.5 * PI, 7.5 * PI)  # the opening side's fold at 6.60 pi, a switch, the buckled branch
+RANGE = (-0.5 * PI, 7.5 * PI)  # the opening side's fold at 6.83 pi (N = 41), a switch, the buckled branch
 STEP = 1.0 * PI  # 7 steps to the fold: the sixth step file is written before the bisection starts
 
 # The subprocess: imports jaxrod once (which starts no XLA backend and no thread, so forking is
@@ -57,7 +57,7 @@ SCRIPT = textwrap.dedent("""
             if moment == "after-switch" and message.startswith("[buckled+] phi"):
                 kill()
 
-        scene = jr.trefoil(D=8.0, L=292.0, N=61)
+        scene = jr.trefoil(D=8.0, L=292.0, N=41)
         study.twist_study(scene, %r, %r, jr.ContinuationOptions(step=%r, tol=1e-3 * math.pi), out=out,
                           observer=jr.Observer(progress=progress))
 
@@ -94,7 +94,7 @@ def _arrays(path):
 
 
 def test_sigkill_at_three_moments_resumes_to_the_uninterrupted_files(tmp_path):
-    scene = jr.trefoil(D=8.0, L=292.0, N=61)
+    scene = jr.trefoil(D=8.0, L=292.0, N=41)
     whole = tmp_path / "whole"
     ref = twist_study(scene, *RANGE, jr.ContinuationOptions(step=STEP, tol=1e-3 * PI), out=str(whole))
     assert ref.critical["phi_plus"] is not None and len(ref.critical["instabilities"]) >= 1

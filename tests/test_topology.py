@@ -277,3 +277,15 @@ def test_eccentric_line():
     d1 = rng.normal(size=(9, 3))
     d1 /= np.linalg.norm(d1, axis=1, keepdims=True)
     np.testing.assert_allclose(np.asarray(eccentric_line(x, d1, 0.25)), x + 0.25 * d1, atol=0)
+
+
+@pytest.mark.parametrize("closed", [True, False])
+def test_writhe_on_the_host_equals_the_compiled_writhe(closed):
+    # a concrete small polygon is summed by NumPy, a traced one by JAX: the same number to roundoff
+    for n in (7, 8, 61, topology.HOST_WRITHE_MAX_NODES):
+        x = trefoil(n) + 0.01 * np.sin(np.arange(3 * n)).reshape(n, 3)
+        host = writhe(x, closed=closed)
+        assert isinstance(host, float)
+        assert host == pytest.approx(float(jax.jit(writhe, static_argnames="closed")(x, closed=closed)), abs=1e-13)
+    big = trefoil(topology.HOST_WRITHE_MAX_NODES + 1)
+    assert isinstance(writhe(big, closed=closed), jax.Array)  # above the limit: the compiled sum

@@ -64,28 +64,29 @@ def solid_angle_literal(p1, p2, p3, p4):
     return omega_star * s
 
 
-def _triangle_solid_angle(a, b, c):
+def _triangle_solid_angle(a, b, c, xp=jnp):
     """Signed solid angle subtended at the origin by the triangle (a, b, c). a, b, c: (..., 3) ->
     (...,), in (-2 pi, 2 pi), with the sign of a.(b x c). Van Oosterom & Strackee (1983):
     tan(Omega/2) = a.(b x c) / (|a||b||c| + (a.b)|c| + (a.c)|b| + (b.c)|a|), via atan2; smooth
-    wherever the triangle does not contain the origin."""
-    la, lb, lc = safe_norm(a), safe_norm(b), safe_norm(c)
-    num = jnp.sum(a * jnp.cross(b, c), axis=-1)
-    den = (la * lb * lc + jnp.sum(a * b, axis=-1) * lc + jnp.sum(a * c, axis=-1) * lb + jnp.sum(b * c, axis=-1) * la)
+    wherever the triangle does not contain the origin. ``xp``: jax.numpy, or numpy on the host."""
+    norm = safe_norm if xp is jnp else (lambda v: np.sqrt(np.sum(v * v, axis=-1)))
+    la, lb, lc = norm(a), norm(b), norm(c)
+    num = xp.sum(a * xp.cross(b, c), axis=-1)
+    den = (la * lb * lc + xp.sum(a * b, axis=-1) * lc + xp.sum(a * c, axis=-1) * lb + xp.sum(b * c, axis=-1) * la)
     # (num, den) == (0, 0) only for degenerate triangles (touching segments): 0, zero gradient.
     degenerate = (num == 0.0) & (den == 0.0)
-    return jnp.where(
+    return xp.where(
         degenerate,
         0.0,
-        2.0 * jnp.arctan2(jnp.where(degenerate, 0.0, num), jnp.where(degenerate, 1.0, den)),
+        2.0 * xp.arctan2(xp.where(degenerate, 0.0, num), xp.where(degenerate, 1.0, den)),
     )
 
 
-def solid_angle(p1, p2, p3, p4):
+def solid_angle(p1, p2, p3, p4, xp=jnp):
     """Signed Klenin-Langowski solid angle Omega of segment pairs, smooth form.
 
     p1, p2, p3, p4: broadcastable (..., 3) arrays (segments p1->p2 and p3->p4) -> Omega (...,),
-    equal to ``solid_angle_literal`` (tested to 1e-12).
+    equal to ``solid_angle_literal`` (tested to 1e-12). ``xp``: jax.numpy, or numpy on the host.
 
     The Gauss integral over two segments is the signed solid angle of the parallelogram of
     difference vectors (corners r13, r14, r24, r23); split into two Van Oosterom-Strackee
@@ -98,13 +99,13 @@ def solid_angle(p1, p2, p3, p4):
     r23 = p3 - p2
     r24 = p4 - p2
     # Orientation: the overall minus gives the KL Omega's sign sign((r34 x r12).r13) (tested).
-    return -(_triangle_solid_angle(r13, r14, r24) + _triangle_solid_angle(r13, r24, r23))
+    return -(_triangle_solid_angle(r13, r14, r24, xp) + _triangle_solid_angle(r13, r24, r23, xp))
 
 
-def _segments(x, closed):
+def _segments(x, closed, xp=jnp):
     """Segment start and end points of a polygon x (N, 3): each (N, 3) if closed else (N-1, 3)."""
     if closed:
-        return x, jnp.roll(x, -1, axis=0)
+        return x, xp.roll(x, -1, axis=0)
     return x[:-1], x[1:]
 
 
@@ -126,18 +127,22 @@ def _pair_sum(a0, a1, b0, b1, mask):
     return jnp.sum(jnp.where(mask, 0.0, omega))
 
 
+# Up to this many vertices a concrete polygon's writhe is summed by NumPy: 4 ms at N = 121, where
+# compiling the JAX program for a new N takes about 150 ms (each node count is its own program);
+# at N = 961 NumPy takes 170 ms against 55 ms compiled, so large rods, whose runs are long, compile.
+HOST_WRITHE_MAX_NODES = 300
+
 # Offsets per lax.map block in ``writhe``: 64 x N pairs at a time keeps the working set in cache.
 _WRITHE_CHUNK = 64
 
 
-@partial(jax.jit, static_argnames="closed")
 def writhe(x, closed=True):
     """Exact writhe of a polygon (Klenin & Langowski 2000 solid-angle formula).
 
     Args:
       x: (N, 3) vertices.  If ``closed`` the N edges are x[k] -> x[k+1] with x[N-1] -> x[0];
         otherwise the N-1 edges x[k] -> x[k+1].
-      closed: static bool.
+      closed: bool.
 
     Returns:
       scalar Wr = sum over ordered pairs i != j of Omega_ij / (4 pi), adjacent segments
@@ -146,17 +151,43 @@ def writhe(x, closed=True):
     How: Omega is symmetric, so each unordered pair is evaluated once, by cyclic offset
     d = j - i (mod n): offsets 2 ... n // 2 hold every non-adjacent pair of a closed polygon once
     (offset n / 2, n even, twice); an open polygon also needs the pair (0, n-1), added.
-    O(N^2) time, O(N) memory per block of offsets.
+    O(N^2) time, O(N) memory per block of offsets. Inside a JAX trace (jit, grad, vmap), and for
+    polygons of more than ``HOST_WRITHE_MAX_NODES`` vertices, it is compiled JAX code; a smaller
+    concrete polygon is summed by NumPy on the host (a float), the same pairs in the same blocks.
     """
+    if isinstance(x, jax.core.Tracer) or np.shape(x)[0] > HOST_WRITHE_MAX_NODES:
+        return _writhe_traced(x, closed=closed)
+    x = np.asarray(x, dtype=float)
+    a0, a1 = _segments(x, closed, np)
+    n = a0.shape[0]
+    i = np.arange(n)
+    total = 0.0
+    for first in range(2, n // 2 + 1, _WRITHE_CHUNK):
+        d = np.arange(first, min(first + _WRITHE_CHUNK, n // 2 + 1))
+        j = (i[None, :] + d[:, None]) % n
+        omega = solid_angle(a0[None], a1[None], a0[j], a1[j], xp=np)
+        total += float(np.sum(omega * _offset_weights(d, n)[:, None]))
+    if not closed and n >= 3:
+        total += 2.0 * float(solid_angle(a0[0], a1[0], a0[n - 1], a1[n - 1], xp=np))
+    return total / _FOUR_PI
+
+
+def _offset_weights(offsets, n):
+    """Pairs at offset d are counted for both orders (weight 2), except d = n/2, whose i-sum
+    already holds each pair twice."""
+    return np.where(2 * offsets == n, 1.0, 2.0)
+
+
+@partial(jax.jit, static_argnames="closed")
+def _writhe_traced(x, closed=True):
+    """``writhe`` as JAX code (differentiable, for traced x)."""
     x = jnp.asarray(x)
     a0, a1 = _segments(x, closed)
     n = a0.shape[0]
     total = jnp.zeros((), x.dtype)
     offsets = np.arange(2, n // 2 + 1)
     if offsets.size:
-        # Pairs at offset d are counted for both orders (weight 2), except d = n/2, whose
-        # i-sum already holds each pair twice.
-        weights = np.where(2 * offsets == n, 1.0, 2.0)
+        weights = _offset_weights(offsets, n)
         pad = (-offsets.size) % _WRITHE_CHUNK
         offsets = np.concatenate([offsets, np.full(pad, 2)]).reshape(-1, _WRITHE_CHUNK)
         weights = np.concatenate([weights, np.zeros(pad)]).reshape(-1, _WRITHE_CHUNK)
