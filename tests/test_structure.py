@@ -94,13 +94,14 @@ def test_no_import_cycle():
 # ``aot`` (the compile cache) and ``validation`` (argument checks) serve every layer.
 LAYERS = ("base", "model", "measure", "linalg", "solve", "continuation", "io", "studies", "cli")
 BASE = ("jaxrod.aot", "jaxrod.validation")
+TOP = ("jaxrod.api", "jaxrod.differentiable")
 
 
 def _layer(module):
     if module in BASE:
         return 0
     parts = module.split(".")
-    if len(parts) == 1 or module == "jaxrod.api":  # the package and its public API, above everything
+    if len(parts) == 1 or module in TOP:  # the package and its public API, above everything
         return len(LAYERS)
     return LAYERS.index(parts[1])
 
