@@ -450,18 +450,19 @@ def critical_twists(scene, phi_min=-8.0 * math.pi, phi_max=8.0 * math.pi, option
 
 def _knot_sensitivity(scene, end, parameter):
     """d phi*/d parameter at a knot's located fold (``fold_sensitivity`` on its extended system)."""
-    from .continuation.arclength import fold_sensitivity
+    from .continuation.arclength import branch_point_sensitivity, fold_sensitivity
 
-    if end.kind != EventKind.FOLD:
+    if end.kind not in (EventKind.FOLD, EventKind.BRANCH_POINT):
         raise ValueError(f"the {end.side} end is a {end.kind}: the sensitivity of a knot's critical twist is "
-                         "computed at a fold (the fold system's implicit function theorem)")
+                         "computed at a fold or a simple branch point (the implicit function theorem on its system)")
     rod, ev = end.source.rod, end.source.event
     base = parameter_value(rod.problem.args.scene, parameter)
 
     def set_mu(args, mu):
         return args._replace(scene=args.scene.with_params(**{parameter: mu}))
 
-    return float(fold_sensitivity(rod.problem, ev, set_mu, base))
+    at = fold_sensitivity if end.kind == EventKind.FOLD else branch_point_sensitivity
+    return float(at(rod.problem, ev, set_mu, base))
 
 
 def parameter_value(scene, parameter):
@@ -479,8 +480,9 @@ def critical_twist_sensitivity(scene, end, parameter):
     """The derivative d phi* / d parameter of a critical twist.
 
     Rings and clamped rods: the implicit function theorem on the crossing eigenvalue
-    (``critical_twist_derivative``); knots: on the fold system at the located fold
-    (``fold_sensitivity``).
+    (``critical_twist_derivative``); knots: on the fold system at a located fold
+    (``fold_sensitivity``), on the unfolded branch-point system at a simple branch point
+    (``branch_point_sensitivity``).
 
     Parameters
     ----------
@@ -502,7 +504,7 @@ def critical_twist_sensitivity(scene, end, parameter):
     TypeError
         ``end`` is not a ``CriticalEnd``.
     ValueError
-        An unknown parameter, or a knot's end that is not a fold.
+        An unknown parameter, or a knot's end that is neither a fold nor a branch point.
     """
     if not isinstance(end, CriticalEnd):
         raise TypeError(f"end must be a CriticalEnd (from critical_twists), got {type(end).__name__}")

@@ -84,3 +84,16 @@ def test_bad_input_names_the_argument(ring, phi_of_nu):
         phi_of_nu(jnp.array([NU, 0.1]))
     with pytest.raises(ValueError, match="tol"):
         match_critical_twist(ring, "plus", "nu", 5.0 * PI, tol=0.0)
+
+
+def test_a_knots_branch_point_has_its_derivative_from_the_unfolded_system():
+    # the trefoil's phi > 0 end at N = 41 is a simple branch point (Morse index 0 -> 1): its
+    # derivative in D by the implicit function theorem on the unfolded branch-point system, against
+    # central differences of the located ends (h = 1e-4 mm: measured, h = 1e-3 is off by 4.5e-5 by
+    # truncation and 1e-4 by 4.5e-7; the ends are located to ~1e-10 rad)
+    knot = jr.trefoil(D=8.0, L=292.0, N=41)
+    f = critical_twist_function(knot, "plus", "D", -0.5 * PI, 8.0 * PI)
+    slope = float(jax.grad(f)(jnp.array([8.0]))[0])
+    h = 1e-4
+    central = (float(f(jnp.array([8.0 + h]))) - float(f(jnp.array([8.0 - h])))) / (2 * h)
+    assert slope == pytest.approx(central, rel=1e-5) and abs(slope) > 0.01
