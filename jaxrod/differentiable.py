@@ -28,7 +28,7 @@ import numpy as np
 
 from .api import _is_knot, _knot_ends, _ring_end, critical_twist_sensitivity, parameter_value
 
-__all__ = ["critical_twist_function", "match_critical_twist", "DesignResult"]
+__all__ = ["critical_twist_function", "match_critical_twist", "DesignResult", "Measurement", "FitResult", "fit_critical_twists"]
 
 SIDES = ("plus", "minus")
 
@@ -201,3 +201,89 @@ def match_critical_twist(scene, side, parameter, target, tol=1e-8, max_iteration
         p, phi, slope = p + step, phi_new, slope_new
     return DesignResult(p, phi, target, False, int(max_iterations), phi - target,
                         f"max_iterations = {max_iterations} reached")
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """One measured critical twist: the rod it was measured on (its scene, at the starting values of
+    the fitted parameters), the side ('plus' or 'minus'), phi (rad) and its standard error sigma (rad)."""
+
+    scene: object
+    side: str
+    phi: float
+    sigma: float
+
+
+@dataclass(frozen=True)
+class FitResult:
+    """values (k,): the fitted parameters; standard_errors (k,): from the exact Jacobian J of the
+    weighted residuals, sqrt(diag((J^T J)^-1)) (the sigmas taken as given, no rescaling); residuals
+    (m,): phi*_i - phi_i (rad) at the fit; chi2: the sum of the squared weighted residuals;
+    converged, iterations (model evaluations), reason: from SciPy's least_squares."""
+
+    parameters: tuple
+    values: np.ndarray
+    standard_errors: np.ndarray
+    residuals: np.ndarray
+    chi2: float
+    converged: bool
+    iterations: int
+    reason: str
+
+
+def fit_critical_twists(measurements, parameters, start=None, phi_min=-16.0 * math.pi, phi_max=16.0 * math.pi,
+                        options=None):
+    """Fit scene parameters to measured critical twists by weighted least squares.
+
+    Each measurement's model is ``critical_twist_function(m.scene, m.side, parameters)``; the
+    residuals (phi*_i(p) - phi_i) / sigma_i are minimised by SciPy's ``least_squares`` (trust-region
+    reflective) with the exact Jacobian (the implicit function theorem at each located end).
+
+    Parameters
+    ----------
+    measurements : sequence of Measurement
+        At least as many as parameters; sigma > 0.
+    parameters : sequence of str
+        Names in the scenes' ``PARAMETERS``, shared by every measurement.
+    start : array_like (k,), optional
+        Starting values (default: the first measurement's scene's own values).
+    phi_min, phi_max, options
+        As for ``critical_twists``, for every measurement.
+
+    Returns
+    -------
+    FitResult
+
+    Raises
+    ------
+    ValueError
+        No measurement, fewer measurements than parameters, a sigma that is not > 0, or a start of
+        the wrong length.
+    """
+    from scipy.optimize import least_squares
+
+    names = (parameters,) if isinstance(parameters, str) else tuple(parameters)
+    ms = tuple(measurements)
+    if not ms or len(ms) < len(names):
+        raise ValueError(f"measurements: need at least {len(names)} (one per parameter), got {len(ms)}")
+    if not all(float(m.sigma) > 0.0 for m in ms):
+        raise ValueError("measurements: every sigma must be > 0 (rad)")
+    fns = [critical_twist_function(m.scene, m.side, names, phi_min, phi_max, options) for m in ms]
+    x0 = np.asarray(fns[0].base if start is None else start, dtype=float)
+    if x0.shape != (len(names),):
+        raise ValueError(f"start must have {len(names)} values, one per parameter {names}; got shape {x0.shape}")
+    sigma = np.array([float(m.sigma) for m in ms])
+    phi = np.array([float(m.phi) for m in ms])
+    models = [jax.value_and_grad(f) for f in fns]
+
+    def evaluate(x):
+        pairs = [model(jnp.asarray(x)) for model in models]
+        return np.array([float(v) for v, _ in pairs]), np.array([np.asarray(g) for _, g in pairs])
+
+    sol = least_squares(lambda x: (evaluate(x)[0] - phi) / sigma, x0, jac=lambda x: evaluate(x)[1] / sigma[:, None],
+                        method="trf", x_scale="jac")
+    values, jac = evaluate(sol.x)
+    weighted = jac / sigma[:, None]
+    errors = np.sqrt(np.diag(np.linalg.pinv(weighted.T @ weighted)))
+    return FitResult(names, sol.x, errors, values - phi, float(np.sum(((values - phi) / sigma) ** 2)),
+                     bool(sol.success), int(sol.nfev), str(sol.message))

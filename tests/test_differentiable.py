@@ -97,3 +97,20 @@ def test_a_knots_branch_point_has_its_derivative_from_the_unfolded_system():
     h = 1e-4
     central = (float(f(jnp.array([8.0 + h]))) - float(f(jnp.array([8.0 - h])))) / (2 * h)
     assert slope == pytest.approx(central, rel=1e-5) and abs(slope) > 0.01
+
+
+def test_a_fit_recovers_the_poisson_ratio_and_its_standard_error(ring):
+    from jaxrod.differentiable import Measurement, fit_critical_twists
+
+    rods = (ring, jr.michell_ring(N=32, nu=NU))
+    nu_true, sigma = 0.35, 0.01
+    truth = [float(critical_twist_function(r, "plus", "nu", *RANGE)(jnp.array([nu_true]))) for r in rods]
+    fit = fit_critical_twists([Measurement(r, "plus", t, sigma) for r, t in zip(rods, truth)], ("nu",),
+                              phi_min=RANGE[0], phi_max=RANGE[1])
+    assert fit.converged and fit.values[0] == pytest.approx(nu_true, abs=1e-8), fit
+    assert np.max(np.abs(fit.residuals)) < 1e-7 and fit.chi2 < 1e-9
+    # one parameter: sigma_nu = 1 / sqrt(sum_i (dphi_i/dnu / sigma)^2), dphi/dnu = phi / (1 + nu)
+    expected = 1.0 / math.sqrt(sum((t / (1 + nu_true) / sigma) ** 2 for t in truth))
+    assert fit.standard_errors[0] == pytest.approx(expected, rel=1e-5)
+    with pytest.raises(ValueError, match="sigma"):
+        fit_critical_twists([Measurement(ring, "plus", truth[0], 0.0)], ("nu",))
