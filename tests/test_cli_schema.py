@@ -173,7 +173,7 @@ def test_every_stated_minimum_is_enforced_with_an_error_naming_the_flag(tmp_path
 
 def test_every_angle_option_takes_negative_values_and_multiples_of_pi():
     parser = cli.build_parser()
-    before = {"analyze": ["centre.npz"]}
+    before = {"analyze": ["centre.npz"], "fit": ["onsets.csv"]}
     angles = [(command, action) for command, action in _options(parser) if action.type is cli.parse_angle]
     assert {_flag(a) for _, a in angles} == set(cli.ANGLE_OPTIONS)
     for command, action in angles:

@@ -1,4 +1,4 @@
-"""Critical twists as differentiable functions of the scene's parameters (jaxrod.differentiable):
+"""Critical twists as differentiable functions of the scene's parameters (jaxrod.studies.differentiable):
 jax.grad, jacfwd, jit and vmap go through phi*(p), whose derivative is the implicit-function
 theorem's at the located end. Checked on Michell's ring, where phi* is proportional to 1 / C in the
 discrete model as in the continuum (phi* = 2 pi sqrt(3) B / C): d phi*/d nu = phi* / (1 + nu) and
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import jaxrod as jr
-from jaxrod.differentiable import critical_twist_function, match_critical_twist
+from jaxrod.studies.differentiable import critical_twist_function, match_critical_twist
 
 PI = math.pi
 NU = 0.3
@@ -100,7 +100,7 @@ def test_a_knots_branch_point_has_its_derivative_from_the_unfolded_system():
 
 
 def test_a_fit_recovers_the_poisson_ratio_and_its_standard_error(ring):
-    from jaxrod.differentiable import Measurement, fit_critical_twists
+    from jaxrod.studies.differentiable import Measurement, fit_critical_twists
 
     rods = (ring, jr.michell_ring(N=32, nu=NU))
     nu_true, sigma = 0.35, 0.01
@@ -114,3 +114,27 @@ def test_a_fit_recovers_the_poisson_ratio_and_its_standard_error(ring):
     assert fit.standard_errors[0] == pytest.approx(expected, rel=1e-5)
     with pytest.raises(ValueError, match="sigma"):
         fit_critical_twists([Measurement(ring, "plus", truth[0], 0.0)], ("nu",))
+
+
+def test_the_fit_command_reads_a_csv_and_writes_the_estimates(tmp_path, capsys):
+    import json
+
+    from jaxrod.cli import main
+
+    length = 2 * PI  # Michell's ring of radius 1: D = 0.01 R
+    truth = [float(critical_twist_function(jr.michell_ring(N=n, nu=NU), "plus", "nu", *RANGE)(jnp.array([0.35])))
+             for n in (24, 32)]
+    table = tmp_path / "onsets.csv"
+    table.write_text("knot,N,D,L,side,phi,sigma\n" + "".join(
+        f"ring,{n},{0.01 * length / (2 * PI)!r},{length!r},plus,{t!r},0.03\n" for n, t in zip((24, 32), truth)))
+    out = tmp_path / "fit"
+    assert main(["fit", str(table), "--nu", str(NU), "--phi-min", "-1", "--phi-max", "8pi", "--out", str(out),
+                 "--quiet"]) == 0
+    saved = json.loads((out / "fit.json").read_text())
+    assert saved["converged"] and saved["parameters"]["nu"]["value"] == pytest.approx(0.35, abs=1e-8)
+    assert saved["parameters"]["nu"]["standard_error"] > 0 and len(saved["measurements"]) == 2
+    assert "nu = 0.35" in capsys.readouterr().out
+    bad = tmp_path / "bad.csv"
+    bad.write_text("knot,N,D,L,side,phi\nring,24,0.01,6.28,plus,4.8pi\n")
+    assert main(["fit", str(bad)]) == 2
+    assert "no column sigma" in capsys.readouterr().err

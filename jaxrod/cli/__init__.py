@@ -1,8 +1,9 @@
 """Command line: ``jaxrod michell ...``, ``jaxrod trefoil ...``, ``jaxrod knot ...``, ``jaxrod atlas ...``,
-``jaxrod analyze CENTRELINE ECCENTRIC ...``, ``jaxrod helix ...``, ``jaxrod critical-curve ...``.
+``jaxrod analyze CENTRELINE ECCENTRIC ...``, ``jaxrod helix ...``, ``jaxrod critical-curve ...``,
+``jaxrod fit MEASUREMENTS ...``.
 
 One module per command (``michell``, ``analyze``, ``trefoil``, ``knot``, ``atlas``, ``helix``,
-``critical_curve``): each adds its parser, checks its arguments, builds the options of a study in
+``critical_curve``, ``fit``): each adds its parser, checks its arguments, builds the options of a study in
 ``jaxrod.studies`` (the pipelines: ``jaxrod.studies.runs``), calls it and prints the result. The
 parser is assembled in ``parser``, the shared pieces (angles, --out, progress, compile cache) are
 in ``common``, and ``main`` runs a command.

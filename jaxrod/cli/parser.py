@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import argparse
 
-from . import analyze, atlas, critical_curve, helix, knot, michell, trefoil
+from . import analyze, atlas, critical_curve, fit, helix, knot, michell, trefoil
 
 # Each command's module: add_parser(sub, formatter_class) adds its parser, run(args) runs it.
-COMMANDS = {module.NAME: module for module in (michell, analyze, trefoil, knot, atlas, helix, critical_curve)}
+COMMANDS = {module.NAME: module for module in (michell, analyze, trefoil, knot, atlas, helix, critical_curve, fit)}
 
 
 class Parser(argparse.ArgumentParser):

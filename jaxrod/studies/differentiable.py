@@ -26,7 +26,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .api import _is_knot, _knot_ends, _ring_end, critical_twist_sensitivity, parameter_value
+from .critical_ends import critical_twist_sensitivity, is_knot, knot_ends, parameter_value, ring_end
 
 __all__ = ["critical_twist_function", "match_critical_twist", "DesignResult", "Measurement", "FitResult", "fit_critical_twists"]
 
@@ -41,13 +41,13 @@ def _end_solver(scene, side, names, phi_min, phi_max, options):
     @functools.lru_cache(maxsize=64)
     def solve(values):
         rod = scene.with_params(**dict(zip(names, values)))
-        if _is_knot(rod):  # a knot's twist study runs both sides; the other may end out of range
-            end = _knot_ends(rod, phi_min, phi_max, options).get(side)
+        if is_knot(rod):  # a knot's twist study runs both sides; the other may end out of range
+            end = knot_ends(rod, phi_min, phi_max, options).get(side)
             if end is None:
                 raise RuntimeError(f"no branch end on the {side} side between {phi_min / math.pi:+.4f} pi and "
                                    f"{phi_max / math.pi:+.4f} pi (at {dict(zip(names, values))})")
         else:  # a ring or a clamped rod: this side only
-            end = _ring_end(rod, side, phi_max if side == "plus" else phi_min, options)
+            end = ring_end(rod, side, phi_max if side == "plus" else phi_min, options)
         slope = [critical_twist_sensitivity(rod, end, name) for name in names]
         return float(end.phi), np.asarray(slope, dtype=np.float64)
 
