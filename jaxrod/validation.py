@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import sys
 
-__all__ = ["check_finite", "check_positive", "check_int_at_least", "check_poisson_ratio", "check_points",
+__all__ = ["parse_angle_text", "check_finite", "check_positive", "check_int_at_least", "check_poisson_ratio", "check_points",
            "refuse_knot", "is_traced", "require_concrete"]
 
 
@@ -124,3 +124,15 @@ def refuse_knot(scene, what):
             "follow_twist / twist_study, or exactly with jaxrod.continuation.arclength.rods.knot_problem and "
             "jaxrod.continuation.arclength.continuation (folds of the extended system); the derivative of a fold's phi* "
             "with jaxrod.continuation.arclength.fold_sensitivity")
+
+
+def parse_angle_text(text, name):
+    """An angle in radians from '6.5pi', '-8*pi', 'pi' or a plain number; ValueError naming ``name``."""
+    s = str(text).strip().lower().replace(" ", "")
+    try:
+        if s.endswith("pi"):
+            head = s[:-2].rstrip("*")
+            return (1.0 if head in ("", "+") else -1.0 if head == "-" else float(head)) * math.pi
+        return float(s)
+    except ValueError:
+        raise ValueError(f"{name}: not an angle: {text!r} (use e.g. 12pi or 3.7)") from None

@@ -138,3 +138,11 @@ def test_the_fit_command_reads_a_csv_and_writes_the_estimates(tmp_path, capsys):
     bad.write_text("knot,N,D,L,side,phi\nring,24,0.01,6.28,plus,4.8pi\n")
     assert main(["fit", str(bad)]) == 2
     assert "no column sigma" in capsys.readouterr().err
+
+
+def test_a_knots_double_branch_point_is_refused_not_differentiated():
+    knot = jr.trefoil(D=8.0, L=292.0, N=41)
+    double = jr.CriticalEnd(side="plus", phi=6.8 * PI, kind=jr.EventKind.BRANCH_POINT, bracket=(6.7 * PI, 6.9 * PI),
+                            phi_error=1e-10, q=np.zeros(knot.n_dof), mode=np.zeros(knot.n_dof), multiplicity=2)
+    with pytest.raises(ValueError, match="multiplicity 2"):
+        jr.critical_twist_sensitivity(knot, double, "D")

@@ -16,13 +16,10 @@ ANGLE_OPTIONS = ("--phi-min", "--phi-max", "--step", "--tol", "--span", "--accur
 
 def parse_angle(text):
     """Parse an angle in radians; accepts '12pi', '-8*pi', '3.5pi', 'pi', or a plain number."""
-    s = text.strip().lower().replace(" ", "")
+    from ..validation import parse_angle_text
+
     try:
-        if s.endswith("pi"):
-            head = s[:-2].rstrip("*")
-            factor = 1.0 if head in ("", "+") else -1.0 if head == "-" else float(head)
-            return factor * math.pi
-        return float(s)
+        return parse_angle_text(text, "angle")
     except ValueError:
         raise argparse.ArgumentTypeError(f"not an angle: {text!r} (use e.g. 12pi or 3.7)") from None
 

@@ -218,12 +218,17 @@ def critical_twists(scene, phi_min=-8.0 * math.pi, phi_max=8.0 * math.pi, option
 
 
 def _knot_sensitivity(scene, end, parameter):
-    """d phi*/d parameter at a knot's located fold (``fold_sensitivity`` on its extended system)."""
+    """d phi*/d parameter at a knot's located fold (``fold_sensitivity`` on its extended system) or
+    simple branch point (``branch_point_sensitivity`` on the unfolded system)."""
     from ..continuation.arclength import branch_point_sensitivity, fold_sensitivity
 
     if end.kind not in (EventKind.FOLD, EventKind.BRANCH_POINT):
         raise ValueError(f"the {end.side} end is a {end.kind}: the sensitivity of a knot's critical twist is "
                          "computed at a fold or a simple branch point (the implicit function theorem on its system)")
+    if end.kind == EventKind.BRANCH_POINT and end.multiplicity > 1:
+        # the unfolded system is singular where two eigenvalues cross together: no derivative
+        raise ValueError(f"the {end.side} end is a branch point of multiplicity {end.multiplicity}: its location "
+                         "has no derivative from the unfolded system (a simple branch point has)")
     rod, ev = end.source.rod, end.source.event
     base = parameter_value(rod.problem.args.scene, parameter)
 

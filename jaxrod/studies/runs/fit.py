@@ -9,20 +9,10 @@ import os
 
 import numpy as np
 
+from ...validation import parse_angle_text
+
 COLUMNS = ("knot", "N", "D", "L", "side", "phi", "sigma")
 RING = "ring"  # a Michell ring (B = 1, radius L / 2 pi) instead of a tabulated knot
-
-
-def parse_angle_text(text, what):
-    """An angle in radians from '6.5pi', '-11pi', 'pi' or a plain number; ValueError naming ``what``."""
-    s = str(text).strip().lower().replace(" ", "")
-    try:
-        if s.endswith("pi"):
-            head = s[:-2].rstrip("*")
-            return (1.0 if head in ("", "+") else -1.0 if head == "-" else float(head)) * math.pi
-        return float(s)
-    except ValueError:
-        raise ValueError(f"{what}: not an angle: {text!r} (use e.g. 6.5pi or 20.4)") from None
 
 
 def read_measurements(path):
