@@ -36,7 +36,9 @@ SIDES = ("plus", "minus")
 def _end_solver(scene, side, names, phi_min, phi_max, options):
     """solve(values: tuple of floats) -> (phi*, d phi*/d values (k,)): one side's end located on the
     host and its exact sensitivities; the last 64 kept (a value and its derivative come from one
-    location)."""
+    location). ValueError for an unknown side."""
+    if side not in SIDES:
+        raise ValueError(f"side must be 'plus' or 'minus', got {side!r}")
 
     @functools.lru_cache(maxsize=64)
     def solve(values):
@@ -81,13 +83,11 @@ def critical_twist_function(scene, side, parameters, phi_min=-8.0 * math.pi, phi
         An unknown side or parameter, or no parameter. Evaluating f raises what ``critical_twists``
         raises (no end in the range), and ValueError for a knot's end that is not a fold.
     """
-    if side not in SIDES:
-        raise ValueError(f"side must be 'plus' or 'minus', got {side!r}")
     names = (parameters,) if isinstance(parameters, str) else tuple(parameters)
     if not names:
         raise ValueError("parameters: name at least one of " + ", ".join(scene.PARAMETERS))
-    base = np.array([parameter_value(scene, name) for name in names])  # ValueError for an unknown name
     solve = _end_solver(scene, side, names, phi_min, phi_max, options)
+    base = np.array([parameter_value(scene, name) for name in names])  # ValueError for an unknown name
 
     def host(values):
         phi, slope = solve(tuple(float(v) for v in np.asarray(values, dtype=np.float64)))
@@ -169,8 +169,6 @@ def match_critical_twist(scene, side, parameter, target, tol=1e-8, max_iteration
         raise ValueError(f"tol must be > 0 (rad), got {tol!r}")
     if int(max_iterations) < 1:
         raise ValueError(f"max_iterations must be >= 1, got {max_iterations!r}")
-    if side not in SIDES:
-        raise ValueError(f"side must be 'plus' or 'minus', got {side!r}")
     solve = _end_solver(scene, side, (parameter,), phi_min, phi_max, options)
 
     def value_and_slope(value):
@@ -187,17 +185,18 @@ def match_critical_twist(scene, side, parameter, target, tol=1e-8, max_iteration
             break
         if slope == 0.0 or not math.isfinite(slope):
             return DesignResult(p, phi, target, False, it, residual, f"d phi*/d {parameter} is {slope}: no Newton step")
-        step = -residual / slope
+        step, failure = -residual / slope, ""
         for _ in range(8):
             try:
                 phi_new, slope_new = value_and_slope(p + step)
-            except (ValueError, RuntimeError):  # out of the parameter's range, or no end in the range
-                phi_new = math.nan
+            except (ValueError, RuntimeError) as exc:  # out of the parameter's range, or no end in the range
+                phi_new, failure = math.nan, f" (the last trial, {parameter} = {p + step:.6g}: {exc})"
             if abs(phi_new - target) < abs(residual):
                 break
             step *= 0.5
         else:
-            return DesignResult(p, phi, target, False, it, residual, "no step along the Newton direction reduced the misfit")
+            return DesignResult(p, phi, target, False, it, residual,
+                                "no step along the Newton direction reduced the misfit" + failure)
         p, phi, slope = p + step, phi_new, slope_new
     return DesignResult(p, phi, target, False, int(max_iterations), phi - target,
                         f"max_iterations = {max_iterations} reached")

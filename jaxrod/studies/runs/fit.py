@@ -32,8 +32,8 @@ def read_measurements(path):
             where = f"measurements: {path} line {i}"
             try:
                 typed = dict(knot=row["knot"].strip(), N=int(row["N"]), D=float(row["D"]), L=float(row["L"]),
-                             side=row["side"].strip(), phi=parse_angle_text(row["phi"], f"{where}, phi"),
-                             sigma=parse_angle_text(row["sigma"], f"{where}, sigma"))
+                             side=row["side"].strip(), phi=parse_angle_text(row["phi"], "phi"),
+                             sigma=parse_angle_text(row["sigma"], "sigma"))
             except (TypeError, ValueError) as exc:
                 raise ValueError(f"{where}: {exc}") from None
             if typed["side"] not in ("plus", "minus"):
