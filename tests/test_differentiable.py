@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 import jaxrod as jr
-from jaxrod.studies.differentiable import critical_twist_function, match_critical_twist
+from jaxrod.studies.differentiable import critical_twist_function
+from jaxrod.studies.design import match_critical_twist
 
 PI = math.pi
 NU = 0.3
@@ -86,21 +87,80 @@ def test_bad_input_names_the_argument(ring, phi_of_nu):
         match_critical_twist(ring, "plus", "nu", 5.0 * PI, tol=0.0)
 
 
-def test_a_knots_branch_point_has_its_derivative_from_the_unfolded_system():
-    # the trefoil's phi > 0 end at N = 41 is a simple branch point (Morse index 0 -> 1): its
-    # derivative in D by the implicit function theorem on the unfolded branch-point system, against
-    # central differences of the located ends (h = 1e-4 mm: measured, h = 1e-3 is off by 4.5e-5 by
-    # truncation and 1e-4 by 4.5e-7; the ends are located to ~1e-10 rad)
-    knot = jr.trefoil(D=8.0, L=292.0, N=41)
-    f = critical_twist_function(knot, "plus", "D", -0.5 * PI, 8.0 * PI)
-    slope = float(jax.grad(f)(jnp.array([8.0]))[0])
-    h = 1e-4
-    central = (float(f(jnp.array([8.0 + h]))) - float(f(jnp.array([8.0 - h])))) / (2 * h)
-    assert slope == pytest.approx(central, rel=1e-5) and abs(slope) > 0.01
+@pytest.fixture(scope="module")
+def guide(tmp_path_factory):
+    """The namespace of docs/guides/differentiable.md with its python blocks run in order (its knot:
+    the trefoil at N = 41 and nu = 0.48, whose phi > 0 end is a simple branch point of the
+    symmetric branch, Morse index 0 -> 1, at +6.741 pi; central differences in nu stay below its
+    bound 0.5. At nu = 0.45 the first end is a fold at +6.607 pi: its kind changes with nu)."""
+    import os
+    import pathlib
+    import re
+
+    page = pathlib.Path(__file__).resolve().parent.parent / "docs" / "guides/differentiable.md"
+    namespace, here = {}, os.getcwd()
+    os.chdir(tmp_path_factory.mktemp("guide"))
+    try:
+        for block in re.findall(r"^```python\n(.*?)^```", page.read_text(), flags=re.S | re.M):
+            exec(compile(block, "docs/guides/differentiable.md", "exec"), namespace)
+    finally:
+        os.chdir(here)
+    return namespace
+
+
+def _central(f, x, i, h, order=2):
+    """Central difference of f in x[i], step h: second order, or fourth (Richardson's five points)."""
+    e = np.zeros_like(x)
+    e[i] = h
+    at = lambda s: np.asarray(f(jnp.asarray(x + s * e)))  # noqa: E731
+    if order == 2:
+        return (at(1) - at(-1)) / (2.0 * h)
+    return (8.0 * (at(1) - at(-1)) - (at(2) - at(-2))) / (12.0 * h)
+
+
+def test_a_knots_end_has_first_and_second_derivatives_from_its_extended_system(guide):
+    f, value_and_grad = guide["f"], guide["value_and_grad"]
+    assert f.end.kind == jr.EventKind.BRANCH_POINT and f.end.multiplicity == 1
+    x = np.asarray(f.base)
+    phi, grad = value_and_grad(jnp.asarray(x))
+    assert float(phi) == pytest.approx(f.end.phi, abs=1e-10)  # the base values give the located end back
+    # first derivatives against central differences of ends located at p +- h by Newton on the
+    # unfolded system (relative steps 1e-5: the ends are found to ~1e-12 rad, the truncation is
+    # ~1e-8 relative)
+    for i in range(3):
+        central = _central(f, x, i, 1e-5 * abs(x[i]))
+        assert float(grad[i]) == pytest.approx(float(central), rel=1e-6), (f.parameters[i], grad, central)
+    # second derivatives by forward-over-reverse against central differences of the exact gradient
+    # (relative steps 5e-5: truncation ~1e-5 relative, measured)
+    hessian = np.asarray(guide["second"](jnp.asarray(x)))
+    assert np.allclose(hessian, hessian.T, rtol=1e-8, atol=0.0)
+    gradient = lambda v: value_and_grad(v)[1]  # noqa: E731
+    for i in range(3):
+        central = _central(gradient, x, i, 5e-5 * abs(x[i]))
+        assert np.allclose(hessian[:, i], central, rtol=1e-4, atol=1e-4 * np.max(np.abs(hessian[:, i]))), (i, hessian,
+                                                                                                               central)
+
+
+def test_an_equilibrium_differentiates_in_the_pinned_gauge(guide):
+    knot, q, phi = guide["knot"], guide["q"], 2.0 * PI
+    x = np.asarray(q.base)
+    jac = np.asarray(guide["dq"])
+    assert jac.shape == (knot.n_dof, 2) and np.all(np.isfinite(jac))
+    # fourth-order differences; relative steps 1e-3 in nu and 1e-4 in D (the contact term makes q
+    # vary faster in D), measured: the equilibria's ~1e-13 of roundoff over the step and the
+    # truncation are both below 1e-8 relative (second order with steps 1e-5 was 1.5e-6 off in nu)
+    for i, step in enumerate((1e-3, 1e-4)):
+        central = _central(q, x, i, step * abs(x[i]), order=4)
+        assert np.max(np.abs(jac[:, i] - central)) <= 1e-7 * np.max(np.abs(jac[:, i])), i
+    # at other values it is an equilibrium of that rod, in every DOF (the pinned ones included)
+    thick = knot.with_params(D=float(x[1]) + 0.05)
+    moved = np.asarray(q(jnp.asarray(x + np.array([0.0, 0.05]))))
+    force = np.asarray(jax.jit(jax.grad(thick.scaled_energy))(jnp.asarray(thick.to_scaled(moved)), phi))
+    assert np.max(np.abs(force)) < 1e-8
 
 
 def test_a_fit_recovers_the_poisson_ratio_and_its_standard_error(ring):
-    from jaxrod.studies.differentiable import Measurement, fit_critical_twists
+    from jaxrod.studies.design import Measurement, fit_critical_twists
 
     rods = (ring, jr.michell_ring(N=32, nu=NU))
     nu_true, sigma = 0.35, 0.01
@@ -146,3 +206,20 @@ def test_a_knots_double_branch_point_is_refused_not_differentiated():
                             phi_error=1e-10, q=np.zeros(knot.n_dof), mode=np.zeros(knot.n_dof), multiplicity=2)
     with pytest.raises(ValueError, match="multiplicity 2"):
         jr.critical_twist_sensitivity(knot, double, "D")
+
+
+def test_a_rings_second_derivative_is_refused_with_the_reason(phi_of_nu):
+    with pytest.raises(NotImplementedError, match="double branch point"):
+        jax.hessian(phi_of_nu)(jnp.array([NU]))
+
+
+def test_the_widest_window_of_michells_ring_is_at_the_largest_poisson_ratio(ring):
+    from jaxrod.studies.design import maximise_twist_window
+
+    # the window phi*+ - phi*- = 2 phi* grows as 1 + nu (phi* ~ B / C): widest at the upper bound
+    result = maximise_twist_window(ring, ("nu",), [(0.1, 0.45)], phi_min=-8.0 * PI, phi_max=8.0 * PI)
+    assert result.converged and result.at_bound[0] and result.values[0] == pytest.approx(0.45, abs=1e-12), result
+    assert result.plus == pytest.approx(-result.minus, rel=1e-8) and result.window == result.plus - result.minus
+    assert result.gradient[0] == pytest.approx(result.window / 1.45, rel=1e-5)
+    with pytest.raises(ValueError, match="bounds"):
+        maximise_twist_window(ring, ("nu",), [(0.45, 0.1)])

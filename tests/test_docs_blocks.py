@@ -9,7 +9,8 @@ import pytest
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
 DOCS = REPO / "docs"
-OWN_TEST = {"getting-started.md": "test_newcomer.py", "extending.md": "test_extending.py"}
+OWN_TEST = {"getting-started.md": "test_newcomer.py", "extending.md": "test_extending.py",
+            "guides/differentiable.md": "test_differentiable.py"}
 PAGES = sorted(p.relative_to(DOCS).as_posix() for p in DOCS.rglob("*.md"))
 
 

@@ -1,6 +1,6 @@
 """The pipeline of ``jaxrod fit``: measured critical twists read from a CSV file, the scenes they
 were measured on, and the weighted least-squares fit of shared parameters
-(``jaxrod.differentiable.fit_critical_twists``), written as fit.json."""
+(``jaxrod.studies.design.fit_critical_twists``), written as fit.json."""
 from __future__ import annotations
 
 import csv
@@ -57,7 +57,7 @@ def scene_of(row, nu):
 
 def fit_file(path, parameters, nu, phi_min, phi_max):
     """Read ``path``, fit ``parameters`` from the scenes at Poisson ratio ``nu``: -> (rows, FitResult)."""
-    from ..differentiable import Measurement, fit_critical_twists
+    from ..design import Measurement, fit_critical_twists
 
     rows = read_measurements(path)
     data = [Measurement(scene_of(r, nu), r["side"], r["phi"], r["sigma"]) for r in rows]
