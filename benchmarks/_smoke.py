@@ -40,6 +40,7 @@ SCRIPTS = {
     "command1.py": _entry("a", ["command1.md", "command1.json"]),
     "command1_diagram.py": _entry("a", ["command1_diagram.md", "command1_diagram.json"]),
     "diagram_steps.py": _entry("a", ["diagram_steps.md", "diagram_steps.json"]),
+    "differentiable_trefoil.py": _entry("a", ["differentiable_trefoil.json", "differentiable_trefoil.md"]),
     "dynamics.py": _entry("b", ["dynamics.csv", "dynamics.md", "dynamics.png"]),
     "dynamics_accuracy.py": _entry("b", ["dynamics_accuracy.csv", "dynamics_accuracy.md", "dynamics_accuracy.png"]),
     "dynamics_shape.py": _entry("a", ["dynamics_shape.csv", "dynamics_shape.md", "dynamics_shape.npz"]),

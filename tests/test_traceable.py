@@ -99,6 +99,19 @@ def test_with_params_concrete_matches_the_constructor(state):
     assert float(updated.energy(state, PHI)) == float(built.energy(state, PHI))
 
 
+def test_the_diameter_is_a_thicker_rod_of_the_same_material(state):
+    """with_params(diameter=d) is the scene the constructor builds with D = d (same E, nu, L, N and
+    contact stiffness): B and C scale as d^4, EA as d^2; its parameter value is D."""
+    built = jr.trefoil(D=1.1 * D0, L=L0, N=N0, nu=0.5, contact_stiffness=KC0)
+    scene = jr.trefoil(D=D0, L=L0, N=N0, nu=0.5, contact_stiffness=KC0)
+    updated = scene.with_params(diameter=1.1 * D0)
+    assert float(updated.energy(state, PHI)) == pytest.approx(float(built.energy(state, PHI)), rel=1e-13)
+    assert float(updated.parameter("diameter")) == pytest.approx(1.1 * D0, rel=1e-15)
+    assert float(updated.material.EA) == pytest.approx(1.21 * float(scene.material.EA), rel=1e-14)
+    with pytest.raises(ValueError, match="diameter sets B, C, EA and D together"):
+        scene.with_params(diameter=D0, nu=0.3)
+
+
 def test_michell_ring_gradients_in_nu_and_b():
     """The planar ring with its twist spread evenly (phi / N at each vertex) stores C phi^2 / (2 L),
     L = 2 pi, C = B / (1 + nu); its bending and stretching do not depend on nu."""

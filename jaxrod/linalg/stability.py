@@ -367,12 +367,7 @@ def _parameter_tangent(scene, parameter):
     if parameter not in names:
         raise ValueError(f"parameter must be one of {', '.join(names)} or a callable scene -> tangent scene, "
                          f"got {parameter!r}")
-    m = scene.material
-    base = {"nu": lambda: m.B / m.C - 1.0, "contact_stiffness": lambda: getattr(scene, "contact_stiffness", None)}
-    value = base.get(parameter, lambda: getattr(m, parameter))()
-    if value is None:
-        raise ValueError(f"a {type(scene).__name__} has no {parameter}")
-    value = jnp.asarray(value, dtype=float)
+    value = jnp.asarray(scene.parameter(parameter), dtype=float)
     return jax.jvp(lambda t: scene.with_params(**{parameter: value + t}), (jnp.zeros(()),), (jnp.ones(()),))[1]
 
 

@@ -143,12 +143,28 @@ class Scene:
             term.check(self)
         return replace(self, terms=self.terms + new)
 
-    PARAMETERS = ("B", "C", "EA", "D", "nu", "contact_stiffness")
+    PARAMETERS = ("B", "C", "EA", "D", "nu", "contact_stiffness", "diameter")
+
+    def parameter(self, name):
+        """The value of the continuous parameter ``name`` (one of ``PARAMETERS``): nu = B/C - 1, and
+        ``diameter`` is the material's D. ValueError for an unknown name or one the scene lacks."""
+        if name not in self.PARAMETERS:
+            raise ValueError(f"parameter must be one of {', '.join(self.PARAMETERS)}, got {name!r}")
+        m = self.material
+        if name == "nu":
+            return m.B / m.C - 1.0
+        if name == "contact_stiffness":
+            if not hasattr(self, "contact_stiffness"):
+                raise ValueError(f"a {type(self).__name__} has no contact stiffness: contact is not modelled on it")
+            return self.contact_stiffness
+        return m.D if name == "diameter" else getattr(m, name)
 
     def with_params(self, **params):
         """A copy of the scene with continuous parameters replaced: the material's ``B``, ``C``,
-        ``EA`` and ``D``, the Poisson ratio ``nu`` (sets C = B/(1+nu), with the new B where given)
-        and, on scenes that model contact, ``contact_stiffness``. The geometry (rest lengths,
+        ``EA`` and ``D``, the Poisson ratio ``nu`` (sets C = B/(1+nu), with the new B where given),
+        the rod's ``diameter`` at fixed Young's modulus and Poisson ratio (B and C scale as D^4, EA
+        as D^2, the contact diameter is D: a thicker rod of the same material and length) and, on
+        scenes that model contact, ``contact_stiffness``. The geometry (rest lengths,
         q_init) and the terms are kept; D is the contact diameter only (B and EA stay as they are).
         Concrete values are checked as the constructors check them (ValueError naming the
         parameter); jax tracers pass unchecked, so ``jax.grad``/``jvp``/``vmap`` through
@@ -160,6 +176,11 @@ class Scene:
         if "nu" in params and "C" in params:
             raise ValueError("give C or nu, not both: nu sets C = B/(1+nu)")
         m = self.material
+        if "diameter" in params:
+            if set(params) & {"B", "C", "EA", "D", "nu"}:
+                raise ValueError("diameter sets B, C, EA and D together: give it without them")
+            r = check_positive("diameter", params.pop("diameter")) / m.D
+            params = dict(params, B=m.B * r ** 4, C=m.C * r ** 4, EA=m.EA * r ** 2, D=m.D * r)
         B = check_positive("B", params.get("B", m.B))
         C = params.get("C", m.C)
         if "nu" in params:

@@ -241,13 +241,7 @@ def _knot_sensitivity(scene, end, parameter):
 
 def parameter_value(scene, parameter):
     """The value of a continuous parameter of ``scene`` (a name in ``scene.PARAMETERS``; nu = B/C - 1)."""
-    if parameter not in scene.PARAMETERS:
-        raise ValueError(f"parameter must be one of {', '.join(scene.PARAMETERS)}, got {parameter!r}")
-    if parameter == "nu":
-        return float(scene.material.B) / float(scene.material.C) - 1.0
-    if parameter == "contact_stiffness":
-        return float(scene.contact_stiffness)
-    return float(getattr(scene.material, parameter))
+    return float(scene.parameter(parameter))
 
 
 def critical_twist_sensitivity(scene, end, parameter):

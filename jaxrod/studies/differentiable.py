@@ -151,7 +151,7 @@ def critical_twist_function(scene, side, parameters, phi_min=-8.0 * math.pi, phi
     side : str
         'plus' (the end found twisting up from phi = 0) or 'minus'.
     parameters : sequence of str
-        Names in ``scene.PARAMETERS`` ('B', 'C', 'EA', 'D', 'nu', 'contact_stiffness'), in the order
+        Names in ``scene.PARAMETERS`` ('B', 'C', 'EA', 'D', 'nu', 'contact_stiffness', 'diameter'), in the order
         of ``values``.
     phi_min, phi_max, options
         As for ``critical_twists``.
