@@ -2,9 +2,9 @@
 function theorem, against differences of located values; and a design by Newton's method.
 
 The trefoil (D, L) = (8, 292) mm, nu = 0.5, N = 61: both first ends (tightening and opening) are folds.
-``critical_twist_function(knot, side, ("nu", "D", "contact_stiffness", "diameter"))`` (D: the
-contact diameter alone; diameter: the rod's, B and C ~ D^4 and EA ~ D^2) follows each end, located
-once by ``critical_twists``, as the root of its fold system. For each side:
+``critical_twist_function(knot, side, ("nu", "diameter", "contact_stiffness"))`` (diameter: the
+rod's, B and C ~ D^4 and EA ~ D^2 at fixed E, as ``jaxrod critical-curve`` varies D/L) follows each
+end, located once by ``critical_twists``, as the root of its fold system. For each side:
 
 - ``jax.grad`` against differences of the ends located at p +- h (Newton on the fold system at
   each value): central in the diameter and the contact stiffness (relative steps 1e-5); in nu, which
@@ -54,7 +54,7 @@ PI = math.pi
 D, L = 8.0, 292.0
 N, NU = pick((61, 0.5), (41, 0.48))
 SIDES = pick(("plus", "minus"), ("plus",))
-PARAMETERS = pick(("nu", "D", "contact_stiffness", "diameter"), ("nu", "D", "contact_stiffness"))
+PARAMETERS = pick(("nu", "diameter", "contact_stiffness"), ("nu", "D", "contact_stiffness"))
 TARGET = 8.0 * PI
 DESIGN_START = 0.03  # D/L
 OUT = results_dir()

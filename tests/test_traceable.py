@@ -109,7 +109,10 @@ def test_the_diameter_is_a_thicker_rod_of_the_same_material(state):
     assert float(updated.parameter("diameter")) == pytest.approx(1.1 * D0, rel=1e-15)
     assert float(updated.material.EA) == pytest.approx(1.21 * float(scene.material.EA), rel=1e-14)
     with pytest.raises(ValueError, match="diameter sets B, C, EA and D together"):
-        scene.with_params(diameter=D0, nu=0.3)
+        scene.with_params(diameter=D0, C=1.0)
+    both = scene.with_params(diameter=1.1 * D0, nu=0.3)  # nu sets C from the new B
+    assert float(both.parameter("nu")) == pytest.approx(0.3, rel=1e-14)
+    assert float(both.material.B) == pytest.approx(float(updated.material.B), rel=1e-15)
 
 
 def test_michell_ring_gradients_in_nu_and_b():

@@ -163,7 +163,8 @@ class Scene:
         """A copy of the scene with continuous parameters replaced: the material's ``B``, ``C``,
         ``EA`` and ``D``, the Poisson ratio ``nu`` (sets C = B/(1+nu), with the new B where given),
         the rod's ``diameter`` at fixed Young's modulus and Poisson ratio (B and C scale as D^4, EA
-        as D^2, the contact diameter is D: a thicker rod of the same material and length) and, on
+        as D^2, the contact diameter is D: a thicker rod of the same material and length; with
+        ``nu``, C = B/(1+nu) from the new B) and, on
         scenes that model contact, ``contact_stiffness``. The geometry (rest lengths,
         q_init) and the terms are kept; D is the contact diameter only (B and EA stay as they are).
         Concrete values are checked as the constructors check them (ValueError naming the
@@ -177,10 +178,13 @@ class Scene:
             raise ValueError("give C or nu, not both: nu sets C = B/(1+nu)")
         m = self.material
         if "diameter" in params:
-            if set(params) & {"B", "C", "EA", "D", "nu"}:
-                raise ValueError("diameter sets B, C, EA and D together: give it without them")
+            if set(params) & {"B", "C", "EA", "D"}:
+                raise ValueError("diameter sets B, C, EA and D together: give it without them (nu may go with it)")
             r = check_positive("diameter", params.pop("diameter")) / m.D
-            params = dict(params, B=m.B * r ** 4, C=m.C * r ** 4, EA=m.EA * r ** 2, D=m.D * r)
+            scaled = dict(B=m.B * r ** 4, EA=m.EA * r ** 2, D=m.D * r)
+            if "nu" not in params:  # else nu sets C from the new B
+                scaled["C"] = m.C * r ** 4
+            params = dict(params, **scaled)
         B = check_positive("B", params.get("B", m.B))
         C = params.get("C", m.C)
         if "nu" in params:

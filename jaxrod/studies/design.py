@@ -176,8 +176,6 @@ def maximise_twist_window(scene, parameters, bounds, start=None, phi_min=-16.0 *
     """
     from scipy.optimize import minimize
 
-    from .critical_ends import is_knot, knot_ends
-
     names = (parameters,) if isinstance(parameters, str) else tuple(parameters)
     box = np.asarray(bounds, dtype=float).reshape(-1, 2) if len(bounds) else np.zeros((0, 2))
     if box.shape != (len(names), 2) or not np.all(box[:, 0] < box[:, 1]):
@@ -185,10 +183,8 @@ def maximise_twist_window(scene, parameters, bounds, start=None, phi_min=-16.0 *
     x0 = np.array([parameter_value(scene, n) for n in names]) if start is None else np.asarray(start, dtype=float)
     if x0.shape != (len(names),) or np.any(x0 < box[:, 0]) or np.any(x0 > box[:, 1]):
         raise ValueError(f"start {x0.tolist()} must have one value per parameter {names}, inside the bounds")
-    ends = knot_ends(scene, phi_min, phi_max, options) if is_knot(scene) else {}
-    sides = [_value_and_gradient(critical_twist_function(scene, side, names, phi_min, phi_max, options,
-                                                         end=ends.get(side)))
-             for side in ("plus", "minus")]
+    sides = [_value_and_gradient(f) for f in _models([Measurement(scene, side, 0.0, 1.0) for side in ("plus", "minus")],
+                                                      names, phi_min, phi_max, options)]
 
     def negative_window(x):
         (plus, g_plus), (minus, g_minus) = (side(x) for side in sides)
@@ -205,12 +201,15 @@ def maximise_twist_window(scene, parameters, bounds, start=None, phi_min=-16.0 *
 @dataclass(frozen=True)
 class Measurement:
     """One measured critical twist: the rod it was measured on (its scene, at the starting values of
-    the fitted parameters), the side ('plus' or 'minus'), phi (rad) and its standard error sigma (rad)."""
+    the fitted parameters), the side ('plus' or 'minus'), phi (rad) and its standard error sigma
+    (rad); end: for a knot, the model's end on that side from ``critical_twists(scene)`` if already
+    located (else it is located by the fit)."""
 
     scene: object
     side: str
     phi: float
     sigma: float
+    end: object = None
 
 
 @dataclass(frozen=True)
@@ -228,6 +227,19 @@ class FitResult:
     converged: bool
     iterations: int
     reason: str
+
+
+def _models(measurements, names, phi_min, phi_max, options):
+    """critical_twist_function for each measurement; a knot's two sides located by one twist study."""
+    from .critical_ends import is_knot, knot_ends
+
+    located = {}
+    for m in measurements:
+        if m.end is None and is_knot(m.scene) and id(m.scene) not in located:
+            located[id(m.scene)] = knot_ends(m.scene, phi_min, phi_max, options)
+    return [critical_twist_function(m.scene, m.side, names, phi_min, phi_max, options,
+                                    end=m.end if m.end is not None else located.get(id(m.scene), {}).get(m.side))
+            for m in measurements]
 
 
 def fit_critical_twists(measurements, parameters, start=None, phi_min=-16.0 * math.pi, phi_max=16.0 * math.pi,
@@ -267,7 +279,7 @@ def fit_critical_twists(measurements, parameters, start=None, phi_min=-16.0 * ma
         raise ValueError(f"measurements: need at least {len(names)} (one per parameter), got {len(ms)}")
     if not all(float(m.sigma) > 0.0 for m in ms):
         raise ValueError("measurements: every sigma must be > 0 (rad)")
-    fns = [critical_twist_function(m.scene, m.side, names, phi_min, phi_max, options) for m in ms]
+    fns = _models(ms, names, phi_min, phi_max, options)
     x0 = np.asarray(fns[0].base if start is None else start, dtype=float)
     if x0.shape != (len(names),):
         raise ValueError(f"start must have {len(names)} values, one per parameter {names}; got shape {x0.shape}")

@@ -146,7 +146,7 @@ def _fold_from(problem, opts, start, morse):
     if start.soft is not None and start.soft.any() and not start.soft.all():
         order.insert(0, int(np.argmin(np.where(start.soft, np.inf, lam))))
     for j0 in dict.fromkeys(order):
-        u, p, J, Fp, res, it = fold_newton(problem, opts, start.u, start.p, start.eigenvectors[:, j0])
+        u, p, J, Fp, res, it = _fold_newton(problem, opts, start.u, start.p, start.eigenvectors[:, j0])
         if np.isfinite(res) and res <= opts.event_tol:
             break
     return _classified(problem, opts, morse, u, p, J, Fp, res, it)
@@ -241,7 +241,7 @@ def _fold_by_bracket(problem, opts, a, b, morse, along_soft=False):
         return None
     c, (vals, vecs, _, soft_vecs) = at(s)
     border = soft_vecs[:, 0] if along_soft else vecs[:, lo]
-    found = _classified(problem, opts, morse, *fold_newton(problem, opts, c.z[:-1], float(c.z[-1]), border))
+    found = _classified(problem, opts, morse, *_fold_newton(problem, opts, c.z[:-1], float(c.z[-1]), border))
     if found is not None and found.ok and not _turn_in_step(found.p, (a, b)):
         found = None  # Newton left the bracket for another turn: the root below is this step's fold
     if (found is None or not found.ok) and not along_soft:
@@ -255,7 +255,7 @@ def _fold_by_bracket(problem, opts, a, b, morse, along_soft=False):
     return found
 
 
-def fold_newton(problem, opts, u, p, b, args=None):
+def _fold_newton(problem, opts, u, p, b, args=None):
     """Newton on (F, sigma) from (u, p) with the border b (refreshed with w each iteration), at
     args (default problem.args). -> (u, p, J, F_p, residual, iterations)."""
     be, n = problem.backend, problem.n
@@ -285,12 +285,9 @@ def _norm(*parts):
         return float(np.sqrt(sum(np.sum(np.asarray(a, dtype=float) ** 2) for a in parts)))
 
 
-def unfolded_newton(problem, opts, u, p, v0, args=None):
-    """Newton on the unfolded system (F + beta v0, sigma, tau) = 0 from (u, p, beta = 0) at args
-    (default problem.args), the border refreshed with w each iteration. -> (u, p, beta, J, residual
-    of (F, sigma, tau), iterations)."""
-    be = problem.backend
-    args = problem.args if args is None else args
+def simple_branch_point(problem, opts, u, p, v0, morse, step, tangent):
+    """Newton on the unfolded system (F + beta v0, sigma, tau) = 0 from (u, p). -> Event, or None."""
+    be, args = problem.backend, problem.args
     u, p, beta, bvec = np.array(u), float(p), 0.0, np.asarray(v0)
     res = np.inf
     for it in range(opts.locate_max_iter + 1):
@@ -304,13 +301,7 @@ def unfolded_newton(problem, opts, u, p, v0, args=None):
         du, dy = be.bordered_solve(J, np.stack([Fp, v0], axis=1), np.asarray(gu).T, D, -G, -np.asarray(st))
         u, p, beta = u + np.asarray(du), p + float(dy[0]), beta + float(dy[1])
         bvec = np.asarray(w) / np.linalg.norm(w)
-    return u, p, beta, J, _norm(F, st), it
-
-
-def simple_branch_point(problem, opts, u, p, v0, morse, step, tangent):
-    """Newton on the unfolded system (F + beta v0, sigma, tau) = 0 from (u, p). -> Event, or None."""
-    u, p, _, J, res, it = unfolded_newton(problem, opts, u, p, v0)  # res: with beta = 0
-    be = problem.backend
+    res = _norm(F, st)  # beta = 0 too
     if not np.isfinite(res) or res > opts.event_tol:
         return None
     vals, vecs, _ = be.spectrum(J, opts.k + max(morse), problem.n_zero_modes, opts.eig_rtol)

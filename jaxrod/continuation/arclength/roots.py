@@ -10,9 +10,12 @@ Each is the root of a system that is regular there (locate.py):
 
 A ``RootSystem`` holds the traceable residual G(x, theta) with its Jacobian in x, the root x0 at
 the base values theta0, and ``solve(theta)``: Newton's method on the same system on the host, from
-x0, with the problem's own compiled programs (``fold_newton``, ``unfolded_newton``, its
-linearisation) and its args at theta (a knot's neighbourhood refreshed by ``update_args`` until
-it holds at the root). The traced residual is evaluated with ``exact_args`` (for a knot, the args
+the nearest root found so far, with the problem's own compiled programs (its linearisation and
+contracted third derivatives, as the locators use them) and its args at theta (a knot's
+neighbourhood refreshed by ``update_args`` until it holds at the root). The steps backtrack
+(halved until the residual falls): a knot's nearly free slide along its centreline makes these
+systems ill-conditioned (condition numbers 1e5-1e8 at N = 41), and full Newton steps from a root
+at nearby values were seen to diverge. The traced residual is evaluated with ``exact_args`` (for a knot, the args
 without a neighbourhood: the exact energy, which the neighbourhood's equals wherever it is valid),
 so its derivatives hold wherever the contact set has moved. The borders b and v0 are held fixed:
 the root does not depend on them while the bordered matrix stays regular.
@@ -27,7 +30,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .locate import fold_newton, unfolded_newton
 from .scales import scaled_options
 
 __all__ = ["RootSystem", "equilibrium_root", "fold_root", "branch_point_root"]
@@ -96,42 +98,82 @@ def _linear_parts(problem, set_values, exact_args):
     return F, linear
 
 
-def _host_solve(kind, problem, set_values, x0, theta0, newton, tol):
-    """solve(theta) -> x: Newton (``newton(args, x_start) -> (x, u, p, residual)``) at the problem's
-    args with the values theta (concrete: ``scene.with_params`` checks them), from the nearest root
-    found so far; where it fails, the way from that root is halved (4 times at most). A knot's
-    neighbourhood is refreshed at each root until it holds. RuntimeError where no root is found."""
-    found = [(np.asarray(theta0, dtype=float), np.asarray(x0, dtype=float))]
+def _backtracking_newton(step_at, x, tol, max_iterations=40):
+    """Newton's method with backtracking from x: ``step_at(x) -> (residual norm, Newton step)``.
+    A step is halved until the residual falls (10 times at most); once below tol, one more step is
+    taken if it does not raise the residual (so the root does not depend on the start). -> (x,
+    residual)."""
+    res, dx = step_at(x)
+    alpha, polish = 1.0, False
+    for _ in range(max_iterations):
+        if not np.isfinite(res) or polish:
+            break
+        trial = x + alpha * dx
+        r, d = step_at(trial)
+        if np.isfinite(r) and (r < res or r <= tol):
+            polish = res <= tol
+            x, res, dx, alpha = trial, r, d, 1.0
+        elif res <= tol or alpha < 2.0 ** -10:
+            break
+        else:
+            alpha *= 0.5
+    return x, res
 
-    def at(theta, x_start):
+
+def _host_solve(kind, problem, set_values, x0, theta0, step, tol):
+    """solve(theta) -> x: ``_backtracking_newton`` with ``step(args) -> step_at`` at the problem's
+    args with the values theta (concrete: ``scene.with_params`` checks them), from the implicit
+    function theorem's prediction from the nearest root found so far (the tangent: along a nearly
+    free slide the root moves far for a small change of theta, its curve bends sharply, and Newton
+    from x_near, or from the chord x_near - A^-1 G(x_near, theta), was seen to diverge);
+    where Newton fails, the way from that root is halved (4 times at most). A knot's neighbourhood
+    is refreshed at each root until it holds. RuntimeError where no root is found."""
+    found = [(np.asarray(theta0, dtype=float), np.asarray(x0, dtype=float), problem.args)]
+    n = problem.n
+
+    def predicted(theta, near):
+        """x_near + dx/dtheta (theta - theta_near): the tangent, its G_theta (theta - theta_near) by
+        a second-order difference of G at x_near, forward along the way (steps 1e-3 and 2e-3 of
+        it, so that a value at its bound, nu = 0.5, is not stepped over): the second-order term,
+        which the near-singular A would amplify, cancels."""
+        theta_near, x_near, args_near = near
+        eps = 1e-3
+        at_values = [set_values(args_near, [float(v) for v in theta_near + k * eps * (theta - theta_near)])
+                     for k in (1, 2)]
+        one, two = (step(args_near, a)(x_near)[1] for a in at_values)
+        zero = step(args_near)(x_near)[1]
+        return x_near + (4.0 * one - two - 3.0 * zero) / (2.0 * eps)
+
+    def at(theta, near):
         args = set_values(problem.args, [float(v) for v in theta])
+        x_start = predicted(theta, near)
         for _ in range(3):
-            x, u, p, res = newton(args, x_start)
+            x, res = _backtracking_newton(step(args), x_start, tol)
             if not (np.all(np.isfinite(x)) and np.isfinite(res)) or problem.update_args is None:
                 break
-            fresh = problem.update_args(u, p, args)
+            fresh = problem.update_args(x[:n], float(x[n]) if x.size > n else step.p, args)
             if fresh is args:
                 break
             args, x_start = fresh, x
-        return x, res
+        return x, res, args
 
     def solve(theta):
         theta = np.asarray(theta, dtype=np.float64)
-        near_theta, x = min(found, key=lambda item: float(np.linalg.norm(item[0] - theta)))
+        near = min(found, key=lambda item: float(np.linalg.norm(item[0] - theta)))
         way, res = [theta], math.inf
         while way:
-            x_new, res = at(way[-1], x)
+            x, res, args = at(way[-1], near)
             if np.isfinite(res) and res <= tol:
-                near_theta, x = way.pop(), x_new
-                found.append((near_theta, x))
+                near = (way.pop(), x, args)
+                found.append(near)
             elif len(way) < 5:
-                way.append(0.5 * (near_theta + way[-1]))
+                way.append(0.5 * (near[0] + way[-1]))
             else:
                 raise RuntimeError(f"the {kind} was not found at parameter values {theta.tolist()}: Newton's "
                                    f"residual {res:.3e} > {tol:.1e} (the values are too far from the base values for "
                                    "this root to be followed, or it ceased to exist)")
         del found[1:-32]  # the base root and the last 32
-        return x
+        return near[1]
 
     return solve
 
@@ -150,17 +192,17 @@ def equilibrium_root(problem, u, p, set_values, theta0, exact_args=None):
     def residual(x, theta):
         return F(x, jnp.asarray(p, jnp.float64), theta)
 
-    def newton(args, x):
-        res, prev = math.inf, math.inf
-        for _ in range(opts.locate_max_iter + 1):
+    def step(args, args_residual=None):  # A from args, G from args_residual (default args)
+        def step_at(x):
             f, J, _ = problem.linearise(x, p, args)
-            res, prev = float(np.linalg.norm(np.asarray(f))), res
-            if not np.isfinite(res) or (res <= opts.newton_tol and (prev <= opts.newton_tol or res <= 1e-3 * opts.newton_tol)):
-                break
-            x = x - np.linalg.solve(np.asarray(J), np.asarray(f))
-        return x, x, p, res
+            if args_residual is not None:
+                f = problem.linearise(x, p, args_residual)[0]
+            return float(np.linalg.norm(np.asarray(f))), -np.linalg.solve(np.asarray(J), np.asarray(f))
 
-    solve = _host_solve("equilibrium", problem, set_values, u0, theta0, newton, opts.newton_tol)
+        return step_at
+
+    step.p = p
+    solve = _host_solve("equilibrium", problem, set_values, u0, theta0, step, opts.newton_tol)
     return RootSystem("equilibrium", u0, np.asarray(theta0, dtype=float), residual, jax.jacfwd(residual), solve, None,
                       u0.size)
 
@@ -182,11 +224,22 @@ def fold_root(problem, u, p, v, set_values, theta0, exact_args=None):
         sigma_x = -_contracted_gradient(F, x[:-1], x[-1], theta, w, w, 0.0)
         return jnp.vstack([jnp.hstack([J, fp[:, None]]), sigma_x[None, :]])
 
-    def newton(args, x):
-        u1, p1, _, _, res, _ = fold_newton(problem, opts, x[:-1], x[-1], b, args=args)
-        return np.append(u1, p1), u1, p1, res
+    be, zeros = problem.backend, np.zeros(np.size(u))
 
-    solve = _host_solve("fold", problem, set_values, np.append(u, p), theta0, newton, opts.newton_tol)
+    def step(args, args_residual=None):  # A from args, G from args_residual (default args)
+        def step_at(x):  # as locate's fold Newton, with the border held
+            f, J, fp = problem.linearise(x[:-1], x[-1], args)
+            w, sigma = be.bordered_solve(J, b, b, 0.0, zeros, 1.0)
+            gu, gp = problem.wjw_gradient(x[:-1], x[-1], args, w)
+            if args_residual is not None:
+                f, J_residual, _ = problem.linearise(x[:-1], x[-1], args_residual)
+                sigma = be.bordered_solve(J_residual, b, b, 0.0, zeros, 1.0)[1]
+            du, dp = be.bordered_solve(J, fp, -np.asarray(gu), -float(gp), -np.asarray(f), -float(sigma))
+            return float(np.linalg.norm(np.append(np.asarray(f), sigma))), np.append(du, dp)
+
+        return step_at
+
+    solve = _host_solve("fold", problem, set_values, np.append(u, p), theta0, step, opts.newton_tol)
     n = int(np.size(u))
     return RootSystem("fold", np.append(u, p), np.asarray(theta0, dtype=float), residual, jacobian, solve, n, n)
 
@@ -214,11 +267,21 @@ def branch_point_root(problem, u, p, v, set_values, theta0, exact_args=None):
         rows = jnp.stack([sigma_x, tau_x])
         return jnp.vstack([top, jnp.hstack([rows, jnp.zeros((2, 1))])])
 
-    def newton(args, x):
-        u1, p1, beta, _, res, _ = unfolded_newton(problem, opts, x[:-2], x[-2], v0, args=args)
-        return np.concatenate([u1, [p1, beta]]), u1, p1, res
+    be = problem.backend
 
-    solve = _host_solve("branch point", problem, set_values, np.concatenate([u, [p, 0.0]]), theta0, newton,
+    def step(args, args_residual=None):  # A from args, G from args_residual (default args)
+        def step_at(x):  # as locate's unfolded Newton, with the border held at v0
+            (gu, gp), (st, f, J, fp, _) = problem.singular_tests(x[:-2], x[-2], args, v0)
+            if args_residual is not None:
+                _, (st, f, _, _, _) = problem.singular_tests(x[:-2], x[-2], args_residual, v0)
+            G, gp = np.asarray(f) + x[-1] * v0, np.asarray(gp)
+            D = np.array([[gp[0], 0.0], [gp[1], 0.0]])
+            du, dy = be.bordered_solve(J, np.stack([fp, v0], axis=1), np.asarray(gu).T, D, -G, -np.asarray(st))
+            return float(np.linalg.norm(np.append(G, st))), np.concatenate([du, dy])
+
+        return step_at
+
+    solve = _host_solve("branch point", problem, set_values, np.concatenate([u, [p, 0.0]]), theta0, step,
                         opts.newton_tol)
     n = int(np.size(u))
     return RootSystem("branch_point", np.concatenate([u, [p, 0.0]]), np.asarray(theta0, dtype=float), residual,

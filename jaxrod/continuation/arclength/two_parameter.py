@@ -16,7 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .corrector import advance, correct, tangent
-from .locate import fold_newton
+from .locate import _fold_newton
 from .results import ContinuationError, Event, Result
 from .scales import scaled_options
 
@@ -120,7 +120,7 @@ def fold_at(problem, fold, set_mu, mu0, mu, opts, *, predict=True):
     du, dp, w = _ift_slope(problem, blocks, fold.u, fold.p, float(mu0), v)
     delta = float(mu) - float(mu0) if predict else 0.0
     args = set_mu(problem.args, jnp.asarray(float(mu)))
-    u, p, _, _, res, it = fold_newton(problem, opts, np.asarray(fold.u) + delta * du, float(fold.p) + delta * dp, w,
+    u, p, _, _, res, it = _fold_newton(problem, opts, np.asarray(fold.u) + delta * du, float(fold.p) + delta * dp, w,
                                        args=args)
     _, dp, w = _ift_slope(problem, blocks, u, p, float(mu), w)
     _, dp, w = _ift_slope(problem, blocks, u, p, float(mu), w)  # with w at the root: the critical vector
