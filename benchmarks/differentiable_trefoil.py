@@ -7,11 +7,12 @@ rod's, B and C ~ D^4 and EA ~ D^2 at fixed E, as ``jaxrod critical-curve`` varie
 end, located once by ``critical_twists``, as the root of its fold system. For each side:
 
 - ``jax.grad`` against differences of the ends located at p +- h (Newton on the fold system at
-  each value): central in the diameter and the contact stiffness (relative steps 1e-5); in nu, which
+  each value): central in the diameter and the contact stiffness (relative steps 1e-5, and 1e-3 for
+  the stiffness, on which phi* depends weakly); in nu, which
   sits at its bound 0.5, the one-sided second-order difference (3 f(0) - 4 f(-h) + f(-2h)) / 2h
   (h = 1e-5);
 - second derivatives by forward-over-reverse (``jax.jacfwd(jax.grad(f))``) against the same
-  differences of the exact gradient (relative steps 1e-4).
+  differences of the exact gradient (relative steps 1e-4; 1e-2 for the stiffness).
 
 An equilibrium at phi = 2 pi, ``equilibrium_function``: ``jax.jacfwd`` against fourth-order
 differences (central in the diameter; in nu, one-sided: (25 f0 - 48 f-1 + 36 f-2 - 16 f-3 + 3 f-4) / 12h).
@@ -76,7 +77,10 @@ def _difference(f, x, i, h, one_sided, order=2):
 
 
 def _step(name, value, relative):
-    return relative if name == "nu" else relative * abs(value)
+    # phi* depends weakly on the contact stiffness (d phi*/d k ~ 1e-6 rad per unit at k = 100): a
+    # step 100 times longer keeps the located ends' ~1e-12 rad of noise below 1e-7 of the difference
+    scale = 100.0 if name == "contact_stiffness" else 1.0
+    return relative if name == "nu" else scale * relative * abs(value)
 
 
 def critical_twist_rows(knot, ends):

@@ -113,7 +113,8 @@ def match_critical_twist(scene, side, parameter, target, tol=1e-8, max_iteration
             try:
                 phi_new, slope_new = value_and_slope(p + step)
             except (ValueError, RuntimeError) as exc:  # out of the parameter's range, or no end in the range
-                phi_new, failure = math.nan, f" (the last trial, {parameter} = {p + step:.6g}: {exc})"
+                why = str(exc).strip().splitlines()[-1]  # through a callback, the last line is the host's error
+                phi_new, failure = math.nan, f" (the last trial, {parameter} = {p + step:.6g}: {why})"
             if abs(phi_new - target) < abs(residual):
                 break
             step *= 0.5

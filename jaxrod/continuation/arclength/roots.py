@@ -12,7 +12,9 @@ A ``RootSystem`` holds the traceable residual G(x, theta) with its Jacobian in x
 the base values theta0, and ``solve(theta)``: Newton's method on the same system on the host, from
 the nearest root found so far, with the problem's own compiled programs (its linearisation and
 contracted third derivatives, as the locators use them) and its args at theta (a knot's
-neighbourhood refreshed by ``update_args`` until it holds at the root). The steps backtrack
+neighbourhood refreshed by ``update_args`` until it holds at the root), to the tolerances the
+locators use (an equilibrium to ``newton_tol``; a fold or branch point to ``event_tol``, its
+residual's floor being higher: sigma and tau come from bordered solves). The steps backtrack
 (halved until the residual falls): a knot's nearly free slide along its centreline makes these
 systems ill-conditioned (condition numbers 1e5-1e8 at N = 41), and full Newton steps from a root
 at nearby values were seen to diverge. The traced residual is evaluated with ``exact_args`` (for a knot, the args
@@ -100,24 +102,35 @@ def _linear_parts(problem, set_values, exact_args):
 
 def _backtracking_newton(step_at, x, tol, max_iterations=40):
     """Newton's method with backtracking from x: ``step_at(x) -> (residual norm, Newton step)``.
-    A step is halved until the residual falls (10 times at most); once below tol, one more step is
-    taken if it does not raise the residual (so the root does not depend on the start). -> (x,
-    residual)."""
+    A step is halved until the residual falls (10 times at most); below tol, steps go on while each
+    cuts the residual more than tenfold (to the roundoff floor, so the root does not depend on the
+    start). -> (x, residual)."""
     res, dx = step_at(x)
-    alpha, polish = 1.0, False
+    alpha = 1.0
     for _ in range(max_iterations):
-        if not np.isfinite(res) or polish:
+        if not np.isfinite(res):
             break
         trial = x + alpha * dx
         r, d = step_at(trial)
-        if np.isfinite(r) and (r < res or r <= tol):
-            polish = res <= tol
+        if np.isfinite(r) and r < res:
+            at_floor = res <= tol and r > 0.1 * res
             x, res, dx, alpha = trial, r, d, 1.0
+            if at_floor:
+                break
         elif res <= tol or alpha < 2.0 ** -10:
             break
         else:
             alpha *= 0.5
     return x, res
+
+
+def _on_the_curve(x, x_predicted, x_near):
+    """Whether Newton's root x is the continuation of x_near: its correction to the prediction is
+    at most half the predicted move (it is second order in the step); else Newton has jumped to
+    another root, or the curve turned back (a cusp), and the way is halved."""
+    moved = float(np.linalg.norm(x_predicted - x_near))
+    # the floor admits the polish of a start that was converged less tightly (a relaxed equilibrium)
+    return float(np.linalg.norm(x - x_predicted)) <= 0.5 * moved + 1e-6 * (1.0 + float(np.linalg.norm(x)))
 
 
 def _host_solve(kind, problem, set_values, x0, theta0, step, tol):
@@ -126,8 +139,9 @@ def _host_solve(kind, problem, set_values, x0, theta0, step, tol):
     function theorem's prediction from the nearest root found so far (the tangent: along a nearly
     free slide the root moves far for a small change of theta, its curve bends sharply, and Newton
     from x_near, or from the chord x_near - A^-1 G(x_near, theta), was seen to diverge);
-    where Newton fails, the way from that root is halved (4 times at most). A knot's neighbourhood
-    is refreshed at each root until it holds. RuntimeError where no root is found."""
+    where Newton fails, the way from that root is halved (4 times at most), and so is a root that
+    is not the continuation of the last one (``_on_the_curve``). A knot's neighbourhood is
+    refreshed at each root until it holds. RuntimeError where no root is found."""
     found = [(np.asarray(theta0, dtype=float), np.asarray(x0, dtype=float), problem.args)]
     n = problem.n
 
@@ -144,9 +158,8 @@ def _host_solve(kind, problem, set_values, x0, theta0, step, tol):
         zero = step(args_near)(x_near)[1]
         return x_near + (4.0 * one - two - 3.0 * zero) / (2.0 * eps)
 
-    def at(theta, near):
+    def at(theta, x_start):
         args = set_values(problem.args, [float(v) for v in theta])
-        x_start = predicted(theta, near)
         for _ in range(3):
             x, res = _backtracking_newton(step(args), x_start, tol)
             if not (np.all(np.isfinite(x)) and np.isfinite(res)) or problem.update_args is None:
@@ -162,8 +175,9 @@ def _host_solve(kind, problem, set_values, x0, theta0, step, tol):
         near = min(found, key=lambda item: float(np.linalg.norm(item[0] - theta)))
         way, res = [theta], math.inf
         while way:
-            x, res, args = at(way[-1], near)
-            if np.isfinite(res) and res <= tol:
+            x_start = predicted(way[-1], near)
+            x, res, args = at(way[-1], x_start)
+            if np.isfinite(res) and res <= tol and _on_the_curve(x, x_start, near[1]):
                 near = (way.pop(), x, args)
                 found.append(near)
             elif len(way) < 5:
@@ -239,7 +253,7 @@ def fold_root(problem, u, p, v, set_values, theta0, exact_args=None):
 
         return step_at
 
-    solve = _host_solve("fold", problem, set_values, np.append(u, p), theta0, step, opts.newton_tol)
+    solve = _host_solve("fold", problem, set_values, np.append(u, p), theta0, step, opts.event_tol)
     n = int(np.size(u))
     return RootSystem("fold", np.append(u, p), np.asarray(theta0, dtype=float), residual, jacobian, solve, n, n)
 
@@ -282,7 +296,7 @@ def branch_point_root(problem, u, p, v, set_values, theta0, exact_args=None):
         return step_at
 
     solve = _host_solve("branch point", problem, set_values, np.concatenate([u, [p, 0.0]]), theta0, step,
-                        opts.newton_tol)
+                        opts.event_tol)
     n = int(np.size(u))
     return RootSystem("branch_point", np.concatenate([u, [p, 0.0]]), np.asarray(theta0, dtype=float), residual,
                       jacobian, solve, n, n)
