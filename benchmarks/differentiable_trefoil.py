@@ -26,6 +26,10 @@ knots (docs/guides/twist-study.md): followed continuously, it never reaches 8 pi
 says so (not converged, with the reason). The opening ends near 8 pi (D/L ~ 0.045) belong to
 another instability, which overtakes this one between D/L = 0.035 and 0.0425.
 
+A calibration round trip: opening onsets at five D/L (N = 61) computed with (nu, contact stiffness)
+= (0.47, 120), with noise of 1e-6 pi, fitted back from (0.5, 100) by ``fit_critical_twists``
+(each onset the end located at nu = 0.5 and followed).
+
 Writes benchmarks/results/differentiable_trefoil.{json,md}.
 Run: python benchmarks/differentiable_trefoil.py   (about 10 minutes on 2 cores)
 The small mode is the docs guide's knot (N = 41, nu = 0.48, the opening side, a simple branch
@@ -58,6 +62,8 @@ SIDES = pick(("plus", "minus"), ("plus",))
 PARAMETERS = pick(("nu", "diameter", "contact_stiffness"), ("nu", "D", "contact_stiffness"))
 TARGET = 8.0 * PI
 DESIGN_START = 0.03  # D/L
+ROUND_TRIP_RATIOS = (0.0225, 0.025, 0.0274, 0.03, 0.0325)  # D/L, N = 61 (edges shorter than D from 0.0165 on)
+ROUND_TRIP_TRUTH = (0.47, 120.0)  # (nu, contact stiffness) of the synthetic measurements
 OUT = results_dir()
 
 
@@ -147,6 +153,30 @@ def design_row():
     return row
 
 
+def round_trip_row():
+    """Onsets at ROUND_TRIP_RATIOS computed with known (nu, contact stiffness), with noise of 1e-6 pi,
+    fitted back from (0.5, 100) by ``fit_critical_twists``."""
+    from jaxrod.studies.design import Measurement, fit_critical_twists
+
+    rng = np.random.default_rng(7)
+    sigma = 1e-6 * PI
+    truth = np.array(ROUND_TRIP_TRUTH)
+    knots = [jr.trefoil(D=r * L, L=L, N=N) for r in ROUND_TRIP_RATIOS]
+    t = time.perf_counter()
+    functions = [critical_twist_function(k, "plus", ("nu", "contact_stiffness"), -0.5 * PI, 10 * PI) for k in knots]
+    onsets = [float(f(jnp.asarray(truth))) + sigma * rng.standard_normal() for f in functions]
+    data = [Measurement(k, "plus", phi, sigma, end=f.end) for k, f, phi in zip(knots, functions, onsets)]
+    fit = fit_critical_twists(data, ("nu", "contact_stiffness"), phi_min=-0.5 * PI, phi_max=10 * PI)
+    errors = np.abs(fit.values - truth)
+    row = dict(ratios=list(ROUND_TRIP_RATIOS), truth=truth.tolist(), sigma=sigma, values=fit.values.tolist(),
+               standard_errors=fit.standard_errors.tolist(), relative_errors=(errors / truth).tolist(),
+               in_standard_errors=(errors / fit.standard_errors).tolist(), chi2=fit.chi2, converged=fit.converged,
+               reason=fit.reason, seconds=time.perf_counter() - t)
+    print(f"round trip: (nu, k) = {fit.values} against {truth}; relative errors {row['relative_errors']}, "
+          f"{row['in_standard_errors']} standard errors; chi2 = {fit.chi2:.2f}", flush=True)
+    return row
+
+
 def main():
     knot = jr.trefoil(D=D, L=L, N=N, nu=NU)
     t = time.perf_counter()
@@ -159,7 +189,8 @@ def main():
         ends = knot_ends(knot, -0.5 * PI, 8.0 * PI, None)
     print(f"N = {N}: ends located in {time.perf_counter() - t:.0f} s", flush=True)
     data = dict(D=D, L=L, N=N, nu=NU, critical_twists=critical_twist_rows(knot, ends),
-                equilibrium=equilibrium_rows(knot), design=None if SMOKE else design_row())
+                equilibrium=equilibrium_rows(knot), design=None if SMOKE else design_row(),
+                round_trip=None if SMOKE else round_trip_row())
     with open(os.path.join(OUT, "differentiable_trefoil.json"), "w") as f:
         json.dump(with_provenance(data), f, indent=1)
     with open(os.path.join(OUT, "differentiable_trefoil.md"), "w") as f:
@@ -184,6 +215,15 @@ def _table(data):
                   f"{d['phi_over_pi']:.10f} pi (target {d['target_over_pi']:g} pi, residual {d['residual_over_pi']:.1e} "
                   f"pi) in {d['iterations']} Newton steps ({d['seconds']:.0f} s); converged: {d['converged']}. "
                   f"The critical-curve point study at that D/L: {d['critical_curve']}."]
+    t = data["round_trip"]
+    if t is not None:
+        lines += ["", f"Calibration round trip: opening onsets at D/L = {', '.join(f'{r:g}' for r in t['ratios'])} "
+                  f"computed with (nu, contact stiffness) = ({t['truth'][0]:g}, {t['truth'][1]:g}) and noise "
+                  f"{t['sigma'] / PI:.0e} pi, fitted from (0.5, 100): ({t['values'][0]:.8f}, {t['values'][1]:.6f}), "
+                  f"relative errors {t['relative_errors'][0]:.1e}, {t['relative_errors'][1]:.1e}; "
+                  f"{t['in_standard_errors'][0]:.2f} and {t['in_standard_errors'][1]:.2f} standard errors "
+                  f"({t['standard_errors'][0]:.2e}, {t['standard_errors'][1]:.2e}); chi2 = {t['chi2']:.2f}; "
+                  f"converged: {t['converged']} ({t['seconds']:.0f} s)."]
     return lines
 
 

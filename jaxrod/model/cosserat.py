@@ -1,0 +1,148 @@
+"""Cosserat rods with shear and extension (Simo–Reissner): a scene kind of its own.
+
+The Kirchhoff scenes (``jaxrod.model.rods``) hold the centreline inextensible in shear: their frame
+follows the tangent. Here each edge carries a rotation of its own, so the cross-section can shear
+against the centreline, as in Simo–Reissner rods and PyElastica. Only the scenes that need shear
+pay for it: 6 DOFs per node instead of 4.
+
+Degrees of freedom: node positions x (N + 1, 3) and one rotation per edge, a rotation vector psi
+(N, 3), R = exp(psi^) through the unit quaternion q(psi) (smooth at psi = 0: a series there).
+Strains, per edge j (length l_j) and per joint k between edges k - 1 and k (length (l_{k-1} + l_k) / 2):
+
+    Gamma_j = R_j^T (x_{j+1} - x_j) / l_j - e3      shear (1, 2) and extension (3), in the material frame
+    kappa_k = 2 vec(conj(q_{k-1}) q_k) / lbar_k       bending (1, 2) and twist (3)
+
+    E = sum_j l_j / 2 Gamma_j^T diag(kGA, kGA, EA) Gamma_j + sum_k lbar_k / 2 kappa_k^T diag(B, B, C) kappa_k
+        - (work of the load)
+
+kappa is 2 sin(theta / 2) / lbar times the axis of the relative rotation: the curvature to third
+order in theta, smooth where the log map is not. Supports (``support``):
+
+- ``"cantilever"``: node 0 at the origin and a clamp frame R = I before edge 0 (a joint of length
+  l_0 / 2); the load is a dead force ``load`` e1 at node N (shear and bending).
+- ``"pinned"``: node 0 at the origin, node N on the z axis (free along it), frames free, the twist of
+  edge 0 held (the rod's rotation about its axis is a zero mode); the load is a compressive dead
+  force ``load`` along -e3 at node N (a column).
+
+The shear strain measured in the material frame makes the column's buckling load Haringx's, not
+Engesser's (docs/guides/shear.md).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..validation import check_int_at_least, check_positive
+
+__all__ = ["CosseratRod", "cosserat_rod", "SUPPORTS"]
+
+SUPPORTS = ("cantilever", "pinned")
+_SERIES = 1e-6  # below this psi . psi the quaternion's series is exact to roundoff
+
+
+def _quaternion(psi):
+    """Unit quaternions (w, v) (..., 4) of rotation vectors psi (..., 3), smooth at psi = 0."""
+    a = jnp.sum(psi * psi, axis=-1)
+    small = a < _SERIES
+    safe = jnp.where(small, 1.0, a)
+    angle = jnp.sqrt(safe)
+    w = jnp.where(small, 1.0 - a / 8.0, jnp.cos(0.5 * angle))
+    s = jnp.where(small, 0.5 - a / 48.0, jnp.sin(0.5 * angle) / angle)  # sin(|psi|/2) / |psi|
+    return jnp.concatenate([w[..., None], s[..., None] * psi], axis=-1)
+
+
+def _rotation(q):
+    """R (..., 3, 3) of unit quaternions q (..., 4)."""
+    w, v = q[..., 0], q[..., 1:]
+    eye = jnp.eye(3)
+    cross = jnp.stack([jnp.stack([0.0 * w, -v[..., 2], v[..., 1]], -1),
+                       jnp.stack([v[..., 2], 0.0 * w, -v[..., 0]], -1),
+                       jnp.stack([-v[..., 1], v[..., 0], 0.0 * w], -1)], -2)
+    return ((w * w - jnp.sum(v * v, -1))[..., None, None] * eye + 2.0 * v[..., :, None] * v[..., None, :]
+            + 2.0 * w[..., None, None] * cross)
+
+
+def _relative_vector(q1, q2):
+    """vec(conj(q1) q2) (..., 3): sin(theta / 2) times the axis of R1^T R2, in the frame of R1."""
+    w1, v1, w2, v2 = q1[..., :1], q1[..., 1:], q2[..., :1], q2[..., 1:]
+    return w1 * v2 - w2 * v1 - jnp.cross(v1, v2)
+
+
+@dataclass(frozen=True)
+class CosseratRod:
+    """A straight Cosserat rod of N edges along e3 (length ``length``), with bending B, twist C,
+    extension EA and shear kGA stiffnesses, and a ``support`` in ``SUPPORTS``.
+
+    The energy ``energy(u, load, params)`` is a pure JAX function of the free DOFs u (``n_free``,)
+    (``full`` embeds them), the load (a scalar: the tip force, see the module docstring) and
+    ``params`` = (B, C, EA, GA) (``params``: the rod's own), so that ``jax.grad`` and ``jax.hessian``
+    differentiate it in every argument."""
+
+    N: int
+    length: float
+    B: float
+    C: float
+    EA: float
+    GA: float
+    support: str = "cantilever"
+
+    @property
+    def params(self):
+        return jnp.array([self.B, self.C, self.EA, self.GA], dtype=jnp.float64)
+
+    @property
+    def n_full(self):
+        return 3 * (self.N + 1) + 3 * self.N
+
+    @property
+    def free(self):
+        """Indices (n_free,) of the free DOFs in the full vector [x (N + 1, 3) raveled, psi (N, 3) raveled]."""
+        held = [0, 1, 2]  # node 0 at the origin
+        if self.support == "pinned":
+            held += [3 * self.N, 3 * self.N + 1, 3 * (self.N + 1) + 2]  # node N on the axis; edge 0's twist
+        return np.setdiff1d(np.arange(self.n_full), held)
+
+    def full(self, u):
+        """(x (N + 1, 3), psi (N, 3)) of the free DOFs u (n_free,); held DOFs are 0."""
+        z = jnp.zeros(self.n_full, dtype=jnp.asarray(u).dtype).at[jnp.asarray(self.free)].set(u)
+        return z[:3 * (self.N + 1)].reshape(self.N + 1, 3), z[3 * (self.N + 1):].reshape(self.N, 3)
+
+    def straight(self, load=0.0):
+        """The free DOFs (n_free,) of the straight, untwisted state, stretched by the axial force
+        (the pinned column's -load: z_j = s_j (1 - load / EA)); an equilibrium for the column."""
+        axial = -float(load) / self.EA if self.support == "pinned" else 0.0
+        s = np.linspace(0.0, self.length, self.N + 1)
+        x = np.stack([0.0 * s, 0.0 * s, s * (1.0 + axial)], axis=1)
+        return np.concatenate([x.ravel(), np.zeros(3 * self.N)])[self.free]
+
+    def energy(self, u, load, params):
+        """E (scalar) at free DOFs u (n_free,) under ``load``, with params = (B, C, EA, GA)."""
+        B, C, EA, GA = params[0], params[1], params[2], params[3]
+        x, psi = self.full(u)
+        l = self.length / self.N
+        q = _quaternion(psi)
+        R = _rotation(q)
+        gamma = jnp.einsum("jab,ja->jb", R, (x[1:] - x[:-1]) / l) - jnp.array([0.0, 0.0, 1.0])
+        shear = 0.5 * l * jnp.sum(GA * (gamma[:, 0] ** 2 + gamma[:, 1] ** 2) + EA * gamma[:, 2] ** 2)
+        kappa = 2.0 * _relative_vector(q[:-1], q[1:]) / l
+        stiff = jnp.stack([B, B, C])
+        bend = 0.5 * l * jnp.sum(stiff * kappa ** 2)
+        if self.support == "cantilever":  # the clamp frame R = I before edge 0: a joint of length l / 2
+            kappa0 = 2.0 * q[0, 1:] / (0.5 * l)
+            bend = bend + 0.25 * l * jnp.sum(stiff * kappa0 ** 2)
+            return shear + bend - load * x[-1, 0]
+        return shear + bend + load * x[-1, 2]
+
+
+def cosserat_rod(*, N, length, B, C, EA, GA, support="cantilever"):
+    """A straight ``CosseratRod`` of N edges (N >= 2) and the given stiffnesses (all > 0); ValueError
+    naming the argument otherwise."""
+    check_int_at_least("N", N, 2)
+    for name, value in (("length", length), ("B", B), ("C", C), ("EA", EA), ("GA", GA)):
+        check_positive(name, value)
+    if support not in SUPPORTS:
+        raise ValueError(f"support must be one of {', '.join(SUPPORTS)}, got {support!r}")
+    return CosseratRod(int(N), float(length), float(B), float(C), float(EA), float(GA), support)
