@@ -47,3 +47,21 @@ def test_bad_input_names_the_argument():
         cosserat_rod(N=1, length=L, B=B, C=C, EA=1.0, GA=1.0)
     with pytest.raises(ValueError, match="cantilever"):
         cantilever_tip_deflection(cosserat_rod(N=4, length=L, B=B, C=C, EA=1.0, GA=1.0, support="pinned"), 1.0)
+
+
+def test_a_rings_critical_twist_tends_to_the_kirchhoff_one_as_one_over_the_shear_stiffness():
+    from jaxrod.model.cosserat import cosserat_ring
+    from jaxrod.studies.shear import ring_critical_twist
+
+    # the Cosserat ring's Michell instability (a double branch point, located by the engine) at
+    # kGA = 100, 1000 and 10^8 (B = 1, R = 1): the shear lowers phi* by ~13.4 / kGA rad, first order
+    # in the compliance, so the differences fall tenfold per decade (measured at N = 16: 9.98)
+    phis = []
+    for GA in (1e2, 1e3, 1e8):
+        event = ring_critical_twist(cosserat_ring(N=16, length=2 * math.pi, B=B, C=C, EA=1e6, GA=GA))
+        assert event.multiplicity == 2
+        phis.append(float(event.p))
+    ratio = (phis[0] - phis[2]) / (phis[1] - phis[2])
+    assert 9.5 < ratio < 10.5 and phis[0] < phis[1] < phis[2]
+    michell = 2 * math.pi * math.sqrt(3) * B / C  # the Kirchhoff continuum; N = 16 is 0.9 % below it
+    assert phis[2] == pytest.approx(michell, rel=1.2e-2)

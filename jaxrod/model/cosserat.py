@@ -37,7 +37,7 @@ import numpy as np
 
 from ..validation import check_int_at_least, check_positive
 
-__all__ = ["CosseratRod", "cosserat_rod", "SUPPORTS"]
+__all__ = ["CosseratRod", "cosserat_rod", "CosseratRing", "cosserat_ring", "SUPPORTS"]
 
 SUPPORTS = ("cantilever", "pinned")
 _SERIES = 1e-6  # below this psi . psi the quaternion's series is exact to roundoff
@@ -63,6 +63,26 @@ def _rotation(q):
                        jnp.stack([-v[..., 1], v[..., 0], 0.0 * w], -1)], -2)
     return ((w * w - jnp.sum(v * v, -1))[..., None, None] * eye + 2.0 * v[..., :, None] * v[..., None, :]
             + 2.0 * w[..., None, None] * cross)
+
+
+def _product(a, b):
+    """Quaternion products a b (..., 4)."""
+    wa, va, wb, vb = a[..., :1], a[..., 1:], b[..., :1], b[..., 1:]
+    return jnp.concatenate([wa * wb - jnp.sum(va * vb, -1, keepdims=True), wa * vb + wb * va + jnp.cross(va, vb)], -1)
+
+
+def _from_matrix(R):
+    """Unit quaternions (N, 4) of rotation matrices R (N, 3, 3) whose trace is > -1 (numpy)."""
+    w = 0.5 * np.sqrt(1.0 + np.trace(R, axis1=1, axis2=2))
+    v = np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], -1) / (4.0 * w[:, None])
+    return np.concatenate([w[:, None], v], -1)
+
+
+def _elastic(gamma, kappa, l, params):
+    """sum l / 2 (Gamma^T diag(kGA, kGA, EA) Gamma + kappa^T diag(B, B, C) kappa) over edges and joints."""
+    B, C, EA, GA = params[0], params[1], params[2], params[3]
+    shear = jnp.sum(GA * (gamma[:, 0] ** 2 + gamma[:, 1] ** 2) + EA * gamma[:, 2] ** 2)
+    return 0.5 * l * (shear + jnp.sum(jnp.stack([B, B, C]) * kappa ** 2))
 
 
 def _relative_vector(q1, q2):
@@ -120,21 +140,17 @@ class CosseratRod:
 
     def energy(self, u, load, params):
         """E (scalar) at free DOFs u (n_free,) under ``load``, with params = (B, C, EA, GA)."""
-        B, C, EA, GA = params[0], params[1], params[2], params[3]
         x, psi = self.full(u)
         l = self.length / self.N
         q = _quaternion(psi)
-        R = _rotation(q)
-        gamma = jnp.einsum("jab,ja->jb", R, (x[1:] - x[:-1]) / l) - jnp.array([0.0, 0.0, 1.0])
-        shear = 0.5 * l * jnp.sum(GA * (gamma[:, 0] ** 2 + gamma[:, 1] ** 2) + EA * gamma[:, 2] ** 2)
+        gamma = jnp.einsum("jab,ja->jb", _rotation(q), (x[1:] - x[:-1]) / l) - jnp.array([0.0, 0.0, 1.0])
         kappa = 2.0 * _relative_vector(q[:-1], q[1:]) / l
-        stiff = jnp.stack([B, B, C])
-        bend = 0.5 * l * jnp.sum(stiff * kappa ** 2)
+        energy = _elastic(gamma, kappa, l, params)
         if self.support == "cantilever":  # the clamp frame R = I before edge 0: a joint of length l / 2
             kappa0 = 2.0 * q[0, 1:] / (0.5 * l)
-            bend = bend + 0.25 * l * jnp.sum(stiff * kappa0 ** 2)
-            return shear + bend - load * x[-1, 0]
-        return shear + bend + load * x[-1, 2]
+            bend0 = 0.25 * l * jnp.sum(jnp.stack([params[0], params[0], params[1]]) * kappa0 ** 2)
+            return energy + bend0 - load * x[-1, 0]
+        return energy + load * x[-1, 2]
 
 
 def cosserat_rod(*, N, length, B, C, EA, GA, support="cantilever"):
@@ -146,3 +162,79 @@ def cosserat_rod(*, N, length, B, C, EA, GA, support="cantilever"):
     if support not in SUPPORTS:
         raise ValueError(f"support must be one of {', '.join(SUPPORTS)}, got {support!r}")
     return CosseratRod(int(N), float(length), float(B), float(C), float(EA), float(GA), support)
+
+
+@dataclass(frozen=True, eq=False)
+class CosseratRing:
+    """A closed Cosserat rod (a ring) of N edges of length ``length`` / N, naturally straight,
+    twisted by phi at its closure: the frame that edge 0 comes back with is R_0 exp(phi e3).
+
+    DOFs: node positions x (N, 3) and rotation vectors psi (N, 3) relative to reference frames
+    q_ref_j q(j phi / N e3) (the regular polygon's frames, d3 along the edge, d2 = e_z, with the
+    twist spread evenly), so that the planar twisted ring is near psi = 0 at every phi. Seven DOFs
+    are held at the polygon's values (node 0's position, x and z of node N/4, z of node N/2: the
+    rigid motions; edge 0's psi_3: the uniform rotation of every frame about its own d3, an exact
+    symmetry for an isotropic section). ``energy(u, phi, params)`` is a pure JAX function."""
+
+    N: int
+    length: float
+    B: float
+    C: float
+    EA: float
+    GA: float
+
+    @property
+    def params(self):
+        return jnp.array([self.B, self.C, self.EA, self.GA], dtype=jnp.float64)
+
+    def _polygon(self):
+        l = self.length / self.N
+        radius = l / (2.0 * np.sin(np.pi / self.N))
+        angle = 2.0 * np.pi * np.arange(self.N) / self.N
+        x = radius * np.stack([np.cos(angle), np.sin(angle), 0.0 * angle], -1)
+        d3 = np.roll(x, -1, axis=0) - x
+        d3 /= np.linalg.norm(d3, axis=1, keepdims=True)
+        d2 = np.broadcast_to(np.array([0.0, 0.0, 1.0]), d3.shape)
+        frames = np.stack([np.cross(d2, d3), d2, d3], axis=-1)  # columns d1, d2, d3
+        return x, _from_matrix(frames)
+
+    @property
+    def free(self):
+        N = self.N
+        held = [0, 1, 2, 3 * (N // 4), 3 * (N // 4) + 2, 3 * (N // 2) + 2, 3 * N + 2]
+        return np.setdiff1d(np.arange(6 * N), held)
+
+    def circle(self):
+        """The free DOFs (n_free,) of the planar polygon with frames on the reference (psi = 0)."""
+        x, _ = self._polygon()
+        return np.concatenate([x.ravel(), np.zeros(3 * self.N)])[self.free]
+
+    def full(self, u):
+        """(x (N, 3), psi (N, 3)) of the free DOFs u (n_free,), the held ones at the polygon's values."""
+        x, _ = self._polygon()
+        ref = jnp.asarray(np.concatenate([x.ravel(), np.zeros(3 * self.N)]))
+        z = ref.at[jnp.asarray(self.free)].set(u)
+        return z[:3 * self.N].reshape(self.N, 3), z[3 * self.N:].reshape(self.N, 3)
+
+    def energy(self, u, phi, params):
+        """E (scalar) at free DOFs u (n_free,) and closure twist phi (rad), params = (B, C, EA, GA)."""
+        x, psi = self.full(u)
+        _, q_ref = self._polygon()
+        l = self.length / self.N
+        e3 = jnp.array([0.0, 0.0, 1.0])
+        spread = _quaternion((phi * jnp.arange(self.N) / self.N)[:, None] * e3)
+        q = _product(_product(jnp.asarray(q_ref), spread), _quaternion(psi))
+        gamma = jnp.einsum("jab,ja->jb", _rotation(q), (jnp.roll(x, -1, axis=0) - x) / l) - e3
+        back = _product(q[:1], _quaternion(phi * e3)[None])  # edge 0's frame after one turn
+        kappa = 2.0 * _relative_vector(q, jnp.concatenate([q[1:], back])) / l
+        return _elastic(gamma, kappa, l, params)
+
+
+def cosserat_ring(*, N, length, B, C, EA, GA):
+    """A ``CosseratRing`` of N edges (N >= 8, a multiple of 4) and the given stiffnesses (all > 0)."""
+    check_int_at_least("N", N, 8)
+    if int(N) % 4:
+        raise ValueError(f"N must be a multiple of 4 (its gauge pins sit at nodes N/4 and N/2), got {N}")
+    for name, value in (("length", length), ("B", B), ("C", C), ("EA", EA), ("GA", GA)):
+        check_positive(name, value)
+    return CosseratRing(int(N), float(length), float(B), float(C), float(EA), float(GA))

@@ -3,6 +3,8 @@ a column's buckling load, against Timoshenko's, Haringx's and Engesser's formula
 
 - ``cantilever_tip_deflection(rod, force)``: the linear response to a small dead tip force,
   H^-1 f at the straight state (H = ``jax.hessian`` of the energy). Timoshenko: P L^3 / (3 B) + P L / (kGA).
+- ``ring_critical_twist(ring)``: a ``CosseratRing``'s planar twisted branch followed in phi from 0
+  to its first branch point (Michell's instability, with shear), located by the same engine.
 - ``column_buckling_load(rod)``: the pinned column's trivial (straight, compressed) branch followed
   in the load by the pseudo-arclength engine (``jaxrod.continuation.arclength.continuation``) to its
   first branch point, located on the extended system. With the shear strain in the material frame
@@ -18,7 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 
 __all__ = ["cantilever_tip_deflection", "timoshenko_deflection", "column_buckling_load", "euler_load", "haringx_load",
-           "engesser_load"]
+           "engesser_load", "ring_critical_twist"]
 
 
 def timoshenko_deflection(force, length, B, GA):
@@ -56,6 +58,29 @@ def cantilever_tip_deflection(rod, force):
     return float(np.linalg.solve(H, f) @ (f / float(force)))
 
 
+def _first_branch_point(energy, u0, params, step, p_max, options):
+    """The first located branch point of the branch of ``energy`` through (u0, 0), followed in its
+    parameter up to p_max by pseudo-arclength (steps ``step``, the 4 lowest eigenvalues tracked)."""
+    from ..continuation import ContinuationOptions
+    from ..continuation.arclength import BifurcationProblem, PseudoArclength, continuation
+
+    opts = options or ContinuationOptions(ds=step, ds_max=step, p_min=-step, p_max=p_max, k=4)
+    branch = continuation(BifurcationProblem(energy, u0, 0.0, params), PseudoArclength(), opts, throw=False)
+    found = [e for e in branch.events if str(getattr(e.kind, "value", e.kind)) == "branch_point" and e.converged]
+    if not found:
+        raise RuntimeError(f"no branch point below {p_max:.6g} ({branch.message})")
+    return found[0]
+
+
+def ring_critical_twist(ring, phi_max=None, options=None):
+    """The critical twist of a ``CosseratRing``: its planar branch continued in the closure twist from
+    0 to the first located branch point (an ``Event``: p the twist in rad, multiplicity 2).
+    phi_max: default 1.3 times Michell's 2 pi sqrt(3) B / C; options: a ``ContinuationOptions``."""
+    michell = 2.0 * math.pi * math.sqrt(3.0) * ring.B / ring.C
+    phi_max = 1.3 * michell if phi_max is None else float(phi_max)
+    return _first_branch_point(ring.energy, ring.circle(), ring.params, 0.1 * michell, phi_max, options)
+
+
 def column_buckling_load(rod, p_max=None, options=None):
     """The first buckling load of a pinned ``CosseratRod`` column: the straight branch continued in
     the compressive load from 0 (pseudo-arclength, ``PseudoArclength``) to its first located branch
@@ -64,17 +89,8 @@ def column_buckling_load(rod, p_max=None, options=None):
     p_max: the largest load followed (default 1.2 times Euler's load); options: a
     ``ContinuationOptions`` (default: steps of a tenth of Euler's load, the 4 lowest eigenvalues tracked).
     RuntimeError where no branch point is found below p_max."""
-    from ..continuation import ContinuationOptions
-    from ..continuation.arclength import BifurcationProblem, PseudoArclength, continuation
-
     if rod.support != "pinned":
         raise ValueError(f"the rod must be a pinned column, got support {rod.support!r}")
     P_E = euler_load(rod.length, rod.B)
     p_max = 1.2 * P_E if p_max is None else float(p_max)
-    opts = options or ContinuationOptions(ds=0.1 * P_E, ds_max=0.1 * P_E, p_min=-0.1 * P_E, p_max=p_max, k=4)
-    problem = BifurcationProblem(rod.energy, rod.straight(0.0), 0.0, rod.params)
-    branch = continuation(problem, PseudoArclength(), opts, throw=False)
-    found = [e for e in branch.events if str(getattr(e.kind, "value", e.kind)) == "branch_point" and e.converged]
-    if not found:
-        raise RuntimeError(f"no branch point below the load {p_max:.6g} ({branch.message})")
-    return found[0]
+    return _first_branch_point(rod.energy, rod.straight(0.0), rod.params, 0.1 * P_E, p_max, options)
