@@ -91,8 +91,33 @@ def _relative_vector(q1, q2):
     return w1 * v2 - w2 * v1 - jnp.cross(v1, v2)
 
 
+@dataclass(frozen=True, eq=False)
+class _CosseratStiffness:
+    """N edges of total rest length ``length``; bending B, twist C, extension EA and shear kGA."""
+
+    N: int
+    length: float
+    B: float
+    C: float
+    EA: float
+    GA: float
+
+    @property
+    def params(self):
+        """(B, C, EA, GA) (4,), the ``params`` argument of the energy."""
+        return jnp.array([self.B, self.C, self.EA, self.GA], dtype=jnp.float64)
+
+
+def _checked_stiffness(N, minimum, length, B, C, EA, GA):
+    """(int N, floats): ValueError naming the argument for N < minimum or a value that is not > 0."""
+    check_int_at_least("N", N, minimum)
+    for name, value in (("length", length), ("B", B), ("C", C), ("EA", EA), ("GA", GA)):
+        check_positive(name, value)
+    return int(N), float(length), float(B), float(C), float(EA), float(GA)
+
+
 @dataclass(frozen=True)
-class CosseratRod:
+class CosseratRod(_CosseratStiffness):
     """A straight Cosserat rod of N edges along e3 (length ``length``), with bending B, twist C,
     extension EA and shear kGA stiffnesses, and a ``support`` in ``SUPPORTS``.
 
@@ -101,17 +126,7 @@ class CosseratRod:
     ``params`` = (B, C, EA, GA) (``params``: the rod's own), so that ``jax.grad`` and ``jax.hessian``
     differentiate it in every argument."""
 
-    N: int
-    length: float
-    B: float
-    C: float
-    EA: float
-    GA: float
     support: str = "cantilever"
-
-    @property
-    def params(self):
-        return jnp.array([self.B, self.C, self.EA, self.GA], dtype=jnp.float64)
 
     @property
     def n_full(self):
@@ -156,16 +171,14 @@ class CosseratRod:
 def cosserat_rod(*, N, length, B, C, EA, GA, support="cantilever"):
     """A straight ``CosseratRod`` of N edges (N >= 2) and the given stiffnesses (all > 0); ValueError
     naming the argument otherwise."""
-    check_int_at_least("N", N, 2)
-    for name, value in (("length", length), ("B", B), ("C", C), ("EA", EA), ("GA", GA)):
-        check_positive(name, value)
+    values = _checked_stiffness(N, 2, length, B, C, EA, GA)
     if support not in SUPPORTS:
         raise ValueError(f"support must be one of {', '.join(SUPPORTS)}, got {support!r}")
-    return CosseratRod(int(N), float(length), float(B), float(C), float(EA), float(GA), support)
+    return CosseratRod(*values, support)
 
 
 @dataclass(frozen=True, eq=False)
-class CosseratRing:
+class CosseratRing(_CosseratStiffness):
     """A closed Cosserat rod (a ring) of N edges of length ``length`` / N, naturally straight,
     twisted by phi at its closure: the frame that edge 0 comes back with is R_0 exp(phi e3).
 
@@ -175,17 +188,6 @@ class CosseratRing:
     are held at the polygon's values (node 0's position, x and z of node N/4, z of node N/2: the
     rigid motions; edge 0's psi_3: the uniform rotation of every frame about its own d3, an exact
     symmetry for an isotropic section). ``energy(u, phi, params)`` is a pure JAX function."""
-
-    N: int
-    length: float
-    B: float
-    C: float
-    EA: float
-    GA: float
-
-    @property
-    def params(self):
-        return jnp.array([self.B, self.C, self.EA, self.GA], dtype=jnp.float64)
 
     def _polygon(self):
         l = self.length / self.N
@@ -232,9 +234,7 @@ class CosseratRing:
 
 def cosserat_ring(*, N, length, B, C, EA, GA):
     """A ``CosseratRing`` of N edges (N >= 8, a multiple of 4) and the given stiffnesses (all > 0)."""
-    check_int_at_least("N", N, 8)
-    if int(N) % 4:
+    values = _checked_stiffness(N, 8, length, B, C, EA, GA)
+    if values[0] % 4:
         raise ValueError(f"N must be a multiple of 4 (its gauge pins sit at nodes N/4 and N/2), got {N}")
-    for name, value in (("length", length), ("B", B), ("C", C), ("EA", EA), ("GA", GA)):
-        check_positive(name, value)
-    return CosseratRing(int(N), float(length), float(B), float(C), float(EA), float(GA))
+    return CosseratRing(*values)

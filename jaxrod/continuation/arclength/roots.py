@@ -54,25 +54,20 @@ class RootSystem:
     n: int
 
 
-def _bordered(J, b):
-    """(w (n,), sigma) with [[J, b], [b^T, 0]] [w; sigma] = [0; 1] (dense, traceable)."""
+def _bordered(J, b, f=None):
+    """(y (n,), eta) with [[J, b], [b^T, 0]] [y; eta] = [f; g] (dense, traceable): by default f = 0,
+    g = 1 (w and sigma); with f given, g = 0."""
     n = J.shape[0]
     M = jnp.block([[J, b[:, None]], [b[None, :], jnp.zeros((1, 1))]])
-    z = jnp.linalg.solve(M, jnp.zeros(n + 1).at[n].set(1.0))
+    rhs = jnp.zeros(n + 1).at[n].set(1.0) if f is None else jnp.append(f, 0.0)
+    z = jnp.linalg.solve(M, rhs)
     return z[:n], z[n]
-
-
-def _bordered_solve(J, b, f):
-    """y (n,) with [[J, b], [b^T, 0]] [y; eta] = [f; 0] (dense, traceable)."""
-    n = J.shape[0]
-    M = jnp.block([[J, b[:, None]], [b[None, :], jnp.zeros((1, 1))]])
-    return jnp.linalg.solve(M, jnp.append(f, 0.0))[:n]
 
 
 def _contracted_gradient(F, u, p, theta, a, c, t):
     """The gradient in (u, p) ((n + 1,)) of a^T (J(u, p) c + t F_p(u, p)), a, c and t held fixed.
 
-    With w and y from the bordered systems (the w and y of ``_bordered``, ``_bordered_solve``),
+    With w and y from the bordered systems (the w and y of ``_bordered``),
     d sigma = -w^T dJ w and d tau = w^T d(F_p - J y) hold at every (u, p), not only at the root
     (differentiate M [w; sigma] = [0; 1] and multiply by [w; sigma]^T, M symmetric): so these
     gradients, with w and y computed from (u, p) by the caller, are sigma's and tau's gradients as
@@ -84,8 +79,6 @@ def _contracted_gradient(F, u, p, theta, a, c, t):
     return jax.grad(contracted)(jnp.append(u, p))
 
 
-import os
-structured = os.environ.get('STRUCT') == '1'
 def _linear_parts(problem, set_values, exact_args):
     """F(u, p, theta) and (F, J, F_p)(u, p, theta), traceable, with args = set_values(exact_args, theta)."""
     def F(u, p, theta):
@@ -93,8 +86,6 @@ def _linear_parts(problem, set_values, exact_args):
 
     def linear(u, p, theta):
         f, fp = jax.jvp(lambda q: F(u, q, theta), (p,), (jnp.ones_like(p),))
-        if problem.jacobian is not None and structured:
-            return f, problem.jacobian(u, p, set_values(exact_args, theta)), fp
         return f, jax.jacfwd(lambda y: F(y, p, theta))(u), fp
 
     return F, linear
@@ -133,7 +124,7 @@ def _on_the_curve(x, x_predicted, x_near):
     return float(np.linalg.norm(x - x_predicted)) <= 0.5 * moved + 1e-6 * (1.0 + float(np.linalg.norm(x)))
 
 
-def _host_solve(kind, problem, set_values, x0, theta0, step, tol):
+def _host_solve(kind, problem, set_values, x0, theta0, step, tol, u_and_p):
     """solve(theta) -> x: ``_backtracking_newton`` with ``step(args) -> step_at`` at the problem's
     args with the values theta (concrete: ``scene.with_params`` checks them), from the implicit
     function theorem's prediction from the nearest root found so far (the tangent: along a nearly
@@ -141,9 +132,9 @@ def _host_solve(kind, problem, set_values, x0, theta0, step, tol):
     from x_near, or from the chord x_near - A^-1 G(x_near, theta), was seen to diverge);
     where Newton fails, the way from that root is halved (4 times at most), and so is a root that
     is not the continuation of the last one (``_on_the_curve``). A knot's neighbourhood is
-    refreshed at each root until it holds. RuntimeError where no root is found."""
+    refreshed at each root until it holds (``u_and_p(x) -> (u, p)``). RuntimeError where no root is
+    found."""
     found = [(np.asarray(theta0, dtype=float), np.asarray(x0, dtype=float), problem.args)]
-    n = problem.n
 
     def predicted(theta, near):
         """x_near + dx/dtheta (theta - theta_near): the tangent, its G_theta (theta - theta_near) by
@@ -164,7 +155,7 @@ def _host_solve(kind, problem, set_values, x0, theta0, step, tol):
             x, res = _backtracking_newton(step(args), x_start, tol)
             if not (np.all(np.isfinite(x)) and np.isfinite(res)) or problem.update_args is None:
                 break
-            fresh = problem.update_args(x[:n], float(x[n]) if x.size > n else step.p, args)
+            fresh = problem.update_args(*u_and_p(x), args)
             if fresh is args:
                 break
             args, x_start = fresh, x
@@ -215,8 +206,7 @@ def equilibrium_root(problem, u, p, set_values, theta0, exact_args=None):
 
         return step_at
 
-    step.p = p
-    solve = _host_solve("equilibrium", problem, set_values, u0, theta0, step, opts.newton_tol)
+    solve = _host_solve("equilibrium", problem, set_values, u0, theta0, step, opts.newton_tol, lambda x: (x, p))
     return RootSystem("equilibrium", u0, np.asarray(theta0, dtype=float), residual, jax.jacfwd(residual), solve, None,
                       u0.size)
 
@@ -253,8 +243,9 @@ def fold_root(problem, u, p, v, set_values, theta0, exact_args=None):
 
         return step_at
 
-    solve = _host_solve("fold", problem, set_values, np.append(u, p), theta0, step, opts.event_tol)
     n = int(np.size(u))
+    solve = _host_solve("fold", problem, set_values, np.append(u, p), theta0, step, opts.event_tol,
+                        lambda x: (x[:n], float(x[n])))
     return RootSystem("fold", np.append(u, p), np.asarray(theta0, dtype=float), residual, jacobian, solve, n, n)
 
 
@@ -274,7 +265,7 @@ def branch_point_root(problem, u, p, v, set_values, theta0, exact_args=None):
         u, p = x[:-2], x[-2]
         _, J, fp = linear(u, p, theta)
         w, _ = _bordered(J, v0)
-        y = _bordered_solve(J, v0, fp)
+        y, _ = _bordered(J, v0, fp)
         sigma_x = -_contracted_gradient(F, u, p, theta, w, w, 0.0)
         tau_x = _contracted_gradient(F, u, p, theta, w, -y, 1.0)
         top = jnp.hstack([J, fp[:, None], v0[:, None]])
@@ -295,8 +286,8 @@ def branch_point_root(problem, u, p, v, set_values, theta0, exact_args=None):
 
         return step_at
 
-    solve = _host_solve("branch point", problem, set_values, np.concatenate([u, [p, 0.0]]), theta0, step,
-                        opts.event_tol)
     n = int(np.size(u))
+    solve = _host_solve("branch point", problem, set_values, np.concatenate([u, [p, 0.0]]), theta0, step,
+                        opts.event_tol, lambda x: (x[:n], float(x[n])))
     return RootSystem("branch_point", np.concatenate([u, [p, 0.0]]), np.asarray(theta0, dtype=float), residual,
                       jacobian, solve, n, n)
