@@ -31,7 +31,7 @@ A calibration round trip: opening onsets at five D/L (N = 61) computed with (nu,
 (each onset the end located at nu = 0.5 and followed).
 
 Writes benchmarks/results/differentiable_trefoil.{json,md}.
-Run: python benchmarks/differentiable_trefoil.py   (about 10 minutes on 2 cores)
+Run: python benchmarks/differentiable_trefoil.py   (about 17 minutes on 2 cores)
 The small mode is the docs guide's knot (N = 41, nu = 0.48, the opening side, a simple branch
 point) with the guide's parameters, so that its compiled programs are those of the guide's test;
 it leaves the design out (``match_critical_twist`` is tested on Michell's ring).

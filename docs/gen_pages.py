@@ -25,7 +25,7 @@ RESULTS = REPO / "benchmarks" / "results"
 CHARTS = ("speed.png", "sparse_contact.png", "dynamics_accuracy.png", "michell.png", "helical_buckling.png",
           "peer_pyelastica.png", "tension_twist.png", "fold_curve_nu.png", "fold_curve_ratio.png",
           "hysteresis_trefoil.png", "bifurcation_trefoil.png", "plectoneme.png", "open_knot.png",
-          "accuracy_trefoil.png", "trefoil_convergence.png")
+          "accuracy_trefoil.png", "trefoil_convergence.png", "shear_kirchhoff_limit.png")
 PI = math.pi
 
 
@@ -152,7 +152,46 @@ def validation_table():
     cwf = _load("cwf.json")
     rows.append(["CWF", "", "not yet reproduced: " + _missing("cwf.json") if cwf is None
                  else json.dumps(cwf)[:80], "", ""])
+    rows += _differentiable_rows() + _shear_rows()
     return _table(["reference", "reference value", "jaxrod", "error", "reproduce"], rows)
+
+
+def _differentiable_rows():
+    """The trefoil's derivatives by JAX against differences, and the calibration round trip."""
+    data = _load("differentiable_trefoil.json")
+    if not data:
+        return [["derivatives of the trefoil's critical twists", "", _missing("differentiable_trefoil.json"), "", ""]]
+    twists, command = data["critical_twists"], "`python benchmarks/differentiable_trefoil.py`"
+    ends = sorted({f"{r['phi_over_pi']:+.4f} π ({r['kind']})" for r in twists})
+    rows = [[f"trefoil (8, 292) mm, N = {data['N']}: φ* by `jax.grad` and forward-over-reverse, in "
+             + ", ".join(dict.fromkeys(r["parameter"] for r in twists)),
+             "differences of ends located at p ± h", ", ".join(ends),
+             f"gradients ≤ {max(r['rel_grad'] for r in twists):.1e}, second derivatives ≤ "
+             f"{max(r['rel_hessian'] for r in twists):.1e}, equilibrium Jacobian ≤ "
+             f"{max(r['rel_jacobian'] for r in data['equilibrium']):.1e} relative", command]]
+    trip = data.get("round_trip")
+    if trip:
+        rows.append([f"calibration round trip: (ν, k) from opening onsets at {len(trip['ratios'])} D/L, noise "
+                     f"{trip['sigma'] / PI:.0e} π", f"({trip['truth'][0]:g}, {trip['truth'][1]:g})",
+                     f"({trip['values'][0]:.8f}, {trip['values'][1]:.4f})",
+                     f"{trip['relative_errors'][0]:.1e}, {trip['relative_errors'][1]:.1e} relative; "
+                     f"{trip['in_standard_errors'][0]:.2f}, {trip['in_standard_errors'][1]:.2f} standard errors",
+                     command])
+    return rows
+
+
+def _shear_rows():
+    """The Cosserat ring's Michell twist against the Kirchhoff limit."""
+    data = _load("shear_kirchhoff_limit.json")
+    if not data:
+        return [["Cosserat ring: the Kirchhoff limit", "", _missing("shear_kirchhoff_limit.json"), "", ""]]
+    finest = max(data["limit"], key=int)
+    limit = data["limit"][finest]
+    return [["Cosserat ring (shear): Michell's twist as kGA → ∞, first order in 1/kGA",
+             f"slope −1; Michell {data['michell'] / PI:.7f} π",
+             f"slope {data['slope']:.3f} (N = {data['N']}); limit {limit / PI:.7f} π (N = {finest})",
+             f"{(limit - data['michell']) / data['michell']:+.1e} relative at N = {finest}",
+             "`python benchmarks/shear_kirchhoff_limit.py`"]]
 
 
 def _machine(text):
