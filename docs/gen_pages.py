@@ -338,7 +338,19 @@ def peer_table():
     return _table(["envelope error E", "jaxrod", "PyElastica to reach it", "ratio, cold / warm"], out)
 
 
-GENERATORS = {"cli": cli_reference, "validation": validation_table, "performance": performance_table,
+def shear_trefoil_table():
+    """The trefoil's first ends as a Cosserat rod with shear, its Kirchhoff limit and the Kirchhoff scene."""
+    data = _load("shear_trefoil.json")
+    if not data:
+        return _missing("shear_trefoil.json")
+    fmt = lambda v: "" if v is None else f"{v:+.4f} π"  # noqa: E731
+    rows = [[r["N"], r["side"], fmt(r.get("kirchhoff_over_pi")), fmt(r.get("stiff_over_pi")),
+             f"{fmt(r['shear_over_pi'])} ({r['shear_kind']})", fmt(r.get("shear_effect_over_pi"))] for r in data["rows"]]
+    header = ["N", "side", "Kirchhoff scene", "Cosserat, kGA × 10⁴", "Cosserat with shear", "shear's effect"]
+    return _table(header, rows) + f"\n\nFrom `{data['provenance']['command']}`."
+
+
+GENERATORS = {"cli": cli_reference, "shear_trefoil": shear_trefoil_table, "validation": validation_table, "performance": performance_table,
               "speed": speed_table, "sparse_contact": sparse_contact_table, "dynamics": dynamics_table,
               "peer": peer_table, "per_step": per_step_table,
               "compile": compile_table}

@@ -65,3 +65,65 @@ def test_a_rings_critical_twist_tends_to_the_kirchhoff_one_as_one_over_the_shear
     assert 9.5 < ratio < 10.5 and phis[0] < phis[1] < phis[2]
     michell = 2 * math.pi * math.sqrt(3) * B / C  # the Kirchhoff continuum; N = 16 is 0.9 % below it
     assert phis[2] == pytest.approx(michell, rel=1.2e-2)
+
+
+@pytest.fixture(scope="module")
+def trefoil_41():
+    import jaxrod as jr
+
+    knot = jr.trefoil(D=8.0, L=292.0, N=41)
+    return knot, jr.relax_to_minimum(knot, 0.0)
+
+
+def test_a_cosserat_knots_gauge_holds_its_seven_symmetries_and_nothing_else(trefoil_41):
+    import dataclasses
+
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
+
+    from jaxrod.model.cosserat import cosserat_knot
+    from jaxrod.studies.shear import relax_cosserat
+
+    knot = cosserat_knot(*trefoil_41)
+    u = relax_cosserat(knot)
+    near = knot.contact_list(u)
+    contact = (near.pairs, near.mask)
+    autodiff = np.asarray(jax.jit(jax.hessian(knot.energy))(jnp.asarray(u), 0.0, knot.params, contact))
+    # the Hessian assembled from its edge, joint and contact-pair blocks is jax.hessian's, here and twisted
+    assert np.max(np.abs(np.asarray(jax.jit(knot.hessian)(jnp.asarray(u), 0.0, knot.params, contact)) - autodiff)) \
+        <= 1e-12 * np.max(np.abs(autodiff))
+    twisted = np.asarray(jax.jit(jax.hessian(knot.energy))(jnp.asarray(u), -3.0, knot.params, contact))
+    assert np.max(np.abs(np.asarray(jax.jit(knot.hessian)(jnp.asarray(u), -3.0, knot.params, contact)) - twisted)) \
+        <= 1e-12 * np.max(np.abs(twisted))
+    pinned = np.linalg.eigvalsh(autodiff)
+    free = dataclasses.replace(knot, held=())  # every DOF free, at the same state
+    z = jnp.concatenate([a.ravel() for a in knot.full(jnp.asarray(u))])
+    full = np.linalg.eigvalsh(np.asarray(jax.jit(jax.hessian(free.energy))(z, 0.0, free.params, contact)))
+    by_size = np.sort(np.abs(full))
+    # 3 translations, 3 rotations and the frames' common turn about d3: exact zeros at an equilibrium;
+    # the eighth is the near-free slide (~1e-4 against a largest of ~1e3), and none is negative
+    assert np.all(by_size[:7] < 1e-9 * full[-1]) and by_size[7] > 1e-8 * full[-1] and full[0] > -1e-9 * full[-1]
+    # the pinned problem keeps the rest and nothing else: positive definite, its lowest the slide
+    assert pinned.size == full.size - 7 and pinned[0] > 1e-8 * pinned[-1]
+
+
+def test_a_stiff_cosserat_knot_relaxes_to_the_kirchhoff_knot_and_shear_moves_it(trefoil_41):
+    import dataclasses
+
+    import jax.numpy as jnp
+    import numpy as np
+
+    from jaxrod.model.cosserat import cosserat_knot
+    from jaxrod.studies.shear import relax_cosserat
+
+    knot = cosserat_knot(*trefoil_41)
+    assert knot.GA == pytest.approx(0.9 * 8.0 * knot.C / 64.0)  # Cowper's k = 0.9 at nu = 0.5; GA = 8 C / D^2
+    moves = {}
+    for scale in (1.0, 1e4):
+        stiff = dataclasses.replace(knot, GA=knot.GA * scale)
+        x = np.asarray(stiff.full(jnp.asarray(relax_cosserat(stiff)))[0])
+        moves[scale] = float(np.max(np.linalg.norm(x - knot.x_ref, axis=1)))
+    # kGA -> oo: the Kirchhoff equilibrium up to the two discretisations' O(h^2) difference (edges
+    # of 7.1 mm: 0.014 mm, 0.2 % of D; 0.006 mm at N = 61); shear moves the nodes twice as far
+    assert moves[1e4] < 2e-3 * 8.0 and moves[1.0] > 1.5 * moves[1e4]

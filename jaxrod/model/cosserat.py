@@ -37,7 +37,7 @@ import numpy as np
 
 from ..validation import check_int_at_least, check_positive
 
-__all__ = ["CosseratRod", "cosserat_rod", "CosseratRing", "cosserat_ring", "SUPPORTS"]
+__all__ = ["CosseratRod", "cosserat_rod", "CosseratRing", "cosserat_ring", "CosseratKnot", "cosserat_knot", "SUPPORTS"]
 
 SUPPORTS = ("cantilever", "pinned")
 _SERIES = 1e-6  # below this psi . psi the quaternion's series is exact to roundoff
@@ -72,10 +72,26 @@ def _product(a, b):
 
 
 def _from_matrix(R):
-    """Unit quaternions (N, 4) of rotation matrices R (N, 3, 3) whose trace is > -1 (numpy)."""
-    w = 0.5 * np.sqrt(1.0 + np.trace(R, axis1=1, axis2=2))
-    v = np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], -1) / (4.0 * w[:, None])
-    return np.concatenate([w[:, None], v], -1)
+    """Unit quaternions (N, 4) of rotation matrices R (N, 3, 3) (numpy; Shepperd's method: each
+    from its largest component, so that no rotation angle divides by a small number)."""
+    R = np.asarray(R, dtype=float)
+    tr = np.trace(R, axis1=1, axis2=2)
+    squares = np.stack([1.0 + tr, 1.0 + 2.0 * R[:, 0, 0] - tr, 1.0 + 2.0 * R[:, 1, 1] - tr,
+                        1.0 + 2.0 * R[:, 2, 2] - tr], -1)  # 4 w^2, 4 x^2, 4 y^2, 4 z^2
+    big = np.argmax(squares, axis=1)
+    q = np.empty((R.shape[0], 4))
+    for n, i in enumerate(big):
+        r, c = R[n], 0.5 * np.sqrt(squares[n, i])
+        skew = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
+        sym = {1: (r[0, 1] + r[1, 0], r[0, 2] + r[2, 0]), 2: (r[0, 1] + r[1, 0], r[1, 2] + r[2, 1]),
+               3: (r[0, 2] + r[2, 0], r[1, 2] + r[2, 1])}
+        if i == 0:
+            q[n] = [c, *(skew / (4.0 * c))]
+        else:
+            others = iter(sym[i])
+            v = [next(others) / (4.0 * c) if j != i else c for j in (1, 2, 3)]
+            q[n] = [skew[i - 1] / (4.0 * c), *v]
+    return q * np.where(q[:, :1] < 0.0, -1.0, 1.0)
 
 
 def _elastic(gamma, kappa, l, params):
@@ -238,3 +254,177 @@ def cosserat_ring(*, N, length, B, C, EA, GA):
     if values[0] % 4:
         raise ValueError(f"N must be a multiple of 4 (its gauge pins sit at nodes N/4 and N/2), got {N}")
     return CosseratRing(*values)
+
+
+def _edge_energy(xa, xb, psi, left, l, params):
+    """Shear and extension of one edge from node xa to xb (3,), its frame left q(psi) (left (4,)):
+    l / 2 Gamma^T diag(kGA, kGA, EA) Gamma, Gamma = R^T (xb - xa) / l - e3."""
+    gamma = _rotation(_product(left, _quaternion(psi))).T @ ((xb - xa) / l) - jnp.array([0.0, 0.0, 1.0])
+    return 0.5 * l * (params[3] * (gamma[0] ** 2 + gamma[1] ** 2) + params[2] * gamma[2] ** 2)
+
+
+def _joint_energy(psi_a, psi_b, left_a, left_b, right_b, l, params):
+    """Bending and twist of one joint between the frames left_a q(psi_a) and left_b q(psi_b) right_b:
+    l / 2 kappa^T diag(B, B, C) kappa, kappa = 2 vec(conj(q_a) q_b) / l."""
+    qa = _product(left_a, _quaternion(psi_a))
+    qb = _product(_product(left_b, _quaternion(psi_b)), right_b)
+    kappa = 2.0 * _relative_vector(qa, qb) / l
+    return 0.5 * l * (params[0] * (kappa[0] ** 2 + kappa[1] ** 2) + params[1] * kappa[2] ** 2)
+
+
+@dataclass(frozen=True, eq=False)
+class CosseratKnot(_CosseratStiffness):
+    """A closed Cosserat rod tied in a knot, with soft self-contact, twisted by phi at its closure
+    (the frame that edge 0 comes back with is R_0 exp(phi e3), as in ``CosseratRing``).
+
+    Built by ``cosserat_knot`` from a Kirchhoff knot's equilibrium at phi = 0: ``x_ref`` (N, 3)
+    its nodes and ``q_ref`` (N, 4) its material frames (d3 along each edge, so no shear there). The
+    DOFs are the node positions and rotation vectors psi (N, 3) relative to q_ref_j q(j phi / N e3)
+    (the twist spread evenly, so that psi stays small at any phi). Seven DOFs are held at their
+    reference values, a gauge for the seven exact symmetries: node 0's position, two coordinates
+    of a second node and one of a third (chosen where the rigid rotations move them most), and edge
+    0's psi_3 (every frame turned about its own d3). Contact: ``contact_energy`` over the segment
+    pairs ``pairs`` (every pair further apart along the rod than pi D / 2), with the diameter D and
+    ``contact_stiffness`` (units of B / D^3) of the Kirchhoff scene. ``energy(u, phi, params)`` is a
+    pure JAX function."""
+
+    D: float
+    contact_stiffness: float
+    x_ref: np.ndarray
+    q_ref: np.ndarray
+    held: tuple
+    pairs: np.ndarray
+
+    @property
+    def free(self):
+        return np.setdiff1d(np.arange(6 * self.N), np.asarray(self.held))
+
+    def start(self):
+        """The free DOFs (n_free,) of the reference state (the Kirchhoff equilibrium, psi = 0)."""
+        return np.concatenate([self.x_ref.ravel(), np.zeros(3 * self.N)])[self.free]
+
+    def full(self, u):
+        """(x (N, 3), psi (N, 3)) of the free DOFs u (n_free,), the held ones at their reference values."""
+        ref = jnp.asarray(np.concatenate([self.x_ref.ravel(), np.zeros(3 * self.N)]))
+        z = ref.at[jnp.asarray(self.free)].set(u)
+        return z[:3 * self.N].reshape(self.N, 3), z[3 * self.N:].reshape(self.N, 3)
+
+    def frames(self, u, phi):
+        """Unit quaternions (N, 4) of the edges' frames at free DOFs u and closure twist phi."""
+        _, psi, left, _ = self._stencils(u, phi)
+        return _product(left, _quaternion(psi))
+
+    def _stencils(self, u, phi):
+        """(x (N, 3), psi (N, 3), left (N, 4), right (N, 4)): the positions and rotation vectors, and
+        each edge's frame as left_j q(psi_j), with left_j = q_ref_j q(j phi / N e3); right: the
+        rotation after q(psi) of each joint's second edge (identity, and q(phi e3) at the closure,
+        where edge 0 comes back turned by phi)."""
+        x, psi = self.full(u)
+        e3 = jnp.array([0.0, 0.0, 1.0])
+        left = _product(jnp.asarray(self.q_ref), _quaternion((phi * jnp.arange(self.N) / self.N)[:, None] * e3))
+        identity = jnp.zeros((self.N - 1, 4)).at[:, 0].set(1.0)
+        right = jnp.concatenate([identity, _quaternion(phi * e3)[None]])
+        return x, psi, left, right
+
+    def energy(self, u, phi, params, contact=None):
+        """E (scalar) at free DOFs u (n_free,) and closure twist phi (rad), params = (B, C, EA, GA);
+        contact: (pairs (P, 2), mask (P,)), a candidate list (``contact_list``) that holds every
+        pair within D at u, or None for every pair (``pairs``)."""
+        from .contact import contact_energy
+
+        x, psi, left, right = self._stencils(u, phi)
+        l = self.length / self.N
+        nxt = np.roll(np.arange(self.N), -1)
+        edges = jax.vmap(_edge_energy, (0, 0, 0, 0, None, None))(x, x[nxt], psi, left, l, params)
+        joints = jax.vmap(_joint_energy, (0, 0, 0, 0, 0, None, None))(psi, psi[nxt], left, left[nxt], right, l, params)
+        pairs, mask = (self.pairs, np.ones(len(self.pairs), dtype=bool)) if contact is None else contact
+        return jnp.sum(edges) + jnp.sum(joints) + contact_energy(x, pairs, mask, True, self.D, params[0],
+                                                                 self.contact_stiffness)
+
+    def hessian(self, u, phi, params, contact=None):
+        """The Hessian (n_free, n_free) of ``energy`` in u, assembled from its local blocks: 9 x 9 per
+        edge (its two nodes and its rotation), 6 x 6 per joint (two rotations), and the contact's
+        closed-form 12 x 12 per pair (``contact_pair_hessian``): N + N + P small Hessians against the
+        n_free reverse passes of ``jax.hessian``."""
+        from .contact import contact_pair_hessian
+
+        x, psi, left, right = self._stencils(u, phi)
+        N, l = self.N, self.length / self.N
+        nxt = np.roll(np.arange(N), -1)
+        node = lambda j: 3 * np.asarray(j)[:, None] + np.arange(3)  # noqa: E731
+        turn = lambda j: 3 * N + node(j)  # noqa: E731
+        edge = jax.vmap(jax.hessian(lambda y, lft: _edge_energy(y[:3], y[3:6], y[6:], lft, l, params)))
+        joint = jax.vmap(jax.hessian(lambda y, la, lb, r: _joint_energy(y[:3], y[3:], la, lb, r, l, params)))
+        j = np.arange(N)
+        blocks = [(edge(jnp.concatenate([x, x[nxt], psi], 1), left),
+                   np.concatenate([node(j), node(nxt), turn(j)], 1)),
+                  (joint(jnp.concatenate([psi, psi[nxt]], 1), left, left[nxt], right),
+                   np.concatenate([turn(j), turn(nxt)], 1))]
+        pairs, mask = (self.pairs, np.ones(len(self.pairs), dtype=bool)) if contact is None else contact
+        pairs = jnp.asarray(pairs)
+        a, b = pairs[:, 0], pairs[:, 1]
+        segments = jnp.concatenate([x[a], x[(a + 1) % N], x[b], x[(b + 1) % N]], 1)
+        contact_blocks = contact_pair_hessian(segments, self.D, params[0], self.contact_stiffness)
+        contact_index = jnp.concatenate([3 * a[:, None] + jnp.arange(3), 3 * ((a + 1) % N)[:, None] + jnp.arange(3),
+                                         3 * b[:, None] + jnp.arange(3), 3 * ((b + 1) % N)[:, None] + jnp.arange(3)], 1)
+        blocks.append((jnp.where(jnp.asarray(mask)[:, None, None], contact_blocks, 0.0), contact_index))
+        H = jnp.zeros((6 * N, 6 * N))
+        for values, index in blocks:
+            index = jnp.asarray(index)
+            H = H.at[index[:, :, None], index[:, None, :]].add(values)
+        free = jnp.asarray(self.free)
+        return H[free[:, None], free[None, :]]
+
+    def contact_list(self, u, capacity=None):
+        """The candidate segment pairs at free DOFs u (a ``ContactList``: a k-d tree with a skin of
+        D / 2, valid while no node moves more than D / 4), padded to ``capacity`` (default four times
+        the pairs found, at least 4 N)."""
+        from .contact import candidate_pairs
+
+        x = np.asarray(self.full(jnp.asarray(u))[0])
+        found = candidate_pairs(x, True, self.length / self.N, self.D, capacity=len(self.pairs))
+        cap = max(4 * found.n_candidates, 4 * self.N) if capacity is None else capacity
+        return candidate_pairs(x, True, self.length / self.N, self.D, capacity=min(cap, len(self.pairs)))
+
+
+def _knot_gauge(x):
+    """Seven held DOFs of a closed rod's nodes x (N, 3): node 0's position; two coordinates of the
+    node that rigid rotations about node 0 move most, then one coordinate of the node that the
+    rotation left free moves most; edge 0's psi_3."""
+    N = x.shape[0]
+    r = x - x[0]
+    a = int(np.argmax(np.linalg.norm(r, axis=1)))
+    rot = lambda w, y: np.cross(w, y)  # noqa: E731
+    moves_a = np.stack([rot(w, r[a]) for w in np.eye(3)], axis=1)  # (coordinate, rotation axis)
+    pairs = [(i, j) for i in range(3) for j in range(i + 1, 3)]
+    pick = max(pairs, key=lambda ij: np.linalg.svd(moves_a[list(ij)], compute_uv=False)[1])
+    left = np.linalg.svd(moves_a[list(pick)])[2][-1]  # the rotation the two pins leave free
+    moves = np.abs(np.cross(left, r))
+    b, c = np.unravel_index(int(np.argmax(moves)), moves.shape)
+    return (0, 1, 2, 3 * a + pick[0], 3 * a + pick[1], 3 * int(b) + int(c), 3 * N + 2)
+
+
+def cosserat_knot(scene, state, *, GA=None, shear_coefficient=None):
+    """The ``CosseratKnot`` of a Kirchhoff knot ``scene`` (a closed rod with contact, from
+    ``jaxrod.trefoil`` or ``jaxrod.knot``) and its equilibrium ``state`` at phi = 0, with the scene's
+    B, C, EA, D and contact stiffness.
+
+    GA: the shear stiffness kGA; default k G A of a solid circular section, G A = 8 C / D^2 (from
+    C = G pi D^4 / 32) and Cowper's k = 6 (1 + nu) / (7 + 6 nu), nu = B / C - 1
+    (``shear_coefficient`` replaces k)."""
+    from .contact import all_pairs
+
+    m = scene.material
+    if not scene.closed or not scene.has_term("contact") or m.D is None:
+        raise ValueError("scene must be a closed rod with contact (a knot from jaxrod.trefoil or jaxrod.knot)")
+    B, C, EA, D = float(m.B), float(m.C), float(m.EA), float(m.D)
+    nu = B / C - 1.0
+    k = 6.0 * (1.0 + nu) / (7.0 + 6.0 * nu) if shear_coefficient is None else float(shear_coefficient)
+    GA = k * 8.0 * C / D ** 2 if GA is None else GA
+    x = np.asarray(scene.positions(state.q), dtype=float)
+    d1, d2, d3 = (np.asarray(d, dtype=float) for d in scene.material_frames(state.q, 0.0))
+    N, length = x.shape[0], float(scene.length)
+    values = _checked_stiffness(N, 8, length, B, C, EA, GA)
+    return CosseratKnot(*values, D=D, contact_stiffness=float(scene.contact_stiffness), x_ref=x,
+                        q_ref=_from_matrix(np.stack([d1, d2, d3], axis=-1)), held=_knot_gauge(x),
+                        pairs=all_pairs(N, True, length / N, D))

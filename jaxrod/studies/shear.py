@@ -10,6 +10,9 @@ a column's buckling load, against Timoshenko's, Haringx's and Engesser's formula
   first branch point, located on the extended system. With the shear strain in the material frame
   the load solves  P (1 - P / EA) + P^2 / kGA = P_E  (Haringx's formula when EA -> oo; derivation in
   docs/guides/shear.md): ``haringx_load``; Engesser's P_E / (1 + P_E / kGA) is ``engesser_load``.
+- ``knot_first_end(knot, side)``: a ``CosseratKnot``'s branch through its equilibrium at phi = 0
+  followed in phi to its first located fold or branch point, with a knot's material sliding kept
+  out of the events (``_knot_soft_modes``).
 """
 from __future__ import annotations
 
@@ -20,7 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 
 __all__ = ["cantilever_tip_deflection", "timoshenko_deflection", "column_buckling_load", "euler_load", "haringx_load",
-           "engesser_load", "ring_critical_twist"]
+           "engesser_load", "ring_critical_twist", "knot_first_end", "relax_cosserat"]
 
 
 def timoshenko_deflection(force, length, B, GA):
@@ -58,17 +61,22 @@ def cantilever_tip_deflection(rod, force):
     return float(np.linalg.solve(H, f) @ (f / float(force)))
 
 
-def _first_branch_point(energy, u0, params, step, p_max, options):
-    """The first located branch point of the branch of ``energy`` through (u0, 0), followed in its
-    parameter up to p_max by pseudo-arclength (steps ``step``, the 4 lowest eigenvalues tracked)."""
+def _first_branch_point(energy, u0, params, step, p_max, options, kinds=("branch_point",), soft_modes=None,
+                        update_args=None, jacobian=None):
+    """The first located event of one of ``kinds`` on the branch of ``energy`` through (u0, 0),
+    followed in its parameter up to p_max (down to -p_max for step < 0) by pseudo-arclength (steps
+    ``step``, the 4 lowest eigenvalues tracked)."""
     from ..continuation import ContinuationOptions
     from ..continuation.arclength import BifurcationProblem, PseudoArclength, continuation
 
-    opts = options or ContinuationOptions(ds=step, ds_max=step, p_min=-step, p_max=p_max, k=4)
-    branch = continuation(BifurcationProblem(energy, u0, 0.0, params), PseudoArclength(), opts, throw=False)
-    found = [e for e in branch.events if str(getattr(e.kind, "value", e.kind)) == "branch_point" and e.converged]
+    span = (-abs(step), p_max) if step > 0 else (-p_max, abs(step))
+    opts = options or ContinuationOptions(ds=step, ds_max=abs(step), p_min=span[0], p_max=span[1], k=4)
+    problem = BifurcationProblem(energy, u0, 0.0, params, soft_modes=soft_modes, update_args=update_args,
+                                 jacobian=jacobian)
+    branch = continuation(problem, PseudoArclength(), opts, throw=False)
+    found = [e for e in branch.events if str(getattr(e.kind, "value", e.kind)) in kinds and e.converged]
     if not found:
-        raise RuntimeError(f"no branch point below {p_max:.6g} ({branch.message})")
+        raise RuntimeError(f"no {' or '.join(kinds)} within {p_max:.6g} ({branch.message})")
     return found[0]
 
 
@@ -94,3 +102,110 @@ def column_buckling_load(rod, p_max=None, options=None):
     P_E = euler_load(rod.length, rod.B)
     p_max = 1.2 * P_E if p_max is None else float(p_max)
     return _first_branch_point(rod.energy, rod.straight(0.0), rod.params, 0.1 * P_E, p_max, options)
+
+
+def relax_cosserat(knot, phi=0.0, u=None, tol=1e-9, max_iterations=30):
+    """The equilibrium (free DOFs (n_free,)) of a ``CosseratKnot`` at closure twist phi by Newton's
+    method with the exact Hessian, from u (default ``knot.start()``, the Kirchhoff equilibrium);
+    RuntimeError if the gradient's norm does not fall below ``tol`` times the edge's bending force
+    scale B / l^2."""
+    grad, hess = jax.jit(jax.grad(knot.energy)), jax.jit(knot.hessian)
+    u = jnp.asarray(knot.start() if u is None else u)
+    scale = knot.B / (knot.length / knot.N) ** 2
+    for _ in range(max_iterations):
+        near = knot.contact_list(u)
+        contact = (jnp.asarray(near.pairs), jnp.asarray(near.mask))
+        g = grad(u, phi, knot.params, contact)
+        if float(jnp.linalg.norm(g)) <= tol * scale:
+            return np.asarray(u)
+        u = u - jnp.linalg.solve(hess(u, phi, knot.params, contact), g)
+    raise RuntimeError(f"Newton left a gradient of {float(jnp.linalg.norm(g)):.3e} after {max_iterations} steps")
+
+
+def knot_first_end(knot, side, span=4.0 * math.pi, step=0.1 * math.pi, options=None):
+    """The first end of a ``CosseratKnot``'s branch through its equilibrium at phi = 0, followed
+    in phi towards ``side`` ('plus': phi > 0, 'minus': phi < 0) for at most ``span`` radians: the
+    located ``Event`` (a fold or a branch point; p the twist in rad). Material sliding along the
+    centreline is a soft mode, kept out of the events as for Kirchhoff knots."""
+    if side not in ("plus", "minus"):
+        raise ValueError(f"side must be 'plus' or 'minus', got {side!r}")
+    sign = 1.0 if side == "plus" else -1.0
+    u0 = relax_cosserat(knot)
+    from ..continuation import ContinuationOptions
+
+    opts = options or ContinuationOptions(ds=sign * step, ds_max=5.0 * step, p_min=-span if sign < 0 else -step,
+                                          p_max=span if sign > 0 else step, k=6, max_steps=1000)
+    built = knot.contact_list(u0)
+
+    def energy(u, phi, args):
+        return knot.energy(u, phi, args[0], (args[1], args[2]))
+
+    def update_args(u, phi, args):  # the list rebuilt once a node has moved by a quarter of D
+        nonlocal built
+        x, x_built = np.asarray(knot.full(jnp.asarray(u))[0]), built.x_built
+        if np.max(np.linalg.norm(x - x_built, axis=1)) <= 0.5 * built.skin:
+            return args
+        built = knot.contact_list(u, capacity=max(len(built.mask), 2 * knot.contact_list(u).n_candidates))
+        return (args[0], jnp.asarray(built.pairs), jnp.asarray(built.mask))
+
+    def hessian(u, phi, args):
+        return knot.hessian(u, phi, args[0], (args[1], args[2]))
+
+    args = (knot.params, jnp.asarray(built.pairs), jnp.asarray(built.mask))
+    return _first_branch_point(energy, u0, args, sign * step, span, opts, ("fold", "branch_point"),
+                               _knot_soft_modes(knot), update_args, hessian)
+
+
+class _Nodes:
+    """The view of a closed rod's nodes that ``sliding_fields`` reads."""
+
+    closed = True
+
+    def __init__(self, x):
+        self.x = np.asarray(x)
+        self.n_nodes = self.n_free_nodes = len(self.x)
+
+    def unpack(self, q, phi):
+        return (self.x,)
+
+
+def _knot_soft_modes(knot):
+    """The ``soft_modes`` hook of a ``CosseratKnot``: the direction of the span of the lowest
+    eigenvectors nearest material sliding, split off as soft where its node motions are, to less than
+    ``SLIDING_FRACTION``, motions along the tangents plus a rigid motion and carry most of the mode
+    (the frames' rotations, in length units, the rest: a slide also turns each frame by its twist
+    and curvature times the distance slid, ~0.5 rad per edge length at 6 pi of twist on 41 edges,
+    so they cannot count against it); the rest of the span as Ritz pairs."""
+    import scipy.linalg
+
+    from ..linalg.sliding import SLIDING_FRACTION, sliding_fields
+
+    N, free, l = knot.N, knot.free, knot.length / knot.N
+
+    def soft_modes(u, p, values, vectors):
+        x, _ = knot.full(jnp.asarray(u))
+        perp, rigid = sliding_fields(_Nodes(np.asarray(x)), 0.0)
+        V = np.zeros((6 * N, vectors.shape[1]))
+        V[free] = np.asarray(vectors)
+        V[3 * N:] *= l
+        off = np.einsum("nij,njm->nim", perp, V[:3 * N].reshape(N, 3, -1)).reshape(3 * N, -1)
+        basis, _ = np.linalg.qr(rigid)
+        off -= basis @ (basis.T @ off)
+        moved = V[:3 * N].T @ V[:3 * N]
+        lam, m = np.asarray(values), len(values)
+        if m == 0 or np.linalg.eigvalsh(moved)[-1] <= 1e-12 * np.trace(V.T @ V):
+            return lam, np.asarray(vectors), np.zeros(m, dtype=bool)
+        G = off.T @ off
+        g, C = scipy.linalg.eigh(0.5 * (G + G.T), 0.5 * (moved + moved.T) + 1e-12 * np.eye(m) * np.trace(moved))
+        c = C[:, 0] / np.linalg.norm(C[:, 0])
+        share = float(c @ moved @ c) / float(c @ (V.T @ V) @ c)
+        if g[0] >= SLIDING_FRACTION or share < 0.5:
+            return lam, np.asarray(vectors), np.zeros(m, dtype=bool)
+        rest = np.linalg.svd(np.eye(m) - np.outer(c, c))[0][:, :m - 1]
+        K = rest.T @ (lam[:, None] * rest)
+        ritz, R = np.linalg.eigh(0.5 * (K + K.T))
+        vals = np.concatenate([[float(c @ (lam * c))], ritz])
+        coef = np.concatenate([c[:, None], rest @ R], axis=1)
+        order = np.argsort(vals, kind="stable")
+        return vals[order], (np.asarray(vectors) @ coef)[:, order], order == 0
+    return soft_modes
