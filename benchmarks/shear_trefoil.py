@@ -10,8 +10,10 @@ the first located fold or branch point on each side (``jaxrod.studies.shear.knot
 difference of the two is the shear's effect at that N; the Kirchhoff scene's ends at the same N
 (``jaxrod.critical_twists``) are printed beside them.
 
-Writes benchmarks/results/shear_trefoil.{json,md}.
-Run: python benchmarks/shear_trefoil.py   (N = 41 and 61, D = 8 mm, both sides: about 15 minutes on 2 cores)
+Writes benchmarks/results/shear_trefoil.{json,md}; each N's rows are kept in
+benchmarks/results/shear_trefoil/N<N>.json as they are done (a rerun skips them; delete to redo).
+Run: python benchmarks/shear_trefoil.py [N ...]   (default N = 41, 61, 91, 121, both sides; about
+45 minutes in one process on 2 cores, or one process per N side by side)
 The small mode: N = 41, the opening side, the Cosserat rod with shear only.
 """
 import os
@@ -22,6 +24,7 @@ for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 import dataclasses  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
+import sys  # noqa: E402
 import time  # noqa: E402
 
 import jaxrod as jr  # noqa: E402
@@ -32,7 +35,7 @@ from _bench import markdown, pick, results_dir, with_provenance  # noqa: E402
 
 PI = math.pi
 D, L = 8.0, 292.0
-NS = pick((41, 61), (41,))
+NS = tuple(int(a) for a in sys.argv[1:]) or pick((41, 61, 91, 121), (41,))
 SIDES = pick(("plus", "minus"), ("plus",))
 STIFFER = pick((1.0, 1e4), (1.0,))  # kGA times this: the rod with shear, and its Kirchhoff limit
 KIRCHHOFF = pick(True, False)  # the Kirchhoff scene's ends beside them
@@ -63,9 +66,35 @@ def rows_at(N):
     return rows
 
 
+def _extrapolated(rows):
+    """Per side, each column extrapolated to N -> oo from the two finest N (Richardson, second order
+    in 1 / N), where both hold it."""
+    out = {}
+    for side in SIDES:
+        mine = sorted((r for r in rows if r["side"] == side), key=lambda r: r["N"])
+        if len(mine) < 2:
+            continue
+        (a, b), w = mine[-2:], {}
+        for key in ("kirchhoff_over_pi", "stiff_over_pi", "shear_over_pi", "shear_effect_over_pi"):
+            if a.get(key) is not None and b.get(key) is not None:
+                w[key] = (b["N"] ** 2 * b[key] - a["N"] ** 2 * a[key]) / (b["N"] ** 2 - a["N"] ** 2)
+        out[side] = dict(from_N=[a["N"], b["N"]], **w)
+    return out
+
+
 def main():
-    rows = [r for N in NS for r in rows_at(N)]
-    data = dict(D=D, L=L, paper=PAPER, rows=rows)
+    parts = os.path.join(OUT, "shear_trefoil")
+    os.makedirs(parts, exist_ok=True)
+    for N in NS:
+        path = os.path.join(parts, f"N{N}.json")
+        if not os.path.exists(path):
+            with open(path + ".tmp", "w") as f:
+                json.dump(with_provenance(rows_at(N)), f, indent=1)
+            os.replace(path + ".tmp", path)
+    done = sorted((json.load(open(os.path.join(parts, f))) for f in os.listdir(parts) if f.endswith(".json")),
+                  key=lambda d: d["rows"][0]["N"])
+    rows = [r for d in done for r in d["rows"]]
+    data = dict(D=D, L=L, paper=PAPER, rows=rows, extrapolated=_extrapolated(rows))
     with open(os.path.join(OUT, "shear_trefoil.json"), "w") as f:
         json.dump(with_provenance(data), f, indent=1)
     lines = [f"# The trefoil ({D:g}, {L:g}) as a Cosserat rod with shear: first ends (phi*/pi)", "",
@@ -75,6 +104,10 @@ def main():
     for r in rows:
         lines.append(f"| {r['N']} | {r['side']} | {fmt(r['kirchhoff_over_pi'])} | {fmt(r.get('stiff_over_pi'))} | "
                      f"{fmt(r['shear_over_pi'])} ({r['shear_kind']}) | {fmt(r.get('shear_effect_over_pi'))} |")
+    for side, values in data["extrapolated"].items():
+        lines.append(f"| N → ∞ (N = {values['from_N'][0]}, {values['from_N'][1]}, order 2) | {side} | "
+                     f"{fmt(values.get('kirchhoff_over_pi'))} | {fmt(values.get('stiff_over_pi'))} | "
+                     f"{fmt(values.get('shear_over_pi'))} | {fmt(values.get('shear_effect_over_pi'))} |")
     with open(os.path.join(OUT, "shear_trefoil.md"), "w") as f:
         f.write(markdown(lines))
 

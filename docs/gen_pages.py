@@ -346,6 +346,9 @@ def shear_trefoil_table():
     fmt = lambda v: "" if v is None else f"{v:+.4f} π"  # noqa: E731
     rows = [[r["N"], r["side"], fmt(r.get("kirchhoff_over_pi")), fmt(r.get("stiff_over_pi")),
              f"{fmt(r['shear_over_pi'])} ({r['shear_kind']})", fmt(r.get("shear_effect_over_pi"))] for r in data["rows"]]
+    rows += [[f"N → ∞ ({e['from_N'][0]}, {e['from_N'][1]})", side, fmt(e.get("kirchhoff_over_pi")),
+              fmt(e.get("stiff_over_pi")), fmt(e.get("shear_over_pi")), fmt(e.get("shear_effect_over_pi"))]
+             for side, e in data.get("extrapolated", {}).items()]
     header = ["N", "side", "Kirchhoff scene", "Cosserat, kGA × 10⁴", "Cosserat with shear", "shear's effect"]
     return _table(header, rows) + f"\n\nFrom `{data['provenance']['command']}`."
 
