@@ -10,10 +10,11 @@ the first located fold or branch point on each side (``jaxrod.studies.shear.knot
 difference of the two is the shear's effect at that N; the Kirchhoff scene's ends at the same N
 (``jaxrod.critical_twists``) are printed beside them.
 
-Writes benchmarks/results/shear_trefoil.{json,md}; each N's rows are kept in
-benchmarks/results/shear_trefoil/N<N>.json as they are done (a rerun skips them; delete to redo).
-Run: python benchmarks/shear_trefoil.py [N ...]   (default N = 41, 61, 91, 121, both sides; about
-45 minutes in one process on 2 cores, or one process per N side by side)
+Writes benchmarks/results/shear_trefoil.{json,md} (shear_trefoil_D<D>_L<L>.* for another --D, --L);
+each N's rows are kept in benchmarks/results/shear_trefoil/N<N>.json as they are done (a rerun
+skips them; delete to redo).
+Run: python benchmarks/shear_trefoil.py [N ...] [--D 8 --L 292]   (default N = 41, 61, 91, 121,
+both sides; about 45 minutes in one process on 2 cores, or one process per N side by side)
 The small mode: N = 41, the opening side, the Cosserat rod with shear only.
 """
 import os
@@ -34,8 +35,22 @@ from jaxrod.studies.shear import knot_first_end  # noqa: E402
 from _bench import markdown, pick, results_dir, with_provenance  # noqa: E402
 
 PI = math.pi
-D, L = 8.0, 292.0
-NS = tuple(int(a) for a in sys.argv[1:]) or pick((41, 61, 91, 121), (41,))
+
+
+def _arguments(argv):
+    import argparse
+
+    ap = argparse.ArgumentParser(description="the trefoil's first ends with and without shear")
+    ap.add_argument("N", type=int, nargs="*", help="node counts (default 41 61 91 121)")
+    ap.add_argument("--D", type=float, default=8.0, help="rod diameter (mm; default 8)")
+    ap.add_argument("--L", type=float, default=292.0, help="rod length (mm; default 292)")
+    return ap.parse_args(argv)
+
+
+ARGS = _arguments(sys.argv[1:])
+D, L = ARGS.D, ARGS.L
+STEM = "shear_trefoil" if (D, L) == (8.0, 292.0) else f"shear_trefoil_D{D:g}_L{L:g}"
+NS = tuple(ARGS.N) or pick((41, 61, 91, 121), (41,))
 SIDES = pick(("plus", "minus"), ("plus",))
 STIFFER = pick((1.0, 1e4), (1.0,))  # kGA times this: the rod with shear, and its Kirchhoff limit
 KIRCHHOFF = pick(True, False)  # the Kirchhoff scene's ends beside them
@@ -83,7 +98,7 @@ def _extrapolated(rows):
 
 
 def main():
-    parts = os.path.join(OUT, "shear_trefoil")
+    parts = os.path.join(OUT, STEM)
     os.makedirs(parts, exist_ok=True)
     for N in NS:
         path = os.path.join(parts, f"N{N}.json")
@@ -95,7 +110,7 @@ def main():
                   key=lambda d: d["rows"][0]["N"])
     rows = [r for d in done for r in d["rows"]]
     data = dict(D=D, L=L, paper=PAPER, rows=rows, extrapolated=_extrapolated(rows))
-    with open(os.path.join(OUT, "shear_trefoil.json"), "w") as f:
+    with open(os.path.join(OUT, f"{STEM}.json"), "w") as f:
         json.dump(with_provenance(data), f, indent=1)
     lines = [f"# The trefoil ({D:g}, {L:g}) as a Cosserat rod with shear: first ends (phi*/pi)", "",
              "| N | side | Kirchhoff scene | Cosserat, kGA x 1e4 | Cosserat with shear | shear's effect |",
@@ -108,7 +123,7 @@ def main():
         lines.append(f"| N → ∞ (N = {values['from_N'][0]}, {values['from_N'][1]}, order 2) | {side} | "
                      f"{fmt(values.get('kirchhoff_over_pi'))} | {fmt(values.get('stiff_over_pi'))} | "
                      f"{fmt(values.get('shear_over_pi'))} | {fmt(values.get('shear_effect_over_pi'))} |")
-    with open(os.path.join(OUT, "shear_trefoil.md"), "w") as f:
+    with open(os.path.join(OUT, f"{STEM}.md"), "w") as f:
         f.write(markdown(lines))
 
 
