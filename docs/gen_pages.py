@@ -338,13 +338,14 @@ def peer_table():
     return _table(["envelope error E", "jaxrod", "PyElastica to reach it", "ratio, cold / warm"], out)
 
 
-def shear_trefoil_table():
+def shear_trefoil_table(stem="shear_trefoil"):
     """The trefoil's first ends as a Cosserat rod with shear, its Kirchhoff limit and the Kirchhoff scene."""
-    data = _load("shear_trefoil.json")
+    data = _load(f"{stem}.json")
     if not data:
-        return _missing("shear_trefoil.json")
+        return _missing(f"{stem}.json")
     fmt = lambda v: "" if v is None else f"{v:+.4f} π"  # noqa: E731
-    rows = [[r["N"], r["side"], fmt(r.get("kirchhoff_over_pi")), fmt(r.get("stiff_over_pi")),
+    rows = [[r["N"], r["side"], fmt(r.get("kirchhoff_over_pi")) or ("not located" if r.get("kirchhoff_failed") else ""),
+             fmt(r.get("stiff_over_pi")),
              f"{fmt(r['shear_over_pi'])} ({r['shear_kind']})", fmt(r.get("shear_effect_over_pi"))] for r in data["rows"]]
     rows += [[f"N → ∞ ({e['from_N'][0]}, {e['from_N'][1]})", side, fmt(e.get("kirchhoff_over_pi")),
               fmt(e.get("stiff_over_pi")), fmt(e.get("shear_over_pi")), fmt(e.get("shear_effect_over_pi"))]
@@ -353,7 +354,9 @@ def shear_trefoil_table():
     return _table(header, rows) + f"\n\nFrom `{data['provenance']['command']}`."
 
 
-GENERATORS = {"cli": cli_reference, "shear_trefoil": shear_trefoil_table, "validation": validation_table, "performance": performance_table,
+GENERATORS = {"cli": cli_reference, "shear_trefoil": shear_trefoil_table,
+              "shear_trefoil_D4_L280": lambda: shear_trefoil_table("shear_trefoil_D4_L280"),
+              "validation": validation_table, "performance": performance_table,
               "speed": speed_table, "sparse_contact": sparse_contact_table, "dynamics": dynamics_table,
               "peer": peer_table, "per_step": per_step_table,
               "compile": compile_table}
