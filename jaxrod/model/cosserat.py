@@ -309,11 +309,6 @@ class CosseratKnot(_CosseratStiffness):
         z = ref.at[jnp.asarray(self.free)].set(u)
         return z[:3 * self.N].reshape(self.N, 3), z[3 * self.N:].reshape(self.N, 3)
 
-    def frames(self, u, phi):
-        """Unit quaternions (N, 4) of the edges' frames at free DOFs u and closure twist phi."""
-        _, psi, left, _ = self._stencils(u, phi)
-        return _product(left, _quaternion(psi))
-
     def _stencils(self, u, phi):
         """(x (N, 3), psi (N, 3), left (N, 4), right (N, 4)): the positions and rotation vectors, and
         each edge's frame as left_j q(psi_j), with left_j = q_ref_j q(j phi / N e3); right: the

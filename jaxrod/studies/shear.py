@@ -145,7 +145,7 @@ def knot_first_end(knot, side, span=4.0 * math.pi, step=0.1 * math.pi, options=N
         x, x_built = np.asarray(knot.full(jnp.asarray(u))[0]), built.x_built
         if np.max(np.linalg.norm(x - x_built, axis=1)) <= 0.5 * built.skin:
             return args
-        built = knot.contact_list(u, capacity=max(len(built.mask), 2 * knot.contact_list(u).n_candidates))
+        built = knot.contact_list(u, capacity=len(built.mask))  # the same shape: no new compile (grown if outgrown)
         return (args[0], jnp.asarray(built.pairs), jnp.asarray(built.mask))
 
     def hessian(u, phi, args):
