@@ -25,7 +25,8 @@ RESULTS = REPO / "benchmarks" / "results"
 CHARTS = ("speed.png", "sparse_contact.png", "dynamics_accuracy.png", "michell.png", "helical_buckling.png",
           "peer_pyelastica.png", "tension_twist.png", "fold_curve_nu.png", "fold_curve_ratio.png",
           "hysteresis_trefoil.png", "bifurcation_trefoil.png", "plectoneme.png", "open_knot.png",
-          "accuracy_trefoil.png", "trefoil_convergence.png", "shear_kirchhoff_limit.png")
+          "accuracy_trefoil.png", "trefoil_convergence.png", "shear_kirchhoff_limit.png",
+          "shear_trefoil_limit.png")
 PI = math.pi
 
 
@@ -354,7 +355,22 @@ def shear_trefoil_table(stem="shear_trefoil"):
     return _table(header, rows) + f"\n\nFrom `{data['provenance']['command']}`."
 
 
-GENERATORS = {"cli": cli_reference, "shear_trefoil": shear_trefoil_table,
+def shear_trefoil_limit_table():
+    """The trefoil's first ends as kGA grows: the distance from the Kirchhoff limit, times kGA."""
+    data = _load("shear_trefoil.json")
+    limit = (data or {}).get("kirchhoff_limit")
+    if not limit:
+        return _missing("shear_trefoil.json (its kirchhoff_limit)")
+    rows = [[r["side"], f"{r['factor']:g}", f"{r['over_pi']:+.6f} π", f"{r['difference_over_pi']:.3e} π",
+             f"{r['difference_over_pi'] * r['factor']:.4f} π"] if r["over_pi"] is not None else
+            [r["side"], f"{r['factor']:g}", "not located", "", ""] for r in limit["rows"]]
+    slopes = ", ".join(f"{side} {v:.3f}" for side, v in limit["slopes"].items() if v is not None)
+    return (_table(["side", "kGA / kGA₀", "φ*", "|φ*(kGA₀ × 10⁴) − φ*|", "the same times kGA / kGA₀"], rows)
+            + f"\n\nN = {limit['N']}; log–log slopes over kGA ≥ 4 kGA₀: {slopes}. From "
+              f"`{limit['provenance']['command']}`.")
+
+
+GENERATORS = {"cli": cli_reference, "shear_trefoil": shear_trefoil_table, "shear_trefoil_limit": shear_trefoil_limit_table,
               "shear_trefoil_D4_L280": lambda: shear_trefoil_table("shear_trefoil_D4_L280"),
               "validation": validation_table, "performance": performance_table,
               "speed": speed_table, "sparse_contact": sparse_contact_table, "dynamics": dynamics_table,

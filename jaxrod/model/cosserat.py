@@ -29,6 +29,7 @@ Engesser's (docs/guides/shear.md).
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import jax
@@ -298,6 +299,19 @@ class CosseratKnot(_CosseratStiffness):
     @property
     def free(self):
         return np.setdiff1d(np.arange(6 * self.N), np.asarray(self.held))
+
+    @functools.cached_property
+    def continuation_functions(self):
+        """(energy(u, phi, args), hessian(u, phi, args)) with args = (params, pairs (P, 2), mask (P,)):
+        the forms the continuation engine takes, built once per knot, so that its compiled programs
+        serve every params (a sweep in GA compiles them once)."""
+        def energy(u, phi, args):
+            return self.energy(u, phi, args[0], (args[1], args[2]))
+
+        def hessian(u, phi, args):
+            return self.hessian(u, phi, args[0], (args[1], args[2]))
+
+        return energy, hessian
 
     def start(self):
         """The free DOFs (n_free,) of the reference state (the Kirchhoff equilibrium, psi = 0)."""

@@ -65,18 +65,37 @@ def _first_branch_point(energy, u0, params, step, p_max, options, kinds=("branch
                         update_args=None, jacobian=None):
     """The first located event of one of ``kinds`` on the branch of ``energy`` through (u0, 0),
     followed in its parameter up to p_max (down to -p_max for step < 0) by pseudo-arclength (steps
-    ``step``, the 4 lowest eigenvalues tracked)."""
+    ``step``, the 4 lowest eigenvalues tracked), in chunks of a few steps that stop once it is
+    located (at most ``options.max_steps`` steps in all). RuntimeError where the first such event
+    on the path was detected but not located (a later one would be the wrong answer), or where
+    none was detected."""
+    from dataclasses import replace
+
     from ..continuation import ContinuationOptions
-    from ..continuation.arclength import BifurcationProblem, PseudoArclength, continuation
+    from ..continuation.arclength import BifurcationProblem, PseudoArclength, continuation_until
 
     span = (-abs(step), p_max) if step > 0 else (-p_max, abs(step))
     opts = options or ContinuationOptions(ds=step, ds_max=abs(step), p_min=span[0], p_max=span[1], k=4)
+    max_steps = opts.max_steps or 200
+
+    def of_kind(events):
+        return [e for e in events if str(getattr(e.kind, "value", e.kind)) in kinds]
+
+    def first_found(points, events):
+        if of_kind(events):
+            return "detected"
+        return f"stopped after max_steps = {max_steps} steps" if len(points) > max_steps else ""
+
     problem = BifurcationProblem(energy, u0, 0.0, params, soft_modes=soft_modes, update_args=update_args,
                                  jacobian=jacobian)
-    branch = continuation(problem, PseudoArclength(), opts, throw=False)
-    found = [e for e in branch.events if str(getattr(e.kind, "value", e.kind)) in kinds and e.converged]
+    branch = continuation_until(problem, PseudoArclength(), replace(opts, max_steps=8), first_found)
+    found = of_kind(branch.events)
     if not found:
         raise RuntimeError(f"no {' or '.join(kinds)} within {p_max:.6g} ({branch.message})")
+    if not found[0].converged:
+        e = found[0]
+        raise RuntimeError(f"the first end, a {getattr(e.kind, 'value', e.kind)} near p = {e.p:.8g}, was detected but not "
+                           f"located (residual {e.residual:.3g}, critical eigenvalue {e.critical_eigenvalue:.3g})")
     return found[0]
 
 
@@ -104,41 +123,43 @@ def column_buckling_load(rod, p_max=None, options=None):
     return _first_branch_point(rod.energy, rod.straight(0.0), rod.params, 0.1 * P_E, p_max, options)
 
 
-def relax_cosserat(knot, phi=0.0, u=None, tol=1e-9, max_iterations=30):
+def relax_cosserat(knot, phi=0.0, u=None, tol=1e-9, max_iterations=30, params=None):
     """The equilibrium (free DOFs (n_free,)) of a ``CosseratKnot`` at closure twist phi by Newton's
     method with the exact Hessian, from u (default ``knot.start()``, the Kirchhoff equilibrium);
     RuntimeError if the gradient's norm does not fall below ``tol`` times the edge's bending force
-    scale B / l^2."""
+    scale B / l^2. params: (B, C, EA, GA) (default ``knot.params``)."""
+    params = knot.params if params is None else params
     grad, hess = jax.jit(jax.grad(knot.energy)), jax.jit(knot.hessian)
     u = jnp.asarray(knot.start() if u is None else u)
     scale = knot.B / (knot.length / knot.N) ** 2
     for _ in range(max_iterations):
         near = knot.contact_list(u)
         contact = (jnp.asarray(near.pairs), jnp.asarray(near.mask))
-        g = grad(u, phi, knot.params, contact)
+        g = grad(u, phi, params, contact)
         if float(jnp.linalg.norm(g)) <= tol * scale:
             return np.asarray(u)
-        u = u - jnp.linalg.solve(hess(u, phi, knot.params, contact), g)
+        u = u - jnp.linalg.solve(hess(u, phi, params, contact), g)
     raise RuntimeError(f"Newton left a gradient of {float(jnp.linalg.norm(g)):.3e} after {max_iterations} steps")
 
 
-def knot_first_end(knot, side, span=4.0 * math.pi, step=0.1 * math.pi, options=None):
+def knot_first_end(knot, side, span=4.0 * math.pi, step=0.1 * math.pi, options=None, GA=None):
     """The first end of a ``CosseratKnot``'s branch through its equilibrium at phi = 0, followed
     in phi towards ``side`` ('plus': phi > 0, 'minus': phi < 0) for at most ``span`` radians: the
     located ``Event`` (a fold or a branch point; p the twist in rad). Material sliding along the
-    centreline is a soft mode, kept out of the events as for Kirchhoff knots."""
+    centreline is a soft mode, kept out of the events as for Kirchhoff knots. GA: the shear
+    stiffness kGA (default ``knot.GA``); the same knot at several GA reuses its compiled programs."""
     if side not in ("plus", "minus"):
         raise ValueError(f"side must be 'plus' or 'minus', got {side!r}")
+    if GA is not None and not float(GA) > 0.0:
+        raise ValueError(f"GA must be positive, got {GA!r}")
     sign = 1.0 if side == "plus" else -1.0
-    u0 = relax_cosserat(knot)
+    params = knot.params if GA is None else (*knot.params[:3], float(GA))
+    u0 = relax_cosserat(knot, params=params)
     from ..continuation import ContinuationOptions
 
     opts = options or ContinuationOptions(ds=sign * step, ds_max=5.0 * step, p_min=-span if sign < 0 else -step,
                                           p_max=span if sign > 0 else step, k=6, max_steps=1000)
     built = knot.contact_list(u0)
-
-    def energy(u, phi, args):
-        return knot.energy(u, phi, args[0], (args[1], args[2]))
 
     def update_args(u, phi, args):  # the list rebuilt once a node has moved by a quarter of D
         nonlocal built
@@ -148,10 +169,8 @@ def knot_first_end(knot, side, span=4.0 * math.pi, step=0.1 * math.pi, options=N
         built = knot.contact_list(u, capacity=len(built.mask))  # the same shape: no new compile (grown if outgrown)
         return (args[0], jnp.asarray(built.pairs), jnp.asarray(built.mask))
 
-    def hessian(u, phi, args):
-        return knot.hessian(u, phi, args[0], (args[1], args[2]))
-
-    args = (knot.params, jnp.asarray(built.pairs), jnp.asarray(built.mask))
+    energy, hessian = knot.continuation_functions
+    args = (params, jnp.asarray(built.pairs), jnp.asarray(built.mask))
     return _first_branch_point(energy, u0, args, sign * step, span, opts, ("fold", "branch_point"),
                                _knot_soft_modes(knot), update_args, hessian)
 
