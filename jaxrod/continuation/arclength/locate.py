@@ -377,14 +377,28 @@ def _crossing_roots(at, lo, k, sb):
                 tried[s] = (j, value)
                 return value
 
-            if f(0.0) * f(sb) >= 0:
-                raise _Failed
-            s, info = brentq(f, 0.0, sb, xtol=1e-15 * abs(sb), rtol=1e-15, maxiter=100, full_output=True)
+            lo_s, hi_s = _sign_change(f, sb)
+            s, info = brentq(f, lo_s, hi_s, xtol=1e-15 * abs(sb), rtol=1e-15, maxiter=100, full_output=True)
             roots.append(s)
             calls += info.function_calls
     except _Failed:  # a corrector failure, or no sign change
         return None, calls, tried
     return roots, calls, tried
+
+
+def _sign_change(f, sb):
+    """An interval of s where f changes sign: the bracket (0, sb), or else a quarter of it just
+    before 0 or just after sb (a crossing within the corrector's noise of an end, where the Morse
+    count put it in this bracket and the eigenvalue re-corrected at that end has the other sign).
+    Raises _Failed where none does."""
+    f0, fb = f(0.0), f(sb)
+    if f0 * fb < 0:
+        return 0.0, sb
+    if f(-0.25 * sb) * f0 < 0:
+        return -0.25 * sb, 0.0
+    if fb * f(1.25 * sb) < 0:
+        return sb, 1.25 * sb
+    raise _Failed
 
 
 def _grouped_events(opts, at, sb, roots, calls, lo, a, b, step):
