@@ -58,7 +58,7 @@ class DiagramOptions:
     unstable_points: points kept on the unstable branch beyond the located end; ds_max: largest
     pseudo-arclength step (scaled DOFs and phi in rad); newton_tol: the corrector's and the
     locators' residual (scaled units), tight because an end next to another singular point is
-    ill-conditioned; event_tol: a located end must have its residual and critical eigenvalue below this;
+    ill-conditioned (both raised where the problem's roundoff floor lies above them); event_tol: a located end must have its residual and critical eigenvalue below this;
     max_points: points followed before the end, at most; n_eig: eigenpairs kept per point.
     until_restable: instead, follow the unstable branch until its Morse index comes back to 0
     (RESTABLE_KEEP points kept past it, ``BranchEnd.restabilised``) or for ``max_unstable_points``.
@@ -223,9 +223,10 @@ def follow_branch_end(scene, q, phi, sign, options=None, *, p_min=-math.inf, p_m
     o = options or DiagramOptions()
     t0 = time.perf_counter()
     rod = knot_problem(scene, np.asarray(q), float(phi), capacity=capacity)
+    newton_tol, event_tol = _above_floor(rod.problem, o)
     opts = ContinuationOptions(ds=math.copysign(min(0.05, o.ds_max), sign), ds_min=1e-6, ds_max=o.ds_max,
-                            max_steps=o.chunk, newton_tol=o.newton_tol, eig_rtol=1e-13, k=o.n_eig,
-                            event_tol=o.event_tol, p_min=p_min, p_max=p_max,
+                            max_steps=o.chunk, newton_tol=newton_tol, eig_rtol=1e-13, k=o.n_eig,
+                            event_tol=event_tol, p_min=p_min, p_max=p_max,
                             # retry smaller a step whose Morse index changes by > 1, to separate close events
                             resolve_crossings=RESOLVE_CROSSINGS)
     def stop(points, events):
@@ -262,6 +263,16 @@ def follow_branch_end(scene, q, phi, sign, options=None, *, p_min=-math.inf, p_m
             o.max_unstable_points if o.until_restable else o.unstable_points)]
         return BranchEnd("", "", end, points, rod, message, time.perf_counter() - t0, restabilised=back)
     return BranchEnd("", "", end, points, rod, message, time.perf_counter() - t0)
+
+
+def _above_floor(problem, options):
+    """(newton_tol, event_tol): the options' values, raised where the problem's roundoff floor at its
+    start lies above them (a loose knot's: eps ||J|| |u| ~ 1e-12 at D/L = 0.01, N = 121), by the rule
+    of ``continuation.arclength.scales``; below that floor no corrector step converges."""
+    from ..continuation.arclength.scales import EVENT_FLOOR_FACTOR, NEWTON_FLOOR_FACTOR, residual_floor
+
+    floor, _ = residual_floor(problem, problem.u0, problem.p0)
+    return max(options.newton_tol, NEWTON_FLOOR_FACTOR * floor), max(options.event_tol, EVENT_FLOOR_FACTOR * floor)
 
 
 def in_bracket(phi, inst):
