@@ -34,7 +34,9 @@ def test_serial_sweep_finds_every_branch_end(serial):
     assert [(r["D_over_L"], r["side"]) for r in rows] == [(0.025, "plus"), (0.025, "minus"), (0.03, "plus"),
                                                           (0.03, "minus")]
     for r in rows:
-        assert r["kind"] in ("jump", "unstable") and 0 < r["phi_error"] <= SETTINGS.tol
+        # each end located on its extended system, within the study's bracket
+        assert r["kind"] in ("fold", "branch_point") and r["located"] == "yes", r["reason"]
+        assert 0 < r["phi_error"] <= SETTINGS.tol and abs(r["phi_star"] - r["phi_study"]) <= r["phi_error"]
         phi = r["phi_star"] / PI
         assert (6.0 < phi < 7.2) if r["side"] == "plus" else (-13.5 < phi < -10.5)  # opening, tightening
     # The tightening side is phi < 0 (jaxrod's right-handed trefoil), told by the contacts gained.

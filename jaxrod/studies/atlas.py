@@ -2,8 +2,9 @@
 slenderness D/L, the seed paper's "future work".
 
 One *case* is a knot, a slenderness D/L, a node count N and a side; ``knot_critical_twist``
-answers it. Cases are independent, so a sweep runs them serially or over a Dask cluster
-(``client=``) with the same numbers.
+answers it: the stable branch followed from phi = 0 until it ends, and that end located on its
+extended system (a fold or a branch point, the kind ``critical_twists`` reports). Cases are
+independent, so a sweep runs them serially or over a Dask cluster (``client=``) with the same numbers.
 
 ``run_atlas(..., out=DIR)`` writes, as it goes:
 
@@ -34,25 +35,29 @@ __all__ = ["AtlasCase", "AtlasSettings", "FIELDS", "atlas_cases", "knot_critical
            "figures", "report", "tightening_sides", "convergence_series"]
 
 SIDES = ("plus", "minus")
-FIELDS = ["knot", "D_over_L", "N", "side", "phi_star", "phi_star_over_pi", "phi_error", "kind", "reason",
-          "critical_eigenvalue", "dlambda_dphi", "lowest_eigenvalue_start", "Wr_start", "Wr_before", "Tw_before",
-          "contact_count_change", "radius_of_gyration_change", "n_points", "seconds"]
-_FLOATS = ("D_over_L", "phi_star", "phi_star_over_pi", "phi_error", "critical_eigenvalue", "dlambda_dphi",
-           "lowest_eigenvalue_start", "Wr_start", "Wr_before", "Tw_before", "radius_of_gyration_change", "seconds")
+FIELDS = ["knot", "D_over_L", "N", "side", "phi_star", "phi_star_over_pi", "phi_error", "kind", "located", "phi_study",
+          "reason", "critical_eigenvalue", "dlambda_dphi", "lowest_eigenvalue_start", "Wr_start", "Wr_before",
+          "Tw_before", "contact_count_change", "radius_of_gyration_change", "n_points", "seconds"]
+_FLOATS = ("D_over_L", "phi_star", "phi_star_over_pi", "phi_error", "phi_study", "critical_eigenvalue",
+           "dlambda_dphi", "lowest_eigenvalue_start", "Wr_start", "Wr_before", "Tw_before",
+           "radius_of_gyration_change", "seconds")
 KNOTS = ("3_1", "4_1", "5_1", "5_2")
 
 
 @dataclass(frozen=True)
 class AtlasSettings:
     """What every case of a sweep shares: span (radians: each side is followed to +-span),
-    step (largest continuation step, radians), tol (accuracy of phi*, radians), nu (Poisson
-    ratio), contact_stiffness (``jaxrod.knot``'s; None: no contact term)."""
+    step (largest continuation step, radians), tol (accuracy of the study's bracket, radians), nu
+    (Poisson ratio), contact_stiffness (``jaxrod.knot``'s; None: no contact term); locate: each
+    end bracketed by the study located on its extended system (a fold or branch point, as
+    ``critical_twists`` does), else the study's bracket kept."""
 
     span: float = 16.0 * math.pi
     step: float = 0.5 * math.pi
     tol: float = 1e-3 * math.pi
     nu: float = 0.5
     contact_stiffness: float | None = 100.0
+    locate: bool = True
 
     def __post_init__(self):
         check_positive("span", self.span)
@@ -63,6 +68,8 @@ class AtlasSettings:
             raise ValueError(f"nu must lie in (-1, 0.5], got {nu}")
         if self.contact_stiffness is not None:
             check_positive("contact_stiffness", self.contact_stiffness)
+        if not isinstance(self.locate, (bool, np.bool_)):
+            raise ValueError(f"locate must be True or False, got {self.locate!r}")
 
     def as_json(self):
         return json.loads(json.dumps(asdict(self)))
@@ -157,9 +164,12 @@ def tightening_sides(rows):
 
 def knot_critical_twist(case, settings=None):
     """The first branch end of ``case`` (an ``AtlasCase`` or its dict) on its side: relax to a
-    minimum at phi = 0, follow the stable branch towards +-span. Returns a row (dict, ``FIELDS``):
-    phi_star in radians (NaN when the branch reaches +-span), phi_error, kind ('unstable' or
-    'jump'), the critical eigenvalue at the last stable state and its rate, the start's lowest
+    minimum at phi = 0, follow the stable branch towards +-span, and (``settings.locate``) locate
+    the end the study bracketed on its extended system. Returns a row (dict, ``FIELDS``): phi_star
+    in radians (NaN when the branch reaches +-span), phi_error (the study's bracket, within which
+    a located end lies), kind ('fold' or 'branch_point' where located; else the study's 'unstable'
+    or 'jump', with the reason it was not located), located ('yes' / 'no'), phi_study (the study's
+    estimate), the critical eigenvalue at the last stable state and its rate, the start's lowest
     eigenvalue above the sliding band, writhe and twist, the change in contacts and radius of
     gyration along the branch, n_points, seconds. Pure in its inputs."""
     from ..continuation import ContinuationOptions, follow_twist
@@ -183,7 +193,7 @@ def knot_critical_twist(case, settings=None):
         last = path.instabilities[0].equilibrium
     row = {"knot": case.knot, "D_over_L": case.D_over_L, "N": case.N, "side": case.side,
            "phi_star": math.nan, "phi_star_over_pi": math.nan, "phi_error": math.nan, "kind": "none",
-           "reason": path.reason, "critical_eigenvalue": math.nan, "dlambda_dphi": math.nan,
+           "located": "no", "phi_study": math.nan, "reason": path.reason, "critical_eigenvalue": math.nan, "dlambda_dphi": math.nan,
            "lowest_eigenvalue_start": _lowest_above_band(start), "Wr_start": float(start.Wr),
            "Wr_before": float(last.Wr), "Tw_before": float(last.Tw),
            "contact_count_change": _contact_count(scene, last) - _contact_count(scene, start),
@@ -192,12 +202,38 @@ def knot_critical_twist(case, settings=None):
     if path.instabilities:
         inst = path.instabilities[0]
         row.update(phi_star=float(inst.phi), phi_star_over_pi=float(inst.phi) / math.pi,
-                   phi_error=float(inst.phi_error), kind=str(inst.kind.value),
+                   phi_error=float(inst.phi_error), kind=str(inst.kind.value), phi_study=float(inst.phi),
                    critical_eigenvalue=float(inst.eigenvalue),
                    dlambda_dphi=float(inst.dlambda_dphi_secant if math.isfinite(inst.dlambda_dphi_secant)
                                       else inst.dlambda_dphi))
+        if settings.locate:
+            row.update(_located_end(scene, inst, case.side, settings, row))
     row["seconds"] = time.perf_counter() - t0
     return row
+
+
+def _located_end(scene, inst, side, settings, row):
+    """The row's fields for the end the study bracketed (``inst``), located on its extended system
+    from the study's last stable state (``diagram.locate_end``): phi_star and kind of the located
+    fold or branch point where it lies in the study's bracket, else the study's with the reason."""
+    from .diagram import DiagramOptions, locate_end
+
+    entry = {"direction": side, "from_branch": inst.from_branch or "symmetric", "bracket": list(inst.bracket),
+             "phi": float(inst.phi), "phi_error": float(inst.phi_error), "eigenvalue": row["critical_eigenvalue"],
+             "dlambda_dphi": row["dlambda_dphi"], "negative_tol": float(inst.negative_tol)}
+    state = (np.asarray(inst.equilibrium.q), float(inst.equilibrium.phi))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # said in the row: located, or the reason it was not
+        end = locate_end(scene, entry, state, DiagramOptions(unstable_points=1), p_min=-settings.span,
+                         p_max=settings.span, mode=np.asarray(inst.mode))
+    ev = end.event
+    if ev is None or not ev.converged:
+        return {"reason": f"{row['reason']}; not located: {end.message}"}
+    if not end.within_bracket:
+        return {"reason": f"{row['reason']}; the {getattr(ev.kind, 'value', ev.kind)} located at "
+                          f"{ev.p / math.pi:+.8f} pi lies outside the study's bracket: the study's value kept"}
+    return {"phi_star": float(ev.p), "phi_star_over_pi": float(ev.p) / math.pi,
+            "kind": str(getattr(ev.kind, "value", ev.kind)), "located": "yes", "reason": f"{row['reason']}; {end.message}"}
 
 
 def _case_of(row):
@@ -387,9 +423,11 @@ def report(out, rows=None):
         rows = read_atlas(out)
     lines = ["# Twisted-knot atlas: critical twists", "",
              "jaxrod sign convention (phi > 0 adds right-handed twist; Lk = Lk0 + phi / 2 pi). Each side followed "
-             "from the knot relaxed to a minimum at phi = 0 until its stable branch ends ('unstable': an eigenvalue "
-             "crosses zero; 'jump': the branch folds; the critical eigenvalue at the last stable state, with its rate "
-             "along the branch, says how clearly it was going to zero). The tightening side gains segment pairs in contact along its "
+             "from the knot relaxed to a minimum at phi = 0 until its stable branch ends, and that end located on its "
+             "extended system: kind 'fold' or 'branch_point'. Where it was not located, the study's bracket is kept "
+             "('unstable': an eigenvalue crosses zero; 'jump': the branch folds; the reason is in atlas.csv). The "
+             "critical eigenvalue at the last stable state, with its rate along the branch, says how clearly it was "
+             "going to zero. The tightening side gains segment pairs in contact along its "
              "branch (then: loses radius of gyration); the other side opens the knot.", "",
              "| knot | D/L | N | side | phi*/pi | +- (rad) | kind | critical eigenvalue (d/dphi) | lowest at phi = 0 | "
              "Wr start | Wr before | Tw before | contacts gained | tightens | time (s) |",
