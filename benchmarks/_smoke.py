@@ -54,6 +54,7 @@ SCRIPTS = {
     "helix_reference.py": _entry("b", ["helix_reference.json"]),
     "hysteresis_trefoil.py": _entry("a", ["hysteresis_trefoil.csv", "hysteresis_trefoil.json",
                                           "hysteresis_trefoil.md", "hysteresis_trefoil.png"]),
+    "loose_limit.py": _entry("b", ["loose_limit.json", "loose_limit.md", "loose_limit.png"]),
     "michell.py": _entry("b", ["michell.md", "michell.png"]),
     "onset_fine_step.py": _entry("b", ["onset_fine_step.md"]),
     "open_knot.py": _entry("b", ["open_knot.csv", "open_knot.json"]),

@@ -26,7 +26,7 @@ CHARTS = ("speed.png", "sparse_contact.png", "dynamics_accuracy.png", "michell.p
           "peer_pyelastica.png", "tension_twist.png", "fold_curve_nu.png", "fold_curve_ratio.png",
           "hysteresis_trefoil.png", "bifurcation_trefoil.png", "plectoneme.png", "open_knot.png",
           "accuracy_trefoil.png", "trefoil_convergence.png", "shear_kirchhoff_limit.png",
-          "shear_trefoil_limit.png")
+          "shear_trefoil_limit.png", "loose_limit.png")
 PI = math.pi
 
 
@@ -370,7 +370,30 @@ def shear_trefoil_limit_table():
               f"`{limit['provenance']['command']}`.")
 
 
-GENERATORS = {"cli": cli_reference, "shear_trefoil": shear_trefoil_table, "shear_trefoil_limit": shear_trefoil_limit_table,
+def loose_limit_table():
+    """The trefoil's critical twists converged in N against D/L, with the doubly covered ring's limits."""
+    data = _load("loose_limit.json")
+    if not data:
+        return _missing("loose_limit.json")
+    k3, k4 = data["limits_over_pi"]["k3"], data["limits_over_pi"]["k4"]
+    rows = []
+    for r in sorted(data["rows"], key=lambda r: (r["side"], -r["D_over_L"])):
+        limit = k3 if r["side"] == "plus" else -k4
+        phi = r["phi_star"] / PI
+        rows.append([f"{r['D_over_L']:g}", "opening" if r["side"] == "plus" else "tightening",
+                     f"{phi:+.4f} π ± {r['error'] / PI:.1e} π", ", ".join(str(lv["N"]) for lv in r["levels"]),
+                     f"{limit:+.4f} π", f"{phi - limit:+.4f} π"])
+    laws = [f"{'opening' if side == 'plus' else 'tightening'}: |φ*| − limit = {law['coefficient_over_pi']:.3g} π "
+            f"(D/L)^p with p = {law['exponent']:.2f} ± {law['exponent_error']:.2f} (over D/L = "
+            f"{', '.join(f'{x:g}' for x in law['points'])})"
+            for side, law in data.get("approach", {}).items() if law]
+    return (_table(["D/L", "side", "φ* converged in N", "levels N", "limit (doubly covered ring)",
+                    "φ* − limit"], rows) + f"\n\nFrom `{data['provenance']['command']}`."
+            + ("" if not laws else " The approach, fitted where the gap is at least twice its error bar: "
+               + "; ".join(laws) + "."))
+
+
+GENERATORS = {"cli": cli_reference, "loose_limit": loose_limit_table, "shear_trefoil": shear_trefoil_table, "shear_trefoil_limit": shear_trefoil_limit_table,
               "shear_trefoil_D4_L280": lambda: shear_trefoil_table("shear_trefoil_D4_L280"),
               "validation": validation_table, "performance": performance_table,
               "speed": speed_table, "sparse_contact": sparse_contact_table, "dynamics": dynamics_table,

@@ -60,3 +60,15 @@ def test_every_page_in_the_navigation_exists():
     assert len(pages) >= 20
     for page in pages:
         assert (DOCS / page).exists(), page
+
+
+def test_the_loose_limit_table_is_rebuilt_from_its_json(hook):
+    import json
+    import math
+
+    data = json.loads((hook.RESULTS / "loose_limit.json").read_text())
+    table = hook.loose_limit_table()
+    assert len(table.splitlines()) == 2 + len(data["rows"]) + 2  # header, rule, a row per point, the command
+    for r in data["rows"]:
+        assert f"{r['phi_star'] / math.pi:+.4f} π ± {r['error'] / math.pi:.1e} π" in table, r
+    assert data["provenance"]["command"] in table
