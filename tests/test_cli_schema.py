@@ -311,13 +311,14 @@ def test_atlas_and_critical_curve_rows_are_one_side_records(monkeypatch, tmp_pat
     from jaxrod.studies import atlas, critical_curve
     from jaxrod.io import schema
 
-    rows = atlas.read_atlas(str(REPO / "benchmarks" / "results" / "atlas"))  # 48 cases, 16 without an end
+    rows = atlas.read_atlas(str(REPO / "benchmarks" / "results" / "atlas"))  # some cases without an end
     monkeypatch.setattr(atlas, "run_atlas", lambda *a, **k: rows)
     monkeypatch.setattr(atlas, "report", lambda out: f"{out}/atlas.md")
     assert cli.main(["atlas", "--knots", "3_1", "--ratios", "0.03", "--N", "40", "--no-figures", "--json", "--quiet",
                      "--out", str(tmp_path / "atlas")]) == 0
     printed = _strict(capsys.readouterr().out)["rows"]
-    assert len(printed) == len(rows) and sum(r["phi_star"] is None for r in printed) == 16
+    endless = sum(not math.isfinite(r["phi_star"]) for r in rows)
+    assert endless > 0 and len(printed) == len(rows) and sum(r["phi_star"] is None for r in printed) == endless
     for row, original in zip(printed, rows):
         _check_side(row)
         assert set(atlas.FIELDS) <= set(row) and row["knot"] == original["knot"]
