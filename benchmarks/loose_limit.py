@@ -14,9 +14,9 @@ twist phi = w L = 4 pi R w:
 (``jaxrod.studies.accuracy.converged_critical_twists``: Richardson with the order measured from
 three levels, edges from about 0.85 D down to 0.4 D), with its error estimate.
 
-Writes benchmarks/results/loose_limit.{json,md,png}; each D/L's levels are kept in
+Writes benchmarks/results/loose_limit.{json,md,png} (loose_limit_nu<nu>.* for another --nu); each D/L's levels are kept in
 benchmarks/results/loose_limit_levels/ as they finish (a rerun reuses them; not committed: the states).
-Run: python benchmarks/loose_limit.py   (about 10 minutes on 2 cores)
+Run: python benchmarks/loose_limit.py [--nu 0.5] [--min-ratio 0.002]   (about 10 minutes on 2 cores)
 The small mode: the paper's rod (D/L = 0.0274) at N = 41, 45, 49, the opening side, to 1 pi.
 """
 import json
@@ -37,7 +37,21 @@ from jaxrod.studies.accuracy import converged_critical_twists  # noqa: E402
 
 from _bench import markdown, pick, results_dir, with_provenance  # noqa: E402  (benchmarks/ is on the path)
 
-PI, L, NU = math.pi, 292.0, 0.5
+PI, L = math.pi, 292.0
+
+
+def _nu(argv):
+    import argparse
+
+    ap = argparse.ArgumentParser(description="the loose trefoil's critical twists against the doubly covered ring")
+    ap.add_argument("--nu", type=float, default=0.5, help="Poisson ratio (default 0.5)")
+    ap.add_argument("--min-ratio", type=float, default=0.002, help="the smallest D/L (default 0.002)")
+    args = ap.parse_args(argv)
+    return args.nu, args.min_ratio
+
+
+NU, MIN_RATIO = _nu(sys.argv[1:])
+STEM = "loose_limit" if NU == 0.5 else f"loose_limit_nu{NU:g}"
 # D/L and its levels N (edges L / N about 0.85 D, 0.6 D and 0.4 D; more where three do not reach the accuracy)
 LEVELS = pick({0.035: (41, 57, 81, 115, 161), 0.0274: (41, 57, 81, 115, 161, 241, 337), 0.02: (61, 85, 121, 171, 241), 0.015: (81, 113, 161, 227), 0.01: (121, 161, 241, 337), 0.0075: (161, 227, 321),
               0.005: (241, 337, 481), 0.0035: (337, 481, 685), 0.0025: (481, 673, 961), 0.002: (601, 841, 1201)},
@@ -58,7 +72,7 @@ def run_ratio(ratio, levels):
     knot = jr.trefoil(D=ratio * L, L=L, N=levels[0], nu=NU)
     t = time.perf_counter()
     result = converged_critical_twists(knot, ACCURACY, sides=SIDES, levels=levels, step=STEP,
-                                       out=os.path.join(OUT, "loose_limit_levels", f"ratio_{ratio:g}"),
+                                       out=os.path.join(OUT, "loose_limit_levels", f"nu_{NU:g}_ratio_{ratio:g}"),
                                        progress=lambda s: print(f"  {s}", file=sys.stderr, flush=True))
     rows = []
     for side, r in result.items():
@@ -70,12 +84,12 @@ def run_ratio(ratio, levels):
 
 
 def main():
-    rows = [row for ratio, levels in LEVELS.items() for row in run_ratio(ratio, levels)]
+    rows = [row for ratio, levels in LEVELS.items() if ratio >= MIN_RATIO for row in run_ratio(ratio, levels)]
     lim = limits(NU)
     data = dict(L=L, nu=NU, accuracy_over_pi=ACCURACY / PI, limits_over_pi={k: v / PI for k, v in lim.items()},
                 michell_over_pi=2.0 * math.sqrt(3.0) * (1.0 + NU), rows=rows,
                 approach={side: approach_law(rows, side, lim) for side in SIDES})
-    with open(os.path.join(OUT, "loose_limit.json"), "w") as f:
+    with open(os.path.join(OUT, f"{STEM}.json"), "w") as f:
         json.dump(with_provenance(data), f, indent=1)
     lines = ["# The trefoil's critical twists as the knot loosens", "",
              f"L = {L:g} mm, nu = {NU}; converged in N to {ACCURACY / PI:g} pi (`benchmarks/loose_limit.py`). "
@@ -93,7 +107,7 @@ def main():
             lines.append(f"{side}: |phi*| - limit = {law['coefficient_over_pi']:.4g} pi (D/L)^p, p = "
                          f"{law['exponent']:.2f} +- {law['exponent_error']:.2f} (weighted by the error bars; "
                          f"D/L = {', '.join(f'{x:g}' for x in law['points'])}: the gaps above twice their error)")
-    with open(os.path.join(OUT, "loose_limit.md"), "w") as f:
+    with open(os.path.join(OUT, f"{STEM}.md"), "w") as f:
         f.write(markdown(lines))
     figure(rows, lim, data["michell_over_pi"])
 
@@ -168,7 +182,7 @@ def figure(rows, lim, michell):
     bx.set_title("Approach to the limits (gaps larger than their error bars)")
     bx.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(os.path.join(OUT, "loose_limit.png"), dpi=120)
+    fig.savefig(os.path.join(OUT, f"{STEM}.png"), dpi=120)
     plt.close(fig)
 
 

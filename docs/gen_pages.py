@@ -370,11 +370,11 @@ def shear_trefoil_limit_table():
               f"`{limit['provenance']['command']}`.")
 
 
-def loose_limit_table():
+def loose_limit_table(stem="loose_limit"):
     """The trefoil's critical twists converged in N against D/L, with the doubly covered ring's limits."""
-    data = _load("loose_limit.json")
+    data = _load(f"{stem}.json")
     if not data:
-        return _missing("loose_limit.json")
+        return _missing(f"{stem}.json")
     k3, k4 = data["limits_over_pi"]["k3"], data["limits_over_pi"]["k4"]
     rows = []
     for r in sorted(data["rows"], key=lambda r: (r["side"], -r["D_over_L"])):
@@ -393,7 +393,8 @@ def loose_limit_table():
                + "; ".join(laws) + "."))
 
 
-GENERATORS = {"cli": cli_reference, "loose_limit": loose_limit_table, "shear_trefoil": shear_trefoil_table, "shear_trefoil_limit": shear_trefoil_limit_table,
+GENERATORS = {"cli": cli_reference, "loose_limit": loose_limit_table,
+              "loose_limit_nu_0_3": lambda: loose_limit_table("loose_limit_nu0.3"), "shear_trefoil": shear_trefoil_table, "shear_trefoil_limit": shear_trefoil_limit_table,
               "shear_trefoil_D4_L280": lambda: shear_trefoil_table("shear_trefoil_D4_L280"),
               "validation": validation_table, "performance": performance_table,
               "speed": speed_table, "sparse_contact": sparse_contact_table, "dynamics": dynamics_table,
