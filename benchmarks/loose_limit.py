@@ -14,7 +14,8 @@ twist phi = w L = 4 pi R w:
 (``jaxrod.studies.accuracy.converged_critical_twists``: Richardson with the order measured from
 three levels, edges from about 0.85 D down to 0.4 D), with its error estimate.
 
-Writes benchmarks/results/loose_limit.{json,md,png} (loose_limit_nu<nu>.* for another --nu); each D/L's levels are kept in
+Writes benchmarks/results/loose_limit.{json,md,png} (loose_limit_nu<nu>.* for another --nu); each
+D/L's levels are kept in
 benchmarks/results/loose_limit_levels/ as they finish (a rerun reuses them; not committed: the states).
 Run: python benchmarks/loose_limit.py [--nu 0.5] [--min-ratio 0.002]   (about 10 minutes on 2 cores)
 The small mode: the paper's rod (D/L = 0.0274) at N = 41, 45, 49, the opening side, to 1 pi.
@@ -53,8 +54,9 @@ def _nu(argv):
 NU, MIN_RATIO = _nu(sys.argv[1:])
 STEM = "loose_limit" if NU == 0.5 else f"loose_limit_nu{NU:g}"
 # D/L and its levels N (edges L / N about 0.85 D, 0.6 D and 0.4 D; more where three do not reach the accuracy)
-LEVELS = pick({0.035: (41, 57, 81, 115, 161), 0.0274: (41, 57, 81, 115, 161, 241, 337), 0.02: (61, 85, 121, 171, 241), 0.015: (81, 113, 161, 227), 0.01: (121, 161, 241, 337), 0.0075: (161, 227, 321),
-              0.005: (241, 337, 481), 0.0035: (337, 481, 685), 0.0025: (481, 673, 961), 0.002: (601, 841, 1201)},
+LEVELS = pick({0.035: (41, 57, 81, 115, 161), 0.0274: (41, 57, 81, 115, 161, 241, 337),
+               0.02: (61, 85, 121, 171, 241), 0.015: (81, 113, 161, 227), 0.01: (121, 161, 241, 337),
+               0.0075: (161, 227, 321), 0.005: (241, 337, 481), 0.0035: (337, 481, 685), 0.0025: (481, 673, 961), 0.002: (601, 841, 1201)},
              {0.0274: (41, 45, 49)})
 SIDES = pick(("plus", "minus"), ("plus",))
 FIT_MAX = pick(0.02, 0.03)  # the approach law is fitted to the loose knots only (D/L <= 0.02): it is asymptotic

@@ -1,6 +1,6 @@
 """The loose trefoil's critical twists (benchmarks/results/loose_limit.json at nu = 0.5 and
-loose_limit_nu0.3.json, converged in N by the accuracy mode) against the limits derived from the doubly covered twisted ring (docs/guides/
-loose-limit.md): the opening side tends to the k = 3 instability 2 pi sqrt(5) (1 + nu), the
+loose_limit_nu0.3.json, converged in N by the accuracy mode) against the limits derived from the
+doubly covered twisted ring (docs/guides/loose-limit.md): the opening side tends to the k = 3 instability 2 pi sqrt(5) (1 + nu), the
 tightening side to the k = 4 one, 4 pi sqrt(3) (1 + nu) = 2 x Michell."""
 import json
 import math

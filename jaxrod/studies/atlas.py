@@ -193,7 +193,8 @@ def knot_critical_twist(case, settings=None):
         last = path.instabilities[0].equilibrium
     row = {"knot": case.knot, "D_over_L": case.D_over_L, "N": case.N, "side": case.side,
            "phi_star": math.nan, "phi_star_over_pi": math.nan, "phi_error": math.nan, "kind": "none",
-           "located": "no", "phi_study": math.nan, "reason": path.reason, "critical_eigenvalue": math.nan, "dlambda_dphi": math.nan,
+           "located": "no", "phi_study": math.nan, "reason": path.reason, "critical_eigenvalue": math.nan,
+           "dlambda_dphi": math.nan,
            "lowest_eigenvalue_start": _lowest_above_band(start), "Wr_start": float(start.Wr),
            "Wr_before": float(last.Wr), "Tw_before": float(last.Tw),
            "contact_count_change": _contact_count(scene, last) - _contact_count(scene, start),
@@ -233,7 +234,8 @@ def _located_end(scene, inst, side, settings, row):
         return {"reason": f"{row['reason']}; the {getattr(ev.kind, 'value', ev.kind)} located at "
                           f"{ev.p / math.pi:+.8f} pi lies outside the study's bracket: the study's value kept"}
     return {"phi_star": float(ev.p), "phi_star_over_pi": float(ev.p) / math.pi,
-            "kind": str(getattr(ev.kind, "value", ev.kind)), "located": "yes", "reason": f"{row['reason']}; {end.message}"}
+            "kind": str(getattr(ev.kind, "value", ev.kind)), "located": "yes",
+            "reason": f"{row['reason']}; {end.message}"}
 
 
 def _case_of(row):

@@ -58,7 +58,8 @@ class DiagramOptions:
     unstable_points: points kept on the unstable branch beyond the located end; ds_max: largest
     pseudo-arclength step (scaled DOFs and phi in rad); newton_tol: the corrector's and the
     locators' residual (scaled units), tight because an end next to another singular point is
-    ill-conditioned (both raised where the problem's roundoff floor lies above them); event_tol: a located end must have its residual and critical eigenvalue below this;
+    ill-conditioned (both it and event_tol raised where the problem's roundoff floor lies above
+    them); event_tol: a located end must have its residual and critical eigenvalue below this;
     max_points: points followed before the end, at most; n_eig: eigenpairs kept per point.
     until_restable: instead, follow the unstable branch until its Morse index comes back to 0
     (RESTABLE_KEEP points kept past it, ``BranchEnd.restabilised``) or for ``max_unstable_points``.

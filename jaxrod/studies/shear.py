@@ -73,10 +73,11 @@ def _first_branch_point(energy, u0, params, step, p_max, options, kinds=("branch
 
     from ..continuation import ContinuationOptions
     from ..continuation.arclength import BifurcationProblem, PseudoArclength, continuation_until
+    from ..continuation.options import ARCLENGTH_DEFAULTS
 
     span = (-abs(step), p_max) if step > 0 else (-p_max, abs(step))
     opts = options or ContinuationOptions(ds=step, ds_max=abs(step), p_min=span[0], p_max=span[1], k=4)
-    max_steps = opts.max_steps or 200
+    max_steps = opts.max_steps or ARCLENGTH_DEFAULTS["max_steps"]
 
     def of_kind(events):
         return [e for e in events if str(getattr(e.kind, "value", e.kind)) in kinds]
@@ -94,8 +95,9 @@ def _first_branch_point(energy, u0, params, step, p_max, options, kinds=("branch
         raise RuntimeError(f"no {' or '.join(kinds)} within {p_max:.6g} ({branch.message})")
     if not found[0].converged:
         e = found[0]
-        raise RuntimeError(f"the first end, a {getattr(e.kind, 'value', e.kind)} near p = {e.p:.8g}, was detected but not "
-                           f"located (residual {e.residual:.3g}, critical eigenvalue {e.critical_eigenvalue:.3g})")
+        raise RuntimeError(f"the first end, a {getattr(e.kind, 'value', e.kind)} near p = {e.p:.8g}, was detected "
+                           f"but not located (residual {e.residual:.3g}, critical eigenvalue "
+                           f"{e.critical_eigenvalue:.3g})")
     return found[0]
 
 
