@@ -12,7 +12,14 @@ span sqrt(T/B) functions of x = D sqrt(T/B) alone (at given nu, contact law and 
 M/sqrt(BT)). Two diameters (L/150 at N = 160 and L/300 at N = 310) at phi = 0 test that: where
 their x overlap the values must agree (finite-length effects would separate them), and the loose
 limit (D << sqrt(B/T): the knot's size set by bending against tension alone, e and span
-proportional to sqrt(B/T)) is the intercept at x = 0 (``open_knot.fit_loose_limit``). Twist:
+proportional to sqrt(B/T)) is the intercept at x = 0 (``open_knot.fit_loose_limit``).
+
+Against the published asymptotics (Audoly, Clauvelin & Neukirch 2007; Clauvelin, Audoly & Neukirch
+2009): the inextensible end-shortening (arc length - end distance, the axial stretch taken out)
+and the loop's apex radius, times sqrt(T/B), are fitted in eps = sqrt(h/R) (h = D/2, R =
+sqrt(B/2T)) and compared at eps = 0 with pi sqrt(2) and 1/sqrt(2) (``open_knot.LOOSE_LIMIT``); the
+contact set's runs along the rod (``open_knot.contact_runs``) are listed at each case's loosest and
+tightest states (published: an interval flanked by two isolated contact points). Twist:
 phi = +-2 pi at D = L/150 (the end moment M/sqrt(BT) is reported). Edges are about D/2 and the
 contact integral takes 3 Gauss points per segment (with 2, T(e) jumped by ~5 % as strands slid
 past the nodes); N = 640 at D = L/150 checks the resolution.
@@ -111,6 +118,7 @@ def combine():
 
     sys.path.insert(0, os.path.dirname(HERE))
     from jaxrod.studies.open_knot import fit_loose_limit, fit_prefactor, mean_tension
+    from jaxrod.studies import open_knot as ok
 
     results = {}
     for name, *_ in CASES:
@@ -201,6 +209,7 @@ def combine():
             d = [p[key] / a[round(p["e_mid"], 9)][key] - 1 for p in steps["D150_phi0_N640"] if round(p["e_mid"], 9) in a]
             resolution[key] = dict(points=len(d), max_relative_difference=float(np.max(np.abs(d))) if d else None,
                                    mean_relative_difference=float(np.mean(d)) if d else None)
+    published, eps_points = _against_published(results, ok)
     os.makedirs(OUT, exist_ok=True)
     with open(os.path.join(OUT, "open_knot.csv"), "w") as f:
         f.write("\n".join(lines) + "\n")
@@ -208,16 +217,97 @@ def combine():
         f.write("\n".join(steps_lines) + "\n")
     summary = dict(L=L, B=1.0, nu=0.5, loop_unit=LOOP, contact_stiffness=KAPPA, contact_quadrature=3, cases=table,
                    loose_limit=fits, collapse=collapse, resolution_N640_vs_N320=resolution,
-                   elastica_loop=dict(e_sqrtT=4.0, note="a planar elastica loop: e = 4 sqrt(B/T)"),
-                   circle_loop=dict(e_sqrtT=2 * math.pi / math.sqrt(2), span_sqrtT=math.sqrt(2),
-                                    note="a circular loop of radius R: B pi/R + T 2 pi R least at R = sqrt(B/2T)"))
+                   published_loose_limit=published)
     with open(os.path.join(OUT, "open_knot.json"), "w") as f:
         json.dump(with_provenance(summary), f, indent=1)
-    print(json.dumps(dict(cases=table, loose_limit=fits, collapse=collapse, resolution=resolution), indent=1))
-    _figure(results, steps, fits)
+    print(json.dumps(dict(cases=table, loose_limit=fits, collapse=collapse, resolution=resolution,
+                          published_loose_limit=published), indent=1))
+    _figure(results, steps, fits, eps_points, published)
 
 
-def _figure(results, steps, fits):
+# The fits in eps use the states with eps <= EPS_MAX (the loose regime: tighter, the loop reshapes
+# and its apex radius jumps off the trend); the intercept's change with the cut moved by 0.05 is
+# recorded beside it.
+EPS_MAX = 0.35
+
+
+def _sorted_states(r):
+    order = sorted(range(len(r["rows"])), key=lambda i: r["rows"][i]["excess"])
+    return [r["rows"][i] for i in order], [r["x"][i] for i in order]
+
+
+def _eps_points(r, ok):
+    """Per pulling step of one case: eps, the inextensible excess and the apex radius, both times
+    sqrt(T/B), with T the step's mean tension (-dE/de) and the lengths at the step's geometric mean."""
+    import numpy as np
+
+    rows, xs = _sorted_states(r)
+    e_mid, T = ok.mean_tension([w["excess"] for w in rows], [w["energy"] for w in rows])
+    e_in = np.array([ok.inextensible_excess(x) for x in xs])
+    radius = np.array([ok.apex_radius(x, 0.5 * math.sqrt(0.5 / max(w["T"], 1e-300))) for w, x in zip(rows, xs)])
+    keep = T > 0
+    sq = np.sqrt(np.where(keep, T, 1.0))
+    return dict(eps=ok.loose_parameter(r["D"], np.where(keep, T, 1.0))[keep],
+                excess=(np.sqrt(e_in[1:] * e_in[:-1]) * sq)[keep], loop_radius=(np.sqrt(radius[1:] * radius[:-1]) * sq)[keep])
+
+
+def _against_published(results, ok):
+    """The untwisted cases' fits in eps against the published leading order, and every case's contact
+    runs (in units of D) at its loosest and tightest states."""
+    import numpy as np
+
+    untwisted = [n for n in ("D150_phi0", "D300_phi0") if n in results]
+    points = {n: _eps_points(results[n], ok) for n in untwisted}
+    out = dict(variable="eps = sqrt(h/R), h = D/2, R = sqrt(B/(2T))", cases=untwisted, fits={}, contact_runs={})
+    eps = np.concatenate([p["eps"] for p in points.values()]) if points else np.zeros(0)
+    loose = eps <= EPS_MAX
+    if loose.sum() >= 4:
+        for key in ("excess", "loop_radius"):
+            y = np.concatenate([p[key] for p in points.values()])
+            fit = {}
+            for degree in (1, 2):
+                coef, err, worst = ok.fit_loose_limit(eps[loose], y[loose], degree)
+                fit[f"degree_{degree}"] = dict(c0=float(coef[0]), c0_std=float(err[0]), coefficients=coef.tolist(),
+                                               max_residual=worst)
+            # the quadratic's intercept with the fit range moved either way: its systematic error
+            fit["degree_2_by_eps_max"] = {
+                f"{cut:g}": dict(zip(("c0", "c0_std"), (float(v[0]), float(e[0]))))
+                for cut in (EPS_MAX - 0.05, EPS_MAX + 0.05)
+                for v, e, _ in [ok.fit_loose_limit(eps[eps <= cut], y[eps <= cut], 2)]}
+            fit.update(published=ok.LOOSE_LIMIT[key], eps_max=EPS_MAX,
+                       eps_range=[float(eps[loose].min()), float(eps[loose].max())], points=int(loose.sum()))
+            out["fits"][key] = fit
+    for name, r in results.items():
+        rows, xs = _sorted_states(r)
+        out["contact_runs"][name] = {
+            label: dict(excess=rows[i]["excess"], runs_over_D=[[a / r["D"], b / r["D"]] for a, b in ok.contact_runs(xs[i], r["D"])])
+            for label, i in (("loosest", -1), ("tightest", 0))}
+    return out, points
+
+
+def _published_panel(ax, eps_points, fits, style):
+    """The inextensible excess and the apex radius (times sqrt(T/B)) against eps, their quadratic
+    fits and the published leading order at eps = 0."""
+    import numpy as np
+
+    for key, colour, label in (("excess", "k", "(arc length - end distance) sqrt(T/B)"),
+                               ("loop_radius", "tab:purple", "apex radius sqrt(T/B)")):
+        for name, p in eps_points.items():
+            ax.plot(p["eps"], p[key], style[name][1], color=colour, ms=4, mfc="none" if name == "D300_phi0" else colour,
+                    label=f"{label}, D = L/{150 if name == 'D150_phi0' else 300}")
+        f = fits.get(key)
+        if f:
+            c = f["degree_2"]["coefficients"]
+            ee = np.linspace(0, f["eps_max"], 80)
+            ax.plot(ee, c[0] + c[1] * ee + c[2] * ee ** 2, "--", color=colour, lw=1,
+                    label=f"quadratic in eps: {c[0]:.3f} +- {f['degree_2']['c0_std']:.3f} at eps = 0")
+            ax.plot([0], [f["published"]], "*", color=colour, ms=13, label=f"published leading order {f['published']:.4f}")
+    ax.set(xlabel="eps = sqrt(h/R), h = D/2, R = sqrt(B/2T)", ylabel="scaled length",
+           title="against the published loose limit (phi = 0)", xlim=(0, None), ylim=(0, None))
+    ax.legend(fontsize=6)
+
+
+def _figure(results, steps, fits, eps_points=None, published=None):
     import matplotlib
     import numpy as np
 
@@ -242,28 +332,21 @@ def _figure(results, steps, fits):
             rows = r["rows"]
             axs[0].loglog([w["T"] for w in rows], [w["excess"] for w in rows], "+", color="0.6", ms=5,
                           label="D = L/150, phi = 0: T at the states (end_loads)")
-        for ax, key in ((axs[2], "e_sqrtT"), (axs[3], "span_sqrtT")):
-            ax.plot([p["x"] for p in pts], [p[key] for p in pts], mk + "-", color=col, mfc="none" if r["phi"] else col,
-                    lw=0.7, ms=4, label=lab)
-    for ax, key, title in ((axs[2], "e_sqrtT", "e sqrt(T/B)"), (axs[3], "span_sqrtT", "loop span sqrt(T/B)")):
-        f = fits.get(key)
-        if f:
-            xx = np.linspace(0, f["x_range"][1], 80)
-            ax.plot(xx, f["c0_quadratic"] + f["c1_quadratic"] * xx + f["c2_quadratic"] * xx ** 2, "--", color="0.4",
-                    lw=1, label=f"phi = 0, both D: quadratic fit, c0 = {f['c0_quadratic']:.3f}")
-            ax.plot([0], [f["c0_quadratic"]], "*", color="0.2", ms=12)
-        ax.set(xlabel="x = D sqrt(T/B)", ylabel=title, title=f"{title} against D sqrt(T/B)", xlim=(0, None))
-        ax.legend(fontsize=7)
-    axs[2].axhline(4.0, color="gray", ls=":", lw=1, label="planar elastica loop: 4")
-    axs[2].axhline(2 * math.pi / math.sqrt(2), color="gray", ls="-.", lw=1, label="circular loop: 4.44")
+        axs[2].plot([p["x"] for p in pts], [p["e_sqrtT"] for p in pts], mk + "-", color=col,
+                    mfc="none" if r["phi"] else col, lw=0.7, ms=4, label=lab)
+    f = fits.get("e_sqrtT")
+    if f:
+        xx = np.linspace(0, f["x_range"][1], 80)
+        axs[2].plot(xx, f["c0_quadratic"] + f["c1_quadratic"] * xx + f["c2_quadratic"] * xx ** 2, "--", color="0.4",
+                    lw=1, label=f"phi = 0, both D: quadratic fit in x, c0 = {f['c0_quadratic']:.3f}")
+    axs[2].set(xlabel="x = D sqrt(T/B)", ylabel="e sqrt(T/B)", title="scaling: e sqrt(T/B) against D sqrt(T/B)",
+               xlim=(0, None))
     axs[2].legend(fontsize=7)
+    _published_panel(axs[3], eps_points or {}, (published or {}).get("fits", {}), style)
     tt = np.geomspace(60, 3000, 20)
-    if "e_sqrtT" in fits:
-        axs[0].loglog(tt, fits["e_sqrtT"]["c0_quadratic"] / np.sqrt(tt), "--", color="0.4",
-                      label=f"loose limit {fits['e_sqrtT']['c0_quadratic']:.2f} sqrt(B/T)")
-    if "span_sqrtT" in fits:
-        axs[1].loglog(tt, fits["span_sqrtT"]["c0_quadratic"] / np.sqrt(tt), "--", color="0.4",
-                      label=f"loose limit {fits['span_sqrtT']['c0_quadratic']:.2f} sqrt(B/T)")
+    axs[0].loglog(tt, math.pi * np.sqrt(2.0 / tt), "--", color="0.4",
+                  label="published loose limit: 2 pi R = pi sqrt(2B/T)")
+    axs[1].loglog(tt, np.sqrt(2.0 / tt), "--", color="0.4", label="published loop diameter 2R = sqrt(2B/T)")
     axs[0].set(xlabel="T L^2 / B (mean over each step, -dE/de)", ylabel="excess length e / L",
                title="open overhand knot: excess length")
     axs[1].set(xlabel="T L^2 / B", ylabel="loop span / L", title="loop diameter")

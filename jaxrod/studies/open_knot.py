@@ -8,8 +8,14 @@ the rod closed by rays along the axis is a trefoil.
 
 Pulling is displacement controlled (robust with contact): the excess length e = L - end distance
 decreases step by step, each state is ``relax``ed from the last, and the tension T is read from
-``end_loads``. The planar elastica loop (a loose knot's outer solution) has e = 4 sqrt(B/T) and
-height 2 sqrt(B/T).
+``end_loads``.
+
+The loose limit (Audoly, Clauvelin & Neukirch, PRL 99, 164301, 2007; Clauvelin, Audoly & Neukirch,
+J. Mech. Phys. Solids 2009): the loop tends to a circle of radius R with T = B / (2 R^2), so the
+end-shortening of an inextensible rod tends to 2 pi R = pi sqrt(2) sqrt(B/T) (``LOOSE_LIMIT``), with
+corrections in powers of eps = sqrt(h/R), h = D/2 the rod's radius (``loose_parameter``); the
+contact set is an interval flanked by two isolated contact points (``contact_runs``). jaxrod's
+excess L - end distance includes the axial stretch; ``inextensible_excess`` takes it out.
 """
 from __future__ import annotations
 
@@ -24,10 +30,14 @@ from ..model.material import Material
 from ..validation import check_finite, check_int_at_least, check_positive
 
 __all__ = ["open_overhand_knot", "OpenKnotOptions", "KnotState", "moved_to_excess", "pull", "loop_height", "loop_span",
-           "relax_knot", "fit_prefactor", "fit_loose_limit", "mean_tension"]
+           "relax_knot", "fit_prefactor", "fit_loose_limit", "mean_tension", "LOOSE_LIMIT", "loose_parameter",
+           "inextensible_excess", "apex_radius", "contact_runs"]
 
 TWO_PI = 2.0 * math.pi
 DEFAULT_CONTACT_STIFFNESS = 100.0
+# The published leading order of a loose frictionless knot, scaled by sqrt(T/B): the inextensible
+# end-shortening 2 pi R and the loop radius R, with R = sqrt(B / (2 T)).
+LOOSE_LIMIT = {"excess": math.pi * math.sqrt(2.0), "loop_radius": 1.0 / math.sqrt(2.0)}
 
 
 def _trefoil(t):
@@ -285,8 +295,9 @@ def fit_prefactor(T, y, B=1.0):
 
 
 def fit_loose_limit(x, c, degree=1):
-    """The loose-knot limit c(0) of a scale-free measure c = y sqrt(T/B), a function of
-    x = D sqrt(T/B) alone for a long rod. Fits c = c0 + c1 x (+ c2 x^2 with degree 2) by least
+    """The loose-knot limit c(0) of a scale-free measure c = y sqrt(T/B), a function of one
+    variable for a long rod: x = D sqrt(T/B), or the expansion parameter eps (``loose_parameter``),
+    in which the published asymptotics go. Fits c = c0 + c1 x (+ c2 x^2 with degree 2) by least
     squares. Returns (coefficients (degree+1,), their standard errors, the largest residual)."""
     x, c = np.asarray(x, dtype=float), np.asarray(c, dtype=float)
     A = np.stack([x ** k for k in range(degree + 1)], axis=1)
@@ -311,3 +322,52 @@ def mean_tension(excess, energy):
     order = np.argsort(e)
     e, E = e[order], E[order]
     return np.sqrt(e[1:] * e[:-1]), -(E[1:] - E[:-1]) / (e[1:] - e[:-1])
+
+
+def loose_parameter(D, T, B=1.0):
+    """The loose-knot expansion parameter eps = sqrt(h / R): h = D/2 the rod's radius, R =
+    sqrt(B / (2 T)) the leading-order loop radius. D, T: scalars or arrays of equal shape."""
+    T = np.asarray(T, dtype=float)
+    return np.sqrt(0.5 * np.asarray(D, dtype=float) * np.sqrt(2.0 * T / B))
+
+
+def inextensible_excess(x):
+    """Arc length minus end distance of the polyline x (N, 3): the end-shortening of an
+    inextensible rod in the same shape (the published one), without the axial stretch T L / EA
+    that ``KnotState.excess`` includes."""
+    x = np.asarray(x, dtype=float)
+    return float(np.sum(np.linalg.norm(np.diff(x, axis=0), axis=1)) - np.linalg.norm(x[-1] - x[0]))
+
+
+def apex_radius(x, half_arc):
+    """The loop's radius at its apex: the circle through the node furthest from the end-to-end
+    line of x (N, 3) and the nodes ``half_arc`` of arc length before and after it (a length of the
+    order of the loop radius, so node-scale ripples average out)."""
+    x = np.asarray(x, dtype=float)
+    axis = (x[-1] - x[0]) / np.linalg.norm(x[-1] - x[0])
+    r = x - x[0]
+    i = int(np.argmax(np.linalg.norm(r - (r @ axis)[:, None] * axis[None, :], axis=1)))
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(x, axis=0), axis=1))])
+    a = x[max(int(np.searchsorted(s, s[i] - half_arc)), 0)]
+    b = x[min(int(np.searchsorted(s, s[i] + half_arc)), len(x) - 1)]
+    p, q = x[i] - a, b - a
+    return float(np.linalg.norm(p) * np.linalg.norm(b - x[i]) * np.linalg.norm(q) / (2.0 * np.linalg.norm(np.cross(p, q))))
+
+
+def contact_runs(x, D, reach=1.0, skip=3.0):
+    """The contact set of the polyline x (N, 3) of a rod of diameter D, as runs of consecutive
+    nodes whose nearest node more than ``skip`` D away along the rod is closer than ``reach`` D.
+    Returns [(s_start, s_end), ...] in arc length, in order along the rod; a run of length up to
+    about D is an isolated contact point, a longer one an interval."""
+    x = np.asarray(x, dtype=float)
+    check_positive("D", D)
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(x, axis=0), axis=1))])
+    dist = np.linalg.norm(x[:, None, :] - x[None, :, :], axis=-1)
+    dist = np.where(np.abs(s[:, None] - s[None, :]) > skip * D, dist, np.inf)
+    touching = np.flatnonzero(dist.min(axis=1) < reach * D)
+    if touching.size == 0:
+        return []
+    breaks = np.flatnonzero(np.diff(touching) > 1)
+    starts = np.concatenate([[touching[0]], touching[breaks + 1]])
+    ends = np.concatenate([touching[breaks], [touching[-1]]])
+    return [(float(s[a]), float(s[b])) for a, b in zip(starts, ends)]
