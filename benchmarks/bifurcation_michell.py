@@ -357,7 +357,8 @@ def main():
     convergence.sort(key=lambda r: r["N"])
     with open(os.path.join(OUT, "bifurcation_michell.json"), "w") as f:
         json.dump(dict(provenance=provenance(), N=N, nu=NU, phi_michell_over_pi=PHI_M / PI, contact_against_D=sweep,
-                       contact_against_N=convergence), f, indent=1, default=float)
+                       contact_against_N=convergence, zero_thickness=zero_thickness_limit(sweep, convergence)),
+                  f, indent=1, default=float)
     write_md(locals())
 
 
@@ -500,6 +501,7 @@ def write_md(v):
              f"rod touches itself -- the classic picture (REFERENCE.md section 3: the ring buckles out of plane "
              f"subcritically and the post-buckled ring touches itself).\n")
     contact_tables(L, v)
+    zero_thickness_text(L, zero_thickness_limit(v["sweep"], v["convergence"]))
     L.append("## Timings (wall, one process, compilation included)\n")
     L.append("| step | s |\n|---|---|")
     for k, t in times.items():
@@ -508,6 +510,53 @@ def write_md(v):
     with open(os.path.join(OUT, "bifurcation_michell.md"), "w") as f:
         f.write("\n".join(L))
     print("\n".join(L))
+
+
+def zero_thickness_limit(sweep, convergence):
+    """First contact against its zero-thickness limit, the figure-eight elastica (``jr.figure_eight_energy``:
+    phi -> 2 pi, Wr -> 1, Tw -> 0). phi, Wr and Tw: straight lines in D/R over the sweep at N, their
+    intercepts with the residual's standard error. E: at CONVERGENCE_SLENDERNESS, E_inf + c/N^2 + d/N^4
+    through the three finest N (its error: the change from the two finest with c/N^2 alone), moved to
+    D = 0 by the sweep (E = E_0 + c D^2 at N). Empty where fewer than three points reached contact."""
+    by_d = [r for r in sweep if "phi_over_pi" in r]
+    by_n = sorted((r for r in convergence if "phi_over_pi" in r), key=lambda r: r["N"])[-3:]
+    if len(by_d) < 3 or len(by_n) < 3:
+        return {}
+    d = np.array([r["slenderness"] for r in by_d])
+    out = dict(limit=dict(phi_over_pi=2.0, Wr=1.0, Tw=0.0, energy=jr.figure_eight_energy()), intercepts={})
+    for key, y in (("phi_over_pi", [r["phi_over_pi"] for r in by_d]), ("Wr", [r["Wr"] for r in by_d]),
+                   ("Tw", [r["phi_over_pi"] / 2 - r["Wr"] for r in by_d])):
+        A = np.stack([np.ones_like(d), d], axis=1)
+        coef, *_ = np.linalg.lstsq(A, np.array(y), rcond=None)
+        res = np.array(y) - A @ coef
+        err = math.sqrt(float(res @ res) / (len(y) - 2) * np.linalg.inv(A.T @ A)[0, 0])
+        out["intercepts"][key] = dict(value=float(coef[0]), error=err, slope=float(coef[1]))
+    n = np.array([r["N"] for r in by_n], dtype=float)
+    e_n = np.linalg.solve(np.stack([np.ones(3), n ** -2.0, n ** -4.0], axis=1), [r["energy"] for r in by_n])[0]
+    e_two = (n[2] ** 2 * by_n[2]["energy"] - n[1] ** 2 * by_n[1]["energy"]) / (n[2] ** 2 - n[1] ** 2)
+    c = np.linalg.lstsq(np.stack([np.ones_like(d), d ** 2], axis=1), [r["energy"] for r in by_d], rcond=None)[0]
+    at_n = float(c[1] * CONVERGENCE_SLENDERNESS ** 2)  # E(D/R = 0.0025) - E(0) at N
+    out["energy"] = dict(value=float(e_n - at_n), error=float(abs(e_n - e_two)), thickness_correction=-at_n,
+                         N=[int(v) for v in n], slenderness=CONVERGENCE_SLENDERNESS)
+    return out
+
+
+def zero_thickness_text(L, z):
+    if not z:
+        return
+    L.append("## First contact against the zero-thickness limit\n")
+    L.append("As D -> 0 the touching ring tends to the figure-eight elastica: Wr -> 1 (half of a strand passage's 2), "
+             "Tw -> 0 (a planar closed curve other than the circle is in equilibrium only untwisted), so "
+             f"phi -> 2 pi, and E -> 32 K(m)^2 (m - 1/2) B/L = {z['limit']['energy']:.7f} B/R (2E(m) = K(m)).\n")
+    L.append("| quantity | extrapolated | limit | (extrapolated - limit) / error |\n|---|---|---|---|")
+    for key, label in (("phi_over_pi", "phi/pi at contact"), ("Wr", "Wr"), ("Tw", "Tw = phi/2pi - Wr")):
+        i = z["intercepts"][key]
+        L.append(f"| {label} (linear in D/R, slope {i['slope']:.4g}) | {i['value']:.7f} +- {i['error']:.1e} | "
+                 f"{z['limit'][key]:g} | {(i['value'] - z['limit'][key]) / max(i['error'], 1e-300):+.1f} |")
+    e = z["energy"]
+    L.append(f"| E (B/R): N = {', '.join(map(str, e['N']))} to infinity at D/R = {e['slenderness']:g}, "
+             f"then D -> 0 ({e['thickness_correction']:+.1e}) | {e['value']:.6f} +- {e['error']:.1e} | "
+             f"{z['limit']['energy']:.6f} | {(e['value'] - z['limit']['energy']) / e['error']:+.1f} |\n")
 
 
 def contact_tables(L, v):

@@ -89,6 +89,14 @@ def validation_table():
                      f"`jaxrod {' '.join(case['args'])}`"])
     else:
         rows.append(["Michell's ring", "", _missing("redesign_same_answers.json"), "", ""])
+    ring = (_load("bifurcation_michell.json") or {}).get("zero_thickness")
+    if ring:
+        e, lim = ring["energy"], ring["limit"]["energy"]
+        rows.append(["Michell's ring at first self-contact as D → 0: the figure-eight elastica, E = 32 K(m)² (m − ½) B/L",
+                     f"{lim:.6f} B/R, φ = 2π, Wr = 1",
+                     f"{e['value']:.6f} ± {e['error']:.0e} B/R (N = {', '.join(map(str, e['N']))} → ∞); "
+                     f"φ/π = {ring['intercepts']['phi_over_pi']['value']:.6f}, Wr = {ring['intercepts']['Wr']['value']:.6f}",
+                     f"{(e['value'] - lim) / lim:.1e} relative", "`python benchmarks/bifurcation_michell.py`"])
     tension = _load("tension_twist.json")
     if tension:
         finest = max(r["N"] for r in tension["onset"])

@@ -25,6 +25,7 @@ from .model.scenes import (  # noqa: E402
     clamped_rod,
     closed_curve,
     free_rod,
+    figure_eight_energy,
     michell_critical_twist,
     michell_ring,
     ring,

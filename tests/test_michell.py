@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from jaxrod import ContinuationOptions, critical_twist, michell_critical_twist, michell_ring
+from jaxrod import ContinuationOptions, critical_twist, figure_eight_energy, michell_critical_twist, michell_ring
 from jaxrod.solve.solvers import ConvergenceError
 
 
@@ -85,3 +85,53 @@ def test_refinement_refuses_a_bracket_without_sign_change(series):
     analytic = michell_critical_twist(0.5)
     with pytest.raises(ConvergenceError, match="same sign"):
         critical_twist(ring, 0.0, 2.0 * analytic, ContinuationOptions(step=analytic / 10.0, negative_tol=5e-3))
+
+
+# ---------------------------------------------- first self-contact as D -> 0: the figure-eight elastica
+
+def test_figure_eight_energy_is_the_closed_elastica_built_from_its_curvature():
+    from scipy.integrate import cumulative_trapezoid
+    from scipy.optimize import brentq
+    from scipy.special import ellipe, ellipj, ellipk
+
+    L = 2 * math.pi
+    E8 = figure_eight_energy(L)
+    # the closed inflectional elastica: sin(theta/2) = k sn(alpha s | m), kappa = 2 k alpha cn(alpha s | m)
+    m = brentq(lambda m: 2 * ellipe(m) - ellipk(m), 0.5, 0.99, xtol=1e-15)
+    K = float(ellipk(m))
+    alpha = 4 * K / L
+    s = np.linspace(0, L, 200001)
+    sn, cn, _, _ = ellipj(alpha * s, m)
+    theta = 2 * np.arcsin(math.sqrt(m) * sn)
+    x = np.stack([cumulative_trapezoid(np.cos(theta), s, initial=0), cumulative_trapezoid(np.sin(theta), s, initial=0)])
+    assert np.linalg.norm(x[:, -1] - x[:, 0]) < 1e-8 * L  # closed: 2E(m) = K(m)
+    kappa = 2 * math.sqrt(m) * alpha * cn
+    assert 0.5 * np.trapezoid(kappa ** 2, s) == pytest.approx(E8, rel=1e-9)
+    assert E8 == pytest.approx(figure_eight_energy(2 * L) * 2, rel=1e-14)  # 1/L scaling
+    # a figure eight: the tangent turns by 0 in all (not 2 pi, the circle's) and the curve crosses itself
+    assert abs(theta[-1] - theta[0]) < 1e-9
+    assert E8 > math.pi  # above the circle's B pi / R
+
+
+def test_committed_first_contacts_extrapolate_to_the_figure_eight():
+    """benchmarks/results/bifurcation_michell.json: first contact at D/R = 0.01, 0.005, 0.0025 (N = 64)
+    and at N = 32, 48, 64 (D/R = 0.0025), extrapolated here on their own and against the benchmark's."""
+    import json
+    import pathlib
+
+    path = pathlib.Path(__file__).resolve().parent.parent / "benchmarks" / "results" / "bifurcation_michell.json"
+    data = json.loads(path.read_text())
+    by_d = data["contact_against_D"]
+    d = np.array([r["slenderness"] for r in by_d])
+    phi = np.array([r["phi_over_pi"] for r in by_d])
+    wr = np.array([r["Wr"] for r in by_d])
+    for y, limit in ((phi, 2.0), (wr, 1.0), (phi / 2 - wr, 0.0)):  # phi/pi, Wr, Tw: straight lines in D/R
+        slope, intercept = np.polyfit(d, y, 1)
+        assert abs(intercept - limit) < 1e-6 < 1e-3 < abs(y[-1] - limit)
+    by_n = sorted(data["contact_against_N"], key=lambda r: r["N"])[-3:]
+    n = np.array([r["N"] for r in by_n], dtype=float)
+    e_inf = np.linalg.solve(np.stack([np.ones(3), n ** -2.0, n ** -4.0], axis=1), [r["energy"] for r in by_n])[0]
+    thin = np.polyfit(d ** 2, [r["energy"] for r in by_d], 1)[0] * d[-1] ** 2  # E(D) - E(0) at D/R = 0.0025
+    assert e_inf - thin == pytest.approx(data["zero_thickness"]["energy"]["value"], rel=1e-12)
+    assert e_inf - thin == pytest.approx(figure_eight_energy(), rel=5e-5)
+    assert abs(by_n[-1]["energy"] - figure_eight_energy()) > 5e-3  # the extrapolation does the work

@@ -93,3 +93,6 @@ def test_thin_ring_branch_point_and_contact_without_hand_set_tolerances():
                            D, scaled_options(rod8.problem, buckled, ev8.u, ev8.p))
     assert PHI_CONTACT_RANGE[0] < phi / math.pi < PHI_CONTACT_RANGE[1]
     assert WRITHE_RANGE[0] < rod8.writhe(u) < WRITHE_RANGE[1]
+    # nearly the figure-eight elastica, the zero-thickness limit: Tw = phi/2pi - Wr -> 0 in
+    # proportion to D/R (2.2 D/R at N = 64), from Tw = phi*/2pi = 2.9 on the circle at its branch point
+    assert 0 < phi / (2 * math.pi) - rod8.writhe(u) < 4 * SLENDERNESS

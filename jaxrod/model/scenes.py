@@ -22,7 +22,7 @@ from .topology import writhe
 from ..validation import check_finite, check_int_at_least, check_positive, is_traced, require_concrete
 
 __all__ = ["Scene", "ClosedRod", "ClampedRod", "FreeRod", "Term", "Coupling", "Stretch", "Bend", "Twist", "Contact",
-           "ring", "michell_ring", "closed_curve", "clamped_rod", "free_rod", "michell_critical_twist",
+           "ring", "michell_ring", "closed_curve", "clamped_rod", "free_rod", "michell_critical_twist", "figure_eight_energy",
            "clamped_critical_twist", "trefoil", "knot", "knot_points", "IDEAL_ROPELENGTH", "trefoil_points",
            "torus_knot", "IDEAL_TREFOIL_ROPELENGTH"]
 
@@ -32,6 +32,24 @@ TWO_PI = 2.0 * math.pi
 def michell_critical_twist(nu):
     """Michell's critical total twist of a ring: 2 pi sqrt(3) B/C = 2 pi sqrt(3) (1 + nu)."""
     return TWO_PI * math.sqrt(3.0) * (1.0 + nu)
+
+
+def figure_eight_energy(length=TWO_PI, B=1.0):
+    """Bending energy of the closed planar figure-eight elastica of the given length, in units of B.
+
+    The zero-thickness limit of Michell's buckled ring at its first self-contact: a strand passage
+    changes Wr by 2, so the touching curve of a vanishing thickness is the nearly planar one with
+    Wr = 1; a planar closed curve other than the circle is in equilibrium only untwisted (Tw = 0),
+    so Lk = 1 (imposed twist 2 pi) and the curve is a free closed elastica: the figure eight.
+    Its curvature is 2 k alpha cn(alpha s | m), m = k^2, closed over one period 4K(m)/alpha =
+    length where 2E(m) = K(m) (m = 0.8261148); (B/2) int kappa^2 ds = 32 B K(m)^2 (m - 1/2) / length:
+    8.9476598 B/R for a ring of radius R (length 2 pi R)."""
+    from scipy.optimize import brentq  # noqa: PLC0415  (host-side constants only)
+    from scipy.special import ellipe, ellipk  # noqa: PLC0415
+
+    check_positive("length", length)
+    m = brentq(lambda m: 2.0 * ellipe(m) - ellipk(m), 0.5, 0.99, xtol=1e-15)
+    return 32.0 * B * float(ellipk(m)) ** 2 * (m - 0.5) / length
 
 
 def clamped_critical_twist(B, C):
