@@ -469,6 +469,24 @@ def test_a_located_end_outside_the_studys_bracket_does_not_replace_phi_star():
         assert ("phi_minus_located" in critical) == within
 
 
+def test_a_zero_the_study_saw_late_through_its_band_is_in_its_bracket():
+    """The study counts a mode negative below -negative_tol only: a zero crossing at rate r is seen up
+    to negative_tol / r later, so a located end that far before the bracket (on the stable side) is the
+    study's end (measured: the trefoil at D/L = 0.0274, N = 101, tightening: the branch point at
+    -11.22940 pi, the study's bracket -11.23335 +- 0.00026 pi, r = 3.3e-5, negative_tol = 1e-6:
+    a band of 0.0096 pi); further back, or past the bracket on the unstable side, it is not."""
+    from jaxrod.studies.diagram import in_bracket
+
+    inst = {"phi": -11.23335 * PI, "phi_error": 0.0008237, "bracket": [-11.2331 * PI, -11.2336 * PI],
+            "dlambda_dphi": 3.3221e-5, "negative_tol": 1e-6}
+    band = 1e-6 / 3.3221e-5
+    assert in_bracket(-11.22940 * PI, inst)
+    assert in_bracket(inst["phi"] + inst["phi_error"] + 1.9 * band, inst)
+    assert not in_bracket(inst["phi"] + inst["phi_error"] + 2.1 * band, inst)
+    assert not in_bracket(inst["phi"] - inst["phi_error"] - 0.1 * band, inst)  # past it: not the band's doing
+    assert not in_bracket(-11.22940 * PI, dict(inst, negative_tol=0.0))  # no band, no widening
+
+
 def test_an_end_that_changes_the_morse_index_by_more_than_its_multiplicity_is_flagged(on_file):
     """A located fold that takes the Morse index 0 -> 2 (the trefoil's opening end at N = 961, a fold
     meeting a crossing pair) is flagged as a near-double event, in a warning and in critical.json's

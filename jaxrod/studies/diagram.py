@@ -277,9 +277,22 @@ def _above_floor(problem, options):
 
 
 def in_bracket(phi, inst):
-    """Whether phi lies in the study's bracket of the instability ``inst`` (a critical.json
-    dict: the whole bracket lies within phi +- phi_error), to roundoff."""
-    return abs(phi - inst["phi"]) <= inst["phi_error"] * (1.0 + 1e-9) + 1e-12 * max(1.0, abs(inst["phi"]))
+    """Whether phi lies where the study places the instability ``inst`` (a critical.json dict):
+    within its phi +- phi_error (the whole bracket), to roundoff, or before it on the stable side by
+    no more than the eigenvalue band. The study counts a mode negative only below -negative_tol,
+    so an eigenvalue crossing zero at the rate dlambda_dphi is seen up to negative_tol /
+    |dlambda_dphi| after its zero; twice that is allowed, the rate being itself an estimate."""
+    phi0 = inst["phi"]
+    tol = inst["phi_error"] * (1.0 + 1e-9) + 1e-12 * max(1.0, abs(phi0))
+    if abs(phi - phi0) <= tol:
+        return True
+    stable, lost = (list(inst.get("bracket") or ()) + [0.0, 0.0])[:2]
+    rate = abs(float(inst.get("dlambda_dphi") or 0.0))
+    band = float(inst.get("negative_tol") or 0.0)
+    if stable == lost or not (math.isfinite(rate) and rate > 0.0 and band > 0.0):
+        return False
+    toward_stable = (phi - phi0) * math.copysign(1.0, stable - lost)
+    return 0.0 < toward_stable <= tol + 2.0 * band / rate
 
 
 def _first_end(events):
