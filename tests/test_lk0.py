@@ -39,6 +39,23 @@ def test_a_rod_relaxed_with_a_stored_turn_of_twist_is_flagged_and_lk0_can_be_giv
     assert said == [] and abs(eq.Tw) < 1e-6 and eq.Lk == pytest.approx(0.0, abs=1e-9)
 
 
+def test_relax_twist_free_takes_the_linking_number_of_the_untwisted_rod():
+    """The pentagram drawn with writhe -1.02 relaxes to a circle: with Lk0 = -1 it stores a turn;
+    relax_twist_free re-bases Lk0 on the relaxed writhe (0) and relaxes again, silently."""
+    from jaxrod.solve.equilibrium import relax_twist_free
+
+    drawn = jr.closed_curve(pentagram(), material=MAT, N=61, length=292.0, contact_stiffness=100.0)
+    said = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        scene, eq = relax_twist_free(drawn, progress=said.append)
+    assert drawn.Lk0 == -1.0 and scene.Lk0 == 0.0 and scene is not drawn
+    assert eq.stability.stable and abs(eq.Tw) < 1e-6 and eq.Lk == pytest.approx(0.0, abs=1e-9)
+    assert len(said) == 1 and "Lk0 = -1" in said[0] and "Lk0 = 0 instead" in said[0]
+    again, eq_again = relax_twist_free(scene, eq.q)
+    assert again is scene and eq_again.energy == pytest.approx(eq.energy, rel=1e-9)  # already right: unchanged
+
+
 def test_a_writhe_near_a_half_integer_is_flagged():
     t = 2 * math.pi * np.arange(200) / 200
     lemniscate = lambda lift: np.stack([np.sin(t), np.sin(2 * t) / 2, lift * np.cos(t)], axis=1)  # noqa: E731

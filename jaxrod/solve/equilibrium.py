@@ -21,6 +21,7 @@ from .solvers import LBFGS, ConvergenceError, DampedNewton, HostDampedNewton, Ne
 from ..linalg.stability import CONTACT_NEGATIVE_TOL, DEFAULT_NEGATIVE_TOL, Stability, stability
 
 __all__ = ["Equilibrium", "EquilibriumOptions", "RelaxOptions", "solve_equilibrium", "relax", "relax_to_minimum",
+           "relax_twist_free",
            "mode_step", "TopologyChangeError", "LeftBranchError", "scaled_energy", "scaled_zero_modes",
            "structured_hessian"]
 
@@ -441,3 +442,29 @@ def equilibrium_from_arrays(scene, arrays, prefix):
         gtol=float(get("solution_gtol")),
     )
     return equilibrium_from_solution(scene, float(get("phi")), sol, nbr, with_stability=False)
+
+
+def relax_twist_free(scene, q0=None, options=None, *, max_rounds=3, progress=None):
+    """A closed rod relaxed at phi = 0 with the linking number that leaves it least twisted.
+
+    ``relax_to_minimum`` at phi = 0 from q0 (None: the scene's start); then, while Lk0 is not the integer nearest the relaxed writhe
+    (the rod stores more than half a turn of twist: a drawing whose writhe is far from the relaxed
+    knot's, such as the torus knot T(2,5)), Lk0 is set to that integer and the rod relaxed again
+    from there, at most ``max_rounds`` times. Lk0 is an integer, so up to half a turn may remain.
+    Returns (scene, Equilibrium): the scene with that Lk0 (the one given where it was right), whose
+    phi = 0 is the untwisted knot. A scene without Lk0 (a clamped rod) is relaxed once."""
+    check_int_at_least("max_rounds", max_rounds, 0)
+    say = progress or (lambda s: None)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the twist stored at phi = 0 is what this corrects
+        e = relax_to_minimum(scene, 0.0, q0, options=options)
+        for _ in range(max_rounds):
+            if getattr(scene, "Lk0", None) is None or round(float(e.Wr)) == round(float(scene.Lk0)):
+                break
+            say(f"relaxed at phi = 0 with Lk0 = {round(float(scene.Lk0))}: Wr = {float(e.Wr):.3f}, "
+                f"Tw = {float(e.Tw):+.3f} turns; Lk0 = {round(float(e.Wr))} instead")
+            scene = replace(scene, Lk0=float(round(float(e.Wr))))
+            e = relax_to_minimum(scene, 0.0, e.q, options=options)
+    if abs(float(e.Tw)) > 0.5:  # max_rounds reached without settling
+        warn_if_twisted_at_zero(scene, e)
+    return scene, e

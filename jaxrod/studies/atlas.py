@@ -36,7 +36,7 @@ __all__ = ["AtlasCase", "AtlasSettings", "FIELDS", "atlas_cases", "knot_critical
 
 SIDES = ("plus", "minus")
 FIELDS = ["knot", "D_over_L", "N", "side", "phi_star", "phi_star_over_pi", "phi_error", "kind", "located", "phi_study",
-          "reason", "critical_eigenvalue", "dlambda_dphi", "lowest_eigenvalue_start", "Wr_start", "Wr_before",
+          "reason", "critical_eigenvalue", "dlambda_dphi", "lowest_eigenvalue_start", "Lk0", "Wr_start", "Wr_before",
           "Tw_before", "contact_count_change", "radius_of_gyration_change", "n_points", "seconds"]
 _FLOATS = ("D_over_L", "phi_star", "phi_star_over_pi", "phi_error", "phi_study", "critical_eigenvalue",
            "dlambda_dphi", "lowest_eigenvalue_start", "Wr_start", "Wr_before", "Tw_before",
@@ -164,16 +164,17 @@ def tightening_sides(rows):
 
 def knot_critical_twist(case, settings=None):
     """The first branch end of ``case`` (an ``AtlasCase`` or its dict) on its side: relax to a
-    minimum at phi = 0, follow the stable branch towards +-span, and (``settings.locate``) locate
+    minimum at phi = 0 with the linking number Lk0 that leaves it untwisted (``relax_twist_free``;
+    the drawing's nearest-integer writhe can be off by turns), follow the stable branch towards +-span, and (``settings.locate``) locate
     the end the study bracketed on its extended system. Returns a row (dict, ``FIELDS``): phi_star
     in radians (NaN when the branch reaches +-span), phi_error (the study's bracket, within which
     a located end lies), kind ('fold' or 'branch_point' where located; else the study's 'unstable'
     or 'jump', with the reason it was not located), located ('yes' / 'no'), phi_study (the study's
     estimate), the critical eigenvalue at the last stable state and its rate, the start's lowest
-    eigenvalue above the sliding band, writhe and twist, the change in contacts and radius of
+    eigenvalue above the sliding band, Lk0, writhe and twist, the change in contacts and radius of
     gyration along the branch, n_points, seconds. Pure in its inputs."""
     from ..continuation import ContinuationOptions, follow_twist
-    from ..solve.equilibrium import relax_to_minimum
+    from ..solve.equilibrium import relax_twist_free
 
     if isinstance(case, dict):
         case = AtlasCase(**case)
@@ -184,7 +185,7 @@ def knot_critical_twist(case, settings=None):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # nearly-tight warnings were given by atlas_cases
         scene = _scene(case.knot, case.D_over_L, case.N, settings)
-    start = relax_to_minimum(scene, 0.0)
+    scene, start = relax_twist_free(scene)  # phi = 0 is the untwisted knot, whatever the drawing's writhe
     sign = 1.0 if case.side == "plus" else -1.0
     path = follow_twist(scene, 0.0, sign * settings.span,
                         ContinuationOptions(step=settings.step, tol=settings.tol, switch=False), start=start)
@@ -195,7 +196,8 @@ def knot_critical_twist(case, settings=None):
            "phi_star": math.nan, "phi_star_over_pi": math.nan, "phi_error": math.nan, "kind": "none",
            "located": "no", "phi_study": math.nan, "reason": path.reason, "critical_eigenvalue": math.nan,
            "dlambda_dphi": math.nan,
-           "lowest_eigenvalue_start": _lowest_above_band(start), "Wr_start": float(start.Wr),
+           "lowest_eigenvalue_start": _lowest_above_band(start), "Lk0": int(round(float(scene.Lk0))),
+           "Wr_start": float(start.Wr),
            "Wr_before": float(last.Wr), "Tw_before": float(last.Tw),
            "contact_count_change": _contact_count(scene, last) - _contact_count(scene, start),
            "radius_of_gyration_change": radius_of_gyration(last.x) - radius_of_gyration(start.x),
@@ -259,6 +261,7 @@ def read_atlas(path):
             for c in _FLOATS:
                 r[c] = float(r[c])
             r["N"], r["n_points"], r["contact_count_change"] = int(r["N"]), int(r["n_points"]), int(r["contact_count_change"])
+            r["Lk0"] = int(r["Lk0"])
             rows.append(r)
     return rows
 
@@ -425,22 +428,22 @@ def report(out, rows=None):
         rows = read_atlas(out)
     lines = ["# Twisted-knot atlas: critical twists", "",
              "jaxrod sign convention (phi > 0 adds right-handed twist; Lk = Lk0 + phi / 2 pi). Each side followed "
-             "from the knot relaxed to a minimum at phi = 0 until its stable branch ends, and that end located on its "
+             "from the knot relaxed to a minimum at phi = 0, with the Lk0 that leaves it untwisted, until its stable branch ends, and that end located on its "
              "extended system: kind 'fold' or 'branch_point'. Where it was not located, the study's bracket is kept "
              "('unstable': an eigenvalue crosses zero; 'jump': the branch folds; the reason is in atlas.csv). The "
              "critical eigenvalue at the last stable state, with its rate along the branch, says how clearly it was "
              "going to zero. The tightening side gains segment pairs in contact along its "
              "branch (then: loses radius of gyration); the other side opens the knot.", "",
              "| knot | D/L | N | side | phi*/pi | +- (rad) | kind | critical eigenvalue (d/dphi) | lowest at phi = 0 | "
-             "Wr start | Wr before | Tw before | contacts gained | tightens | time (s) |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "Lk0 | Wr start | Wr before | Tw before | contacts gained | tightens | time (s) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     tight = tightening_sides(rows)
     for r in rows:
         phi = f"{r['phi_star_over_pi']:+.4f}" if math.isfinite(r["phi_star"]) else "none"
         err = f"{r['phi_error']:.1e}" if math.isfinite(r["phi_error"]) else ""
         lam = f"{r['critical_eigenvalue']:.2e} ({r['dlambda_dphi']:+.1e})" if math.isfinite(r["critical_eigenvalue"]) else ""
         lines.append(f"| {r['knot']} | {r['D_over_L']:g} | {r['N']} | {r['side']} | {phi} | {err} | {r['kind']} | {lam} | "
-                     f"{r['lowest_eigenvalue_start']:.2e} | "
+                     f"{r['lowest_eigenvalue_start']:.2e} | {r['Lk0']:+d} | "
                      f"{r['Wr_start']:.4f} | {r['Wr_before']:.4f} | {r['Tw_before']:.4f} | {r['contact_count_change']:+d} | "
                      f"{_yes_no(tight.get((r['knot'], r['D_over_L'], r['N'])), r['side'])} | "
                      f"{r['seconds']:.1f} |")
