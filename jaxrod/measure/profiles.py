@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-__all__ = ["count_peaks", "symmetry_order"]
+__all__ = ["count_peaks", "symmetry_order", "mode_pattern"]
 
 _MIN_PROFILE = 8
 
@@ -88,3 +88,35 @@ def count_peaks(kappa, prominence=0.1):
     wrapped = np.concatenate([np.roll(k, -start), k[start: start + 1]])
     _, props = find_peaks(wrapped, prominence=0.0)
     return int(np.count_nonzero(props["prominences"] > frac * span))
+
+
+def _curvature_binormal(x):
+    """Discrete curvature binormal at each node of the closed polygon x (N, 3), (N, 3): 2 e_{i-1} x
+    e_i / (|e_{i-1}| |e_i| + e_{i-1} . e_i) over the mean length of the two edges (the discrete
+    elastic rod's), and the node tangent (N, 3)."""
+    e = np.roll(x, -1, axis=0) - x
+    prev = np.roll(e, 1, axis=0)
+    la, lb = np.linalg.norm(prev, axis=1), np.linalg.norm(e, axis=1)
+    kb = 2.0 * np.cross(prev, e) / (la * lb + np.sum(prev * e, axis=1))[:, None]
+    tangent = prev / la[:, None] + e / lb[:, None]
+    return kb / (0.5 * (la + lb))[:, None], tangent / np.linalg.norm(tangent, axis=1)[:, None]
+
+
+def mode_pattern(x, dx, max_order=8):
+    """The m-fold pattern of a mode dx (N, 3) of the closed polygon x (N, 3): the dominant harmonic
+    (``symmetry_order``) of how the mode bends the curve. The change of the curvature binormal,
+    d(kappa b)_i / d epsilon at x + epsilon dx (central differences), is split along the curve's
+    own normal and binormal; the larger of the two signed profiles is analysed. A mode that keeps
+    a knot's three-fold symmetry gives 3 (or a multiple); Michell's ring buckles with 2."""
+    x, dx = np.asarray(x, dtype=float), np.asarray(dx, dtype=float)
+    if x.shape != dx.shape or x.ndim != 2 or x.shape[1] != 3:
+        raise ValueError(f"x and dx must both be (N, 3) arrays, got {x.shape} and {dx.shape}")
+    size = float(np.max(np.linalg.norm(x - x.mean(axis=0), axis=1)))
+    eps = 1e-6 * size / max(float(np.max(np.linalg.norm(dx, axis=1))), 1e-300)
+    kb, tangent = _curvature_binormal(x)
+    change = (_curvature_binormal(x + eps * dx)[0] - _curvature_binormal(x - eps * dx)[0]) / (2.0 * eps)
+    b = kb / np.maximum(np.linalg.norm(kb, axis=1), 1e-300)[:, None]
+    n = np.cross(b, tangent)
+    along_n, along_b = np.sum(change * n, axis=1), np.sum(change * b, axis=1)
+    profile = along_n if np.linalg.norm(along_n) >= np.linalg.norm(along_b) else along_b
+    return symmetry_order(profile, max_order)

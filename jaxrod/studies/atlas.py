@@ -27,6 +27,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..io.atomic import write_json, write_rows
+from ..measure.chirality import mirror_distance
+from ..measure.profiles import mode_pattern
 from ..model.geometry import radius_of_gyration
 from ..io.locking import holds_output_folder
 from ..validation import check_finite, check_int_at_least, check_positive
@@ -36,10 +38,11 @@ __all__ = ["AtlasCase", "AtlasSettings", "FIELDS", "atlas_cases", "knot_critical
 
 SIDES = ("plus", "minus")
 FIELDS = ["knot", "D_over_L", "N", "side", "phi_star", "phi_star_over_pi", "phi_error", "kind", "located", "phi_study",
-          "reason", "critical_eigenvalue", "dlambda_dphi", "lowest_eigenvalue_start", "Lk0", "Wr_start", "Wr_before",
-          "Tw_before", "contact_count_change", "radius_of_gyration_change", "n_points", "seconds"]
+          "reason", "critical_eigenvalue", "dlambda_dphi", "mode_pattern", "lowest_eigenvalue_start", "Lk0",
+          "mirror_distance_start", "Wr_start", "Wr_before", "Tw_before", "contact_count_change",
+          "radius_of_gyration_change", "n_points", "seconds"]
 _FLOATS = ("D_over_L", "phi_star", "phi_star_over_pi", "phi_error", "phi_study", "critical_eigenvalue",
-           "dlambda_dphi", "lowest_eigenvalue_start", "Wr_start", "Wr_before", "Tw_before",
+           "dlambda_dphi", "lowest_eigenvalue_start", "mirror_distance_start", "Wr_start", "Wr_before", "Tw_before",
            "radius_of_gyration_change", "seconds")
 KNOTS = ("3_1", "4_1", "5_1", "5_2")
 
@@ -171,7 +174,9 @@ def knot_critical_twist(case, settings=None):
     a located end lies), kind ('fold' or 'branch_point' where located; else the study's 'unstable'
     or 'jump', with the reason it was not located), located ('yes' / 'no'), phi_study (the study's
     estimate), the critical eigenvalue at the last stable state and its rate, the start's lowest
-    eigenvalue above the sliding band, Lk0, writhe and twist, the change in contacts and radius of
+    eigenvalue above the sliding band, the critical mode's m-fold pattern (``profiles.mode_pattern``;
+    0 without an end), Lk0, the start's distance from its mirror image (``chirality.mirror_distance``),
+    writhe and twist, the change in contacts and radius of
     gyration along the branch, n_points, seconds. Pure in its inputs."""
     from ..continuation import ContinuationOptions, follow_twist
     from ..solve.equilibrium import relax_twist_free
@@ -197,7 +202,7 @@ def knot_critical_twist(case, settings=None):
            "located": "no", "phi_study": math.nan, "reason": path.reason, "critical_eigenvalue": math.nan,
            "dlambda_dphi": math.nan,
            "lowest_eigenvalue_start": _lowest_above_band(start), "Lk0": int(round(float(scene.Lk0))),
-           "Wr_start": float(start.Wr),
+           "mirror_distance_start": mirror_distance(start.x), "Wr_start": float(start.Wr), "mode_pattern": 0,
            "Wr_before": float(last.Wr), "Tw_before": float(last.Tw),
            "contact_count_change": _contact_count(scene, last) - _contact_count(scene, start),
            "radius_of_gyration_change": radius_of_gyration(last.x) - radius_of_gyration(start.x),
@@ -206,13 +211,22 @@ def knot_critical_twist(case, settings=None):
         inst = path.instabilities[0]
         row.update(phi_star=float(inst.phi), phi_star_over_pi=float(inst.phi) / math.pi,
                    phi_error=float(inst.phi_error), kind=str(inst.kind.value), phi_study=float(inst.phi),
-                   critical_eigenvalue=float(inst.eigenvalue),
+                   critical_eigenvalue=float(inst.eigenvalue), mode_pattern=_mode_pattern(scene, inst),
                    dlambda_dphi=float(inst.dlambda_dphi_secant if math.isfinite(inst.dlambda_dphi_secant)
                                       else inst.dlambda_dphi))
         if settings.locate:
             row.update(_located_end(scene, inst, case.side, settings, row))
     row["seconds"] = time.perf_counter() - t0
     return row
+
+
+def _mode_pattern(scene, inst):
+    """The m-fold pattern (``profiles.mode_pattern``) of the study's critical mode at its last
+    stable state."""
+    q = np.asarray(inst.equilibrium.q)
+    dq = scene.from_scaled(np.asarray(inst.mode))
+    x = np.asarray(scene.positions(q))
+    return mode_pattern(x, np.asarray(scene.positions(q + dq)) - x)
 
 
 def _located_end(scene, inst, side, settings, row):
@@ -261,7 +275,7 @@ def read_atlas(path):
             for c in _FLOATS:
                 r[c] = float(r[c])
             r["N"], r["n_points"], r["contact_count_change"] = int(r["N"]), int(r["n_points"]), int(r["contact_count_change"])
-            r["Lk0"] = int(r["Lk0"])
+            r["Lk0"], r["mode_pattern"] = int(r["Lk0"]), int(r["mode_pattern"])
             rows.append(r)
     return rows
 
@@ -432,18 +446,23 @@ def report(out, rows=None):
              "extended system: kind 'fold' or 'branch_point'. Where it was not located, the study's bracket is kept "
              "('unstable': an eigenvalue crosses zero; 'jump': the branch folds; the reason is in atlas.csv). The "
              "critical eigenvalue at the last stable state, with its rate along the branch, says how clearly it was "
-             "going to zero. The tightening side gains segment pairs in contact along its "
-             "branch (then: loses radius of gyration); the other side opens the knot.", "",
-             "| knot | D/L | N | side | phi*/pi | +- (rad) | kind | critical eigenvalue (d/dphi) | lowest at phi = 0 | "
-             "Lk0 | Wr start | Wr before | Tw before | contacts gained | tightens | time (s) |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "going to zero; mode: the m-fold pattern of its critical mode (how it bends the knot). mirror distance: "
+             "the relaxed start's distance from its mirror image, over its radius of gyration (0: achiral). The "
+             "tightening side gains segment pairs in contact along its branch (then: loses radius of gyration); the "
+             "other side opens the knot.", "",
+             "| knot | D/L | N | side | phi*/pi | +- (rad) | kind | mode | critical eigenvalue (d/dphi) | "
+             "lowest at phi = 0 | Lk0 | mirror distance | Wr start | Wr before | Tw before | contacts gained | tightens | "
+             "time (s) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     tight = tightening_sides(rows)
     for r in rows:
         phi = f"{r['phi_star_over_pi']:+.4f}" if math.isfinite(r["phi_star"]) else "none"
         err = f"{r['phi_error']:.1e}" if math.isfinite(r["phi_error"]) else ""
         lam = f"{r['critical_eigenvalue']:.2e} ({r['dlambda_dphi']:+.1e})" if math.isfinite(r["critical_eigenvalue"]) else ""
-        lines.append(f"| {r['knot']} | {r['D_over_L']:g} | {r['N']} | {r['side']} | {phi} | {err} | {r['kind']} | {lam} | "
-                     f"{r['lowest_eigenvalue_start']:.2e} | {r['Lk0']:+d} | "
+        mode = f"{r['mode_pattern']}-fold" if r["mode_pattern"] else ""
+        lines.append(f"| {r['knot']} | {r['D_over_L']:g} | {r['N']} | {r['side']} | {phi} | {err} | {r['kind']} | {mode} | "
+                     f"{lam} | {r['lowest_eigenvalue_start']:.2e} | {r['Lk0']:+d} | "
+                     f"{r['mirror_distance_start']:.1e} | "
                      f"{r['Wr_start']:.4f} | {r['Wr_before']:.4f} | {r['Tw_before']:.4f} | {r['contact_count_change']:+d} | "
                      f"{_yes_no(tight.get((r['knot'], r['D_over_L'], r['N'])), r['side'])} | "
                      f"{r['seconds']:.1f} |")
