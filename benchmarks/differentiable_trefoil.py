@@ -26,9 +26,9 @@ knots (docs/guides/twist-study.md): followed continuously, it never reaches 8 pi
 says so (not converged, with the reason). The opening ends near 8 pi (D/L ~ 0.045) belong to
 another instability, which overtakes this one between D/L = 0.035 and 0.0425.
 
-A calibration round trip: opening onsets at five D/L (N = 61) computed with (nu, contact stiffness)
-= (0.47, 120), with noise of 1e-6 pi, fitted back from (0.5, 100) by ``fit_critical_twists``
-(each onset the end located at nu = 0.5 and followed).
+A calibration round trip: opening onsets at five D/L and tightening onsets at three of them (N = 61)
+computed with (nu, contact stiffness) = (0.47, 120), with noise of 1e-6 pi, fitted back from
+(0.5, 100) by ``fit_critical_twists`` (each onset the end located at nu = 0.5 and followed).
 
 Writes benchmarks/results/differentiable_trefoil.{json,md}.
 Run: python benchmarks/differentiable_trefoil.py   (about 17 minutes on 2 cores)
@@ -66,6 +66,10 @@ TARGET = 8.0 * PI
 DESIGN_START = 0.03  # D/L
 ROUND_TRIP_RATIOS = (0.0225, 0.025, 0.0274, 0.03, 0.0325)  # D/L, N = 61 (edges shorter than D from 0.0165 on)
 ROUND_TRIP_TRUTH = (0.47, 120.0)  # (nu, contact stiffness) of the synthetic measurements
+# The tightening onsets too, where their fold can be followed from (0.5, 100) to the truth: they
+# depend on the contact stiffness 30 - 600 times more than the opening ones (the knot tightens
+# into contact), which alone leave it known to about 1e-3.
+ROUND_TRIP_TIGHTENING = (0.025, 0.0274, 0.03)
 OUT = results_dir()
 
 
@@ -156,21 +160,25 @@ def design_row():
 
 
 def round_trip_row():
-    """Onsets at ROUND_TRIP_RATIOS computed with known (nu, contact stiffness), with noise of 1e-6 pi,
-    fitted back from (0.5, 100) by ``fit_critical_twists``."""
+    """Opening onsets at ROUND_TRIP_RATIOS and tightening onsets at ROUND_TRIP_TIGHTENING computed with
+    known (nu, contact stiffness), with noise of 1e-6 pi, fitted back from (0.5, 100) by
+    ``fit_critical_twists``."""
     from jaxrod.studies.design import Measurement, fit_critical_twists
 
     rng = np.random.default_rng(7)
     sigma = 1e-6 * PI
     truth = np.array(ROUND_TRIP_TRUTH)
-    knots = [jr.trefoil(D=r * L, L=L, N=N) for r in ROUND_TRIP_RATIOS]
+    cases = [(r, "plus") for r in ROUND_TRIP_RATIOS] + [(r, "minus") for r in ROUND_TRIP_TIGHTENING]
+    knots = [jr.trefoil(D=r * L, L=L, N=N) for r, _ in cases]
     t = time.perf_counter()
-    functions = [critical_twist_function(k, "plus", ("nu", "contact_stiffness"), -0.5 * PI, 10 * PI) for k in knots]
+    functions = [critical_twist_function(k, side, ("nu", "contact_stiffness"), -16 * PI, 10 * PI)
+                 for k, (_, side) in zip(knots, cases)]
     onsets = [float(f(jnp.asarray(truth))) + sigma * rng.standard_normal() for f in functions]
-    data = [Measurement(k, "plus", phi, sigma, end=f.end) for k, f, phi in zip(knots, functions, onsets)]
-    fit = fit_critical_twists(data, ("nu", "contact_stiffness"), phi_min=-0.5 * PI, phi_max=10 * PI)
+    data = [Measurement(k, side, phi, sigma, end=f.end) for k, (_, side), f, phi in zip(knots, cases, functions, onsets)]
+    fit = fit_critical_twists(data, ("nu", "contact_stiffness"), phi_min=-16 * PI, phi_max=10 * PI)
     errors = np.abs(fit.values - truth)
-    row = dict(ratios=list(ROUND_TRIP_RATIOS), truth=truth.tolist(), sigma=sigma, values=fit.values.tolist(),
+    row = dict(ratios=list(ROUND_TRIP_RATIOS), tightening_ratios=list(ROUND_TRIP_TIGHTENING), truth=truth.tolist(),
+               sigma=sigma, values=fit.values.tolist(),
                standard_errors=fit.standard_errors.tolist(), relative_errors=(errors / truth).tolist(),
                in_standard_errors=(errors / fit.standard_errors).tolist(), chi2=fit.chi2, converged=fit.converged,
                reason=fit.reason, seconds=time.perf_counter() - t)
@@ -220,6 +228,7 @@ def _table(data):
     t = data["round_trip"]
     if t is not None:
         lines += ["", f"Calibration round trip: opening onsets at D/L = {', '.join(f'{r:g}' for r in t['ratios'])} "
+                  f"and tightening onsets at D/L = {', '.join(f'{r:g}' for r in t.get('tightening_ratios', []))} "
                   f"computed with (nu, contact stiffness) = ({t['truth'][0]:g}, {t['truth'][1]:g}) and noise "
                   f"{t['sigma'] / PI:.0e} pi, fitted from (0.5, 100): ({t['values'][0]:.8f}, {t['values'][1]:.6f}), "
                   f"relative errors {t['relative_errors'][0]:.1e}, {t['relative_errors'][1]:.1e}; "

@@ -180,7 +180,8 @@ def _differentiable_rows():
              f"{max(r['rel_jacobian'] for r in data['equilibrium']):.1e} relative", command]]
     trip = data.get("round_trip")
     if trip:
-        rows.append([f"calibration round trip: (ν, k) from opening onsets at {len(trip['ratios'])} D/L, noise "
+        both = f" and tightening onsets at {len(trip['tightening_ratios'])} of them" if trip.get("tightening_ratios") else ""
+        rows.append([f"calibration round trip: (ν, k) from opening onsets at {len(trip['ratios'])} D/L{both}, noise "
                      f"{trip['sigma'] / PI:.0e} π", f"({trip['truth'][0]:g}, {trip['truth'][1]:g})",
                      f"({trip['values'][0]:.8f}, {trip['values'][1]:.4f})",
                      f"{trip['relative_errors'][0]:.1e}, {trip['relative_errors'][1]:.1e} relative; "

@@ -176,6 +176,23 @@ def test_a_fit_recovers_the_poisson_ratio_and_its_standard_error(ring):
         fit_critical_twists([Measurement(ring, "plus", truth[0], 0.0)], ("nu",))
 
 
+def test_the_committed_knot_round_trip_recovers_nu_and_the_contact_stiffness():
+    """benchmarks/results/differentiable_trefoil.json: onsets of the trefoil (8, 292) mm at N = 61
+    computed with (nu, k) = (0.47, 120), noise 1e-6 pi, fitted back from (0.5, 100) (the run takes
+    minutes, so the test reads it): both to 1e-4 relative, within their standard errors."""
+    import json
+    import pathlib
+
+    path = pathlib.Path(__file__).resolve().parent.parent / "benchmarks" / "results" / "differentiable_trefoil.json"
+    trip = json.loads(path.read_text())["round_trip"]
+    assert len(trip["ratios"]) == 5 and trip["tightening_ratios"] and trip["converged"]
+    assert trip["sigma"] == pytest.approx(1e-6 * math.pi)
+    values, truth, se = (np.array(trip[k]) for k in ("values", "truth", "standard_errors"))
+    assert np.all(np.abs(values - truth) / truth < 1e-4)
+    assert np.all(np.abs(values - truth) < 3 * se)  # covered by the error bars
+    assert np.all(se / truth < 1e-4)  # and they are small enough to tell
+
+
 def test_the_fit_command_reads_a_csv_and_writes_the_estimates(tmp_path, capsys):
     import json
 
