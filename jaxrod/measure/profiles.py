@@ -1,5 +1,6 @@
 """Shape descriptors of a closed curve's periodic profile (e.g. ``RodAnalysis.kappa``): the
-dominant Fourier harmonic (``symmetry_order``) and the prominent maxima (``count_peaks``)."""
+dominant Fourier harmonic (``symmetry_order``) and the prominent maxima (``count_peaks``); and the
+m-fold pattern of a mode of the curve (``mode_pattern``)."""
 from __future__ import annotations
 
 import math
@@ -91,13 +92,15 @@ def count_peaks(kappa, prominence=0.1):
 
 
 def _curvature_binormal(x):
-    """Discrete curvature binormal at each node of the closed polygon x (N, 3), (N, 3): 2 e_{i-1} x
-    e_i / (|e_{i-1}| |e_i| + e_{i-1} . e_i) over the mean length of the two edges (the discrete
-    elastic rod's), and the node tangent (N, 3)."""
+    """Discrete curvature binormal at each node of the closed polygon x (N, 3), (N, 3): the discrete
+    elastic rod's (``geometry.curvature_binormals``) over the mean length of the two edges, and the
+    node tangent (N, 3)."""
+    from ..model.geometry import curvature_binormals  # noqa: PLC0415  (jax loads only where this is used)
+
     e = np.roll(x, -1, axis=0) - x
     prev = np.roll(e, 1, axis=0)
     la, lb = np.linalg.norm(prev, axis=1), np.linalg.norm(e, axis=1)
-    kb = 2.0 * np.cross(prev, e) / (la * lb + np.sum(prev * e, axis=1))[:, None]
+    kb = np.asarray(curvature_binormals(prev, e))
     tangent = prev / la[:, None] + e / lb[:, None]
     return kb / (0.5 * (la + lb))[:, None], tangent / np.linalg.norm(tangent, axis=1)[:, None]
 
