@@ -20,6 +20,12 @@ KNOTS, RATIOS, N = ["3_1"], [0.025, 0.03], 40
 SETTINGS = atlas.AtlasSettings(span=14.0 * PI, tol=1e-2 * PI)
 
 
+def comparable(table, *leave_out):
+    """Rows with NaN (the snap columns of an end that is not a snap) as None, which compares equal."""
+    nan_free = lambda v: None if isinstance(v, float) and math.isnan(v) else v  # noqa: E731
+    return [{k: nan_free(v) for k, v in r.items() if k not in leave_out} for r in table]
+
+
 @pytest.fixture(scope="module")
 def serial(tmp_path_factory):
     out = tmp_path_factory.mktemp("atlas_serial")
@@ -42,7 +48,7 @@ def test_serial_sweep_finds_every_branch_end(serial):
     # The tightening side is phi < 0 (jaxrod's right-handed trefoil), told by the contacts gained.
     sides = atlas.tightening_sides(rows)
     assert sides[("3_1", 0.025, N)] == sides[("3_1", 0.03, N)] == "minus"
-    assert atlas.read_atlas(str(out)) == rows  # the CSV holds exactly the returned numbers
+    assert comparable(atlas.read_atlas(str(out))) == comparable(rows)  # the CSV holds exactly the returned numbers
 
 
 def test_dask_local_cluster_gives_the_serial_numbers(serial, tmp_path, capsys):
@@ -64,8 +70,7 @@ def test_dask_local_cluster_gives_the_serial_numbers(serial, tmp_path, capsys):
     capsys.readouterr()
     assert status == 0
     got = atlas.read_atlas(str(tmp_path / "cli"))
-    timeless = lambda table: [{k: v for k, v in r.items() if k != "seconds"} for r in table]  # noqa: E731
-    assert timeless(got) == timeless(rows)
+    assert comparable(got, "seconds") == comparable(rows, "seconds")
     assert len({t["worker"] for t in tasks.data}) == 2, tasks.data  # the two cases ran in parallel
 
 

@@ -487,6 +487,38 @@ def test_a_zero_the_study_saw_late_through_its_band_is_in_its_bracket():
     assert not in_bracket(-11.22940 * PI, dict(inst, negative_tol=0.0))  # no band, no widening
 
 
+def test_a_fold_just_past_a_jump_is_the_studys_end():
+    """A jump (the corrector left the branch, no eigenvalue seen crossing zero) may come a little
+    before the fold: a located end up to one bracket width past the twist where the branch was lost
+    is the study's end (measured: the trefoil at D/L = 0.035, N = 101, tightening: lost at
+    -11.74181 pi from -11.74088 pi, the fold located at -11.741846 pi); further on it is not, nor
+    past the bracket of an eigenvalue seen crossing zero."""
+    from jaxrod.studies.diagram import in_bracket
+
+    stable, lost = -11.74088 * PI, -11.74181 * PI
+    inst = {"kind": "jump", "phi": 0.5 * (stable + lost), "phi_error": 0.5 * abs(lost - stable),
+            "bracket": [stable, lost], "dlambda_dphi": 0.0, "negative_tol": 0.0}
+    assert in_bracket(-11.741846 * PI, inst)
+    assert in_bracket(lost - 0.99 * abs(lost - stable), inst)
+    assert not in_bracket(lost - 1.01 * abs(lost - stable), inst)
+    assert not in_bracket(stable + 0.01 * abs(lost - stable), inst)  # before the bracket: no band here
+    assert not in_bracket(-11.741846 * PI, dict(inst, kind="unstable"))
+
+
+def test_a_study_jump_to_a_stable_branch_is_reported_as_a_snap():
+    """A point study's end that no located event confirms is reported as the study saw it: a jump
+    after which the study switched to a stable branch is a snap (both states are in its record);
+    a confirmed located end replaces it."""
+    from jaxrod.continuation.end_check import onset_events
+
+    inst = {"direction": "plus", "phi": 6.5 * PI, "phi_error": 1e-3, "kind": "jump", "to_branch": "buckled+"}
+    assert [e["kind"] for e in onset_events(inst, None)] == ["snap"]
+    assert [e["kind"] for e in onset_events(dict(inst, to_branch=None), None)] == ["jump"]
+    event = {"phi": 6.4 * PI, "kind": "fold", "located": True, "confirmed": False}
+    assert [e["kind"] for e in onset_events(inst, event)] == ["fold", "snap"]  # in branch order
+    assert [e["kind"] for e in onset_events(inst, dict(event, confirmed=True))] == ["fold"]
+
+
 def test_an_end_that_changes_the_morse_index_by_more_than_its_multiplicity_is_flagged(on_file):
     """A located fold that takes the Morse index 0 -> 2 (the trefoil's opening end at N = 961, a fold
     meeting a crossing pair) is flagged as a near-double event, in a warning and in critical.json's

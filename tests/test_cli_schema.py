@@ -17,7 +17,7 @@ from jaxrod.studies.runs import critical_json
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
 PI = math.pi
-KINDS = {"fold", "branch_point", "jump", "unstable"}
+KINDS = {"fold", "branch_point", "snap", "jump", "unstable"}
 
 
 def _subparsers(parser):

@@ -18,6 +18,7 @@ path with branch switching -> ``TwistPath``). Read in this order:
 * ``state``     PathState: where a follow_twist run stands (exact resume, npz storage)
 * ``ends``      where a followed branch ends: critical mode, end trials, phi*, the near-zero band
 * ``switching`` the switch to the buckled branch
+* ``snap``      where a branch that ended by a jump goes: Snap, snap_of
 * ``follow``    follow_twist and its loop (_Follower)
 * ``arclength`` the pseudo-arclength algorithm: corrector, events, location, switching, curves
 """
@@ -36,10 +37,12 @@ from .state import PathState, Phase
 from .ends import branch_end_in_bracket, eigenvalue_past_zero, end_trial, negative_modes  # noqa: F401
 from .ends import warn_if_band_hides_shape_modes
 from .follow import follow_twist, follows_sparse
+from .snap import Snap, snap_of
 from .algorithms import PseudoArclength, StableOnly
 from .entry import TwistProblem, continuation
 
 __all__ = ["continuation", "TwistProblem", "StableOnly", "PseudoArclength", "check_dense_memory", "dense_memory_bytes", "available_memory_bytes", "default_negative_tol",
            "ContinuationOptions", "Observer", "Task", "PathStop", "StepFailure", "EventKind", "CriticalPoint",
            "critical_twist", "NoCrossingError", "PathPoint", "Instability", "TwistPath", "follow_twist", "follows_sparse",
+           "Snap", "snap_of",
            "PathState", "Phase", "warn_if_band_hides_shape_modes"]

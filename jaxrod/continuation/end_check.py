@@ -66,9 +66,14 @@ def verify_end(scene, q, phi, reference_mode, band=VANISHING_EIGENVALUE, k=6):
 def onset_events(instability, event):
     """What is known of one side's first instability, in the order the branch meets it: a list
     of dicts (kind, phi, phi_over_pi, located, source: 'study' or 'extended system'). The event
-    alone where it is confirmed as the onset; else both, in branch order. instability: the study's
-    critical.json entry; event: the diagram's event dict for it, or None."""
-    study = {"kind": instability.get("kind"), "phi": instability["phi"], "phi_over_pi": instability["phi"] / math.pi,
+    alone where it is confirmed as the onset; else both, in branch order (the study's jump named a
+    'snap' where the study switched to a stable branch beyond it, whose state its ``*_after``
+    fields give). instability: the study's critical.json entry; event: the diagram's event dict
+    for it, or None."""
+    kind = instability.get("kind")
+    if str(kind) == "jump" and instability.get("to_branch"):
+        kind = "snap"  # the rod jumps to the stable branch the study switched to (its *_after fields)
+    study = {"kind": kind, "phi": instability["phi"], "phi_over_pi": instability["phi"] / math.pi,
              "phi_error": instability.get("phi_error"), "located": False, "source": "study"}
     if event is None or event.get("phi") is None:
         return [study]

@@ -474,8 +474,9 @@ def plot_atlas(rows, michell, span=None, path=None, title=None, tightening=None)
     """The twisted-knot atlas: a panel per knot of phi*/pi against D/L, phi > 0 side (filled
     circles) and phi < 0 side (squares), the legend says which side tightens the knot; dashed
     lines at +-michell and dotted at +-2 michell (Michell's ring estimate and its double, radians);
-    cases that reached +-span without a branch end as open triangles at +-span.
-    rows: dicts with knot, D_over_L, N, side, phi_star (radians, NaN: none); tightening:
+    cases that reached +-span without a branch end as open triangles at +-span; snaps (kind
+    'snap': the rod jumps to another stable state) crossed.
+    rows: dicts with knot, D_over_L, N, side, phi_star (radians, NaN: none), kind; tightening:
     {(knot, D/L, N): side} (``jaxrod.studies.atlas.tightening_sides``), named in the legend."""
     tightening = tightening or {}
     knots = list(dict.fromkeys(r["knot"] for r in rows))
@@ -486,6 +487,7 @@ def plot_atlas(rows, michell, span=None, path=None, title=None, tightening=None)
     fig, axes = plt.subplots(nrows, ncols, figsize=(5.2 * ncols + 2.2, 3.6 * nrows), squeeze=False, sharex=True)
     m = float(michell) / math.pi
     for ax, knot in zip(axes.flat, knots):
+        seen_snap = False
         for side, marker, colour in (("plus", "o", "C0"), ("minus", "s", "C3")):
             sel = sorted((r for r in rows if r["knot"] == knot and r["side"] == side), key=lambda r: r["D_over_L"])
             if not sel:
@@ -498,6 +500,11 @@ def plot_atlas(rows, michell, span=None, path=None, title=None, tightening=None)
                      "opening" if said and side not in said and "equal" not in said else "mixed")
             ax.plot(ratio, phi, marker + "-", color=colour, ms=5, lw=1,  # NaN (no end) breaks the line
                     label=f"phi{'+' if side == 'plus' else '-'}* ({'> 0' if side == 'plus' else '< 0'}; {where})")
+            snap = np.array([r.get("kind") == "snap" for r in sel])
+            if np.any(snap):
+                ax.plot(ratio[snap], phi[snap], "x", color="k", ms=9, ls="none",
+                        label=None if seen_snap else "snap (jumps to another stable state)")
+                seen_snap = True
             if span is not None and np.any(~ok):
                 sign = 1.0 if side == "plus" else -1.0
                 ax.plot(ratio[~ok], np.full(int((~ok).sum()), sign * span / math.pi), "^" if sign > 0 else "v",

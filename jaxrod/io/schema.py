@@ -35,9 +35,10 @@ SIDE_KEYS = {
     "phi_error": ("rad", "the critical twist lies within phi_star +- phi_error: the bracket of a continuation, "
                          "the estimated error with --accuracy, the last Newton step for michell; null where the "
                          "end was located on its extended system (to the solver's tolerance) or none was found"),
-    "kind": ("name", "how the branch ends: fold or branch_point (located on the extended system), jump (the "
-                     "minimiser left the branch) or unstable (an eigenvalue crossed zero on it); null when "
-                     "none was found"),
+    "kind": ("name", "how the branch ends: fold or branch_point (located on the extended system), snap (the "
+                     "rod jumps to another stable state inside the bracket; both states are given), jump (the "
+                     "minimiser left the branch, no stable state found beyond) or unstable (an eigenvalue "
+                     "crossed zero on it); null when none was found"),
 }
 
 # A both-sides record names side s's value of SIDE_KEYS[k] "phi_<s><SUFFIXES[k]>".

@@ -12,7 +12,9 @@ independent, so a sweep runs them serially or over a Dask cluster (``client=``) 
 * ``atlas.csv``   one row per finished case (``FIELDS``), appended as each case ends and sorted
   by case when the sweep ends; a rerun skips the cases already there (resume);
 * ``atlas.png``   phi*/pi against D/L, a panel per knot, with the Michell lines (``figures``);
-* ``atlas.md``    the table, and the change of phi* with N where a case ran at several N.
+* ``atlas.md``    the table, and the change of phi* with N where a case ran at several N;
+* ``states/``     for each end that is a snap, the states on both sides of it (.npz: q_before,
+  phi_before, q_after, phi_after).
 """
 from __future__ import annotations
 
@@ -27,7 +29,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..io.atomic import write_json, write_rows
-from ..measure.chirality import mirror_distance
+from ..measure.chirality import ACHIRAL_TOL, mirror_distance
 from ..measure.profiles import mode_pattern
 from ..model.geometry import radius_of_gyration
 from ..io.locking import holds_output_folder
@@ -40,10 +42,13 @@ SIDES = ("plus", "minus")
 FIELDS = ["knot", "D_over_L", "N", "side", "phi_star", "phi_star_over_pi", "phi_error", "kind", "located", "phi_study",
           "reason", "critical_eigenvalue", "dlambda_dphi", "mode_pattern", "lowest_eigenvalue_start", "Lk0",
           "mirror_distance_start", "Wr_start", "Wr_before", "Tw_before", "contact_count_change",
-          "radius_of_gyration_change", "n_points", "seconds"]
+          "radius_of_gyration_change", "snap_moved", "snap_energy_change", "Wr_after", "contact_count_after",
+          "n_points", "seconds"]
+# Columns a snap fills (NaN elsewhere); an atlas written before they existed reads with NaN in them.
+SNAP_FIELDS = ("snap_moved", "snap_energy_change", "Wr_after", "contact_count_after")
 _FLOATS = ("D_over_L", "phi_star", "phi_star_over_pi", "phi_error", "phi_study", "critical_eigenvalue",
            "dlambda_dphi", "lowest_eigenvalue_start", "mirror_distance_start", "Wr_start", "Wr_before", "Tw_before",
-           "radius_of_gyration_change", "seconds")
+           "radius_of_gyration_change", *SNAP_FIELDS, "seconds")
 KNOTS = ("3_1", "4_1", "5_1", "5_2")
 
 
@@ -171,8 +176,11 @@ def knot_critical_twist(case, settings=None):
     the drawing's nearest-integer writhe can be off by turns), follow the stable branch towards +-span, and (``settings.locate``) locate
     the end the study bracketed on its extended system. Returns a row (dict, ``FIELDS``): phi_star
     in radians (NaN when the branch reaches +-span), phi_error (the study's bracket, within which
-    a located end lies), kind ('fold' or 'branch_point' where located; else the study's 'unstable'
-    or 'jump', with the reason it was not located), located ('yes' / 'no'), phi_study (the study's
+    a located end lies), kind ('fold' or 'branch_point' where located; 'snap' where the study's jump
+    is not explained by a located end and the rod jumps to another stable state inside the bracket
+    (``continuation.snap``: snap_moved, snap_energy_change, Wr_after, contact_count_after, and both
+    states in the row's ``states``, which ``run_atlas`` writes to states/*.npz); else the study's
+    'unstable' or 'jump', with the reason), located ('yes' / 'no'), phi_study (the study's
     estimate), the critical eigenvalue at the last stable state and its rate, the start's lowest
     eigenvalue above the sliding band, the critical mode's m-fold pattern (``profiles.mode_pattern``;
     0 without an end), Lk0, the start's distance from its mirror image (``chirality.mirror_distance``),
@@ -192,8 +200,8 @@ def knot_critical_twist(case, settings=None):
         scene = _scene(case.knot, case.D_over_L, case.N, settings)
     scene, start = relax_twist_free(scene)  # phi = 0 is the untwisted knot, whatever the drawing's writhe
     sign = 1.0 if case.side == "plus" else -1.0
-    path = follow_twist(scene, 0.0, sign * settings.span,
-                        ContinuationOptions(step=settings.step, tol=settings.tol, switch=False), start=start)
+    options = ContinuationOptions(step=settings.step, tol=settings.tol, switch=False)
+    path = follow_twist(scene, 0.0, sign * settings.span, options, start=start)
     last = path.points[-1].equilibrium
     if path.instabilities:
         last = path.instabilities[0].equilibrium
@@ -206,7 +214,7 @@ def knot_critical_twist(case, settings=None):
            "Wr_before": float(last.Wr), "Tw_before": float(last.Tw),
            "contact_count_change": _contact_count(scene, last) - _contact_count(scene, start),
            "radius_of_gyration_change": radius_of_gyration(last.x) - radius_of_gyration(start.x),
-           "n_points": len(path.points)}
+           **{name: math.nan for name in SNAP_FIELDS}, "n_points": len(path.points)}
     if path.instabilities:
         inst = path.instabilities[0]
         row.update(phi_star=float(inst.phi), phi_star_over_pi=float(inst.phi) / math.pi,
@@ -216,8 +224,24 @@ def knot_critical_twist(case, settings=None):
                                       else inst.dlambda_dphi))
         if settings.locate:
             row.update(_located_end(scene, inst, case.side, settings, row))
+        if row["kind"] == "jump":
+            row.update(_snap_fields(scene, path, options, row))
     row["seconds"] = time.perf_counter() - t0
     return row
+
+
+def _snap_fields(scene, path, options, row):
+    """The row's fields for a jump that no located end explains: kind 'snap', with the state it
+    snaps to (``snap_of``; ``states``: both states as arrays, written by ``run_atlas``), or the jump
+    kept with the reason where no stable state is found beyond it."""
+    from ..continuation.snap import snap_of
+
+    snap = snap_of(scene, path, options)
+    if snap is None:
+        return {"reason": f"{row['reason']}; no stable state found beyond the jump"}
+    return {"kind": "snap", "reason": f"{row['reason']}; {snap.summary()}", "snap_moved": snap.moved,
+            "snap_energy_change": snap.energy_change, "Wr_after": float(snap.after.Wr),
+            "contact_count_after": _contact_count(scene, snap.after), "states": snap.arrays()}
 
 
 def _mode_pattern(scene, inst):
@@ -235,7 +259,8 @@ def _located_end(scene, inst, side, settings, row):
     fold or branch point where it lies in the study's bracket, else the study's with the reason."""
     from .diagram import DiagramOptions, locate_end
 
-    entry = {"direction": side, "from_branch": inst.from_branch or "symmetric", "bracket": list(inst.bracket),
+    entry = {"direction": side, "from_branch": inst.from_branch or "symmetric", "kind": str(inst.kind.value),
+             "bracket": list(inst.bracket),
              "phi": float(inst.phi), "phi_error": float(inst.phi_error), "eigenvalue": row["critical_eigenvalue"],
              "dlambda_dphi": row["dlambda_dphi"], "negative_tol": float(inst.negative_tol)}
     state = (np.asarray(inst.equilibrium.q), float(inst.equilibrium.phi))
@@ -265,7 +290,7 @@ def read_atlas(path):
         path = os.path.join(path, "atlas.csv")
     with open(path, newline="") as f:
         reader = csv.DictReader(f)
-        missing = [c for c in FIELDS if c not in (reader.fieldnames or [])]
+        missing = [c for c in FIELDS if c not in (reader.fieldnames or []) and c not in SNAP_FIELDS]
         if missing:
             raise ValueError(f"{path}: missing column(s) {', '.join(missing)} (an atlas CSV has {', '.join(FIELDS)})")
         rows = []
@@ -273,7 +298,7 @@ def read_atlas(path):
             if None in r.values() or len(r) != len(reader.fieldnames):
                 continue  # a row cut short by an interruption
             for c in _FLOATS:
-                r[c] = float(r[c])
+                r[c] = float(r.get(c, math.nan))
             r["N"], r["n_points"], r["contact_count_change"] = int(r["N"]), int(r["n_points"]), int(r["contact_count_change"])
             r["Lk0"], r["mode_pattern"] = int(r["Lk0"]), int(r["mode_pattern"])
             rows.append(r)
@@ -337,6 +362,9 @@ def run_atlas(knots=KNOTS, ratios=(0.01, 0.015, 0.02, 0.0274, 0.03, 0.035), N=10
     def finished(row):
         nonlocal n_done
         n_done += 1
+        states = row.pop("states", None)
+        if states is not None and out is not None:
+            _write_snap_states(out, _case_of(row), states)
         done[_case_of(row).key] = row
         if csv_path is not None:
             new = not os.path.exists(csv_path)
@@ -368,6 +396,16 @@ def run_atlas(knots=KNOTS, ratios=(0.01, 0.015, 0.02, 0.0274, 0.03, 0.035), N=10
     return rows
 
 
+def _write_snap_states(out, case, states):
+    """Both states of a snap, as ``states/<knot>_<D/L>_N<N>_<side>.npz`` in ``out``."""
+    folder = os.path.join(out, "states")
+    os.makedirs(folder, exist_ok=True)
+    name = f"{case.knot}_{case.D_over_L:g}_N{case.N}_{case.side}.npz"
+    tmp = os.path.join(folder, f".{name}.tmp.npz")
+    np.savez(tmp, **states)
+    os.replace(tmp, os.path.join(folder, name))
+
+
 def _case_order(row):
     """Knot, D/L, N ascending, plus before minus (the order of ``atlas_cases``)."""
     case = _case_of(row)
@@ -386,6 +424,11 @@ def _checked(fn, case, settings):
 # ------------------------------------------------------------------------------------ outputs
 def _yes_no(tight_side, side):
     return "?" if tight_side is None else "equal" if tight_side == "equal" else "yes" if tight_side == side else "no"
+
+
+def _chirality(distance):
+    """'achiral' where a start's mirror distance is within ``ACHIRAL_TOL``, else 'chiral'."""
+    return "achiral" if distance <= ACHIRAL_TOL else "chiral"
 
 
 def _main_rows(rows):
@@ -444,10 +487,13 @@ def report(out, rows=None):
              "jaxrod sign convention (phi > 0 adds right-handed twist; Lk = Lk0 + phi / 2 pi). Each side followed "
              "from the knot relaxed to a minimum at phi = 0, with the Lk0 that leaves it untwisted, until its stable branch ends, and that end located on its "
              "extended system: kind 'fold' or 'branch_point'. Where it was not located, the study's bracket is kept "
-             "('unstable': an eigenvalue crosses zero; 'jump': the branch folds; the reason is in atlas.csv). The "
+             "('unstable': an eigenvalue crosses zero; 'snap': the rod jumps to another stable state inside the "
+             "bracket, both states in states/*.npz, how far it moved and its energy change in atlas.csv; 'jump': "
+             "the same with no stable state found beyond; the reason is in atlas.csv). The "
              "critical eigenvalue at the last stable state, with its rate along the branch, says how clearly it was "
              "going to zero; mode: the m-fold pattern of its critical mode (how it bends the knot). mirror distance: "
-             "the relaxed start's distance from its mirror image, over its radius of gyration (0: achiral). The "
+             "the relaxed start's distance from its mirror image, over its radius of gyration (0: achiral; called "
+             f"achiral up to {ACHIRAL_TOL:g}, where the two sides of an amphichiral knot are mirror images). The "
              "tightening side gains segment pairs in contact along its branch (then: loses radius of gyration); the "
              "other side opens the knot.", "",
              "| knot | D/L | N | side | phi*/pi | +- (rad) | kind | mode | critical eigenvalue (d/dphi) | "
@@ -462,7 +508,7 @@ def report(out, rows=None):
         mode = f"{r['mode_pattern']}-fold" if r["mode_pattern"] else ""
         lines.append(f"| {r['knot']} | {r['D_over_L']:g} | {r['N']} | {r['side']} | {phi} | {err} | {r['kind']} | {mode} | "
                      f"{lam} | {r['lowest_eigenvalue_start']:.2e} | {r['Lk0']:+d} | "
-                     f"{r['mirror_distance_start']:.1e} | "
+                     f"{r['mirror_distance_start']:.1e} ({_chirality(r['mirror_distance_start'])}) | "
                      f"{r['Wr_start']:.4f} | {r['Wr_before']:.4f} | {r['Tw_before']:.4f} | {r['contact_count_change']:+d} | "
                      f"{_yes_no(tight.get((r['knot'], r['D_over_L'], r['N'])), r['side'])} | "
                      f"{r['seconds']:.1f} |")

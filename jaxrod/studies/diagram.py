@@ -281,12 +281,18 @@ def in_bracket(phi, inst):
     within its phi +- phi_error (the whole bracket), to roundoff, or before it on the stable side by
     no more than the eigenvalue band. The study counts a mode negative only below -negative_tol,
     so an eigenvalue crossing zero at the rate dlambda_dphi is seen up to negative_tol /
-    |dlambda_dphi| after its zero; twice that is allowed, the rate being itself an estimate."""
+    |dlambda_dphi| after its zero; twice that is allowed, the rate being itself an estimate. After
+    a jump (kind 'jump': the corrector left the branch, no eigenvalue was seen crossing zero), up
+    to one bracket width past the twist where the branch was lost is allowed too: the basin of
+    the stable state shrinks to nothing at a fold, so a corrector is drawn off a little before it."""
     phi0 = inst["phi"]
     tol = inst["phi_error"] * (1.0 + 1e-9) + 1e-12 * max(1.0, abs(phi0))
     if abs(phi - phi0) <= tol:
         return True
     stable, lost = (list(inst.get("bracket") or ()) + [0.0, 0.0])[:2]
+    past_lost = (phi - lost) * math.copysign(1.0, lost - stable)
+    if str(inst.get("kind")) == "jump" and 0.0 < past_lost <= abs(lost - stable):
+        return True
     rate = abs(float(inst.get("dlambda_dphi") or 0.0))
     band = float(inst.get("negative_tol") or 0.0)
     if stable == lost or not (math.isfinite(rate) and rate > 0.0 and band > 0.0):
