@@ -43,7 +43,7 @@ import jaxrod  # noqa: E402,F401  (float64 before any test builds arrays)
 # by default xdist reorders files by their number of tests, which ignored this list), finish
 # together. Files not listed (short ones, or new ones) come after, alphabetically.
 _LONGEST_FIRST = ("test_benchmarks_smoke_a.py", "test_benchmarks_smoke_b.py", "test_notebooks.py", "test_bifurcation_knots.py", "test_resume.py", "test_critical_curve_checks.py",
-                  "test_branch_check.py", "test_atlas.py", "test_readme.py", "test_sparse_stability.py", "test_notebook_damped_dynamics.py",
+                  "test_branch_check.py", "test_atlas.py", "test_atlas_kinds.py", "test_readme.py", "test_sparse_stability.py", "test_notebook_damped_dynamics.py",
                   "test_symmetry.py", "test_convergence.py", "test_notebook_bifurcation_diagram.py",
                   "test_newcomer.py", "test_critical_error.py", "test_located_once.py",
                   "test_docs_blocks.py", "test_traceable.py", "test_extending.py", "test_backends.py",
