@@ -44,6 +44,8 @@ SCRIPTS = {
     "dynamics.py": _entry("b", ["dynamics.csv", "dynamics.md", "dynamics.png"]),
     "dynamics_accuracy.py": _entry("b", ["dynamics_accuracy.csv", "dynamics_accuracy.md", "dynamics_accuracy.png"]),
     "dynamics_shape.py": _entry("a", ["dynamics_shape.csv", "dynamics_shape.md", "dynamics_shape.npz"]),
+    "figure_eight_accuracy.py": _entry("b", ["figure_eight_accuracy.json", "figure_eight_accuracy.md",
+                                             "figure_eight_accuracy.png"]),
     "fold_curve_nu.py": _entry("a", ["fold_curve_nu.json", "fold_curve_nu.csv", "fold_curve_nu.md",
                                      "fold_curve_nu.png"]),
     "fold_curve_ratio.py": _entry("a", ["fold_curve_ratio.json", "fold_curve_ratio.csv", "fold_curve_ratio.md",
