@@ -84,7 +84,7 @@ def main():
                                 title=f"Figure-eight knot, D/L = {first:g}: critical twists converged in N")
     lines = ["# The figure-eight knot's critical twists with error bars", "", *table(cases), ""]
     for c in cases:
-        if "asymmetry_over_pi" in c:
+        if "asymmetry_over_pi" in c and all(side["reached"] for side in c["sides"].values()):
             lines.append(f"- D/L = {c['D_over_L']:g}: |phi*+ + phi*-| = {c['asymmetry_over_pi']:.5f} pi against the "
                          f"error bars' sum {c['error_sum_over_pi']:.4f} pi (start {c['start']})")
         for side, s in c["sides"].items():

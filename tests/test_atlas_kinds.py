@@ -2,7 +2,9 @@
 or a snap with the states on both sides of it; never a bare 'jump'. The figure-eight knot (4_1) at
 two slendernesses, both sides: its mirror-symmetric sides where its start is mirror-congruent to
 itself, and the chirality of its start reported where it is not."""
+import json
 import math
+import pathlib
 
 import numpy as np
 import pytest
@@ -12,6 +14,7 @@ from jaxrod.measure.chirality import ACHIRAL_TOL
 from jaxrod.studies import atlas
 
 PI = math.pi
+REPO = pathlib.Path(__file__).resolve().parent.parent
 RATIOS, N = [0.02, 0.025], 61  # both sides end near 7.2 pi (a fold at N = 61)
 SETTINGS = atlas.AtlasSettings(span=8.0 * PI)
 
@@ -68,3 +71,24 @@ def test_a_jump_left_unlocated_is_a_snap_with_both_states(tmp_path):
     assert e_after.stability.stable and abs(e_after.Wr - row["Wr_after"]) < 1e-6
     assert abs(e_after.Lk - (scene.Lk0 + after / (2 * PI))) < 1e-8
     assert np.max(np.abs(np.asarray(e_after.q) - states["q_after"])) < 1e-6  # it is an equilibrium already
+
+
+def test_the_figure_eight_has_mirror_image_ends_with_error_bars():
+    """The committed accuracy-mode run (benchmarks/figure_eight_accuracy.py): at D/L = 0.02 both
+    sides converge to 0.05 pi with the order measured, from a start that is its own mirror image,
+    and agree with phi*+ = -phi*- within their error bars; at D/L = 0.015 no error bar is claimed."""
+    data = json.loads((REPO / "benchmarks" / "results" / "figure_eight_accuracy.json").read_text())
+    cases = {c["D_over_L"]: c for c in data["cases"]}
+    tight = cases[0.02]
+    assert tight["mirror_distance_start"] <= ACHIRAL_TOL and tight["start"] == "achiral"
+    plus, minus = tight["sides"]["plus"], tight["sides"]["minus"]
+    for side in (plus, minus):
+        ext = side["extrapolation"]
+        assert side["reached"] and side["error"] <= 0.05 * PI and ext["order_measured"] and ext["asymptotic"]
+        assert len(ext["N"]) >= 3 and abs(side["levels"][-1]["phi_star"] - side["phi_star"]) <= 2 * side["error"]
+    assert plus["phi_star"] > 0 > minus["phi_star"]
+    assert abs(plus["phi_star"] + minus["phi_star"]) <= plus["error"] + minus["error"]
+    loose = cases[0.015]
+    assert not all(s["reached"] for s in loose["sides"].values())
+    for c in data["cases"]:
+        assert c["start"] == ("achiral" if c["mirror_distance_start"] <= ACHIRAL_TOL else "chiral")
