@@ -39,7 +39,6 @@ SCRIPTS = {
     "cli_startup_breakdown.py": _entry("a", ["cli_startup_breakdown.md", "cli_startup_breakdown.json"]),
     "command1.py": _entry("a", ["command1.md", "command1.json"]),
     "command1_diagram.py": _entry("a", ["command1_diagram.md", "command1_diagram.json"]),
-    "design_trefoil.py": _entry("a", ["design_trefoil.json", "design_trefoil.md"]),
     "diagram_steps.py": _entry("a", ["diagram_steps.md", "diagram_steps.json"]),
     "differentiable_trefoil.py": _entry("a", ["differentiable_trefoil.json", "differentiable_trefoil.md"]),
     "dynamics.py": _entry("b", ["dynamics.csv", "dynamics.md", "dynamics.png"]),
