@@ -163,3 +163,26 @@ def test_cases_are_checked_before_any_work():
         atlas.atlas_cases(["3_1"], [0.01], 60)
     with pytest.raises(ValueError, match="sides"):
         atlas.atlas_cases(["3_1"], [0.03], 40, sides=("left",))
+
+
+def test_accuracy_mode_gives_each_row_its_extrapolation_and_error_bar(tmp_path):
+    """With ``accuracy`` each case's end is also followed at N, 4N/3, 5N/3 (each level from the
+    previous one's state) and extrapolated: the row holds the extrapolated value, its error bar,
+    whether the accuracy was reached and every level; the table and the figure show them."""
+    from jaxrod.studies.accuracy import richardson
+
+    settings = atlas.AtlasSettings(span=10.0 * PI, tol=1e-2 * PI, accuracy=0.5 * PI)
+    (row,) = atlas.run_atlas(["3_1"], [0.03], N, settings=settings, out=str(tmp_path), sides="plus")
+    levels = [tuple(map(float, item.split(":"))) for item in row["accuracy_levels"].split(";")]
+    assert [int(n) for n, _ in levels] == list(atlas.accuracy_levels(N)) == [40, 53, 67]
+    ext = richardson([n for n, _ in levels], [v * PI for _, v in levels])
+    assert abs(row["phi_extrapolated"] - ext.value) < 1e-5 * PI  # the levels are stored to 1e-6 pi
+    assert 0.0 < row["extrapolation_error"] < math.inf and 6.0 < row["phi_extrapolated"] / PI < 7.5
+    assert row["accuracy_reached"] == ("yes" if row["extrapolation_error"] <= settings.accuracy else "no")
+    assert "accuracy mode:" in row["reason"]
+    assert comparable(atlas.read_atlas(str(tmp_path))) == comparable([row])
+    report = open(atlas.report(str(tmp_path))).read()
+    assert "## Converged in N (accuracy mode)" in report and f"{row['phi_extrapolated'] / PI:+.4f}" in report
+    assert atlas.figures(str(tmp_path)).endswith("atlas.png")
+    with pytest.raises(ValueError, match="accuracy"):
+        atlas.AtlasSettings(accuracy=0.0)

@@ -49,6 +49,9 @@ def add_parser(sub, formatter_class):
     at.add_argument("--step", type=parse_angle, default=0.5 * math.pi, help="largest continuation step (default 0.5pi)")
     at.add_argument("--tol", type=parse_angle, default=1e-3 * math.pi,
                     help="accuracy of the critical twists (default 1e-3pi)")
+    at.add_argument("--accuracy", type=parse_angle, default=None,
+                    help="also converge each end in N to this accuracy (levels N, 4N/3, 5N/3, Richardson with the "
+                         "order measured): the extrapolated value and its error bar in each row (default: off)")
     at.add_argument("--workers", type=int, default=1,
                     help="cases at once on a local Dask cluster of this many processes (default 1: in this process)")
     at.add_argument("--scheduler", default=None, help="address of a running Dask scheduler (tcp://HOST:PORT)")
@@ -73,7 +76,7 @@ def _options(args):
     ratios = number_list("--ratios", args.ratios, float)
     ns = number_list("--N", args.N, int)
     settings = atlas.AtlasSettings(span=args.span, step=args.step, tol=args.tol, nu=args.nu,
-                                   contact_stiffness=args.contact_stiffness)
+                                   contact_stiffness=args.contact_stiffness, accuracy=args.accuracy)
     sides = [v.strip() for v in args.sides.split(",") if v.strip()]
     return AtlasOptions(knots=tuple(knots), ratios=tuple(ratios), N=tuple(ns), sides=tuple(sides), settings=settings,
                         out=args.out, fresh=args.fresh, figures=not args.no_figures)

@@ -475,7 +475,8 @@ def plot_atlas(rows, michell, span=None, path=None, title=None, tightening=None)
     circles) and phi < 0 side (squares), the legend says which side tightens the knot; dashed
     lines at +-michell and dotted at +-2 michell (Michell's ring estimate and its double, radians);
     cases that reached +-span without a branch end as open triangles at +-span; snaps (kind
-    'snap': the rod jumps to another stable state) crossed.
+    'snap': the rod jumps to another stable state) crossed; where a row has phi_extrapolated and
+    extrapolation_error (the atlas's accuracy mode), that value with its error bar.
     rows: dicts with knot, D_over_L, N, side, phi_star (radians, NaN: none), kind; tightening:
     {(knot, D/L, N): side} (``jaxrod.studies.atlas.tightening_sides``), named in the legend."""
     tightening = tightening or {}
@@ -500,6 +501,12 @@ def plot_atlas(rows, michell, span=None, path=None, title=None, tightening=None)
                      "opening" if said and side not in said and "equal" not in said else "mixed")
             ax.plot(ratio, phi, marker + "-", color=colour, ms=5, lw=1,  # NaN (no end) breaks the line
                     label=f"phi{'+' if side == 'plus' else '-'}* ({'> 0' if side == 'plus' else '< 0'}; {where})")
+            err = np.array([r.get("extrapolation_error", math.nan) for r in sel], dtype=float) / math.pi
+            ext = np.array([r.get("phi_extrapolated", math.nan) for r in sel], dtype=float) / math.pi
+            bar = np.isfinite(err) & np.isfinite(ext) & (err > 0)
+            if np.any(bar):
+                ax.errorbar(ratio[bar], ext[bar], yerr=err[bar], fmt="_", color=colour, ms=10, capsize=3, lw=1,
+                            label=f"phi{'+' if side == 'plus' else '-'}* converged in N, with its error bar")
             snap = np.array([r.get("kind") == "snap" for r in sel])
             if np.any(snap):
                 ax.plot(ratio[snap], phi[snap], "x", color="k", ms=9, ls="none",

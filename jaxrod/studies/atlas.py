@@ -35,7 +35,7 @@ from ..model.geometry import radius_of_gyration
 from ..io.locking import holds_output_folder
 from ..validation import check_finite, check_int_at_least, check_positive
 
-__all__ = ["AtlasCase", "AtlasSettings", "FIELDS", "atlas_cases", "knot_critical_twist", "run_atlas", "read_atlas",
+__all__ = ["AtlasCase", "AtlasSettings", "FIELDS", "ACCURACY_LEVELS", "accuracy_levels", "atlas_cases", "knot_critical_twist", "run_atlas", "read_atlas",
            "figures", "report", "tightening_sides", "convergence_series"]
 
 SIDES = ("plus", "minus")
@@ -43,12 +43,17 @@ FIELDS = ["knot", "D_over_L", "N", "side", "phi_star", "phi_star_over_pi", "phi_
           "reason", "critical_eigenvalue", "dlambda_dphi", "mode_pattern", "lowest_eigenvalue_start", "Lk0",
           "mirror_distance_start", "Wr_start", "Wr_before", "Tw_before", "contact_count_change",
           "radius_of_gyration_change", "snap_moved", "snap_energy_change", "Wr_after", "contact_count_after",
-          "n_points", "seconds"]
-# Columns a snap fills (NaN elsewhere); an atlas written before they existed reads with NaN in them.
+          "phi_extrapolated", "extrapolation_error", "accuracy_reached", "accuracy_levels", "n_points", "seconds"]
+# Columns a snap fills (NaN elsewhere) and those of the accuracy mode (NaN / empty without it); an
+# atlas written before they existed reads with NaN / empty in them.
 SNAP_FIELDS = ("snap_moved", "snap_energy_change", "Wr_after", "contact_count_after")
+ACCURACY_FIELDS = ("phi_extrapolated", "extrapolation_error", "accuracy_reached", "accuracy_levels")
+_OPTIONAL = (*SNAP_FIELDS, *ACCURACY_FIELDS)
 _FLOATS = ("D_over_L", "phi_star", "phi_star_over_pi", "phi_error", "phi_study", "critical_eigenvalue",
            "dlambda_dphi", "lowest_eigenvalue_start", "mirror_distance_start", "Wr_start", "Wr_before", "Tw_before",
-           "radius_of_gyration_change", *SNAP_FIELDS, "seconds")
+           "radius_of_gyration_change", *SNAP_FIELDS, "phi_extrapolated", "extrapolation_error", "seconds")
+# The accuracy mode's levels, as multiples of the case's N (three: the order is measured).
+ACCURACY_LEVELS = (1.0, 4.0 / 3.0, 5.0 / 3.0)
 KNOTS = ("3_1", "4_1", "5_1", "5_2")
 
 
@@ -58,7 +63,9 @@ class AtlasSettings:
     step (largest continuation step, radians), tol (accuracy of the study's bracket, radians), nu
     (Poisson ratio), contact_stiffness (``jaxrod.knot``'s; None: no contact term); locate: each
     end bracketed by the study located on its extended system (a fold or branch point, as
-    ``critical_twists`` does), else the study's bracket kept."""
+    ``critical_twists`` does), else the study's bracket kept; accuracy (radians, None: off): each
+    case's end also converged in N by ``accuracy.converged_critical_twists`` over the levels
+    ``ACCURACY_LEVELS`` times N, its extrapolated value and error bar in the row."""
 
     span: float = 16.0 * math.pi
     step: float = 0.5 * math.pi
@@ -66,6 +73,7 @@ class AtlasSettings:
     nu: float = 0.5
     contact_stiffness: float | None = 100.0
     locate: bool = True
+    accuracy: float | None = None
 
     def __post_init__(self):
         check_positive("span", self.span)
@@ -78,6 +86,8 @@ class AtlasSettings:
             check_positive("contact_stiffness", self.contact_stiffness)
         if not isinstance(self.locate, (bool, np.bool_)):
             raise ValueError(f"locate must be True or False, got {self.locate!r}")
+        if self.accuracy is not None:
+            check_positive("accuracy", self.accuracy)
 
     def as_json(self):
         return json.loads(json.dumps(asdict(self)))
@@ -214,7 +224,8 @@ def knot_critical_twist(case, settings=None):
            "Wr_before": float(last.Wr), "Tw_before": float(last.Tw),
            "contact_count_change": _contact_count(scene, last) - _contact_count(scene, start),
            "radius_of_gyration_change": radius_of_gyration(last.x) - radius_of_gyration(start.x),
-           **{name: math.nan for name in SNAP_FIELDS}, "n_points": len(path.points)}
+           **{name: math.nan for name in SNAP_FIELDS}, "phi_extrapolated": math.nan,
+           "extrapolation_error": math.nan, "accuracy_reached": "", "accuracy_levels": "", "n_points": len(path.points)}
     if path.instabilities:
         inst = path.instabilities[0]
         row.update(phi_star=float(inst.phi), phi_star_over_pi=float(inst.phi) / math.pi,
@@ -226,8 +237,31 @@ def knot_critical_twist(case, settings=None):
             row.update(_located_end(scene, inst, case.side, settings, row))
         if row["kind"] == "jump":
             row.update(_snap_fields(scene, path, options, row))
+    if settings.accuracy is not None:
+        row.update(_accuracy_fields(scene, case, settings, row))
     row["seconds"] = time.perf_counter() - t0
     return row
+
+
+def accuracy_levels(N):
+    """The node counts of a case's accuracy mode: ``ACCURACY_LEVELS`` times N, rounded."""
+    return tuple(int(round(f * N)) for f in ACCURACY_LEVELS)
+
+
+def _accuracy_fields(scene, case, settings, row):
+    """The row's fields from the accuracy mode on the case's side (each level started from the
+    previous one's state, resampled): the extrapolated phi* and its error, whether the accuracy
+    asked for was reached, and every level's phi*; the mode's reason appended to the row's."""
+    from .accuracy import converged_critical_twists
+
+    result = converged_critical_twists(scene, settings.accuracy, sides=(case.side,), levels=accuracy_levels(case.N),
+                                       span=settings.span, step=settings.step, parallel=False)[case.side]
+    phi = result.phi_star
+    return {"phi_extrapolated": math.nan if phi is None else float(phi),
+            "extrapolation_error": float(result.error) if phi is not None else math.nan,
+            "accuracy_reached": "yes" if result.reached else "no",
+            "accuracy_levels": ";".join(f"{lv.N}:{lv.phi_star / math.pi:+.6f}" for lv in result.levels),
+            "reason": f"{row['reason']}; accuracy mode: {result.reason}"}
 
 
 def _snap_fields(scene, path, options, row):
@@ -290,7 +324,7 @@ def read_atlas(path):
         path = os.path.join(path, "atlas.csv")
     with open(path, newline="") as f:
         reader = csv.DictReader(f)
-        missing = [c for c in FIELDS if c not in (reader.fieldnames or []) and c not in SNAP_FIELDS]
+        missing = [c for c in FIELDS if c not in (reader.fieldnames or []) and c not in _OPTIONAL]
         if missing:
             raise ValueError(f"{path}: missing column(s) {', '.join(missing)} (an atlas CSV has {', '.join(FIELDS)})")
         rows = []
@@ -299,6 +333,8 @@ def read_atlas(path):
                 continue  # a row cut short by an interruption
             for c in _FLOATS:
                 r[c] = float(r.get(c, math.nan))
+            for c in ("accuracy_reached", "accuracy_levels"):
+                r[c] = r.get(c, "")
             r["N"], r["n_points"], r["contact_count_change"] = int(r["N"]), int(r["n_points"]), int(r["contact_count_change"])
             r["Lk0"], r["mode_pattern"] = int(r["Lk0"]), int(r["mode_pattern"])
             rows.append(r)
@@ -315,7 +351,7 @@ def _check_folder(out, settings, fresh):
                 os.remove(p)
     if os.path.exists(settings_path):
         with open(settings_path) as f:
-            old = json.load(f)
+            old = {**asdict(AtlasSettings()), **json.load(f)}  # a setting added since: its default
         if old != settings.as_json():
             raise ValueError(f"out: {out} holds an atlas with other settings (see its atlas.json): use another "
                              "folder, or start over there (fresh=True; the CLI's --fresh)")
@@ -522,7 +558,27 @@ def report(out, rows=None):
             parts = [f"N = {r['N']}: {r['phi_star_over_pi']:+.4f} pi" for r in g]
             changes = [f"{b['phi_star_over_pi'] - a['phi_star_over_pi']:+.4f} pi" for a, b in zip(g, g[1:])]
             lines.append(f"- {knot}, D/L = {ratio:g}, {side}: " + ", ".join(parts) + " (changes " + ", ".join(changes) + ")")
+    lines += _accuracy_section(rows)
     path = os.path.join(out, "atlas.md")
     with open(path, "w") as f:
         f.write("\n".join(lines) + "\n")
     return path
+
+
+def _accuracy_section(rows):
+    """The report's lines for the cases run in the accuracy mode (none without it)."""
+    converged = [r for r in rows if r.get("accuracy_levels")]
+    if not converged:
+        return []
+    lines = ["", "## Converged in N (accuracy mode)", "",
+             "Each case's end followed at the levels N x " + ", ".join(f"{f:.3g}" for f in ACCURACY_LEVELS) +
+             ", each from the previous level's state resampled, and extrapolated (Richardson, order measured); "
+             "the error bar is the extrapolation's error estimate.", "",
+             "| knot | D/L | side | phi*/pi extrapolated | +- /pi | accuracy reached | levels N: phi*/pi |",
+             "|---|---|---|---|---|---|---|"]
+    for r in converged:
+        value = f"{r['phi_extrapolated'] / math.pi:+.4f}" if math.isfinite(r["phi_extrapolated"]) else "none"
+        error = f"{r['extrapolation_error'] / math.pi:.3f}" if math.isfinite(r["extrapolation_error"]) else ""
+        lines.append(f"| {r['knot']} | {r['D_over_L']:g} | {r['side']} | {value} | {error} | {r['accuracy_reached']} | "
+                     f"{r['accuracy_levels'].replace(';', ', ')} |")
+    return lines
