@@ -161,8 +161,28 @@ def validation_table():
     cwf = _load("cwf.json")
     rows.append(["CWF", "", "not yet reproduced: " + _missing("cwf.json") if cwf is None
                  else json.dumps(cwf)[:80], "", ""])
-    rows += _differentiable_rows() + _shear_rows()
+    rows += _differentiable_rows() + _shear_rows() + _figure_eight_rows()
     return _table(["reference", "reference value", "jaxrod", "error", "reproduce"], rows)
+
+
+def _figure_eight_rows():
+    """The amphichiral figure-eight knot: its two converged ends against the mirror symmetry."""
+    data = _load("figure_eight_accuracy.json")
+    if not data:
+        return [["figure-eight knot: mirror-image ends", "", _missing("figure_eight_accuracy.json"), "", ""]]
+    rows = []
+    for case in data["cases"]:
+        plus, minus = case["sides"]["plus"], case["sides"]["minus"]
+        if not (plus["reached"] and minus["reached"]):
+            continue
+        rows.append([f"figure-eight knot (amphichiral), D/L = {case['D_over_L']:g}, start's mirror distance "
+                     f"{case['mirror_distance_start']:.1e}: φ*₊ = −φ*₋",
+                     "mirror symmetry", f"{plus['phi_star_over_pi']:+.4f} π ± {plus['error_over_pi']:.3f} π, "
+                     f"{minus['phi_star_over_pi']:+.4f} π ± {minus['error_over_pi']:.3f} π "
+                     f"(N = {', '.join(map(str, plus['extrapolation']['N']))}, extrapolated)",
+                     f"|φ*₊ + φ*₋| = {case['asymmetry_over_pi']:.1e} π, error bars {case['error_sum_over_pi']:.3f} π",
+                     "`python benchmarks/figure_eight_accuracy.py`"])
+    return rows
 
 
 def _differentiable_rows():
