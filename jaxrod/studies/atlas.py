@@ -28,7 +28,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ..io.atomic import write_json, write_rows
+from ..io.atomic import savez, write_json, write_rows
 from ..measure.chirality import ACHIRAL_TOL, mirror_distance
 from ..measure.profiles import mode_pattern
 from ..model.geometry import radius_of_gyration
@@ -436,10 +436,7 @@ def _write_snap_states(out, case, states):
     """Both states of a snap, as ``states/<knot>_<D/L>_N<N>_<side>.npz`` in ``out``."""
     folder = os.path.join(out, "states")
     os.makedirs(folder, exist_ok=True)
-    name = f"{case.knot}_{case.D_over_L:g}_N{case.N}_{case.side}.npz"
-    tmp = os.path.join(folder, f".{name}.tmp.npz")
-    np.savez(tmp, **states)
-    os.replace(tmp, os.path.join(folder, name))
+    savez(os.path.join(folder, f"{case.knot}_{case.D_over_L:g}_N{case.N}_{case.side}.npz"), **states)
 
 
 def _case_order(row):
