@@ -171,3 +171,28 @@ def test_the_neighbourhood_asks_for_a_concrete_diameter(state):
     scene = jr.trefoil(D=D0, L=L0, N=N0)
     with pytest.raises(ValueError, match="D must be a concrete value to build a neighbourhood"):
         jax.grad(lambda d: scene.with_params(D=d).neighbourhood(state).wr_ref)(D0)
+
+
+def test_a_scene_of_python_floats_and_one_of_numpy_values_share_one_compiled_program():
+    """jit keys weakly typed values (Python floats) apart from float64 ones: the same scene built
+    from floats, set by ``with_params`` from numpy values, or with a neighbourhood read from a file
+    must still reach a program by the same key, or every program is compiled twice."""
+    scene = jr.trefoil(D=D0, L=L0, N=24, nu=NU0, contact_stiffness=KC0)
+    q = np.asarray(scene.q_init)
+    nbr = scene.neighbourhood(q)
+    other = scene.with_params(nu=np.float64(NU0), contact_stiffness=np.float64(KC0))
+    loaded = type(nbr)(*(jnp.asarray(np.asarray(leaf)) for leaf in (nbr.pairs, nbr.mask, nbr.x_built, nbr.skin,
+                                                                     nbr.wr_ref)))
+    for tree in (scene, other, nbr, loaded):
+        weak = [leaf for leaf in jax.tree_util.tree_leaves(tree) if jnp.asarray(leaf).weak_type]
+        assert not weak, (type(tree).__name__, weak)
+    traces = []
+
+    @jax.jit
+    def energy(s, u, neighbourhood):
+        traces.append(1)
+        return s.energy(u, PHI, neighbourhood)
+
+    values = [float(energy(s, jnp.asarray(q), n)) for s, n in ((scene, nbr), (other, loaded), (scene, loaded))]
+    assert len(traces) == 1
+    assert values[0] == pytest.approx(values[1], rel=1e-12) and values[2] == values[0]

@@ -2,9 +2,10 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import jax
-from dataclasses import dataclass
+import numpy as np
 
 from ..validation import check_finite, check_int_at_least, check_poisson_ratio, check_positive
 
@@ -80,8 +81,20 @@ class Material:
         return self.B / self.C - 1.0
 
 
+def strong_leaf(value):
+    """A pytree leaf as jit should key it: a Python float as a float64 scalar, a weakly typed array
+    as a float64 one, anything else (tracers included) unchanged. jit keys weak and strong types
+    apart, so a scene built from Python floats and the same scene with numpy values (loaded, or set
+    by ``with_params``) would otherwise compile every program twice."""
+    if type(value) is float:
+        return np.float64(value)
+    if isinstance(value, jax.Array) and not isinstance(value, jax.core.Tracer) and value.weak_type:
+        return value.astype(value.dtype)
+    return value
+
+
 def _flatten_material(m):
-    return (m.B, m.C, m.EA, m.D), None
+    return tuple(strong_leaf(v) for v in (m.B, m.C, m.EA, m.D)), None
 
 
 def _unflatten_material(_, children):

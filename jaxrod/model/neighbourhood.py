@@ -21,6 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .contact import candidate_pairs
+from .material import strong_leaf
 from .topology import writhe
 
 __all__ = ["Neighbourhood", "NeighbourhoodUpdate", "build_neighbourhood", "WRITHE_DRIFT_LIMIT"]
@@ -98,7 +99,7 @@ class NeighbourhoodUpdate:
 
 jax.tree_util.register_pytree_node(
     Neighbourhood,
-    lambda n: ((n.pairs, n.mask, n.x_built, n.skin, n.wr_ref), None),
+    lambda n: (tuple(strong_leaf(v) for v in (n.pairs, n.mask, n.x_built, n.skin, n.wr_ref)), None),
     lambda _, c: Neighbourhood(*c),
 )
 
@@ -115,5 +116,5 @@ def build_neighbourhood(x, wr, closed, rest_length, D, with_contact, skin=None, 
         pairs, mask, skin = np.zeros((0, 2), np.int32), np.zeros(0, bool), math.inf
     return Neighbourhood(
         pairs=jnp.asarray(pairs, dtype=jnp.int32), mask=jnp.asarray(mask), x_built=jnp.asarray(x),
-        skin=jnp.asarray(float(skin)), wr_ref=jnp.asarray(float(wr)),
+        skin=jnp.asarray(float(skin), dtype=jnp.float64), wr_ref=jnp.asarray(float(wr), dtype=jnp.float64),
     )

@@ -35,7 +35,7 @@ from .geometry import (
     unit,
     voronoi_lengths,
 )
-from .material import Material
+from .material import Material, strong_leaf
 from .neighbourhood import build_neighbourhood
 from .terms import Bend, Coupling, Stretch, Twist, as_terms
 from .topology import writhe
@@ -69,7 +69,7 @@ def _pytree(data_fields, meta_fields=()):
 
     def wrap(cls):
         def flatten(obj):
-            return [getattr(obj, f) for f in data_fields], tuple(getattr(obj, f) for f in meta_fields)
+            return [strong_leaf(getattr(obj, f)) for f in data_fields], tuple(getattr(obj, f) for f in meta_fields)
 
         def unflatten(aux, children):
             obj = object.__new__(cls)
