@@ -64,6 +64,16 @@ def _bordered(J, b, f=None):
     return z[:n], z[n]
 
 
+def _bordered_pair(J, b, f):
+    """(w, y) of ``_bordered(J, b)`` and ``_bordered(J, b, f)`` from one factorisation of the
+    bordered matrix (both right-hand sides at once)."""
+    n = J.shape[0]
+    M = jnp.block([[J, b[:, None]], [b[None, :], jnp.zeros((1, 1))]])
+    rhs = jnp.stack([jnp.zeros(n + 1).at[n].set(1.0), jnp.append(f, 0.0)], axis=1)
+    z = jnp.linalg.solve(M, rhs)
+    return z[:n, 0], z[:n, 1]
+
+
 def _contracted_gradient(F, u, p, theta, a, c, t):
     """The gradient in (u, p) ((n + 1,)) of a^T (J(u, p) c + t F_p(u, p)), a, c and t held fixed.
 
@@ -264,12 +274,13 @@ def branch_point_root(problem, u, p, v, set_values, theta0, exact_args=None):
     def jacobian(x, theta):
         u, p = x[:-2], x[-2]
         _, J, fp = linear(u, p, theta)
-        w, _ = _bordered(J, v0)
-        y, _ = _bordered(J, v0, fp)
-        sigma_x = -_contracted_gradient(F, u, p, theta, w, w, 0.0)
-        tau_x = _contracted_gradient(F, u, p, theta, w, -y, 1.0)
+        w, y = _bordered_pair(J, v0, fp)
+        # sigma's and tau's gradients in one vmapped pass: the program (and its derivatives, for
+        # second derivatives of phi*) holds the third-derivative contraction once, not twice
+        cw = jax.vmap(lambda c, t: _contracted_gradient(F, u, p, theta, w, c, t))(jnp.stack([w, -y]),
+                                                                                 jnp.array([0.0, 1.0]))
         top = jnp.hstack([J, fp[:, None], v0[:, None]])
-        rows = jnp.stack([sigma_x, tau_x])
+        rows = cw * jnp.array([-1.0, 1.0])[:, None]
         return jnp.vstack([top, jnp.hstack([rows, jnp.zeros((2, 1))])])
 
     be = problem.backend
