@@ -62,21 +62,44 @@ def _scale_vector(xp, length_scale, n_x, n_dof):
 _scale_vector_jit = jax.jit(functools.partial(_scale_vector, jnp), static_argnums=(1, 2))
 
 
+class _Label:
+    """A scene's name as its pytree structure holds it: equal to every other label, so that scenes
+    differing only in their name (the trefoil drawn by ``trefoil`` and by ``knot('3_1')``, the
+    knots of an atlas at one N) reach the same compiled programs. The name is never traced; a jitted
+    function that returned a scene would give it the name of the scene first traced."""
+
+    __slots__ = ("text",)
+
+    def __init__(self, text):
+        self.text = text
+
+    def __eq__(self, other):
+        return isinstance(other, _Label)
+
+    def __hash__(self):
+        return 0
+
+    def __repr__(self):
+        return "name"
+
+
 def _pytree(data_fields, meta_fields=()):
     """Register a frozen dataclass as a JAX pytree: array fields are leaves (so scenes of equal
     shapes share compiled code, and material parameters can be differentiated), the rest is
-    static. Unflattening bypasses __init__ so validation never sees tracers."""
+    static, the field ``name`` as a ``_Label``. Unflattening bypasses __init__ so validation never
+    sees tracers."""
 
     def wrap(cls):
         def flatten(obj):
-            return [strong_leaf(getattr(obj, f)) for f in data_fields], tuple(getattr(obj, f) for f in meta_fields)
+            aux = tuple(_Label(getattr(obj, f)) if f == "name" else getattr(obj, f) for f in meta_fields)
+            return [strong_leaf(getattr(obj, f)) for f in data_fields], aux
 
         def unflatten(aux, children):
             obj = object.__new__(cls)
             for f, v in zip(data_fields, children):
                 object.__setattr__(obj, f, v)
             for f, v in zip(meta_fields, aux):
-                object.__setattr__(obj, f, v)
+                object.__setattr__(obj, f, v.text if isinstance(v, _Label) else v)
             return obj
 
         jax.tree_util.register_pytree_node(cls, flatten, unflatten)
