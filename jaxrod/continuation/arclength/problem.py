@@ -94,10 +94,6 @@ class BifurcationProblem:
         st = np.array([float(sigma), float(np.dot(w, np.asarray(Fp)))])
         return (gu, gp), (st, F, J, Fp, w)
 
-    def energy_at(self, u, p_args):
-        """E(u, p, args) with p_args = (p, args): the form ``jaxrod.solve.solvers.minimise`` takes."""
-        return self.energy(u, p_args[0], p_args[1])
-
     def relax(self, u, p, args, *, gtol, max_step=float("inf")):
         """A minimum of E(., p) from u with ``args``: damped Newton (the structured ``jacobian`` if
         given, steps capped at max_step), the args refreshed by ``update_args`` at the minimum and
@@ -107,11 +103,12 @@ class BifurcationProblem:
         if getattr(self.backend, "host", False):
             solver = HostDampedNewton(direction=self._host_direction, max_step=max_step)
         else:
-            solver = DampedNewton(hessian=self.jacobian_at if self.jacobian is not None else None, max_step=max_step)
+            hessian = in_minimise_form(self.jacobian) if self.jacobian is not None else None
+            solver = DampedNewton(hessian=hessian, max_step=max_step)
         p = jnp.asarray(p, dtype=jnp.float64)
         y = u
         for _ in range(8):
-            sol = minimise(self.energy_at, y, (p, args), solver, gtol=gtol, throw=False)
+            sol = minimise(in_minimise_form(self.energy), y, (p, args), solver, gtol=gtol, throw=False)
             fresh = self.update_args(sol.y, float(p), args) if self.update_args is not None else args
             if fresh is args:
                 break
@@ -125,9 +122,17 @@ class BifurcationProblem:
         _, J, _ = self.linearise(y, p, args)
         return self.backend.damped_step(J, np.asarray(g), mu_prev)
 
-    def jacobian_at(self, u, p_args):
-        """The structured ``jacobian`` hook in ``minimise``'s form (a Hessian of energy_at)."""
-        return self.jacobian(u, p_args[0], p_args[1])
+
+@functools.lru_cache(maxsize=64)
+def in_minimise_form(fn):
+    """``fn(u, p, args)`` as ``jaxrod.solve.solvers.minimise`` takes it, ``fun(u, (p, args))`` (the
+    energy, or its structured ``jacobian`` as the ``hessian`` hook). One wrapper per function: every
+    problem built from the same energy reaches one compiled solver loop, where a bound method of
+    each problem would be a new static argument, traced and compiled again."""
+    def at(u, p_args):
+        return fn(u, p_args[0], p_args[1])
+
+    return at
 
 
 @functools.lru_cache(maxsize=64)
