@@ -99,7 +99,7 @@ def closed_curve(points, *, material, N=None, length=None, Lk0=None, name="close
     if scale is None:
         rest, q0 = np.full(N, length / N), np.concatenate([x.ravel(), theta])
     else:  # the writhe, Lk0 and the holonomy do not depend on the scale
-        rest, q0 = jnp.full(N, length / N), jnp.concatenate([(jnp.asarray(x) * scale).ravel(), jnp.asarray(theta)])
+        rest, q0 = jnp.full(N, length / N, dtype=jnp.float64), jnp.concatenate([(jnp.asarray(x) * scale).ravel(), jnp.asarray(theta)])
     scene = ClosedRod(material=material, rest_lengths=jnp.asarray(rest), q_init=jnp.asarray(q0), Lk0=float(Lk0), name=name)
     if contact_stiffness is None:
         return scene
@@ -345,7 +345,7 @@ def ring(*, N, material, radius=1.0, Lk0=0):
     s = TWO_PI * np.arange(N) / N
     x = xp.stack([r_poly * xp.cos(s), r_poly * xp.sin(s), xp.zeros(N)], axis=1)
     q0 = xp.concatenate([x.ravel(), xp.zeros(N)])
-    return ClosedRod(material=material, rest_lengths=jnp.full(N, edge), q_init=jnp.asarray(q0), Lk0=float(Lk0), name="ring")
+    return ClosedRod(material=material, rest_lengths=jnp.full(N, edge, dtype=jnp.float64), q_init=jnp.asarray(q0), Lk0=float(Lk0), name="ring")
 
 
 def michell_ring(*, N, nu=0.5, slenderness=0.01, radius=1.0):
@@ -428,7 +428,7 @@ def clamped_rod(*, N, length, material, axis=(0.0, 0.0, 1.0)):
     q0 = xp.concatenate([x[2:-2].ravel(), xp.zeros(N - 3)])
     return ClampedRod(
         material=material,
-        rest_lengths=jnp.full(N - 1, edge),
+        rest_lengths=jnp.full(N - 1, edge, dtype=jnp.float64),
         q_init=jnp.asarray(q0),
         x_clamped=jnp.asarray(x[np.array([0, 1, -2, -1])]),
         director_start=jnp.asarray(d0),
@@ -450,4 +450,4 @@ def free_rod(*, N, length, material):
         x = np.zeros((N, 3))
         x[:, 2] = np.arange(N) * edge
         q0 = np.concatenate([x.ravel(), np.zeros(N - 1)])
-    return FreeRod(material=material, rest_lengths=jnp.full(N - 1, edge), q_init=jnp.asarray(q0), name="free rod")
+    return FreeRod(material=material, rest_lengths=jnp.full(N - 1, edge, dtype=jnp.float64), q_init=jnp.asarray(q0), name="free rod")
