@@ -54,13 +54,17 @@ class RootSystem:
     n: int
 
 
+def _bordered_matrix(J, b):
+    """[[J, b], [b^T, 0]] (n + 1, n + 1)."""
+    return jnp.block([[J, b[:, None]], [b[None, :], jnp.zeros((1, 1))]])
+
+
 def _bordered(J, b, f=None):
     """(y (n,), eta) with [[J, b], [b^T, 0]] [y; eta] = [f; g] (dense, traceable): by default f = 0,
     g = 1 (w and sigma); with f given, g = 0."""
     n = J.shape[0]
-    M = jnp.block([[J, b[:, None]], [b[None, :], jnp.zeros((1, 1))]])
     rhs = jnp.zeros(n + 1).at[n].set(1.0) if f is None else jnp.append(f, 0.0)
-    z = jnp.linalg.solve(M, rhs)
+    z = jnp.linalg.solve(_bordered_matrix(J, b), rhs)
     return z[:n], z[n]
 
 
@@ -68,9 +72,8 @@ def _bordered_pair(J, b, f):
     """(w, y) of ``_bordered(J, b)`` and ``_bordered(J, b, f)`` from one factorisation of the
     bordered matrix (both right-hand sides at once)."""
     n = J.shape[0]
-    M = jnp.block([[J, b[:, None]], [b[None, :], jnp.zeros((1, 1))]])
     rhs = jnp.stack([jnp.zeros(n + 1).at[n].set(1.0), jnp.append(f, 0.0)], axis=1)
-    z = jnp.linalg.solve(M, rhs)
+    z = jnp.linalg.solve(_bordered_matrix(J, b), rhs)
     return z[:n, 0], z[:n, 1]
 
 
