@@ -36,24 +36,28 @@ os.environ["XLA_FLAGS"] = " ".join(_flags)
 import jaxrod  # noqa: E402,F401  (float64 before any test builds arrays)
 
 
-# Longest files first (measured 2026-12-04 again, fifth session, with --durations=0: seconds of busy
-# time per file on 2 cores; test_symmetry.py (22 s) and test_event_curve.py (14 s) had come in
-# unlisted, so they ran last), so that the two xdist
-# workers, which take whole files in collection order (``--no-loadscope-reorder`` in pyproject.toml:
-# by default xdist reorders files by their number of tests, which ignored this list), finish
-# together. Files not listed (short ones, or new ones) come after, alphabetically.
-_LONGEST_FIRST = ("test_benchmarks_smoke_a.py", "test_benchmarks_smoke_b.py", "test_notebooks.py", "test_bifurcation_knots.py", "test_resume.py", "test_critical_curve_checks.py",
-                  "test_branch_check.py", "test_atlas.py", "test_atlas_kinds.py", "test_readme.py", "test_sparse_stability.py", "test_notebook_damped_dynamics.py",
-                  "test_symmetry.py", "test_convergence.py", "test_notebook_bifurcation_diagram.py",
-                  "test_newcomer.py", "test_critical_error.py", "test_located_once.py",
-                  "test_docs_blocks.py", "test_traceable.py", "test_extending.py", "test_backends.py",
-                  "test_bifurcation_rods.py", "test_endloads.py", "test_helix_checks.py", "test_interrupt_and_lock.py", "test_energy.py",
-                  "test_event_curve.py", "test_conventions.py", "test_hessian.py", "test_topology.py",
-                  "test_solvers.py", "test_contact.py", "test_cli.py", "test_dynamics.py", "test_stability.py",
-                  "test_sparse_contact.py", "test_compile_ahead.py", "test_knots.py", "test_trefoil_twist.py",
-                  "test_analysis.py", "test_bifurcation_analytic.py", "test_michell.py", "test_properties.py",
-                  "test_clamped_linking.py", "test_aot.py", "test_banded.py", "test_lk0.py",
-                  "test_analyze_study_files.py", "test_plotting.py")
+# Longest files first, measured with --durations=0 (busy seconds per file on 2 cores), so that the
+# two xdist workers, which take whole files in collection order (``--no-loadscope-reorder`` in
+# pyproject.toml: by default xdist reorders files by their number of tests, which ignores this
+# list), finish together: first the files of the smoke and validation tiers (deselected in the fast
+# tier), then those of the fast tier. Files not listed (short ones, new ones) come after,
+# alphabetically.
+_LONGEST_FIRST = ("test_benchmarks_smoke_b.py", "test_benchmarks_smoke_a.py", "test_notebooks.py",
+                  "test_differentiable.py", "test_atlas.py", "test_bifurcation_knots.py", "test_atlas_kinds.py",
+                  "test_branch_check.py", "test_newcomer.py", "test_critical_curve_checks.py", "test_resume.py",
+                  "test_notebook_damped_dynamics.py", "test_notebook_bifurcation_diagram.py",
+                  "test_located_once.py", "test_interrupt_and_lock.py",
+                  "test_shear.py", "test_sparse_stability.py", "test_cli.py", "test_symmetry.py",
+                  "test_bifurcation_rods.py", "test_endloads.py",
+                  "test_conventions.py", "test_convergence.py", "test_solvers.py", "test_extending.py",
+                  "test_trefoil_twist.py", "test_energy.py", "test_backends.py", "test_hessian.py",
+                  "test_critical_error.py", "test_helix_checks.py", "test_event_curve.py", "test_topology.py",
+                  "test_dynamics.py", "test_sparse_contact.py", "test_contact.py", "test_stability.py",
+                  "test_knots.py", "test_analysis.py", "test_readme.py", "test_bifurcation_analytic.py",
+                  "test_michell.py", "test_docs_blocks.py", "test_traceable.py", "test_michell_contact.py",
+                  "test_compile_ahead.py", "test_properties.py", "test_aot.py", "test_banded.py",
+                  "test_structure.py", "test_clamped_linking.py", "test_programs_shared.py", "test_lk0.py",
+                  "test_analyze_study_files.py", "test_plotting.py", "test_open_knot.py")
 
 
 def pytest_collection_modifyitems(session, config, items):

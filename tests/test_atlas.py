@@ -12,6 +12,9 @@ import jaxrod as jr
 from jaxrod.studies import atlas
 from jaxrod.cli import main
 
+# The validation tier (-m validation): sweeps of whole studies, serial and on a Dask cluster.
+pytestmark = pytest.mark.validation
+
 PI = math.pi
 # Four small studies: the trefoil at D/L = 0.025 and 0.03, N = 40, both sides. Each side ends
 # within the span (opening ~ +6.7 pi, tightening ~ -11.5 pi; the paper's rod, D/L = 0.0274:

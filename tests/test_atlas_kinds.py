@@ -13,6 +13,9 @@ import jaxrod as jr
 from jaxrod.measure.chirality import ACHIRAL_TOL
 from jaxrod.studies import atlas
 
+# The validation tier (-m validation): whole studies of the figure-eight and the trefoil.
+pytestmark = pytest.mark.validation
+
 PI = math.pi
 REPO = pathlib.Path(__file__).resolve().parent.parent
 RATIOS, N = [0.02, 0.025], 61  # both sides end near 7.2 pi (a fold at N = 61)

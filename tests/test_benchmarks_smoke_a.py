@@ -8,6 +8,9 @@ import pathlib
 
 import pytest
 
+# Run with -m smoke (pyproject.toml: the tiers).
+pytestmark = pytest.mark.smoke
+
 _PATH = pathlib.Path(__file__).resolve().parent.parent / "benchmarks" / "_smoke.py"
 _spec = importlib.util.spec_from_file_location("benchmarks_smoke", _PATH)
 smoke = importlib.util.module_from_spec(_spec)

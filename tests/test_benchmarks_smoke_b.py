@@ -3,6 +3,9 @@
 import pytest
 from test_benchmarks_smoke_a import check_script, group_scripts, run_group
 
+# Run with -m smoke (pyproject.toml: the tiers).
+pytestmark = pytest.mark.smoke
+
 GROUP = "b"
 
 

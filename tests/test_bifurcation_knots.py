@@ -33,6 +33,9 @@ from jaxrod.studies.diagram import UNSTABLE_PREFIX, DiagramOptions, unstable_bra
 from jaxrod.studies.twist import study_summary, twist_study
 from jaxrod.linalg.stability import sliding_fraction
 
+# The validation tier (-m validation): the paper's trefoil followed through its fold and located to roundoff.
+pytestmark = pytest.mark.validation
+
 PI = math.pi
 ALG = PseudoArclength()
 

@@ -19,6 +19,9 @@ from jaxrod.continuation.branch_check import predicted_crossing
 from jaxrod.solve.equilibrium import EquilibriumOptions, solve_equilibrium
 from jaxrod.model.scenes import trefoil
 
+# The validation tier (-m validation): the tightening side followed at a fine step.
+pytestmark = pytest.mark.validation
+
 EXE = [shutil.which("jaxrod") or os.path.join(os.path.dirname(sys.executable), "jaxrod")]
 NEWTON = EquilibriumOptions(method="newton", gtol=1e-11, near_null_tol=1e-6)
 D, L, N = 7.008, 292.0, 61  # D/L = 0.024

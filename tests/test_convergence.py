@@ -98,6 +98,7 @@ def test_levels_keep_every_node():
         converged_critical_twists(jr.clamped_rod(N=11, length=1.0, material=jr.Material.from_ratio(B=1.0, nu=0.5, D=0.01)), 0.01 * PI)
 
 
+@pytest.mark.validation  # the validation tier (-m validation): a ring converged in N by the accuracy mode
 def test_michell_ring_converged_to_the_accuracy_asked_for():
     # The ring at N = 16, 32, 64 (each level started from the previous one resampled): the
     # extrapolated phi* is within its own error estimate of Michell's value, and that estimate

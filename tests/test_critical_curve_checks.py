@@ -12,6 +12,9 @@ import pytest
 
 import jaxrod.studies.critical_curve as cc
 
+# The validation tier (-m validation): a critical curve of point studies.
+pytestmark = pytest.mark.validation
+
 N = 61
 # 0.0187: the symmetric state at phi = 0 is a saddle of a shape mode (lowest eigenvalue -6.6e-5), so
 # the branch starts at the minimum off the symmetry; 0.0237, a thicker rod, for comparison

@@ -11,6 +11,7 @@ PI = math.pi
 FAST = jr.ContinuationOptions(step=0.5 * PI)  # the crossing is still located to tol: only the scan is coarser
 
 
+@pytest.mark.validation  # the validation tier (-m validation): a ring converged in N
 def test_the_discretisation_error_of_michells_ring_bounds_its_true_error():
     N, nu = 24, 0.5
     ends = jr.critical_twists(jr.michell_ring(N=N, nu=nu), -7 * PI, 7 * PI, FAST, discretisation_error=True)

@@ -118,6 +118,7 @@ def _central(f, x, i, h, order=2):
     return (8.0 * (at(1) - at(-1)) - (at(2) - at(-2))) / (12.0 * h)
 
 
+@pytest.mark.validation  # the validation tier (-m validation): second derivatives compile for ~40 s
 def test_a_knots_end_has_first_and_second_derivatives_from_its_extended_system(guide):
     f, value_and_grad = guide["f"], guide["value_and_grad"]
     assert f.end.kind == jr.EventKind.BRANCH_POINT and f.end.multiplicity == 1
@@ -141,6 +142,7 @@ def test_a_knots_end_has_first_and_second_derivatives_from_its_extended_system(g
                                                                                                                central)
 
 
+@pytest.mark.validation  # the validation tier (-m validation): the guide's knot, relaxed by the fixture above
 def test_an_equilibrium_differentiates_in_the_pinned_gauge(guide):
     knot, q, phi = guide["knot"], guide["q"], 2.0 * PI
     x = np.asarray(q.base)

@@ -31,8 +31,13 @@ def test_every_python_block_is_marked_python():
         assert not {f for f in fences if f.lower() in ("py", "python3", "pycon") or f == "Python"}, page
 
 
-@pytest.mark.parametrize("page", [p for p in PAGES if p not in OWN_TEST
-                                  and python_blocks((DOCS / p).read_text())])
+# The shear guide's examples follow Cosserat rings and knots for ~20 s: the validation tier
+# (-m validation) runs them.
+LONG_PAGES = ("guides/shear.md",)
+
+
+@pytest.mark.parametrize("page", [pytest.param(p, marks=pytest.mark.validation) if p in LONG_PAGES else p
+                                  for p in PAGES if p not in OWN_TEST and python_blocks((DOCS / p).read_text())])
 def test_page_python_blocks_run(page, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     namespace = {"__name__": f"docs_{page}"}

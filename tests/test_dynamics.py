@@ -19,6 +19,7 @@ def ring():
     return scene, cp, start
 
 
+@pytest.mark.validation  # the validation tier (-m validation): two damped-dynamics runs past the onset
 def test_ramped_dynamics_buckles_after_phi_star_and_overshoots_less_when_slower(ring):
     scene, cp, start = ring
     found = []

@@ -15,6 +15,9 @@ from jaxrod.io.locking import LOCK_NAME, FolderInUseError, folder_lock
 
 from test_cli import EXE
 
+# The validation tier (-m validation): real studies in subprocesses, signalled and killed.
+pytestmark = pytest.mark.validation
+
 # Long enough that the run is still going when it is signalled, however fast the machine: small
 # steps (~2400 of them; the test stops the run within seconds of its start, so they cost nothing);
 # N = 61 shares its compiled code with the other CLI tests (one cache per test session).

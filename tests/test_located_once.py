@@ -6,9 +6,14 @@ Command 1 at N = 61 (its D, L and twist range; the N = 121 run takes ~20 s)."""
 import json
 import math
 
+import pytest
+
 import jaxrod.continuation.arclength.events as events
 import jaxrod.studies.diagram as diagram
 from jaxrod.cli import main
+
+# The validation tier (-m validation): command 1 run whole.
+pytestmark = pytest.mark.validation
 
 
 def test_each_end_of_command_1_is_located_exactly_once(tmp_path, monkeypatch):

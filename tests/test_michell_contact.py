@@ -11,6 +11,7 @@ benchmarks/results/bifurcation_michell.md).
 import math
 
 import numpy as np
+import pytest
 from scipy.optimize import brentq
 
 from jaxrod import michell_ring
@@ -49,6 +50,7 @@ def contact_point(rod8, a, b, D, opts):
     return float(z[-1]), z[:-1]
 
 
+@pytest.mark.validation  # the validation tier (-m validation): a buckled branch followed to contact
 def test_thin_ring_branch_point_and_contact_without_hand_set_tolerances():
     scene = michell_ring(N=N, nu=NU, slenderness=SLENDERNESS)
     D = float(scene.material.D)

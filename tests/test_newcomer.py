@@ -14,6 +14,9 @@ import pytest
 
 import jaxrod as jr
 
+# The validation tier (-m validation): the getting-started page's trefoil, relaxed and followed to both ends.
+pytestmark = pytest.mark.validation
+
 PI = math.pi
 PAGE = pathlib.Path(__file__).resolve().parent.parent / "docs" / "getting-started.md"
 for _name in ("equilibrium", "stability", "critical_twists", "follow_twist", "knot", "michell_ring",

@@ -40,6 +40,7 @@ def test_there_are_notebooks_and_each_is_run():
     assert NOTEBOOKS and all((REPO / "notebooks" / name).exists() for name in ELSEWHERE)
 
 
+@pytest.mark.validation  # the validation tier (-m validation): notebooks run top to bottom
 @pytest.mark.parametrize("path", [p for p in NOTEBOOKS if p.name not in ELSEWHERE], ids=lambda p: p.name)
 def test_notebook_runs_and_checks_its_results(path, tmp_path, monkeypatch):
     assert checks_that_ran(run_notebook(path, tmp_path, monkeypatch)) >= 1

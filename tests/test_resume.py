@@ -14,6 +14,7 @@ import sys
 import textwrap
 
 import numpy as np
+import pytest
 import jaxrod as jr
 from jaxrod.studies.twist import twist_study
 
@@ -93,6 +94,7 @@ def _arrays(path):
         return {key: f[key] for key in f.files}
 
 
+@pytest.mark.validation  # the validation tier (-m validation): four studies, three of them killed
 def test_sigkill_at_three_moments_resumes_to_the_uninterrupted_files(tmp_path):
     scene = jr.trefoil(D=8.0, L=292.0, N=41)
     whole = tmp_path / "whole"
