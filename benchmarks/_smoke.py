@@ -64,7 +64,7 @@ SCRIPTS = {
     "plectoneme.py": _entry("b", ["plectoneme.csv", "plectoneme.json", "plectoneme.png"]),
     "redesign_same_answers.py": _entry("a", ["redesign_same_answers.md", "redesign_same_answers.json"]),
     "restabilise_trefoil.py": _entry("a", ["restabilise_trefoil.json", "restabilise_trefoil.md"]),
-    "shear_trefoil.py": _entry("b", ["shear_trefoil.json", "shear_trefoil.md", "shear_trefoil_limit.png"]),
+    "shear_trefoil.py": _entry("a", ["shear_trefoil.json", "shear_trefoil.md", "shear_trefoil_limit.png"]),
     "shear_kirchhoff_limit.py": _entry("b", ["shear_kirchhoff_limit.json", "shear_kirchhoff_limit.md",
                                              "shear_kirchhoff_limit.png"]),
     "sparse_fold.py": _entry("a", ["sparse_fold.json", "sparse_fold.md"]),
