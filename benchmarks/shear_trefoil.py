@@ -62,7 +62,7 @@ STIFFER = pick((1.0, 1e4), (1.0,))  # kGA times this: the rod with shear, and it
 KIRCHHOFF = pick(True, False)  # the Kirchhoff scene's ends beside them
 LIMIT_FACTORS = pick((1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0, 128.0), (8.0,))  # kGA / kGA0 for the limit's rate
 LIMIT = 1e4  # kGA / kGA0 that stands for the Kirchhoff limit
-STEP = pick(0.1, 1.0) * PI  # the first continuation step (the longest is five of them): the small mode takes fewer
+STEP = pick(0.1, 1.0) * PI  # knot_first_end's first continuation step (its longest is five times it): the small mode takes fewer
 # the limit's rate: at N = 91 for the paper's rod (8, 292), where both sides' first ends are the rod's
 # own (at N = 41 and 61 the opening side's is a slide of the coarse nodes); the small mode: N = 41
 LIMIT_N = pick(91, 41) if (D, L) == (8.0, 292.0) else None

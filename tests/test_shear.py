@@ -49,7 +49,7 @@ def test_bad_input_names_the_argument():
         cantilever_tip_deflection(cosserat_rod(N=4, length=L, B=B, C=C, EA=1.0, GA=1.0, support="pinned"), 1.0)
 
 
-@pytest.mark.validation  # the validation tier (-m validation): a limit over five shear stiffnesses
+@pytest.mark.validation  # the validation tier (-m validation): a limit over three shear stiffnesses
 def test_a_rings_critical_twist_tends_to_the_kirchhoff_one_as_one_over_the_shear_stiffness():
     from jaxrod.model.cosserat import cosserat_ring
     from jaxrod.studies.shear import ring_critical_twist
