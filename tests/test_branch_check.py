@@ -126,10 +126,12 @@ def test_a_zero_between_two_stable_states_is_predicted():
     assert found is not None and phi < found.phi < 1.3 * phi_star
 
 
-def test_the_model_block_is_the_hessian_derivative_along_the_branch():
-    """BranchModel.block (a central difference of the exact Hessian along the branch) against the
-    exact third-derivative contractions v_i^T (dH along (du, 1)) v_j by autodiff, on a trefoil
-    with its contact pairs and its slopes near zero."""
+@pytest.mark.parametrize("sparse", [False, True])
+def test_the_model_block_is_the_hessian_derivative_along_the_branch(sparse):
+    """BranchModel.block (a central difference of the exact Hessian along the branch: the dense
+    one, or the sparse one of the O(N) path) against the exact third-derivative contractions
+    v_i^T (dH along (du, 1)) v_j by autodiff, on a trefoil with its contact pairs and its slopes
+    near zero."""
     from dataclasses import replace
 
     from jaxrod import relax_to_minimum
@@ -139,7 +141,7 @@ def test_the_model_block_is_the_hessian_derivative_along_the_branch():
     scene = trefoil(D=8.0, L=292.0, N=41)
     e = relax_to_minimum(scene, 5.0 * math.pi)
     stab, _, _, _, dq = branch_analysis(scene, e.q, e.phi, 0, tol=1e-6, pinv_tol=1e-6, nbr=e.neighbourhood)
-    model = branch_model(scene, replace(e, stability=stab), dq, 1e-6)
+    model = branch_model(scene, replace(e, stability=stab), dq, 1e-6, sparse=sparse)
     u, m = scene.to_scaled(e.q), model.vectors.shape[1]
     exact = np.empty((m, m))
     for i in range(m):

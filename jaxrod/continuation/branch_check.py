@@ -16,6 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..aot import cached_jit
+from ..linalg.sparse_contact import assemble, hessian_parts
 from ..linalg.stability import scene_linearisation
 
 # Modes checked: the lowest few physical eigenpairs (the ones that go soft first).
@@ -80,6 +81,7 @@ class BranchModel:
     du: np.ndarray = field(repr=False)
     eigenvalues: np.ndarray
     vectors: np.ndarray = field(repr=False)
+    sparse: bool = False
 
     @cached_property
     def block(self):
@@ -89,10 +91,19 @@ class BranchModel:
         # the analysis's own compiled program (no other program to compile for this).
         u = self.scene.to_scaled(np.asarray(self.prev.q, dtype=float))
         h = ALONG_STEP / max(1.0, float(np.max(np.abs(self.du))))
-        ends = [np.asarray(scene_linearisation(self.scene, u + s * h * self.du, self.prev.phi + s * h,
-                                               self.prev.neighbourhood)[1]) for s in (1.0, -1.0)]
-        block = self.vectors.T @ ((ends[0] - ends[1]) @ self.vectors) / (2.0 * h)
+        ends = [self._hessian_times_vectors(u + s * h * self.du, self.prev.phi + s * h) for s in (1.0, -1.0)]
+        block = self.vectors.T @ (ends[0] - ends[1]) / (2.0 * h)
         return 0.5 * (block + block.T)
+
+    def _hessian_times_vectors(self, u, phi):
+        """H(u, phi) @ vectors, (n, m): on the sparse path from the O(N) Hessian S + w a a^T of its
+        own factorisations (the dense n x n Hessian is 118 MB at N = 961, and building it took
+        most of a step), else from the dense analysis's Hessian."""
+        nbr = self.prev.neighbourhood
+        if self.sparse:
+            S, w, a = assemble(self.scene, hessian_parts(self.scene, jnp.asarray(u), float(phi), nbr))
+            return S @ self.vectors + w * np.outer(a, a @ self.vectors)
+        return np.asarray(scene_linearisation(self.scene, u, phi, nbr)[1]) @ self.vectors
 
     @cached_property
     def slopes(self):
@@ -138,14 +149,15 @@ class BranchModel:
         return Departure(int(np.argmax(miss)), predicted, measured, tolerance)
 
 
-def branch_model(scene, prev, tangent, floor, modes=CHECKED_MODES):
+def branch_model(scene, prev, tangent, floor, modes=CHECKED_MODES, sparse=False):
     """The ``BranchModel`` of the accepted equilibrium ``prev`` (with its stability; ``tangent``
     dq/dphi there, physical DOFs) over its lowest ``modes`` eigenpairs; floor: as in
-    ``branch_tangent``."""
+    ``branch_tangent``; sparse: the continuation's linear algebra is the O(N) one (its Hessians
+    are then used too)."""
     st = prev.stability
     m = min(modes, len(st.eigenvalues))
     return BranchModel(scene, prev, branch_tangent(scene, prev, tangent, floor, modes),
-                       np.asarray(st.eigenvalues[:m], dtype=float), np.asarray(st.eigenvectors)[:, :m])
+                       np.asarray(st.eigenvalues[:m], dtype=float), np.asarray(st.eigenvectors)[:, :m], sparse)
 
 
 def predicted_crossing(scene, prev, tangent, phi, floor, modes=CHECKED_MODES, keep=None):

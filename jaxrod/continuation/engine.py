@@ -213,7 +213,7 @@ class ContinuationEngine:
         or None where ``check_branch`` is off or prev has no stability."""
         if not self.opts.check_branch or prev.stability is None:
             return None
-        return branch_model(self.scene, prev, tangent, self.opts.negative_tol)
+        return branch_model(self.scene, prev, tangent, self.opts.negative_tol, sparse=self.sparse)
 
     def predicted_crossing(self, prev, tangent, phi):
         """The first of prev's lowest shape modes (slides left out) predicted to cross zero between
