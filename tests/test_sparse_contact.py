@@ -55,6 +55,11 @@ def test_sparse_hessian_equals_the_dense_structured_hessian(knot):
     R, C, V = np.concatenate([rows, r]), np.concatenate([cols, c]), np.concatenate([values, b.ravel()])
     reference = sp.coo_matrix((V, (R, C)), shape=(hs.n, hs.n)).toarray()
     assert np.max(np.abs(hs.S.toarray() - 0.5 * (reference + reference.T))) <= 1e-14 * np.max(np.abs(reference))
+    # on the host, only as many block rows as there are pairs in reach (rounded up): the same blocks
+    host = spc.host_hessian_parts(scene, u, PHI, e.neighbourhood)
+    assert int(host[5]) == int(count) and int(count) <= host[3].shape[0] < blocks.shape[0]
+    assert np.array_equal(host[4][: int(count)], d)
+    assert np.max(np.abs(host[3][: int(count)] - b)) <= 1e-14 * np.max(np.abs(b))
     # node pairs numbered by sorting (many nodes) instead of by the table: the same entries
     table, saved = spc.node_pair_entries(b, d, hs.n), spc.NODE_TABLE_MAX
     try:

@@ -16,7 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..aot import cached_jit
-from ..linalg.sparse_contact import assemble, hessian_parts
+from ..linalg.sparse_contact import assemble, host_hessian_parts
 from ..linalg.stability import scene_linearisation
 
 # Modes checked: the lowest few physical eigenpairs (the ones that go soft first).
@@ -101,7 +101,7 @@ class BranchModel:
         most of a step), else from the dense analysis's Hessian."""
         nbr = self.prev.neighbourhood
         if self.sparse:
-            S, w, a = assemble(self.scene, hessian_parts(self.scene, jnp.asarray(u), float(phi), nbr))
+            S, w, a = assemble(self.scene, host_hessian_parts(self.scene, u, float(phi), nbr))
             return S @ self.vectors + w * np.outer(a, a @ self.vectors)
         return np.asarray(scene_linearisation(self.scene, u, phi, nbr)[1]) @ self.vectors
 

@@ -30,22 +30,22 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spl
 
-from ..model.hessian import contact_blocks, hessian_pattern, local_entries
+from ..model.hessian import contact_blocks, contact_pairs_in_reach, hessian_pattern, local_entries
 from .ldlt import FactorisationError, ldlt, negative_count  # noqa: F401  (re-exported)
 from .sparse import EXTRA_PAIRS, _gauge, gradient_and_phi_derivative
 from ..model.hessian import eigenvalue_branch_derivative
 
-__all__ = ["hessian_parts", "assemble", "node_pair_entries", "NODE_TABLE_MAX", "negative_count", "deflated_newton_direction", "SparseHessian", "sparse_hessian",
+__all__ = ["hessian_parts", "host_hessian_parts", "assemble", "node_pair_entries", "NODE_TABLE_MAX", "negative_count", "deflated_newton_direction", "SparseHessian", "sparse_hessian",
            "count_below", "lowest_eigenpairs", "contact_spectrum", "contact_branch_analysis", "damped_newton_direction",
            "FactorisationError"]
 
 
-@jax.jit
-def _parts(scene, u, phi, nbr):
+@functools.partial(jax.jit, static_argnames="rows")
+def _parts(scene, u, phi, nbr, rows=None):
     pat = hessian_pattern(scene)
     _, _, values, w, a = local_entries(scene, u, phi, nbr, pat)
     if scene.has_term("contact") and nbr.pairs.shape[0] > 0:
-        blocks, dofs, count = contact_blocks(scene, u, nbr, pat)
+        blocks, dofs, count = contact_blocks(scene, u, nbr, pat, rows)
     else:
         blocks, dofs, count = jnp.zeros((0, 12, 12), u.dtype), jnp.zeros((0, 12), jnp.int32), jnp.asarray(0)
     return values, w, a, blocks, dofs, count
@@ -95,11 +95,35 @@ class SparseHessian:
         return (rows_f[:, self.free].tocsc(), rows_f[:, self.pins].toarray(), rows_p[:, self.pins].toarray())
 
 
+@jax.jit
+def _pairs_in_reach(scene, u, nbr):
+    return contact_pairs_in_reach(scene, u, nbr, hessian_pattern(scene))
+
+
+def _block_rows(count):
+    """Rows of contact blocks for ``count`` pairs in reach: the next power of two, at least 256
+    (a few array shapes, so a few compiled programs, along a continuation)."""
+    return max(256, 1 << (max(int(count), 1) - 1).bit_length())
+
+
+def host_hessian_parts(scene, u, phi, nbr):
+    """``hessian_parts`` on the host (numpy), with only as many contact-block rows as there are
+    pairs in reach (rounded up, ``_block_rows``) instead of one per candidate."""
+    u = jnp.asarray(u)
+    rows = None
+    if scene.has_term("contact") and nbr.pairs.shape[0] > 0:
+        rows = _block_rows(_pairs_in_reach(scene, u, nbr))
+    parts = jax.device_get(_parts(scene, u, phi, nbr, None if rows is None or rows >= nbr.pairs.shape[0] else rows))
+    if int(parts[5]) > parts[3].shape[0]:  # more in reach than counted apart (roundoff at the edge)
+        parts = jax.device_get(_parts(scene, u, phi, nbr, None))
+    return parts
+
+
 def sparse_hessian(scene, u, phi, nbr):
     """The scaled Hessian of ``scene.scaled_energy`` at (u (n,), phi) as a ``SparseHessian``:
-    the local part's ~20 n entries and the contact blocks from one jitted call (O(N)), assembled
-    into CSC on the host (duplicates summed)."""
-    parts = jax.device_get(_parts(scene, jnp.asarray(u), phi, nbr))
+    the local part's ~20 n entries and the contact blocks (``host_hessian_parts``, O(N)),
+    assembled into CSC on the host (duplicates summed)."""
+    parts = host_hessian_parts(scene, u, phi, nbr)
     Z, pins = jax.device_get(_zero_basis(scene, jnp.asarray(u), phi))
     S, w, a = assemble(scene, parts)
     return SparseHessian(S=S, w=w, a=a, Z=np.asarray(Z, float), pins=np.asarray(pins, dtype=np.int64))
