@@ -422,17 +422,21 @@ def minimise(fun, y0, args=None, solver=LBFGS(), gtol=1e-9, max_steps=None, thro
 
 @functools.lru_cache(maxsize=64)
 def _host_functions(fun, leave):
-    """Jitted energy, gradient and leave test of one (fun, leave) pair, shared by every run."""
-    return jax.jit(fun), jax.jit(jax.grad(fun)), (jax.jit(leave) if leave is not None else None)
+    """Jitted energy, gradient, both at once and leave test of one (fun, leave) pair, shared by
+    every run."""
+    return (jax.jit(fun), jax.jit(jax.grad(fun)), jax.jit(jax.value_and_grad(fun)),
+            (jax.jit(leave) if leave is not None else None))
 
 
 def _host_damped_newton(fun, solver, y0, args, gtol, max_steps):
     """The loop of ``_damped_newton_loop`` in Python around ``solver.direction``; returns
     (y, value, grad_norm, iterations, code) with the same codes."""
-    f, grad, leave = _host_functions(fun, solver.leave)
+    # The first trial of each step is evaluated with its gradient (accepted, it is the next
+    # iterate: one evaluation instead of two); a backtracked trial is evaluated alone.
+    f, grad, value_and_grad, leave = _host_functions(fun, solver.leave)
     y = np.asarray(y0, dtype=float)
-    fy = float(f(y, args))
-    g = np.asarray(grad(y, args))
+    fy, g = value_and_grad(y, args)
+    fy, g = float(fy), np.asarray(g)
     gnorm = float(np.max(np.abs(g)))
     code = 0 if (np.isfinite(gnorm) and np.isfinite(fy)) else 2
     it, mu_prev = 0, 0.0
@@ -447,16 +451,16 @@ def _host_damped_newton(fun, solver, y0, args, gtol, max_steps):
         if big > solver.max_step:
             dy = dy * (solver.max_step / big)
         slope = float(g @ dy)
-        alpha, f_new = 1.0, float(f(y + dy, args))
-        k = 0
+        f_new, g_new = value_and_grad(y + dy, args)
+        alpha, f_new, k = 1.0, float(f_new), 0
         while k < solver.max_backtracks and not (np.isfinite(f_new) and f_new <= fy + 1e-4 * alpha * slope):
             alpha *= 0.5
-            f_new = float(f(y + alpha * dy, args))
+            f_new, g_new = float(f(y + alpha * dy, args)), None
             k += 1
         accepted = np.isfinite(f_new) and f_new <= fy + 1e-4 * alpha * slope
         if accepted:
             y, fy = y + alpha * dy, f_new
-            g = np.asarray(grad(y, args))
+            g = np.asarray(grad(y, args) if g_new is None else g_new)
             gnorm = float(np.max(np.abs(g)))
         left = bool(leave(y, args)) if leave is not None else False
         code = (4 if (left and gnorm > gtol) else 0) if accepted else 3
