@@ -60,14 +60,11 @@ def test_sparse_hessian_equals_the_dense_structured_hessian(knot):
     assert int(host[5]) == int(count) and int(count) <= host[3].shape[0] < blocks.shape[0]
     assert np.array_equal(host[4][: int(count)], d)
     assert np.max(np.abs(host[3][: int(count)] - b)) <= 1e-14 * np.max(np.abs(b))
-    # node pairs numbered by sorting (many nodes) instead of by the table: the same entries
-    table, saved = spc.node_pair_entries(b, d, hs.n), spc.NODE_TABLE_MAX
-    try:
-        spc.NODE_TABLE_MAX = 0
-        sorted_ = spc.node_pair_entries(b, d, hs.n)
-    finally:
-        spc.NODE_TABLE_MAX = saved
-    assert all(np.array_equal(x, y) for x, y in zip(table, sorted_))
+    # the node pairs' entries summed by node pair: each pair's entries sum to its blocks' (k, l) parts
+    R2, C2, V2 = spc.node_pair_entries(b, d, hs.n)
+    summed_dense = sp.coo_matrix((V2, (R2, C2)), shape=(hs.n, hs.n)).toarray()
+    direct = sp.coo_matrix((b.ravel(), (r, c)), shape=(hs.n, hs.n)).toarray()
+    assert np.max(np.abs(summed_dense - 0.5 * (direct + direct.T))) <= 1e-14 * np.max(np.abs(direct))
 
 
 def test_polyline_distance_is_exact_on_large_rods():

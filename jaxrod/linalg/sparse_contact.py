@@ -35,7 +35,7 @@ from .ldlt import FactorisationError, ldlt, negative_count  # noqa: F401  (re-ex
 from .sparse import EXTRA_PAIRS, _gauge, gradient_and_phi_derivative
 from ..model.hessian import eigenvalue_branch_derivative
 
-__all__ = ["hessian_parts", "host_hessian_parts", "assemble", "node_pair_entries", "NODE_TABLE_MAX", "negative_count", "deflated_newton_direction", "SparseHessian", "sparse_hessian",
+__all__ = ["hessian_parts", "host_hessian_parts", "assemble", "node_pair_entries", "negative_count", "deflated_newton_direction", "SparseHessian", "sparse_hessian",
            "count_below", "lowest_eigenpairs", "contact_spectrum", "contact_branch_analysis", "damped_newton_direction",
            "FactorisationError"]
 
@@ -155,8 +155,8 @@ def node_pair_entries(blocks, dofs, n):
     """COO entries (rows, cols, values) of the contact blocks blocks (P, 12, 12) on dofs (P, 12)
     (DOF n: a clamped node), summed per unordered pair of nodes: each pair {a, b} appears once as
     (a, b) and once as (b, a), each diagonal node block once (symmetrised). Only node blocks
-    (k, l) with node k <= node l are summed (the blocks are exactly symmetric); node pairs are
-    numbered through an (a, b) table up to ``NODE_TABLE_MAX`` nodes, else by ``np.unique``."""
+    (k, l) with node k <= node l are summed (the blocks are exactly symmetric), each of their 9
+    entries by one ``np.bincount`` over the node pairs (numbered by ``np.unique``)."""
     P = blocks.shape[0]
     if P == 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
@@ -164,22 +164,17 @@ def node_pair_entries(blocks, dofs, n):
     node = node_dofs[:, :, 0].astype(np.int64) // 3  # a node by its first DOF (n // 3: clamped)
     free = node_dofs[:, :, 0] < n
     keep = free[:, :, None] & free[:, None, :] & (node[:, :, None] <= node[:, None, :])
-    p, k, l = np.nonzero(keep)  # node blocks (k, l) of pair p, node k <= node l, neither clamped
+    p, kl = np.divmod(np.flatnonzero(keep), 16)  # node blocks (k, l) of pair p, node k <= node l, neither clamped
+    k, l = np.divmod(kl, 4)
     n_nodes = n // 3 + 1
-    keys = node[p, k] * n_nodes + node[p, l]
-    if n_nodes <= NODE_TABLE_MAX:
-        seen = np.zeros(n_nodes * n_nodes, bool)
-        seen[keys] = True
-        pairs = np.flatnonzero(seen)
-        slot = np.empty(n_nodes * n_nodes, np.int64)
-        slot[pairs] = np.arange(pairs.size)
-        inverse = slot[keys]
-    else:
-        pairs, inverse = np.unique(keys, return_inverse=True)
-        inverse = inverse.ravel()
-    blk = blocks.reshape(P, 4, 3, 4, 3).transpose(0, 1, 3, 2, 4)[p, k, l]  # (E, 3, 3): rows of k, columns of l
-    index = (inverse[:, None] * 9 + np.arange(9)).ravel()
-    summed = np.bincount(index, weights=blk.reshape(-1), minlength=9 * pairs.size).reshape(-1, 3, 3)
+    pairs, inverse = np.unique(node[p, k] * n_nodes + node[p, l], return_inverse=True)
+    inverse = inverse.ravel()
+    base = p * 144 + k * 36 + l * 3  # entry (a, b) of node block (k, l) of pair p: blocks.flat[base + 12 a + b]
+    values = blocks.reshape(-1)
+    summed = np.empty((pairs.size, 3, 3))
+    for a in range(3):
+        for b in range(3):
+            summed[:, a, b] = np.bincount(inverse, weights=values[base + (12 * a + b)], minlength=pairs.size)
     first = np.empty(pairs.size, np.int64)
     first[inverse[::-1]] = np.arange(inverse.size)[::-1]  # an entry of each node pair
     rd, cd = node_dofs[p[first], k[first]], node_dofs[p[first], l[first]]  # (U, 3)
@@ -192,11 +187,6 @@ def node_pair_entries(blocks, dofs, n):
     C = np.concatenate([c.ravel(), r[off].ravel()])
     V = np.concatenate([summed.ravel(), summed[off].ravel()])
     return R, C, V
-
-
-# Nodes up to which node_pair_entries numbers node pairs through an (n_nodes, n_nodes) table (9 MB
-# of flags at this size, touched only where pairs are) rather than by sorting.
-NODE_TABLE_MAX = 3000
 
 
 class _Bordered:
