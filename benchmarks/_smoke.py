@@ -56,6 +56,7 @@ SCRIPTS = {
     "helix_reference.py": _entry("b", ["helix_reference.json"]),
     "hysteresis_trefoil.py": _entry("a", ["hysteresis_trefoil.csv", "hysteresis_trefoil.json",
                                           "hysteresis_trefoil.md", "hysteresis_trefoil.png"]),
+    "large_n_sides.py": _entry("a", ["large_n_sides.json", "large_n_sides.md"]),
     "loose_limit.py": _entry("b", ["loose_limit.json", "loose_limit.md", "loose_limit.png"]),
     "michell.py": _entry("b", ["michell.md", "michell.png"]),
     "onset_fine_step.py": _entry("b", ["onset_fine_step.md"]),

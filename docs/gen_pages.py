@@ -445,10 +445,25 @@ def open_knot_table():
             f"{first['eps_range'][1]:.2f}, from `{data['provenance']['command']}`.")
 
 
+def large_n_sides_table():
+    data = _load("large_n_sides.json")
+    if data is None:
+        return _missing("large_n_sides.json")
+    base = data["baseline"]
+    rows = [[r["N"], r["side"], f"{r['baseline']['warm_s']:.1f}", f"{r['current']['warm_s']:.1f}",
+             f"{r['baseline']['warm_s'] / r['current']['warm_s']:.2f}x",
+             "none" if r["current"]["phi_over_pi"] is None else f"{r['current']['phi_over_pi']:+.6f}",
+             "yes" if r["baseline"]["bracket_over_pi"] == r["current"]["bracket_over_pi"] else "no"]
+            for r in data["rows"]]
+    growth = ", ".join(f"{side} N^{e:.2f}" for side, e in data["growth_exponent"].items() if e is not None)
+    return (_table(["N", "side", f"{base} warm (s)", "current warm (s)", "ratio", "end / π", "same bracket"], rows)
+            + f"\n\nGrowth of the current warm time: {growth}; {data['machine']}, from `{data['provenance']['command']}`.")
+
+
 GENERATORS = {"cli": cli_reference, "loose_limit": loose_limit_table, "open_knot": open_knot_table,
               "loose_limit_nu_0_3": lambda: loose_limit_table("loose_limit_nu0.3"), "shear_trefoil": shear_trefoil_table, "shear_trefoil_limit": shear_trefoil_limit_table,
               "shear_trefoil_D4_L280": lambda: shear_trefoil_table("shear_trefoil_D4_L280"),
               "validation": validation_table, "performance": performance_table,
               "speed": speed_table, "sparse_contact": sparse_contact_table, "dynamics": dynamics_table,
-              "peer": peer_table, "per_step": per_step_table,
+              "peer": peer_table, "per_step": per_step_table, "large_n_sides": large_n_sides_table,
               "compile": compile_table}
