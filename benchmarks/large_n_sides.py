@@ -10,7 +10,7 @@ the sparse path and follows the side to its first branch end twice, as
 ContinuationOptions(tol=1e-3 pi, switch=False, linear_algebra="sparse"), start=relaxed)``,
 phi_stop = +7.5 pi or -12 pi): 'first' compiles, 'warm' is the second call in the same process.
 The baseline's ``jaxrod/`` comes from ``git archive``. Writes large_n_sides.md and .json: both
-versions' warm times and their ratio, each version's end (the same bracket is expected), and the
+versions' warm times and their ratio, each version's end (the same bracket to 1e-8 pi is expected), and the
 growth exponent of the current warm time over the node counts given (a least-squares slope of
 log time against log N).
 """
@@ -37,7 +37,7 @@ NODES = pick([241, 481, 961], [61])
 SIDES = pick({"opening": 7.5 * math.pi, "tightening": -12.0 * math.pi}, {"opening": 0.25 * math.pi})
 MARK = "@@SIDE "
 
-def side(N, stop):
+def follow_side(N, stop):
     """One side at N: {first_s, warm_s, points, phi_over_pi, bracket_over_pi} (jaxrod as imported)."""
     import time
 
@@ -59,10 +59,10 @@ def side(N, stop):
 
 
 def run_side(path, N, stop):
-    """``side`` in a fresh process importing jaxrod from ``path`` (in this one in the small mode,
+    """``follow_side`` in a fresh process importing jaxrod from ``path`` (in this one in the small mode,
     where the other small scripts' compiled programs serve)."""
     if SMOKE:
-        return side(N, stop)
+        return follow_side(N, stop)
     res = subprocess.run([sys.executable, __file__, "--child", path, str(N), repr(stop)], capture_output=True, text=True)
     for line in res.stdout.splitlines():
         if line.startswith(MARK):
@@ -79,6 +79,13 @@ def growth_exponent(rows, side):
     return float(np.polyfit(n, t, 1)[0])
 
 
+def same_bracket(a, b, tol=1e-8):
+    """Both versions bracketed the end at the same twists (to ``tol`` pi: roundoff apart)."""
+    if a["bracket_over_pi"] is None or b["bracket_over_pi"] is None:
+        return a["bracket_over_pi"] == b["bracket_over_pi"]
+    return bool(np.max(np.abs(np.subtract(a["bracket_over_pi"], b["bracket_over_pi"]))) <= tol)
+
+
 def table(rows, baseline):
     def end(v):
         return "none" if v["phi_over_pi"] is None else f"{v['phi_over_pi']:+.6f}"
@@ -89,14 +96,14 @@ def table(rows, baseline):
         b, c = r["baseline"], r["current"]
         lines.append(f"| {r['N']} | {r['side']} | {b['warm_s']:.1f} | {c['warm_s']:.1f} | "
                      f"{b['warm_s'] / c['warm_s']:.2f}x | {c['first_s']:.1f} | {end(b)} | {end(c)} | "
-                     f"{b['bracket_over_pi'] == c['bracket_over_pi']} |")
+                     f"{same_bracket(b, c)} |")
     return lines
 
 
 def main():
     if sys.argv[1:2] == ["--child"]:  # a version's process: its jaxrod first on the path
         sys.path.insert(0, sys.argv[2])
-        print(MARK + json.dumps(side(int(sys.argv[3]), float(sys.argv[4]))), flush=True)
+        print(MARK + json.dumps(follow_side(int(sys.argv[3]), float(sys.argv[4]))), flush=True)
         return
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--baseline", default="ed030e8", help="the previous release to compare with (a commit)")
@@ -119,6 +126,8 @@ def main():
                       flush=True)
     machine = f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}"
     exponents = {side: growth_exponent(rows, side) for side in SIDES}
+    for r in rows:
+        r["same_bracket"] = same_bracket(r["baseline"], r["current"])
     with open(os.path.join(out, "large_n_sides.json"), "w") as f:
         json.dump(with_provenance({"baseline": args.baseline, "machine": machine, "rows": rows,
                                    "growth_exponent": exponents}), f, indent=2)

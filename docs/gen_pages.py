@@ -453,7 +453,7 @@ def large_n_sides_table():
     rows = [[r["N"], r["side"], f"{r['baseline']['warm_s']:.1f}", f"{r['current']['warm_s']:.1f}",
              f"{r['baseline']['warm_s'] / r['current']['warm_s']:.2f}x",
              "none" if r["current"]["phi_over_pi"] is None else f"{r['current']['phi_over_pi']:+.6f}",
-             "yes" if r["baseline"]["bracket_over_pi"] == r["current"]["bracket_over_pi"] else "no"]
+             "yes" if r["same_bracket"] else "no"]
             for r in data["rows"]]
     growth = ", ".join(f"{side} N^{e:.2f}" for side, e in data["growth_exponent"].items() if e is not None)
     return (_table(["N", "side", f"{base} warm (s)", "current warm (s)", "ratio", "end / π", "same bracket"], rows)
