@@ -97,8 +97,8 @@ class BranchModel:
 
     def _hessian_times_vectors(self, u, phi):
         """H(u, phi) @ vectors, (n, m): on the sparse path from the O(N) Hessian S + w a a^T of its
-        own factorisations (the dense n x n Hessian is 118 MB at N = 961, and building it took
-        most of a step), else from the dense analysis's Hessian."""
+        own factorisations (O(N); the dense n x n one grows as N^2, 118 MB at N = 961), else from
+        the dense analysis's Hessian."""
         nbr = self.prev.neighbourhood
         if self.sparse:
             S, w, a = assemble(self.scene, host_hessian_parts(self.scene, u, float(phi), nbr))

@@ -230,10 +230,10 @@ def contact_pairs_in_reach(scene, u, nbr, pat):
 def contact_blocks(scene, u, nbr, pat, rows=None):
     """The contact part as blocks for sparse assembly: (blocks (R, 12, 12), dofs (R, 12), count),
     the first ``count`` rows the pairs within reach, the rest zero; dofs: n where a node is clamped.
-    R: every candidate (default), or ``rows`` (static) rounded up to the loop's pass: a list of
-    candidates is sized for the pairs that may come within reach, and filling and moving all of
-    its rows took most of the time at large N. With ``rows``, only the first R pairs in reach are
-    filled: the caller checks count <= R."""
+    R: every candidate (default), or ``rows`` (static) rounded up to the loop's pass: a candidate
+    list holds the pairs that may come within reach, a few times those in reach, and a block per
+    candidate costs that many times the zeroing and copying. With ``rows``, only the first R pairs
+    in reach are filled: the caller checks count <= R."""
     count, n_chunks, chunk, blocks_of, dofs_of = _contact_chunks(scene, u, nbr, pat)
     if rows is not None:
         n_chunks = min(n_chunks, -(-int(rows) // chunk))
