@@ -31,27 +31,21 @@ import numpy as np  # noqa: E402
 
 from _bench import REPO, SMOKE, pick, provenance_line, results_dir, with_provenance  # noqa: E402  (benchmarks/ is on the path)
 from command1 import extract  # noqa: E402
+from sparse_contact import follow_twice  # noqa: E402
 
 NODES = pick([241, 481, 961], [61])
 # the small mode: a quarter turn of the opening side (no end), the current version only
 SIDES = pick({"opening": 7.5 * math.pi, "tightening": -12.0 * math.pi}, {"opening": 0.25 * math.pi})
 MARK = "@@SIDE "
 
+
 def follow_side(N, stop):
     """One side at N: {first_s, warm_s, points, phi_over_pi, bracket_over_pi} (jaxrod as imported)."""
-    import time
-
     import jaxrod as jr
-    from jaxrod.continuation import ContinuationOptions, follow_twist
 
     scene = jr.trefoil(D=8.0, L=292.0, N=N)
     start = jr.relax(scene, 0.0, options=jr.RelaxOptions(linear_algebra="sparse"))
-    opts = ContinuationOptions(tol=1e-3 * math.pi, switch=False, linear_algebra="sparse")
-    times = []
-    for _ in range(2):
-        t = time.perf_counter()
-        path = follow_twist(scene, 0.0, stop, opts, start=start)
-        times.append(time.perf_counter() - t)
+    times, path = follow_twice(scene, start, stop, "sparse")
     end = path.instabilities[0] if path.instabilities else None
     return {"first_s": times[0], "warm_s": times[1], "points": len(path.points),
             "phi_over_pi": end.phi / math.pi if end else None,

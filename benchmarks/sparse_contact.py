@@ -45,22 +45,30 @@ FIELDS = ["N", "n_dof", "engine", "side", "relax_s", "first_s", "warm_s", "phi_o
 SIDES = pick({"opening": 7.5 * math.pi, "tightening": -12.0 * math.pi}, {"opening": 0.25 * math.pi})
 
 
+def follow_twice(scene, start, stop, engine):
+    """((first, warm) seconds, path): one side of ``scene`` from the relaxed ``start`` to phi_stop
+    ``stop`` on the linear algebra ``engine``, twice in a row (jaxrod as imported)."""
+    from jaxrod.continuation import ContinuationOptions, follow_twist
+
+    opts = ContinuationOptions(tol=1e-3 * math.pi, switch=False, linear_algebra=engine)
+    times = []
+    for _ in range(2):
+        t = time.perf_counter()
+        path = follow_twist(scene, 0.0, stop, opts, start=start)
+        times.append(time.perf_counter() - t)
+    return times, path
+
+
 def child(N, engines):
     import jaxrod as jr
-    from jaxrod.continuation import ContinuationOptions, follow_twist
 
     scene = jr.trefoil(D=8.0, L=292.0, N=N)
     for engine in engines:
         t = time.perf_counter()
         start = jr.relax(scene, 0.0, options=jr.RelaxOptions(linear_algebra=engine))
         relax_s = time.perf_counter() - t
-        opts = ContinuationOptions(tol=1e-3 * math.pi, switch=False, linear_algebra=engine)
         for side, stop in SIDES.items():
-            times = []
-            for _ in range(2):
-                t = time.perf_counter()
-                path = follow_twist(scene, 0.0, stop, opts, start=start)
-                times.append(time.perf_counter() - t)
+            times, path = follow_twice(scene, start, stop, engine)
             inst = path.instabilities[0] if path.instabilities else None
             row = {"N": N, "n_dof": int(scene.n_dof), "engine": engine, "side": side, "relax_s": relax_s,
                    "first_s": times[0], "warm_s": times[1],
