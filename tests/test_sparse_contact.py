@@ -67,6 +67,16 @@ def test_sparse_hessian_equals_the_dense_structured_hessian(knot):
     assert np.max(np.abs(summed_dense - 0.5 * (direct + direct.T))) <= 1e-14 * np.max(np.abs(direct))
 
 
+def test_hessian_times_vectors_equals_the_dense_product(knot):
+    """H V formed on the device from the Hessian's parts (no assembly) is the dense H V to roundoff."""
+    scene, _, e, u, _, _ = knot
+    V = np.random.default_rng(3).standard_normal((u.size, 4))
+    dense = np.asarray(scaled_hessian(scene, jnp.asarray(u), PHI, e.neighbourhood)) @ V
+    hv = spc.hessian_times_vectors(scene, u, PHI, e.neighbourhood, V)
+    assert hv.shape == V.shape
+    assert np.max(np.abs(hv - dense)) <= 1e-12 * np.max(np.abs(dense))
+
+
 def test_polyline_distance_is_exact_on_large_rods():
     """The KD-tree path of ``polyline_distance`` (large rods, O(N log N)) gives exactly the
     all-pairs value: the candidate radius d + h/2 keeps every segment that can be nearest."""

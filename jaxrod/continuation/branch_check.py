@@ -16,7 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..aot import cached_jit
-from ..linalg.sparse_contact import assemble, host_hessian_parts
+from ..linalg.sparse_contact import hessian_times_vectors
 from ..linalg.stability import scene_linearisation
 
 # Modes checked: the lowest few physical eigenpairs (the ones that go soft first).
@@ -96,13 +96,12 @@ class BranchModel:
         return 0.5 * (block + block.T)
 
     def _hessian_times_vectors(self, u, phi):
-        """H(u, phi) @ vectors, (n, m): on the sparse path from the O(N) Hessian S + w a a^T of its
-        own factorisations (O(N); the dense n x n one grows as N^2, 118 MB at N = 961), else from
-        the dense analysis's Hessian."""
+        """H(u, phi) @ vectors, (n, m): on the sparse path by products with the O(N) Hessian's
+        parts (the dense n x n one grows as N^2, 118 MB at N = 961), else from the dense analysis's
+        Hessian."""
         nbr = self.prev.neighbourhood
         if self.sparse:
-            S, w, a = assemble(self.scene, host_hessian_parts(self.scene, u, float(phi), nbr))
-            return S @ self.vectors + w * np.outer(a, a @ self.vectors)
+            return hessian_times_vectors(self.scene, u, float(phi), nbr, self.vectors)
         return np.asarray(scene_linearisation(self.scene, u, phi, nbr)[1]) @ self.vectors
 
     @cached_property

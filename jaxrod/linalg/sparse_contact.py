@@ -35,7 +35,7 @@ from .ldlt import FactorisationError, ldlt, negative_count  # noqa: F401  (re-ex
 from .sparse import EXTRA_PAIRS, _gauge, gradient_and_phi_derivative
 from ..model.hessian import eigenvalue_branch_derivative
 
-__all__ = ["hessian_parts", "host_hessian_parts", "assemble", "node_pair_entries", "negative_count", "deflated_newton_direction", "SparseHessian", "sparse_hessian",
+__all__ = ["hessian_parts", "host_hessian_parts", "hessian_times_vectors", "assemble", "node_pair_entries", "negative_count", "deflated_newton_direction", "SparseHessian", "sparse_hessian",
            "count_below", "lowest_eigenpairs", "contact_spectrum", "contact_branch_analysis", "damped_newton_direction",
            "FactorisationError"]
 
@@ -106,17 +106,50 @@ def _block_rows(count):
     return max(256, 1 << (max(int(count), 1) - 1).bit_length())
 
 
+def _contact_rows(scene, u, nbr):
+    """The static ``rows`` of ``_parts`` at u: the pairs in reach rounded up (``_block_rows``), or
+    None (one row per candidate) where that is no fewer."""
+    if not (scene.has_term("contact") and nbr.pairs.shape[0] > 0):
+        return None
+    rows = _block_rows(_pairs_in_reach(scene, u, nbr))
+    return None if rows >= nbr.pairs.shape[0] else rows
+
+
 def host_hessian_parts(scene, u, phi, nbr):
     """``hessian_parts`` on the host (numpy), with only as many contact-block rows as there are
     pairs in reach (rounded up, ``_block_rows``) instead of one per candidate."""
     u = jnp.asarray(u)
-    rows = None
-    if scene.has_term("contact") and nbr.pairs.shape[0] > 0:
-        rows = _block_rows(_pairs_in_reach(scene, u, nbr))
-    parts = jax.device_get(_parts(scene, u, phi, nbr, None if rows is None or rows >= nbr.pairs.shape[0] else rows))
+    parts = jax.device_get(_parts(scene, u, phi, nbr, _contact_rows(scene, u, nbr)))
     if int(parts[5]) > parts[3].shape[0]:  # more in reach than counted apart (roundoff at the edge)
         parts = jax.device_get(_parts(scene, u, phi, nbr, None))
     return parts
+
+
+@functools.partial(jax.jit, static_argnames="rows")
+def _hessian_times(scene, u, phi, nbr, V, rows=None):
+    """(H V (n, m), count): the products with the Hessian's parts on the device, nothing assembled."""
+    values, w, a, blocks, dofs, count = _parts(scene, u, phi, nbr, rows)
+    pat = hessian_pattern(scene)
+    m = V.shape[1]
+    local = 0.5 * (values + values[jnp.asarray(pat.transpose)])  # (H + H^T)/2, as ``assemble``
+    hv = jnp.zeros((pat.n + 1, m), V.dtype).at[jnp.asarray(pat.rows)].add(local[:, None] * V[jnp.asarray(pat.cols)])
+    v_ext = jnp.concatenate([V, jnp.zeros((1, m), V.dtype)])  # DOF n: a clamped node, no row or column
+    pair_products = jnp.einsum("pij,pjm->pim", blocks, v_ext[dofs])  # (R, 12, m); zero past count
+    hv = hv.at[dofs.reshape(-1)].add(pair_products.reshape(-1, m))
+    return hv[: pat.n] + w * jnp.outer(a, a @ V), count
+
+
+def hessian_times_vectors(scene, u, phi, nbr, V):
+    """H V (n, m) for the scaled Hessian H = S + w a a^T at (u (n,), phi) and V (n, m), O(N m):
+    the products formed with the parts on the device (local entries, contact blocks of the pairs
+    in reach), with no sparse matrix assembled or copied to the host. Equal to ``sparse_hessian``'s
+    ``S @ V + w a (a^T V)`` but for the order of summation (roundoff)."""
+    u, V = jnp.asarray(u), jnp.asarray(V, dtype=jnp.float64)
+    rows = _contact_rows(scene, u, nbr)
+    hv, count = _hessian_times(scene, u, phi, nbr, V, rows)
+    if rows is not None and int(count) > rows:  # more in reach than counted apart (roundoff at the edge)
+        hv, _ = _hessian_times(scene, u, phi, nbr, V, None)
+    return np.asarray(hv)
 
 
 def sparse_hessian(scene, u, phi, nbr):
