@@ -30,7 +30,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spl
 
-from ..model.hessian import contact_blocks, contact_pairs_in_reach, hessian_pattern, local_entries
+from ..model.hessian import (contact_blocks, contact_hessian_times, contact_pairs_in_reach, hessian_pattern,
+                             local_entries)
 from .ldlt import FactorisationError, ldlt, negative_count  # noqa: F401  (re-exported)
 from .sparse import EXTRA_PAIRS, _gauge, gradient_and_phi_derivative
 from ..model.hessian import eigenvalue_branch_derivative
@@ -125,31 +126,24 @@ def host_hessian_parts(scene, u, phi, nbr):
     return parts
 
 
-@functools.partial(jax.jit, static_argnames="rows")
-def _hessian_times(scene, u, phi, nbr, V, rows=None):
-    """(H V (n, m), count): the products with the Hessian's parts on the device, nothing assembled."""
-    values, w, a, blocks, dofs, count = _parts(scene, u, phi, nbr, rows)
+@jax.jit
+def _hessian_times(scene, u, phi, nbr, V):
     pat = hessian_pattern(scene)
-    m = V.shape[1]
+    _, _, values, w, a = local_entries(scene, u, phi, nbr, pat)
     local = 0.5 * (values + values[jnp.asarray(pat.transpose)])  # (H + H^T)/2, as ``assemble``
-    hv = jnp.zeros((pat.n + 1, m), V.dtype).at[jnp.asarray(pat.rows)].add(local[:, None] * V[jnp.asarray(pat.cols)])
-    v_ext = jnp.concatenate([V, jnp.zeros((1, m), V.dtype)])  # DOF n: a clamped node, no row or column
-    pair_products = jnp.einsum("pij,pjm->pim", blocks, v_ext[dofs])  # (R, 12, m); zero past count
-    hv = hv.at[dofs.reshape(-1)].add(pair_products.reshape(-1, m))
-    return hv[: pat.n] + w * jnp.outer(a, a @ V), count
+    hv = jnp.zeros((pat.n, V.shape[1]), V.dtype).at[jnp.asarray(pat.rows)].add(local[:, None] * V[jnp.asarray(pat.cols)])
+    if scene.has_term("contact") and nbr.pairs.shape[0] > 0:
+        hv = hv + contact_hessian_times(scene, u, nbr, pat, V)
+    return hv + w * jnp.outer(a, a @ V)
 
 
 def hessian_times_vectors(scene, u, phi, nbr, V):
     """H V (n, m) for the scaled Hessian H = S + w a a^T at (u (n,), phi) and V (n, m), O(N m):
-    the products formed with the parts on the device (local entries, contact blocks of the pairs
-    in reach), with no sparse matrix assembled or copied to the host. Equal to ``sparse_hessian``'s
-    ``S @ V + w a (a^T V)`` but for the order of summation (roundoff)."""
-    u, V = jnp.asarray(u), jnp.asarray(V, dtype=jnp.float64)
-    rows = _contact_rows(scene, u, nbr)
-    hv, count = _hessian_times(scene, u, phi, nbr, V, rows)
-    if rows is not None and int(count) > rows:  # more in reach than counted apart (roundoff at the edge)
-        hv, _ = _hessian_times(scene, u, phi, nbr, V, None)
-    return np.asarray(hv)
+    one program forms the products on the device from the Hessian's parts (local entries, then
+    the contact blocks of the pairs in reach chunk by chunk), with no sparse matrix assembled and
+    nothing but the result copied to the host. Equal to ``sparse_hessian``'s ``S @ V + w a (a^T V)``
+    but for the order of summation (roundoff)."""
+    return np.asarray(_hessian_times(scene, jnp.asarray(u), phi, nbr, jnp.asarray(V, dtype=jnp.float64)))
 
 
 def sparse_hessian(scene, u, phi, nbr):

@@ -27,7 +27,7 @@ from .layout import dof_layout, layout_of
 from .terms import Coupling
 
 __all__ = ["HessianPattern", "hessian_pattern", "pattern_of", "scaled_hessian", "dense_autodiff_hessian",
-           "holonomy_rank_one", "project_out", "contact_blocks", "contact_pairs_in_reach", "local_entries", "eigenvalue_branch_derivative"]
+           "holonomy_rank_one", "project_out", "contact_blocks", "contact_hessian_times", "contact_pairs_in_reach", "local_entries", "eigenvalue_branch_derivative"]
 
 
 @dataclass(frozen=True)
@@ -220,6 +220,26 @@ def _add_contact_hessian(h, scene, u, nbr, pat):
         return k + 1, hh.at[rows.ravel(), cols.ravel()].add(blocks.ravel(), mode="drop")
 
     return jax.lax.while_loop(more, add_chunk, (0, h))[1]
+
+
+def contact_hessian_times(scene, u, nbr, pat, V):
+    """The contact part times V (n, m) -> (n, m), chunk by chunk over the pairs within reach (no
+    block array kept, no count needed beforehand); clamped DOFs dropped."""
+    count, _, chunk, blocks_of, dofs_of = _contact_chunks(scene, u, nbr, pat)
+    m = V.shape[1]
+    v_ext = jnp.concatenate([V, jnp.zeros((1, m), V.dtype)])  # DOF n: a clamped node
+
+    def more(c):
+        return c[0] * chunk < count
+
+    def add_chunk(c):
+        k, hv = c
+        dof = dofs_of(k)
+        products = jnp.einsum("pij,pjm->pim", blocks_of(k), v_ext[dof])  # (chunk, 12, m)
+        return k + 1, hv.at[dof.reshape(-1)].add(products.reshape(-1, m))
+
+    hv = jax.lax.while_loop(more, add_chunk, (0, jnp.zeros((pat.n + 1, m), V.dtype)))[1]
+    return hv[: pat.n]
 
 
 def contact_pairs_in_reach(scene, u, nbr, pat):
