@@ -126,6 +126,13 @@ def accuracy_lines(rows, plt):
                 ax.annotate(str(n), (t, e), fontsize=7, xytext=(3, 3), textcoords="offset points")
                 table.append(f"| {n} | {side} | {engine} | {t:.1f} | {v:+.6f} | {abs(v - ext.value):.1e} |")
     ax.set_xlabel("warm time to the branch end (s)")
+    # plain seconds on the time axis: it spans little more than a decade, where matplotlib would
+    # label the minor ticks in powers of ten, over one another
+    from matplotlib.ticker import NullFormatter, ScalarFormatter
+
+    ax.xaxis.set_major_formatter(ScalarFormatter())
+    ax.xaxis.set_minor_formatter(NullFormatter())
+    ax.set_xticks([1, 2, 5, 10, 20, 50, 100])
     ax.set_ylabel("|phi*(N) - phi_inf| / pi")
     ax.set_title("Trefoil (8, 292): accuracy against time")
     ax.legend(fontsize=8)
