@@ -132,9 +132,7 @@ def _hessian_times(scene, u, phi, nbr, V):
     _, _, values, w, a = local_entries(scene, u, phi, nbr, pat)
     local = 0.5 * (values + values[jnp.asarray(pat.transpose)])  # (H + H^T)/2, as ``assemble``
     hv = jnp.zeros((pat.n, V.shape[1]), V.dtype).at[jnp.asarray(pat.rows)].add(local[:, None] * V[jnp.asarray(pat.cols)])
-    if scene.has_term("contact") and nbr.pairs.shape[0] > 0:
-        hv = hv + contact_hessian_times(scene, u, nbr, pat, V)
-    return hv + w * jnp.outer(a, a @ V)
+    return hv + contact_hessian_times(scene, u, nbr, pat, V) + w * jnp.outer(a, a @ V)
 
 
 def hessian_times_vectors(scene, u, phi, nbr, V):

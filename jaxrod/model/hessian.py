@@ -223,10 +223,13 @@ def _add_contact_hessian(h, scene, u, nbr, pat):
 
 
 def contact_hessian_times(scene, u, nbr, pat, V):
-    """The contact part times V (n, m) -> (n, m), chunk by chunk over the pairs within reach (no
-    block array kept, no count needed beforehand); clamped DOFs dropped."""
-    count, _, chunk, blocks_of, dofs_of = _contact_chunks(scene, u, nbr, pat)
+    """The pair-coupled terms' part (contact) times V (n, m) -> (n, m), chunk by chunk over the
+    pairs within reach (no block array kept, no count needed beforehand); clamped DOFs dropped.
+    Zero for a scene without such terms or candidate pairs."""
     m = V.shape[1]
+    if not (_pair_terms(scene) and nbr.pairs.shape[0] > 0):
+        return jnp.zeros((pat.n, m), V.dtype)
+    count, _, chunk, blocks_of, dofs_of = _contact_chunks(scene, u, nbr, pat)
     v_ext = jnp.concatenate([V, jnp.zeros((1, m), V.dtype)])  # DOF n: a clamped node
 
     def more(c):
